@@ -1,0 +1,107 @@
+"""The in-process event bus: producers never wait, slow consumers lose their oldest items.
+
+A touch pipeline must not stall because a headset on bad Wi-Fi reads slowly,
+so :meth:`EventBus.publish` is synchronous and O(subscribers): each
+subscriber has its own bounded queue, and when it is full the oldest item is
+dropped and counted. All methods must be called on the event loop's thread
+(services that compute in worker threads publish after awaiting the result).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections import deque
+from collections.abc import Iterable
+from typing import Any, Generic, TypeVar
+
+T = TypeVar("T")
+
+
+class Subscription(Generic[T]):
+    """One consumer's bounded view of the bus."""
+
+    def __init__(self, bus: "EventBus", types: tuple[type, ...] | None, maxsize: int) -> None:
+        if maxsize < 1:
+            raise ValueError("maxsize must be at least 1")
+        self._bus = bus
+        self._types = types
+        self._items: deque[Any] = deque(maxlen=maxsize)
+        self._ready = asyncio.Event()
+        self.dropped = 0
+        self.delivered = 0
+
+    def wants(self, item: object) -> bool:
+        return self._types is None or isinstance(item, self._types)
+
+    def _offer(self, item: Any) -> None:
+        if len(self._items) == self._items.maxlen:
+            self.dropped += 1  # deque(maxlen) discards the oldest on append
+        self._items.append(item)
+        self._ready.set()
+
+    def get_nowait(self) -> T | None:
+        """The oldest waiting item, or ``None``."""
+        if not self._items:
+            self._ready.clear()
+            return None
+        self.delivered += 1
+        return self._items.popleft()
+
+    async def get(self, timeout: float | None = None) -> T | None:
+        """Wait for the next item; ``None`` on timeout."""
+        while not self._items:
+            self._ready.clear()
+            try:
+                await asyncio.wait_for(self._ready.wait(), timeout)
+            except asyncio.TimeoutError:
+                return None
+        return self.get_nowait()
+
+    def drain(self) -> list[T]:
+        """Everything waiting, oldest first."""
+        items = list(self._items)
+        self._items.clear()
+        self._ready.clear()
+        self.delivered += len(items)
+        return items
+
+    def close(self) -> None:
+        self._bus._unsubscribe(self)
+
+    def __enter__(self) -> "Subscription[T]":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class EventBus:
+    """Typed fan-out of events (``TouchEvent``, ``PresenceEvent``, ...) to subscribers."""
+
+    def __init__(self) -> None:
+        self._subscriptions: list[Subscription[Any]] = []
+        self.published = 0
+
+    def subscribe(self, types: Iterable[type] | None = None, maxsize: int = 256) -> Subscription[Any]:
+        """A new subscription to events of ``types`` (all events when ``None``)."""
+        sub: Subscription[Any] = Subscription(self, tuple(types) if types is not None else None, maxsize)
+        self._subscriptions.append(sub)
+        return sub
+
+    def _unsubscribe(self, sub: Subscription[Any]) -> None:
+        if sub in self._subscriptions:
+            self._subscriptions.remove(sub)
+
+    def publish(self, item: object) -> None:
+        """Deliver ``item`` to every interested subscriber without waiting."""
+        self.published += 1
+        for sub in self._subscriptions:
+            if sub.wants(item):
+                sub._offer(item)
+
+    def health(self) -> dict[str, Any]:
+        return {
+            "published": self.published,
+            "subscribers": len(self._subscriptions),
+            "dropped": sum(s.dropped for s in self._subscriptions),
+        }

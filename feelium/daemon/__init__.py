@@ -1,0 +1,1 @@
+"""The daemon: supervised services in one asyncio process."""

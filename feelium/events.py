@@ -1,0 +1,114 @@
+"""The event objects that flow from the sensing cores to the bus, the headset and the projector.
+
+Their JSON form is fixed by ``shared/specs/evaluation.md`` (touch) and is what
+`feelium replay` prints, what the HTTP API delivers and what `feelium eval`
+scores, so there is exactly one definition of each here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any, Literal
+
+TouchPhase = Literal["down", "move", "up"]
+TouchKind = Literal["tap", "hold", "swipe"]
+PresencePhase = Literal["approach", "update", "leave"]
+
+
+def _rounded(value: float, digits: int) -> float | None:
+    """JSON has no NaN: a non-finite measurement is reported as null."""
+    if value is None or not math.isfinite(value):
+        return None
+    return round(float(value), digits)
+
+
+@dataclass(frozen=True)
+class TouchEvent:
+    """One phase of one contact on the membrane.
+
+    ``t`` is on the camera clock; ``x``/``y`` are camera pixels at the
+    recording's full resolution; ``u``/``v`` run 0..1 across the ROI.
+    """
+
+    id: int
+    phase: TouchPhase
+    kind: TouchKind | None
+    t: float
+    x: float
+    y: float
+    u: float
+    v: float
+    depth: float
+    area: int
+    anchor: float
+    extra: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    def to_json(self) -> dict[str, Any]:
+        """The spec's JSON object; ``extra`` keys (e.g. projector coordinates) are merged in."""
+        obj: dict[str, Any] = {
+            "id": self.id,
+            "phase": self.phase,
+            "kind": self.kind,
+            "t": _rounded(self.t, 4),
+            "x": _rounded(self.x, 1),
+            "y": _rounded(self.y, 1),
+            "u": _rounded(self.u, 3),
+            "v": _rounded(self.v, 3),
+            "depth": _rounded(self.depth, 3),
+            "area": int(self.area),
+            "anchor": _rounded(self.anchor, 3),
+        }
+        obj.update(self.extra)
+        return obj
+
+    @classmethod
+    def from_json(cls, obj: dict[str, Any]) -> "TouchEvent":
+        known = {"id", "phase", "kind", "t", "x", "y", "u", "v", "depth", "area", "anchor"}
+        extra = {k: v for k, v in obj.items() if k not in known}
+        nan = float("nan")
+        return cls(
+            id=int(obj["id"]),
+            phase=obj["phase"],
+            kind=obj.get("kind"),
+            t=float(obj["t"]),
+            x=float(obj["x"] if obj.get("x") is not None else nan),
+            y=float(obj["y"] if obj.get("y") is not None else nan),
+            u=float(obj["u"] if obj.get("u") is not None else nan),
+            v=float(obj["v"] if obj.get("v") is not None else nan),
+            depth=float(obj["depth"] if obj.get("depth") is not None else nan),
+            area=int(obj.get("area", 0)),
+            anchor=float(obj["anchor"] if obj.get("anchor") is not None else nan),
+            extra=extra,
+        )
+
+
+@dataclass(frozen=True)
+class PresenceEvent:
+    """A warm body near the blimp, seen by the thermal camera (never a touch decision).
+
+    ``x``/``y`` are the cluster's centroid in sensor pixels (32x24, row 0 at
+    the top); ``azimuth_deg``/``elevation_deg`` are bearings through the
+    lens's field of view, positive to the right and up.
+    """
+
+    phase: PresencePhase
+    t: float
+    x: float
+    y: float
+    azimuth_deg: float
+    elevation_deg: float
+    size: int
+    peak_rise_c: float
+
+    def to_json(self) -> dict[str, Any]:
+        obj = asdict(self)
+        for key in ("t", "x", "y", "azimuth_deg", "elevation_deg", "peak_rise_c"):
+            obj[key] = _rounded(obj[key], 3)
+        return obj
+
+
+def event_type_name(event: object) -> str:
+    """The ``type`` tag an event carries on the wire (``touch``, ``presence``, ...)."""
+    name = type(event).__name__
+    return name[: -len("Event")].lower() if name.endswith("Event") else name.lower()

@@ -1,0 +1,1 @@
+"""Four-motor closed-loop flight: MSP link, controller, blimp simulator."""

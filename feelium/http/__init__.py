@@ -1,0 +1,1 @@
+"""The headset link: the aiohttp API and the browser client."""

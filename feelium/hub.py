@@ -1,0 +1,87 @@
+"""What the services share inside one daemon: the bus, the newest frames, state and commands.
+
+Services never call each other; they meet here. Everything is newest-wins
+or bounded, so a slow reader can only miss data, never hold a writer up.
+All methods run on the event loop's thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
+
+from feelium.bus import EventBus
+from feelium.motion import DeadManCommands
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class Stamped(Generic[T]):
+    """A payload with its sequence number and capture time."""
+
+    seq: int
+    t: float
+    value: T
+
+
+class Latest(Generic[T]):
+    """A newest-wins slot (a video frame, a JPEG, the wearer's face) that readers can await."""
+
+    def __init__(self) -> None:
+        self._item: Stamped[T] | None = None
+        self._changed = asyncio.Event()
+        self.published = 0
+
+    def publish(self, t: float, value: T) -> Stamped[T]:
+        self.published += 1
+        self._item = Stamped(self.published, t, value)
+        self._changed.set()
+        self._changed = asyncio.Event()
+        return self._item
+
+    def get(self) -> Stamped[T] | None:
+        return self._item
+
+    async def next_after(self, seq: int, timeout: float | None = None) -> Stamped[T] | None:
+        """The newest item with a sequence number above ``seq``; ``None`` on timeout."""
+        item = self._item
+        if item is not None and item.seq > seq:
+            return item
+        changed = self._changed
+        try:
+            await asyncio.wait_for(changed.wait(), timeout)
+        except asyncio.TimeoutError:
+            return None
+        return self._item
+
+
+class StateBoard:
+    """Named pieces of live state (touch, presence, altitude, battery...) each service owns one of."""
+
+    def __init__(self) -> None:
+        self._parts: dict[str, dict[str, Any]] = {}
+
+    def update(self, part: str, **values: Any) -> None:
+        self._parts.setdefault(part, {}).update(values)
+
+    def snapshot(self) -> dict[str, dict[str, Any]]:
+        return {name: dict(values) for name, values in self._parts.items()}
+
+
+@dataclass
+class Hub:
+    """The meeting point of one daemon's services."""
+
+    bus: EventBus = field(default_factory=EventBus)
+    front_video: Latest[Any] = field(default_factory=Latest)  # BGR ndarray frames from the fisheye
+    rear_video: Latest[Any] = field(default_factory=Latest)  # gray/BGR debug frames with the touch overlay
+    projector_video: Latest[Any] = field(default_factory=Latest)  # what the projector shows
+    face: Latest[Any] = field(default_factory=Latest)  # the wearer's face or avatar from the headset
+    motion: DeadManCommands = field(default_factory=DeadManCommands)
+    state: StateBoard = field(default_factory=StateBoard)
+    clock: Callable[[], float] = time.monotonic
+    health: Callable[[], dict[str, Any]] = dict  # replaced by the supervisor with its report

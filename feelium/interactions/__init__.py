@@ -1,0 +1,1 @@
+"""The paper's two-party touch vocabulary: touch events in, answers out."""

@@ -1,0 +1,1 @@
+"""What the skin shows: renderer, calibration, interaction engine."""

@@ -1,0 +1,1 @@
+"""Scene simulator: what the blimp's sensors would see, with ground truth."""

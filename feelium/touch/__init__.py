@@ -1,0 +1,1 @@
+"""Rear-camera shadow pipeline: reference, depth, gates, fingertip, tracker."""
