@@ -108,6 +108,50 @@ class PresenceEvent:
         return obj
 
 
+WearerActionName = Literal["heart", "palm_raise", "palm_lower", "shimmer", "guess"]
+
+
+@dataclass(frozen=True)
+class WearerAction:
+    """Something the wearer did in the headset that the interaction engine answers.
+
+    ``heart`` (the pinch that sends a heart back), ``palm_raise``/``palm_lower``,
+    ``shimmer`` (invite the partner's hand) and ``guess`` (``detail["word"]``).
+    """
+
+    action: WearerActionName
+    t: float
+    detail: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"action": self.action, "t": _rounded(self.t, 4), **self.detail}
+
+
+@dataclass(frozen=True)
+class InteractionEvent:
+    """An exchange the interaction engine recognised, for the wearer's view.
+
+    ``name`` is the exchange (``greeting_pat``, ``palm_to_palm``, ``peck``,
+    ``drawing``, ``hug``, ``invite``); ``phase`` its step (e.g. ``start``,
+    ``stroke``, ``ignite``, ``end``); ``x``/``y`` camera pixels when located.
+    """
+
+    name: str
+    phase: str
+    t: float
+    x: float | None = None
+    y: float | None = None
+    region: str | None = None
+    detail: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        obj = asdict(self)
+        obj["t"] = _rounded(self.t, 4)
+        obj.pop("detail")
+        obj.update(self.detail)
+        return obj
+
+
 def event_type_name(event: object) -> str:
     """The ``type`` tag an event carries on the wire (``touch``, ``presence``, ...)."""
     name = type(event).__name__

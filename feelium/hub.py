@@ -83,5 +83,6 @@ class Hub:
     face: Latest[Any] = field(default_factory=Latest)  # the wearer's face or avatar from the headset
     motion: DeadManCommands = field(default_factory=DeadManCommands)
     state: StateBoard = field(default_factory=StateBoard)
+    rear_scene: Any = None  # the simulator's live scene in sim mode (``feelium.sim.live.LiveRearScene``), else None
     clock: Callable[[], float] = time.monotonic
     health: Callable[[], dict[str, Any]] = dict  # replaced by the supervisor with its report
