@@ -303,6 +303,8 @@ def _frame_count(video: Path) -> int:
 
 
 def _as_pixel_format(frame: np.ndarray, gray: bool) -> np.ndarray:
+    if frame.ndim == 3 and frame.shape[2] == 4:
+        frame = frame[:, :, :3]  # FFV1 stores BGR as bgr0; the padding byte carries nothing
     if gray:
         if frame.ndim == 2:
             return frame

@@ -1,0 +1,105 @@
+"""The bus never stalls a producer; newest-wins slots; the dead man lapses."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from feelium.bus import EventBus
+from feelium.events import PresenceEvent, TouchEvent
+from feelium.hub import Latest, StateBoard
+from feelium.motion import DeadManCommands
+
+
+def _touch(i: int) -> TouchEvent:
+    return TouchEvent(i, "down", None, i * 0.1, 1.0, 2.0, 0.1, 0.2, 0.5, 10, 0.4)
+
+
+async def test_slow_subscriber_drops_oldest_and_counts():
+    bus = EventBus()
+    slow = bus.subscribe(maxsize=3)
+    fast = bus.subscribe(maxsize=100)
+    for i in range(10):
+        bus.publish(_touch(i))
+    assert [e.id for e in slow.drain()] == [7, 8, 9]
+    assert slow.dropped == 7
+    assert len(fast.drain()) == 10 and fast.dropped == 0
+    assert bus.health()["dropped"] == 7
+
+
+async def test_typed_subscription_and_wakeup():
+    bus = EventBus()
+    presence_only = bus.subscribe([PresenceEvent])
+    waiter = asyncio.create_task(presence_only.get(timeout=1.0))
+    await asyncio.sleep(0)
+    bus.publish(_touch(1))
+    bus.publish(PresenceEvent("approach", 1.0, 3, 4, 1.0, 2.0, 5, 3.0))
+    got = await waiter
+    assert isinstance(got, PresenceEvent)
+    assert await presence_only.get(timeout=0.01) is None
+    presence_only.close()
+    assert bus.health()["subscribers"] == 0
+
+
+async def test_latest_wakes_readers_with_newest_only():
+    slot: Latest[int] = Latest()
+    assert await slot.next_after(0, timeout=0.01) is None
+    reader = asyncio.create_task(slot.next_after(0, timeout=1.0))
+    await asyncio.sleep(0)
+    slot.publish(0.1, 1)
+    slot.publish(0.2, 2)
+    first = await reader
+    assert first is not None and first.seq >= 1
+    newest = await slot.next_after(first.seq - 1, timeout=0.01)
+    assert newest is not None and newest.value == 2 and newest.seq == 2
+
+
+def test_state_board_snapshot_is_a_copy():
+    board = StateBoard()
+    board.update("flight", altitude_m=1.2)
+    snap = board.snapshot()
+    snap["flight"]["altitude_m"] = 0
+    assert board.snapshot()["flight"]["altitude_m"] == 1.2
+
+
+def test_dead_man_lapses_and_stop_clears():
+    dm = DeadManCommands()
+    dm.command("forward", now=10.0, hold_s=0.5)
+    assert dm.active(10.4).name == "forward"
+    assert dm.active(10.5) is None and dm.expired == 1
+    dm.command("up", now=11.0)
+    dm.command("stop", now=11.1)
+    assert dm.active(11.2) is None
+
+
+@pytest.mark.parametrize("hold", [0.0, -1.0, 10.0, math.nan, math.inf])
+def test_dead_man_rejects_bad_hold(hold):
+    with pytest.raises(ValueError, match="hold"):
+        DeadManCommands().command("up", now=0.0, hold_s=hold)
+
+
+def test_dead_man_rejects_unknown_motion():
+    with pytest.raises(ValueError, match="unknown motion 'fly'"):
+        DeadManCommands().command("fly", now=0.0)
+
+
+@given(st.lists(st.tuples(st.sampled_from(["forward", "up", "stop"]), st.floats(0.01, 2.0)), max_size=30))
+def test_dead_man_never_outlives_its_hold(commands):
+    dm = DeadManCommands()
+    now = 0.0
+    for name, hold in commands:
+        dm.command(name, now=now, hold_s=hold)
+        assert dm.active(now + hold) is None
+        now += hold + 0.01
+
+
+def test_touch_event_json_matches_spec_keys_and_nan_is_null():
+    obj = _touch(7).to_json()
+    assert list(obj) == ["id", "phase", "kind", "t", "x", "y", "u", "v", "depth", "area", "anchor"]
+    bad = TouchEvent(1, "up", "tap", 0.0, math.nan, 0, 0, 0, math.inf, 0, 0).to_json()
+    assert bad["x"] is None and bad["depth"] is None
+    assert TouchEvent.from_json({**obj, "recording": "s1/a"}).extra == {"recording": "s1/a"}

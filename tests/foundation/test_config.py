@@ -1,0 +1,88 @@
+"""The config loader: every mistake names the file and the key; the documented file is the defaults."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from feelium.cli import main
+from feelium.config import Config, load_config, parse_config, render_config
+from feelium.settings import ConfigError
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def test_defaults_round_trip_through_rendered_toml():
+    assert parse_config(render_config(Config())) == Config()
+
+
+def test_committed_config_file_documents_exactly_the_defaults():
+    committed = (REPO / "config" / "feelium.toml").read_text(encoding="utf-8")
+    assert committed == render_config(Config()), "regenerate: feelium config show --defaults > config/feelium.toml"
+
+
+def test_every_setting_is_documented():
+    import dataclasses
+
+    def walk(cls, prefix):
+        for f in dataclasses.fields(cls):
+            if dataclasses.is_dataclass(f.type) or (f.default_factory is not dataclasses.MISSING):
+                yield from walk(type(getattr(cls(), f.name)), f"{prefix}{f.name}.")
+            else:
+                yield prefix + f.name, f.metadata.get("doc", "")
+
+    undocumented = [key for key, doc in walk(Config, "") if not doc]
+    assert undocumented == []
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "fragment"),
+    [
+        ("[touch]\nwidth = 'wide'\n", "touch.width", "expected an integer"),
+        ("[touch]\nwidht = 640\n", "touch.widht", "unknown key"),
+        ("[http]\nport = 70000\n", "http.port", "out of range"),
+        ("[nonsense]\nx = 1\n", "nonsense", "unknown key"),
+        ("[daemon]\nlog_level = 'loud'\n", "daemon.log_level", "expected one of"),
+        ("touch = 3\n", "touch", "expected a table"),
+        ("[touch\n", "(syntax)", ""),
+    ],
+)
+def test_errors_name_file_and_key(tmp_path, text, key, fragment):
+    path = tmp_path / "bad.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert info.value.key == key
+    assert str(path) in str(info.value)
+    assert fragment in info.value.message
+
+
+def test_missing_file_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_config(tmp_path / "absent.toml")
+
+
+def test_bool_is_not_an_integer():
+    with pytest.raises(ConfigError, match="expected an integer"):
+        parse_config("[touch]\nwidth = true\n", "x.toml")
+
+
+def test_config_check_command_exit_codes(tmp_path, capsys):
+    good = tmp_path / "good.toml"
+    good.write_text("[http]\nport = 9000\n", encoding="utf-8")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[http]\nport = -1\n", encoding="utf-8")
+    assert main(["config", "check", str(good)]) == 0
+    assert main(["config", "check", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert "http.port" in err and str(bad) in err
+
+
+def test_config_show_prints_effective_values(tmp_path, capsys):
+    path = tmp_path / "c.toml"
+    path.write_text("[http]\nport = 9000\n", encoding="utf-8")
+    assert main(["config", "show", "--config", str(path)]) == 0
+    shown = capsys.readouterr().out
+    assert "port = 9000" in shown
+    assert parse_config(shown).http.port == 9000

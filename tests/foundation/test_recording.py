@@ -1,0 +1,139 @@
+"""Recording format v1: the writer is atomic and the reader rejects malformed recordings clearly."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from feelium.recording import (
+    Contact,
+    Labels,
+    Recording,
+    RecordingError,
+    RecordingWriter,
+    ThermalData,
+    find_recordings,
+)
+
+
+def _write(path, n=6, **kwargs):
+    rng = np.random.default_rng(3)
+    frames = [rng.integers(0, 256, (48, 64), dtype=np.uint8) for _ in range(n)]
+    with RecordingWriter(path, name=path.name, width=64, height=48, fps=15.0, roi=(8, 4, 40, 32), **kwargs) as w:
+        for i, f in enumerate(frames):
+            w.add_frame(i / 15.0, f)
+        w.set_labels(Labels("tap", False, (20.0, 20.0), (Contact(0.1, 0.3, np.array([[0.1, 20, 20], [0.3, 22, 21]])),)))
+    return frames
+
+
+def test_round_trip_is_lossless(tmp_path):
+    frames = _write(tmp_path / "r")
+    rec = Recording(tmp_path / "r")
+    assert len(rec) == len(frames)
+    assert rec.meta.roi == (8, 4, 40, 32)
+    got = list(rec.frames())
+    assert all(np.array_equal(f, g) for f, (_, g) in zip(frames, got))
+    assert [t for t, _ in got] == pytest.approx([i / 15.0 for i in range(len(frames))], abs=1e-6)
+    assert rec.labels is not None and rec.labels.label == "tap"
+    assert rec.labels.contacts[0].position_at(0.2) == pytest.approx((21.0, 20.5))
+
+
+def test_bgr_frames_decode_to_gray_or_colour(tmp_path):
+    with RecordingWriter(tmp_path / "c", name="c", width=32, height=24, fps=10, pixel_format="bgr8") as w:
+        w.add_frame(0.0, np.full((24, 32, 3), (10, 200, 30), np.uint8))
+    rec = Recording(tmp_path / "c")
+    (_, colour), = list(rec.frames(gray=False))
+    (_, gray), = list(rec.frames(gray=True))
+    assert colour.shape == (24, 32, 3) and gray.shape == (24, 32)
+    assert tuple(colour[0, 0]) == (10, 200, 30)
+
+
+def test_crash_inside_writer_leaves_nothing(tmp_path):
+    with pytest.raises(RuntimeError):
+        with RecordingWriter(tmp_path / "x", name="x", width=32, height=24, fps=10) as w:
+            w.add_frame(0.0, np.zeros((24, 32), np.uint8))
+            raise RuntimeError("power cut")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_writer_rejects_backwards_time_and_wrong_size(tmp_path):
+    with RecordingWriter(tmp_path / "w", name="w", width=32, height=24, fps=10) as w:
+        w.add_frame(1.0, np.zeros((24, 32), np.uint8))
+        with pytest.raises(ValueError, match="backwards"):
+            w.add_frame(0.5, np.zeros((24, 32), np.uint8))
+        with pytest.raises(ValueError, match="frame is"):
+            w.add_frame(2.0, np.zeros((10, 10), np.uint8))
+
+
+def test_timestamp_count_mismatch_is_named(tmp_path):
+    _write(tmp_path / "r")
+    ts = tmp_path / "r" / "camera_ts.txt"
+    ts.write_text(ts.read_text() + "9.0\n")
+    with pytest.raises(RecordingError, match="7 timestamps but camera.mkv has 6 frames"):
+        Recording(tmp_path / "r")
+
+
+def test_backwards_timestamps_are_named(tmp_path):
+    _write(tmp_path / "r")
+    ts = tmp_path / "r" / "camera_ts.txt"
+    lines = ts.read_text().splitlines()
+    lines[3] = "0.0"
+    ts.write_text("\n".join(lines) + "\n")
+    with pytest.raises(RecordingError, match="line 4: time goes backwards"):
+        Recording(tmp_path / "r")
+
+
+@pytest.mark.parametrize(
+    ("patch", "message"),
+    [
+        ({"version": 2}, "unknown version 2"),
+        ({"format": "other"}, "format must be"),
+        ({"roi": [0, 0, 999, 10]}, "does not fit"),
+        ({"camera": {"width": 64}}, "camera: missing or bad field"),
+    ],
+)
+def test_bad_meta_is_named(tmp_path, patch, message):
+    _write(tmp_path / "r")
+    meta_path = tmp_path / "r" / "meta.json"
+    meta = json.loads(meta_path.read_text())
+    meta.update(patch)
+    meta_path.write_text(json.dumps(meta))
+    with pytest.raises(RecordingError, match=message) as info:
+        Recording(tmp_path / "r")
+    assert "meta.json" in str(info.value)
+
+
+def test_missing_video_and_bad_labels(tmp_path):
+    _write(tmp_path / "r")
+    (tmp_path / "r" / "labels.json").write_text(json.dumps({"label": "poke", "contacts": []}))
+    with pytest.raises(RecordingError, match="label 'poke'"):
+        Recording(tmp_path / "r")
+    (tmp_path / "r" / "camera.mkv").unlink()
+    with pytest.raises(RecordingError, match="camera.mkv: missing file"):
+        Recording(tmp_path / "r")
+
+
+def test_unknown_meta_keys_are_ignored(tmp_path):
+    _write(tmp_path / "r", extra_meta={"generator": {"seed": 5}})
+    assert Recording(tmp_path / "r").meta.raw["generator"] == {"seed": 5}
+
+
+def test_thermal_round_trip_and_dataset_discovery(tmp_path):
+    with RecordingWriter(tmp_path / "set" / "a", name="a", width=32, height=24, fps=10) as w:
+        w.add_frame(0.0, np.zeros((24, 32), np.uint8))
+        celsius = np.full((2, 24, 32), 22.5, np.float32)
+        celsius[1, 3, 4] = np.nan
+        w.set_thermal(ThermalData(t=np.array([0.0, 0.125]), celsius=celsius), fps=8.0)
+    _write(tmp_path / "set" / "b" / "nested")
+    found = find_recordings(tmp_path / "set")
+    assert [p.name for p in found] == ["a", "nested"]
+    thermal = Recording(found[0]).thermal()
+    assert thermal is not None and np.isnan(thermal.celsius[1, 3, 4])
+    assert Recording(found[0]).meta.thermal == {"width": 32, "height": 24, "fps": 8.0}
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(RecordingError, match="holds no recording"):
+        find_recordings(tmp_path / "empty")
+    with pytest.raises(RecordingError, match="no such file"):
+        find_recordings(tmp_path / "absent")
