@@ -1,0 +1,202 @@
+"""MultiWii Serial Protocol framing: encoders and an incremental parser that never gives up.
+
+The serial line to the motor board carries bytes, not frames: a reconnect,
+a brown-out or electrical noise can leave half a frame, garbage, a wrong
+checksum or a length byte that promises more data than any frame holds. The
+parser keeps a small buffer, looks for a ``$`` that starts a plausible
+header, and on any failure drops exactly one byte and looks again, so a good
+frame right after a bad one is never lost. Every kind of failure is counted;
+none raises.
+
+Frames we send are MSP v2 (``$X``, CRC8 DVB-S2 over flag, command, size and
+payload); replies in v1 (``$M``, XOR checksum) are understood too, because
+small flight controllers answer old commands that way.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from typing import Literal
+
+Direction = Literal["<", ">", "!"]  # request, reply, error reply
+V1_HEADER = b"$M"
+V2_HEADER = b"$X"
+V1_JUMBO = 255
+DEFAULT_MAX_PAYLOAD = 256  # our largest frame is 16 bytes; a bigger length is noise
+
+
+def crc8_dvb_s2(data: bytes | bytearray, crc: int = 0) -> int:
+    """CRC8 with polynomial 0xD5 (DVB-S2), as MSP v2 specifies."""
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0xD5) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+    return crc
+
+
+def xor_checksum(data: bytes | bytearray) -> int:
+    """The MSP v1 checksum: XOR of size, command and payload bytes."""
+    crc = 0
+    for byte in data:
+        crc ^= byte
+    return crc
+
+
+@dataclass(frozen=True)
+class MspFrame:
+    """One decoded frame: version 1 or 2, direction, command, payload."""
+
+    version: int
+    direction: Direction
+    command: int
+    payload: bytes = b""
+    flags: int = 0
+
+    @property
+    def is_error(self) -> bool:
+        return self.direction == "!"
+
+
+def encode_v2(command: int, payload: bytes = b"", direction: Direction = "<", flags: int = 0) -> bytes:
+    """An MSP v2 frame (``$X``) for ``command`` (0..65535)."""
+    if not 0 <= command <= 0xFFFF:
+        raise ValueError(f"MSP v2 command must be 0..65535, got {command}")
+    if len(payload) > 0xFFFF:
+        raise ValueError(f"MSP v2 payload must be at most 65535 bytes, got {len(payload)}")
+    body = struct.pack("<BHH", flags & 0xFF, command, len(payload)) + bytes(payload)
+    return V2_HEADER + direction.encode() + body + bytes([crc8_dvb_s2(body)])
+
+
+def encode_v1(command: int, payload: bytes = b"", direction: Direction = "<") -> bytes:
+    """An MSP v1 frame (``$M``) for ``command`` (0..254, payload under 255 bytes)."""
+    if not 0 <= command <= 254:
+        raise ValueError(f"MSP v1 command must be 0..254, got {command}")
+    if len(payload) >= V1_JUMBO:
+        raise ValueError(f"MSP v1 payload must be under 255 bytes, got {len(payload)}")
+    body = bytes([len(payload), command]) + bytes(payload)
+    return V1_HEADER + direction.encode() + body + bytes([xor_checksum(body)])
+
+
+@dataclass
+class ParserCounters:
+    """What the parser saw besides good frames; exported in health()."""
+
+    frames: int = 0
+    error_replies: int = 0
+    garbage_bytes: int = 0
+    bad_checksums: int = 0
+    oversized: int = 0
+    truncated: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class MspParser:
+    """Feed it bytes in any chunking; it returns the complete frames found so far."""
+
+    max_payload: int = DEFAULT_MAX_PAYLOAD
+    counters: ParserCounters = field(default_factory=ParserCounters)
+    _buffer: bytearray = field(default_factory=bytearray)
+
+    def feed(self, data: bytes | bytearray) -> list[MspFrame]:
+        """Append ``data`` and return every frame now complete, oldest first."""
+        self._buffer.extend(data)
+        frames: list[MspFrame] = []
+        while True:
+            outcome = self._next()
+            if outcome is None:
+                break
+            frames.append(outcome)
+        return frames
+
+    def pending(self) -> int:
+        """Bytes held waiting for the rest of a frame."""
+        return len(self._buffer)
+
+    def abandon(self) -> None:
+        """Drop a partial frame that stopped arriving (called after a read timeout)."""
+        if self._buffer:
+            if self._buffer[:1] == b"$":
+                self.counters.truncated += 1
+            else:
+                self.counters.garbage_bytes += len(self._buffer)
+            self._buffer.clear()
+
+    def _skip(self, count: int = 1) -> None:
+        del self._buffer[:count]
+
+    def _next(self) -> MspFrame | None:
+        buf = self._buffer
+        while buf:
+            start = buf.find(b"$")
+            if start < 0:
+                self.counters.garbage_bytes += len(buf)
+                buf.clear()
+                return None
+            if start:
+                self.counters.garbage_bytes += start
+                self._skip(start)
+            if len(buf) < 3:
+                return None
+            kind, direction = buf[1:2], buf[2:3]
+            if kind not in (b"M", b"X") or direction not in (b"<", b">", b"!"):
+                self.counters.garbage_bytes += 1
+                self._skip()
+                continue
+            parsed = self._parse_v1() if kind == b"M" else self._parse_v2()
+            if parsed == "wait":
+                return None
+            if parsed == "bad":
+                self._skip()
+                continue
+            assert isinstance(parsed, MspFrame)
+            self.counters.frames += 1
+            if parsed.is_error:
+                self.counters.error_replies += 1
+            return parsed
+        return None
+
+    def _parse_v1(self) -> MspFrame | str:
+        buf = self._buffer
+        if len(buf) < 5:
+            return "wait"
+        size, command = buf[3], buf[4]
+        header = 5
+        if size == V1_JUMBO:
+            if len(buf) < 7:
+                return "wait"
+            size = buf[5] | (buf[6] << 8)
+            header = 7
+        if size > self.max_payload:
+            self.counters.oversized += 1
+            return "bad"
+        end = header + size
+        if len(buf) < end + 1:
+            return "wait"
+        if xor_checksum(buf[3:end]) != buf[end]:
+            self.counters.bad_checksums += 1
+            return "bad"
+        frame = MspFrame(1, chr(buf[2]), command, bytes(buf[header:end]))  # type: ignore[arg-type]
+        self._skip(end + 1)
+        return frame
+
+    def _parse_v2(self) -> MspFrame | str:
+        buf = self._buffer
+        if len(buf) < 8:
+            return "wait"
+        flags, command, size = struct.unpack_from("<BHH", buf, 3)
+        if size > self.max_payload:
+            self.counters.oversized += 1
+            return "bad"
+        end = 8 + size
+        if len(buf) < end + 1:
+            return "wait"
+        if crc8_dvb_s2(buf[3:end]) != buf[end]:
+            self.counters.bad_checksums += 1
+            return "bad"
+        frame = MspFrame(2, chr(buf[2]), command, bytes(buf[8:end]), flags)  # type: ignore[arg-type]
+        self._skip(end + 1)
+        return frame
