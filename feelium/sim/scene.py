@@ -1,0 +1,117 @@
+"""What the rear camera sees: back-light x membrane x shadow, through the sensor.
+
+    value = clip(round(gain(t) * exposure(t) * B(x, y, t) * T(x, y) * S(x, y, t) + noise), 0, 255)
+
+``B`` is the session's back-light (times laser banding and, when the projector
+helper supplies one, a projected image's factor), ``T`` the membrane, ``S`` the
+shadow of whatever is outside (hands, a body) and ``exposure`` a script's own
+exposure change (auto-exposure hunting in an empty scene). The renderer is
+pure: camera time and scene state in, an 8-bit frame out; its only state is the
+RNG that draws the noise.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from feelium.sim.camera import SensorParams, expose, gain_at
+from feelium.sim.hand import Blob, HandPose, hand_parts
+from feelium.sim.optics import OpticsParams, backlight, laser_banding, membrane_transmission
+from feelium.sim.shadow import Ellipse, Part, ShadowParams, render_shadow
+
+WIDTH, HEIGHT = 640, 480
+ROI = (64, 48, 512, 384)
+
+Projected = Callable[[float], "np.ndarray | None"]
+
+
+@dataclass(frozen=True)
+class Session:
+    """Conditions shared by every recording of one session: projector, membrane, room and camera."""
+
+    name: str
+    optics: OpticsParams = field(default_factory=OpticsParams)
+    shadow: ShadowParams = field(default_factory=ShadowParams)
+    sensor: SensorParams = field(default_factory=SensorParams)
+    membrane_seed: int = 0  # the membrane texture is the same physical skin in every session
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "optics": self.optics.to_json(),
+            "shadow": vars(self.shadow).copy(),
+            "sensor": self.sensor.to_json(),
+            "membrane_seed": self.membrane_seed,
+        }
+
+
+@dataclass(frozen=True)
+class SceneState:
+    """Everything outside the membrane at one instant."""
+
+    hands: tuple[HandPose, ...] = ()
+    blobs: tuple[Blob, ...] = ()
+    room: float = 1.0  # outside light level relative to the session's (1 = as calibrated)
+    exposure: float = 1.0  # extra exposure factor (auto-exposure hunting), 1 = none
+
+
+class SceneRenderer:
+    """Renders camera frames of one session's scene; ``projected`` is the projector helper's hook."""
+
+    def __init__(
+        self,
+        session: Session,
+        rng: np.random.Generator,
+        *,
+        width: int = WIDTH,
+        height: int = HEIGHT,
+        roi: tuple[int, int, int, int] = ROI,
+        projected: Projected | None = None,
+        gain_phase: float | None = None,
+    ) -> None:
+        self.session = session
+        self.width, self.height, self.roi = width, height, roi
+        self._rng = rng
+        self._projected = projected
+        self.backlight = backlight(session.optics, width, height, roi)
+        self.membrane = membrane_transmission(
+            session.optics, width, height, roi, np.random.default_rng(session.membrane_seed)
+        )
+        self._lit = (self.backlight * self.membrane).astype(np.float32)
+        self._gain_phase = float(rng.uniform(0, 2 * np.pi)) if gain_phase is None else gain_phase
+
+    def parts(self, state: SceneState) -> tuple[list[Part], list[Ellipse]]:
+        parts: list[Part] = []
+        contacts: list[Ellipse] = []
+        for hand in state.hands:
+            p, c = hand_parts(hand, self.session.shadow.px_per_mm)
+            parts += p
+            contacts += c
+        for blob in state.blobs:
+            parts += blob.parts()
+        return parts, contacts
+
+    def signal(self, t: float, state: SceneState) -> np.ndarray:
+        """The noiseless signal in DN (H, W) float32 at camera time ``t``."""
+        s = self.session
+        gain = gain_at(s.sensor, t, self._gain_phase) * state.exposure
+        image = self._lit * laser_banding(s.optics, self.height, t)
+        if self._projected is not None:
+            factor = self._projected(t)
+            if factor is not None:
+                if factor.shape != (self.height, self.width):
+                    raise ValueError(f"projected factor is {factor.shape}, camera is {(self.height, self.width)}")
+                image = image * factor.astype(np.float32, copy=False)
+        parts, contacts = self.parts(state)
+        if parts or contacts or state.room != 1.0:
+            shadow = render_shadow(parts, contacts, s.shadow, self.width, self.height)
+            image = image * shadow.transmission(s.shadow, state.room)
+        return image * np.float32(gain)
+
+    def frame(self, t: float, state: SceneState) -> np.ndarray:
+        """One 8-bit camera frame (H, W) uint8 at camera time ``t``."""
+        return expose(self.signal(t, state), self.session.sensor, self._rng)
