@@ -1,0 +1,189 @@
+"""The Raspberry Pi cameras through picamera2 (libcamera): the rear IMX500 and the front fisheye.
+
+picamera2 exists only on the blimp (Raspberry Pi OS), so it is imported here,
+lazily, and nowhere else; tests pass a stand-in module. The rear camera's
+exposure, gain and white balance run automatically for a settling period and
+are then locked, because the touch pipeline's adaptive reference assumes a
+fixed exposure: an auto-exposure step would look like a shadow.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import logging
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from feelium.cameras.base import CameraUnavailable, ClosableReader, Frame, Roi
+
+log = logging.getLogger(__name__)
+
+INSTALL_HINT = (
+    "picamera2 is not installed: on Raspberry Pi OS run `sudo apt install python3-picamera2` "
+    "(pip-only setups: `pip install 'feelium[pi]'` with libcamera present); the user needs the 'video' group"
+)
+AFTER_LOCK_S = 0.3  # frames still exposed with the old automatic values right after locking are skipped
+
+
+def load_picamera2() -> ModuleType:
+    """Import picamera2 or raise :class:`CameraUnavailable` saying what to install."""
+    try:
+        return importlib.import_module("picamera2")
+    except ImportError as exc:
+        raise CameraUnavailable(INSTALL_HINT) from exc
+
+
+def camera_count(module: ModuleType | None = None) -> int:
+    """How many cameras libcamera sees; 0 without picamera2 (cheap on a laptop: nothing is imported)."""
+    if module is None:
+        if importlib.util.find_spec("picamera2") is None:
+            return 0
+        try:
+            module = importlib.import_module("picamera2")
+        except Exception:  # a broken libcamera install counts as no camera: auto falls back to sim
+            return 0
+    try:
+        return len(module.Picamera2.global_camera_info())
+    except Exception:
+        return 0
+
+
+def _open(module: ModuleType, index: int) -> Any:
+    found = camera_count(module)
+    if index >= found:
+        raise CameraUnavailable(
+            f"no camera {index} found by libcamera (it sees {found}): check the ribbon cable, "
+            "`rpicam-hello --list-cameras`, and that the user is in the 'video' group"
+        )
+    try:
+        return module.Picamera2(camera_num=index)
+    except PermissionError as exc:
+        raise CameraUnavailable(f"camera {index}: permission denied; add the user to the 'video' group") from exc
+    except RuntimeError as exc:
+        raise CameraUnavailable(f"camera {index} cannot be opened ({exc}); is another process using it?") from exc
+
+
+class Picamera2RearCamera:
+    """Gray frames from the luma plane of a low-resolution YUV stream, stamped with SensorTimestamp."""
+
+    name = "picamera2"
+    realtime = True
+
+    def __init__(
+        self,
+        *,
+        index: int,
+        width: int,
+        height: int,
+        fps: float,
+        settle_s: float,
+        roi: Roi | None,
+        module: ModuleType | None = None,
+    ) -> None:
+        module = module if module is not None else load_picamera2()
+        self.size = (width, height)
+        self.roi = roi
+        self._settle_s = settle_s
+        self._camera = _open(module, index)
+        main = (min(2 * width, 2028), min(2 * height, 1520))
+        config = self._camera.create_video_configuration(
+            main={"size": main, "format": "YUV420"},
+            lores={"size": (width, height), "format": "YUV420"},
+            controls={"FrameRate": float(fps), "AeEnable": True, "AwbEnable": True},
+            buffer_count=4,
+        )
+        self._camera.configure(config)
+        self._camera.start()
+        self._first_ns: int | None = None
+        self._locked_at: float | None = None
+        self.locked_controls: dict[str, Any] | None = None
+        self._guard = ClosableReader()
+
+    def _lock_exposure(self, metadata: dict[str, Any], t: float) -> None:
+        controls: dict[str, Any] = {"AeEnable": False, "AwbEnable": False}
+        for key in ("ExposureTime", "AnalogueGain", "ColourGains"):
+            if key in metadata:
+                controls[key] = metadata[key]
+        self._camera.set_controls(controls)
+        self.locked_controls = controls
+        self._locked_at = t
+        log.info("rear camera exposure locked after %.1f s: %s", t, controls)
+
+    def read(self) -> Frame | None:
+        with self._guard:
+            if self._guard.closed:
+                return None
+            while True:
+                request = self._camera.capture_request()
+                try:
+                    metadata = request.get_metadata()
+                    yuv = request.make_array("lores")
+                finally:
+                    request.release()
+                stamp = int(metadata["SensorTimestamp"])
+                if self._first_ns is None:
+                    self._first_ns = stamp
+                t = (stamp - self._first_ns) / 1e9
+                if self._locked_at is None:
+                    if t >= self._settle_s:
+                        self._lock_exposure(metadata, t)
+                    continue
+                if t < self._locked_at + AFTER_LOCK_S:
+                    continue
+                width, height = self.size
+                luma = np.ascontiguousarray(yuv[:height, :width])  # Y plane of I420; rows may be padded to a stride
+                return Frame(t=t, image=luma, roi=self.roi)
+
+    def close(self) -> None:
+        def release() -> None:
+            try:
+                self._camera.stop()
+            finally:
+                self._camera.close()
+
+        self._guard.close(release)
+
+
+class Picamera2FrontCamera:
+    """BGR frames of the fisheye camera (picamera2's "RGB888" is BGR in memory, as OpenCV wants)."""
+
+    name = "picamera2"
+    realtime = True
+
+    def __init__(self, *, index: int, width: int, height: int, fps: float, module: ModuleType | None = None) -> None:
+        module = module if module is not None else load_picamera2()
+        self._camera = _open(module, index)
+        config = self._camera.create_video_configuration(
+            main={"size": (width, height), "format": "RGB888"}, controls={"FrameRate": float(fps)}, buffer_count=3
+        )
+        self._camera.configure(config)
+        self._camera.start()
+        self._first_ns: int | None = None
+        self._guard = ClosableReader()
+
+    def read(self) -> Frame | None:
+        with self._guard:
+            if self._guard.closed:
+                return None
+            request = self._camera.capture_request()
+            try:
+                metadata = request.get_metadata()
+                image = request.make_array("main")
+            finally:
+                request.release()
+            stamp = int(metadata["SensorTimestamp"])
+            if self._first_ns is None:
+                self._first_ns = stamp
+            return Frame(t=(stamp - self._first_ns) / 1e9, image=np.ascontiguousarray(image[:, :, :3]))
+
+    def close(self) -> None:
+        def release() -> None:
+            try:
+                self._camera.stop()
+            finally:
+                self._camera.close()
+
+        self._guard.close(release)

@@ -1,0 +1,86 @@
+"""Moving frames from a blocking camera thread to the event loop: newest wins, nothing queues without bound."""
+
+from __future__ import annotations
+
+import asyncio
+from collections import deque
+
+from feelium.cameras.base import Camera, Frame
+
+
+class RateMeter:
+    """Frames per second over the last ``window`` timestamps (time is an input)."""
+
+    def __init__(self, window: int = 30) -> None:
+        self._times: deque[float] = deque(maxlen=window)
+
+    def tick(self, t: float) -> None:
+        self._times.append(t)
+
+    def rate(self) -> float:
+        if len(self._times) < 2 or self._times[-1] <= self._times[0]:
+            return 0.0
+        return (len(self._times) - 1) / (self._times[-1] - self._times[0])
+
+
+class FrameSlot:
+    """A one-frame hand-over: a new frame replaces one the consumer has not taken yet (counted as dropped).
+
+    Lossless mode makes the producer wait instead, for sources that deliver
+    on demand (a replay as fast as possible), so every frame is processed.
+    All methods run on the event loop's thread.
+    """
+
+    def __init__(self) -> None:
+        self._frame: Frame | None = None
+        self._ended = False
+        self._filled = asyncio.Event()
+        self._emptied = asyncio.Event()
+        self._emptied.set()
+        self.dropped = 0
+
+    def put(self, frame: Frame) -> None:
+        if self._frame is not None:
+            self.dropped += 1
+        self._frame = frame
+        self._emptied.clear()
+        self._filled.set()
+
+    async def put_waiting(self, frame: Frame) -> None:
+        await self._emptied.wait()
+        self.put(frame)
+
+    def end(self) -> None:
+        """The source has ended: the consumer gets ``None`` once it has taken what is left."""
+        self._ended = True
+        self._filled.set()
+
+    async def take(self) -> Frame | None:
+        while self._frame is None:
+            if self._ended:
+                return None
+            self._filled.clear()
+            await self._filled.wait()
+        frame, self._frame = self._frame, None
+        self._emptied.set()
+        return frame
+
+
+async def pump(camera: Camera, slot: FrameSlot) -> None:
+    """Read frames in a worker thread and hand them over until the camera ends (raises what the camera raises)."""
+    try:
+        while True:
+            frame = await asyncio.to_thread(camera.read)
+            if frame is None:
+                return
+            if camera.realtime:
+                slot.put(frame)
+            else:
+                await slot.put_waiting(frame)
+    finally:
+        slot.end()
+
+
+async def close_camera(camera: Camera) -> None:
+    """Close in a worker thread: backends wait for an in-flight read, which must not block the loop."""
+    await asyncio.to_thread(camera.close)

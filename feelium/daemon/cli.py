@@ -1,0 +1,39 @@
+"""``feelium run`` and ``feelium bench daemon``."""
+
+from __future__ import annotations
+
+import argparse
+
+from feelium.cli import CommandRegistry
+
+
+def register(registry: CommandRegistry) -> None:
+    run = registry.command("run", "Run the blimp: every service, supervised (simulated when there is no hardware).", _run)
+    run.add_argument("--config", help="TOML config file (default: built-in defaults)")
+    source = run.add_mutually_exclusive_group()
+    source.add_argument("--sim", action="store_true", help="run every part on its simulator, whatever the hardware")
+    source.add_argument("--replay", metavar="PATH", help="rear camera replays this recording or dataset; the rest simulated")
+    run.add_argument("-v", "--verbose", action="count", default=0, help="debug logging (overrides [daemon] log_level)")
+
+    bench = registry.subcommand(
+        "bench", "daemon", "Run the daemon in sim mode and measure memory, CPU per frame and dropped frames.", _bench
+    )
+    bench.add_argument("--seconds", type=float, default=60.0, help="how long the daemon runs (default 60)")
+    bench.add_argument("--config", help="TOML config file (the sim backends are forced)")
+    bench.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from feelium.config import load_config
+    from feelium.daemon.journal import effective_level, setup_logging
+    from feelium.daemon.runner import run_process, with_overrides
+
+    config = with_overrides(load_config(args.config), sim=args.sim, replay=args.replay)
+    setup_logging(effective_level(config.daemon.log_level, args.verbose))
+    return run_process(config)
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from feelium.daemon.bench import bench_daemon_command
+
+    return bench_daemon_command(args)

@@ -1,0 +1,168 @@
+"""``feelium run``: build the services, supervise them, talk to systemd, stop cleanly on a signal."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, get_args, get_type_hints
+
+from feelium.config import Config
+from feelium.daemon.discovery import build_all
+from feelium.daemon.sdnotify import Notifier
+from feelium.daemon.supervisor import Supervisor
+from feelium.hub import Hub
+
+log = logging.getLogger(__name__)
+
+SIM_BACKENDS = ("sim", "emulator", "fake", "null")  # what each section calls its no-hardware backend
+WORKER_THREADS = 8  # camera reads, the touch pipeline, overlays, other services' blocking calls
+
+
+def _sim_backend(section: Any) -> str | None:
+    """The simulated choice among a section's ``backend`` values, if it has one."""
+    hints = get_type_hints(type(section))
+    if "backend" not in hints:
+        return None
+    choices = get_args(hints["backend"])
+    return next((name for name in SIM_BACKENDS if name in choices), None)
+
+
+def with_overrides(config: Config, *, sim: bool = False, replay: str | None = None) -> Config:
+    """``--sim``: every part on its simulated backend. ``--replay PATH``: the rear camera replays PATH, the rest simulated.
+
+    Parts switched off in the config stay off.
+    """
+    if not sim and not replay:
+        return config
+    changes: dict[str, Any] = {}
+    for field in dataclasses.fields(config):
+        section = getattr(config, field.name)
+        backend = getattr(section, "backend", None)
+        choice = _sim_backend(section)
+        if choice is not None and backend != "off":
+            changes[field.name] = dataclasses.replace(section, backend=choice)
+    if replay:
+        changes["rear_camera"] = dataclasses.replace(config.rear_camera, backend="replay", replay_path=str(replay))
+    return dataclasses.replace(config, **changes)
+
+
+def status_line(report: dict[str, Any]) -> str:
+    """One short line for the log and systemd's STATUS: overall state and each service's rate or trouble."""
+    parts = []
+    for name, entry in report.get("services", {}).items():
+        if not entry.get("healthy", False):
+            parts.append(f"{name} {entry.get('state')}")
+        elif isinstance(entry.get("fps"), (int, float)):
+            parts.append(f"{name} {entry['fps']:.1f} fps")
+    return f"{report.get('status', '?')}: " + (", ".join(parts) if parts else "no services")
+
+
+async def run_daemon(
+    config: Config,
+    *,
+    stop: asyncio.Event | None = None,
+    hub: Hub | None = None,
+    notifier: Notifier | None = None,
+    modules: list[str] | None = None,
+    on_started: Any = None,
+) -> Supervisor:
+    """Run every service until ``stop`` is set, then shut down within the configured budget."""
+    hub = hub if hub is not None else Hub()
+    stop = stop if stop is not None else asyncio.Event()
+    notifier = notifier if notifier is not None else Notifier()
+    discovered = build_all(config, hub, modules)
+    supervisor = Supervisor(
+        discovered.services,
+        config.daemon,
+        clock=hub.clock,
+        build_failures=discovered.failures,
+        extra_health=lambda: {"bus": hub.bus.health(), "systemd": {"notify": notifier.enabled, "sent": notifier.sent}},
+    )
+    hub.health = supervisor.report
+    supervisor.start()
+    names = ", ".join(sorted(supervisor.records)) or "none"
+    log.info("feelium running: %s", names)
+    notifier.ready(f"starting: {names}")
+    if on_started is not None:
+        on_started(hub, supervisor)
+    tick = min(config.daemon.status_interval_s, notifier.watchdog_interval or 1.0, 1.0)
+    next_status = hub.clock() + config.daemon.status_interval_s
+    fed = True
+    while not stop.is_set():
+        try:
+            await asyncio.wait_for(stop.wait(), tick)
+        except asyncio.TimeoutError:
+            pass
+        now = hub.clock()
+        if notifier.watchdog_interval is not None:
+            alive = supervisor.pipeline_alive(now, config.rear_camera.stale_after_s)
+            if alive:
+                notifier.watchdog()
+            elif fed:
+                log.error("touch pipeline stalled: not feeding the systemd watchdog")
+            fed = alive
+        if now >= next_status:
+            line = status_line(supervisor.report())
+            log.info("%s", line)
+            notifier.status(line)
+            next_status = now + config.daemon.status_interval_s
+    log.info("shutting down")
+    notifier.stopping()
+    await supervisor.shutdown()
+    log.info("stopped: %s", status_line(supervisor.report()))
+    return supervisor
+
+
+def _install_signals(loop: asyncio.AbstractEventLoop, stop: asyncio.Event) -> None:
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        loop.add_signal_handler(sig, stop.set)
+
+
+def run_process(config: Config) -> int:
+    """The whole process lifetime; exits within ``shutdown_budget_s`` (+ a little) of SIGTERM/SIGINT."""
+    loop = asyncio.new_event_loop()
+    executor = ThreadPoolExecutor(max_workers=WORKER_THREADS, thread_name_prefix="feelium-worker")
+    loop.set_default_executor(executor)
+    stop = asyncio.Event()
+    notifier = Notifier()
+    signalled_at: list[float] = []
+
+    async def main() -> Supervisor:
+        _install_signals(loop, stop)
+        watcher = asyncio.create_task(stop.wait())
+        watcher.add_done_callback(lambda _: signalled_at.append(time.monotonic()))
+        return await run_daemon(config, stop=stop, notifier=notifier)
+
+    try:
+        supervisor = loop.run_until_complete(main())
+    finally:
+        executor.shutdown(wait=False, cancel_futures=True)
+        loop.run_until_complete(loop.shutdown_asyncgens())
+        loop.close()
+        notifier.close()
+    failed = [n for n, r in supervisor.records.items() if r.state == "failed"]
+    code = 1 if failed else 0
+    start = signalled_at[0] if signalled_at else time.monotonic()
+    _leave_in_time(code, start + config.daemon.shutdown_budget_s + 0.3)
+    return code
+
+
+def _leave_in_time(code: int, deadline: float) -> None:
+    """Wait for worker threads until ``deadline``; a thread stuck in a device read must not hold the exit up."""
+    for thread in threading.enumerate():
+        if thread is threading.main_thread() or thread.daemon:
+            continue
+        thread.join(max(0.0, deadline - time.monotonic()))
+    stuck = [t.name for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon and t.is_alive()]
+    if stuck:
+        log.warning("exiting with threads still busy: %s", ", ".join(stuck))
+        logging.shutdown()
+        sys.stdout.flush()
+        os._exit(code)

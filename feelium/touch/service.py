@@ -1,0 +1,233 @@
+"""The touch service: rear camera -> touch pipeline -> event bus (plus a debug view and the touch state).
+
+A thin shell. The camera is read in a worker thread into a one-frame slot, so
+the newest frame wins when the pipeline falls behind (drops are counted);
+the pipeline and the overlay run in a worker thread too (OpenCV and numpy
+release the GIL), so HTTP and serial stay responsive. Bad frames are counted
+and skipped; anything else the pipeline raises crashes this service only, and
+the supervisor restarts it with a fresh camera and pipeline.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import logging
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from feelium.cameras.base import Frame
+from feelium.cameras.reader import FrameSlot, RateMeter, close_camera, pump
+from feelium.cameras.select import CameraSource, rear_camera_source
+from feelium.config import Config
+from feelium.hub import Hub
+from feelium.service import Service
+from feelium.touch.config import TouchConfig
+
+log = logging.getLogger(__name__)
+
+PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, int] | None"], Any]
+Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
+
+
+def _default_pipeline(config: TouchConfig, size: tuple[int, int], roi: tuple[int, int, int, int] | None) -> Any:
+    from feelium.touch.pipeline import TouchPipeline
+
+    return TouchPipeline(config, size, roi)
+
+
+def _default_overlay(frame: np.ndarray, result: Any, roi: tuple[int, int, int, int] | None) -> np.ndarray:
+    from feelium.touch.overlay import draw_overlay
+
+    return draw_overlay(frame, result, roi)
+
+
+def _contact_state(contact: Any) -> dict[str, Any]:
+    """A contact as plain JSON-able values for the state board."""
+    values = dataclasses.asdict(contact) if dataclasses.is_dataclass(contact) else dict(vars(contact))
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        if isinstance(value, (bool, int, str)):
+            out[key] = value
+        elif isinstance(value, float):
+            out[key] = round(value, 3) if np.isfinite(value) else None
+    return out
+
+
+def _check_frame(image: Any) -> str | None:
+    """Why a frame cannot go to the pipeline, or ``None``."""
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
+        return "frame is not a uint8 array"
+    if image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3):
+        return None if min(image.shape[:2]) > 0 else "frame is empty"
+    return f"frame has shape {image.shape}; expected (H, W) gray or (H, W, 3) BGR"
+
+
+class TouchService:
+    """Runs the touch pipeline on the rear camera and publishes what it finds."""
+
+    name = "touch"
+    stop_order = 40
+    critical = True  # the systemd watchdog is fed only while this service processes frames
+
+    def __init__(
+        self,
+        source: CameraSource,
+        hub: Hub,
+        touch_config: TouchConfig,
+        *,
+        debug_video_fps: float = 5.0,
+        pipeline_factory: PipelineFactory = _default_pipeline,
+        overlay: Overlay = _default_overlay,
+    ) -> None:
+        self.source = source
+        self.hub = hub
+        self.touch_config = touch_config
+        self.debug_period = 1.0 / debug_video_fps if debug_video_fps > 0 else None
+        self.pipeline_factory = pipeline_factory
+        self.overlay = overlay
+        self.frames = 0
+        self.events = 0
+        self.bad_frames = 0
+        self.dropped_frames = 0
+        self.opens = 0
+        self.last_error: str | None = None
+        self.last_frame_at: float | None = None
+        self.cpu_s = 0.0  # worker-thread time spent in the pipeline (wall time of the calls)
+        self._rate = RateMeter()
+        self._pipeline: Any = None
+        self._pipeline_key: tuple[Any, ...] | None = None
+        self._last_debug: float | None = None
+        self._slot: FrameSlot | None = None
+
+    async def run(self) -> None:
+        self._pipeline, self._pipeline_key = None, None  # a restart starts from a fresh reference
+        camera = await asyncio.to_thread(self.source.open)
+        self.opens += 1
+        log.info("touch: rear camera on the %s backend", self.source.backend)
+        slot = self._slot = FrameSlot()
+        reader = asyncio.create_task(pump(camera, slot), name="touch.camera")
+        try:
+            await self._consume(slot)
+            await reader  # the source ended: re-raise a camera error, if that was why
+        finally:
+            self.dropped_frames += slot.dropped
+            self._slot = None
+            reader.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await reader
+            await close_camera(camera)
+
+    async def _consume(self, slot: FrameSlot) -> None:
+        while True:
+            frame = await slot.take()
+            if frame is None:
+                self._flush()
+                log.info("touch: rear camera source ended after %d frames", self.frames)
+                return
+            problem = _check_frame(frame.image)
+            if problem is not None:
+                self._reject(problem)
+                continue
+            pipeline = self._pipeline_for(frame)
+            want_debug = self.debug_period is not None and (
+                self._last_debug is None or frame.t - self._last_debug >= self.debug_period or frame.t < self._last_debug
+            )
+            loop = asyncio.get_running_loop()
+            started = loop.time()
+            try:
+                result, debug = await asyncio.to_thread(self._step, pipeline, frame, want_debug)
+            except ValueError as exc:  # bad input (e.g. a timestamp that goes backwards): count and skip
+                self._reject(str(exc))
+                continue
+            self.cpu_s += loop.time() - started
+            self._publish(frame, result, debug)
+
+    def _step(self, pipeline: Any, frame: Frame, want_debug: bool) -> tuple[Any, np.ndarray | None]:
+        """Worker-thread part: the pipeline and, at the debug rate, the overlay."""
+        result = pipeline.process(frame.t, frame.image)
+        debug = self.overlay(frame.image, result, frame.roi) if want_debug else None
+        return result, debug
+
+    def _pipeline_for(self, frame: Frame) -> Any:
+        size = (int(frame.image.shape[1]), int(frame.image.shape[0]))
+        key = (frame.segment, size, frame.roi)
+        if self._pipeline is None or key != self._pipeline_key:
+            self._flush()
+            self._pipeline = self.pipeline_factory(self.touch_config, size, frame.roi)
+            self._pipeline_key = key
+            self._last_debug = None
+        return self._pipeline
+
+    def _flush(self) -> None:
+        """Release contacts still down when a segment ends, so no consumer waits for an ``up`` forever."""
+        finish = getattr(self._pipeline, "finish", None)
+        if finish is None:
+            return
+        for event in finish():
+            self.hub.bus.publish(event)
+            self.events += 1
+
+    def _publish(self, frame: Frame, result: Any, debug: np.ndarray | None) -> None:
+        now = self.hub.clock()
+        for event in result.events:
+            self.hub.bus.publish(event)
+            self.events += 1
+        self.frames += 1
+        self.last_frame_at = now
+        self._rate.tick(now)
+        if debug is not None:
+            self.hub.rear_video.publish(frame.t, debug)
+            self._last_debug = frame.t
+        self.hub.state.update(
+            "touch",
+            t=round(float(result.t), 4),
+            activity=bool(result.activity),
+            anchor=round(float(result.anchor), 3),
+            depth_max=round(float(result.depth_max), 3),
+            contacts=[_contact_state(c) for c in result.contacts],
+            backend=self.source.backend,
+        )
+
+    def _reject(self, reason: str) -> None:
+        self.bad_frames += 1
+        self.last_error = reason
+        if self.bad_frames <= 3 or self.bad_frames % 100 == 0:
+            log.warning("touch: skipped a bad frame (%d so far): %s", self.bad_frames, reason)
+
+    async def stop(self) -> None:
+        if self._slot is not None:
+            self._slot.end()
+
+    def health(self) -> dict[str, Any]:
+        slot_drops = self._slot.dropped if self._slot is not None else 0
+        return {
+            "backend": self.source.backend,
+            "frames": self.frames,
+            "fps": round(self._rate.rate(), 2),
+            "events": self.events,
+            "dropped_frames": self.dropped_frames + slot_drops,
+            "bad_frames": self.bad_frames,
+            "last_bad_frame": self.last_error,
+            "opens": self.opens,
+            "ms_per_frame": round(1000.0 * self.cpu_s / self.frames, 2) if self.frames else None,
+            "last_frame_at": self.last_frame_at,
+        }
+
+
+def build_services(config: Config, hub: Hub) -> list[Service]:
+    source = rear_camera_source(config, hub.clock)
+    if source is None:
+        return []
+    hub.rear_scene = source.scene
+    return [
+        TouchService(
+            source,
+            hub,
+            config.touch,
+            debug_video_fps=config.rear_camera.debug_video_fps,
+        )
+    ]

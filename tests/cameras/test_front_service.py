@@ -1,0 +1,43 @@
+"""The front camera service publishes BGR frames for the headset and survives bad frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from feelium.cameras.base import Frame
+from feelium.cameras.select import CameraSource
+from feelium.cameras.service import FrontCameraService
+from feelium.hub import Hub
+
+
+class ScriptedCamera:
+    name = "scripted"
+    realtime = True
+
+    def __init__(self, images):
+        self.images = list(images)
+        self.closed = False
+        self.t = 0.0
+
+    def read(self):
+        if not self.images:
+            return None
+        self.t += 0.1
+        return Frame(t=self.t, image=self.images.pop(0))
+
+    def close(self):
+        self.closed = True
+
+
+async def test_publishes_bgr_frames_and_skips_others():
+    bgr = np.zeros((4, 6, 3), np.uint8)
+    camera = ScriptedCamera([bgr, np.zeros((4, 6), np.uint8), bgr, bgr.astype(np.float32)])
+    hub = Hub()
+    service = FrontCameraService(CameraSource("scripted", lambda: camera), hub)
+    await service.run()
+    assert hub.front_video.published == 2
+    assert hub.front_video.get().t == pytest.approx(0.3)
+    health = service.health()
+    assert health["frames"] == 2 and health["bad_frames"] == 2 and health["backend"] == "scripted"
+    assert camera.closed

@@ -1,0 +1,132 @@
+"""The picamera2 backends against a stand-in module (picamera2 only exists on the blimp)."""
+
+from __future__ import annotations
+
+import sys
+import types
+
+import numpy as np
+import pytest
+
+from feelium.cameras import picamera2_backend
+from feelium.cameras.base import CameraUnavailable
+from feelium.cameras.picamera2_backend import Picamera2FrontCamera, Picamera2RearCamera, camera_count, load_picamera2
+
+W, H = 64, 48
+STRIDE = 80  # libcamera pads rows; the luma must be cut out of the padded plane
+PERIOD_NS = 66_666_667
+
+
+class FakeRequest:
+    def __init__(self, camera, n):
+        self.camera, self.n = camera, n
+        self.released = False
+
+    def get_metadata(self):
+        return {
+            "SensorTimestamp": 5_000_000_000 + self.n * PERIOD_NS,
+            "ExposureTime": 10000 + self.n,
+            "AnalogueGain": 2.0,
+            "ColourGains": (1.5, 1.8),
+        }
+
+    def make_array(self, stream):
+        if stream == "lores":
+            plane = np.full((H * 3 // 2, STRIDE), 7, np.uint8)
+            plane[:H, :W] = self.n % 256
+            return plane
+        return np.full((H, W, 4), self.n % 256, np.uint8)
+
+    def release(self):
+        self.released = True
+        self.camera.released += 1
+
+
+class FakePicamera2:
+    cameras = [{"Model": "imx500", "Num": 0}, {"Model": "imx708_wide", "Num": 1}]
+
+    def __init__(self, camera_num=0):
+        self.camera_num = camera_num
+        self.controls_set = []
+        self.n = 0
+        self.released = 0
+        self.started = self.closed = False
+
+    @classmethod
+    def global_camera_info(cls):
+        return cls.cameras
+
+    def create_video_configuration(self, **kwargs):
+        self.configuration = kwargs
+        return kwargs
+
+    def configure(self, config):
+        self.configured = config
+
+    def start(self):
+        self.started = True
+
+    def stop(self):
+        self.started = False
+
+    def close(self):
+        self.closed = True
+
+    def set_controls(self, controls):
+        self.controls_set.append(controls)
+
+    def capture_request(self):
+        request = FakeRequest(self, self.n)
+        self.n += 1
+        return request
+
+
+@pytest.fixture
+def module():
+    return types.SimpleNamespace(Picamera2=FakePicamera2)
+
+
+def test_rear_camera_locks_exposure_after_settling_and_delivers_luma_on_the_sensor_clock(module):
+    camera = Picamera2RearCamera(index=0, width=W, height=H, fps=15.0, settle_s=1.0, roi=(4, 4, 40, 30), module=module)
+    cam = camera._camera
+    assert cam.configuration["lores"] == {"size": (W, H), "format": "YUV420"}
+    frame = camera.read()
+    # frames 0..15 settle (t < 1 s), frame 15 locks at t = 1.0, frames until 1.3 s are skipped
+    assert len(cam.controls_set) == 1
+    lock = cam.controls_set[0]
+    assert lock["AeEnable"] is False and lock["AwbEnable"] is False
+    assert lock["ExposureTime"] == 10015 and lock["AnalogueGain"] == 2.0 and lock["ColourGains"] == (1.5, 1.8)
+    assert frame.t >= 1.3 and frame.t == pytest.approx(cam.n * PERIOD_NS / 1e9 - PERIOD_NS / 1e9)
+    assert frame.image.shape == (H, W) and frame.image.flags["C_CONTIGUOUS"]
+    assert np.all(frame.image == (cam.n - 1) % 256)  # the luma plane, not the padding or chroma
+    assert frame.roi == (4, 4, 40, 30)
+    second = camera.read()
+    assert second.t - frame.t == pytest.approx(PERIOD_NS / 1e9)
+    assert cam.released == cam.n  # every request goes back to libcamera
+    camera.close()
+    camera.close()
+    assert cam.closed and camera.read() is None
+
+
+def test_front_camera_delivers_bgr(module):
+    camera = Picamera2FrontCamera(index=1, width=W, height=H, fps=15.0, module=module)
+    assert camera._camera.camera_num == 1
+    frame = camera.read()
+    assert frame.image.shape == (H, W, 3) and frame.t == 0.0
+    assert camera.read().t == pytest.approx(PERIOD_NS / 1e9)
+
+
+def test_a_missing_camera_says_what_to_check(module):
+    with pytest.raises(CameraUnavailable, match="no camera 5 .*'video' group"):
+        Picamera2RearCamera(index=5, width=W, height=H, fps=15.0, settle_s=0.0, roi=None, module=module)
+
+
+def test_a_missing_library_says_what_to_install(monkeypatch):
+    monkeypatch.setitem(sys.modules, "picamera2", None)  # makes the import fail
+    with pytest.raises(CameraUnavailable, match="apt install python3-picamera2"):
+        load_picamera2()
+    assert camera_count() == 0 or picamera2_backend.importlib.util.find_spec("picamera2") is not None
+
+
+def test_camera_count_of_a_module(module):
+    assert camera_count(module) == 2

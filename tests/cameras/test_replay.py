@@ -1,0 +1,72 @@
+"""Replay of format-v1 recordings as a camera: frames, timestamps, segments, loops and pacing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from feelium.cameras.replay import ReplayCamera
+from feelium.recording import RecordingError, RecordingWriter
+
+
+def _write(path, times, value=100, roi=(1, 1, 6, 4)):
+    with RecordingWriter(path, name=path.name, width=8, height=6, fps=10.0, roi=roi) as writer:
+        for i, t in enumerate(times):
+            writer.add_frame(t, np.full((6, 8), value + i, np.uint8))
+    return path
+
+
+def _drain(camera):
+    frames = []
+    while (frame := camera.read()) is not None:
+        frames.append(frame)
+    return frames
+
+
+def test_replays_every_frame_with_its_own_timestamp_and_roi(tmp_path):
+    _write(tmp_path / "a", [0.0, 0.1, 0.25, 0.3])
+    frames = _drain(ReplayCamera(tmp_path / "a", realtime=False))
+    assert [f.t for f in frames] == pytest.approx([0.0, 0.1, 0.25, 0.3])
+    assert [int(f.image[0, 0]) for f in frames] == [100, 101, 102, 103]
+    assert all(f.image.shape == (6, 8) and f.roi == (1, 1, 6, 4) for f in frames)
+
+
+def test_a_dataset_plays_recordings_in_order_as_new_segments_with_times_still_increasing(tmp_path):
+    _write(tmp_path / "set" / "r1", [0.0, 0.1, 0.2], value=10)
+    _write(tmp_path / "set" / "r2", [5.0, 5.1], value=50)
+    frames = _drain(ReplayCamera(tmp_path / "set", realtime=False))
+    assert [f.segment for f in frames] == [0, 0, 0, 1, 1]
+    assert [int(f.image[0, 0]) for f in frames] == [10, 11, 12, 50, 51]
+    assert np.all(np.diff([f.t for f in frames]) > 0)
+    assert frames[3].t == pytest.approx(0.3)  # the next recording follows one frame period after the last
+
+
+def test_loop_starts_again_with_increasing_time(tmp_path):
+    _write(tmp_path / "a", [0.0, 0.1])
+    camera = ReplayCamera(tmp_path / "a", realtime=False, loop=True)
+    frames = [camera.read() for _ in range(6)]
+    assert [f.segment for f in frames] == [0, 0, 1, 1, 2, 2]
+    assert np.all(np.diff([f.t for f in frames]) > 0)
+    camera.close()
+    assert camera.read() is None
+
+
+def test_realtime_replay_sleeps_to_the_recordings_pace(tmp_path):
+    _write(tmp_path / "a", [0.0, 0.1, 0.4])
+    now = [50.0]
+    sleeps = []
+
+    def sleep(seconds):
+        sleeps.append(seconds)
+        now[0] += seconds
+
+    camera = ReplayCamera(tmp_path / "a", realtime=True, clock=lambda: now[0], sleep=sleep)
+    _drain(camera)
+    assert sleeps == pytest.approx([0.1, 0.3])
+
+
+def test_missing_path_and_bad_recordings_are_named(tmp_path):
+    with pytest.raises(ValueError, match="replay_path"):
+        ReplayCamera("")
+    with pytest.raises(RecordingError, match="no such file"):
+        ReplayCamera(tmp_path / "absent")
