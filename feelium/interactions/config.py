@@ -9,6 +9,39 @@ from feelium.settings import setting
 
 @dataclass(frozen=True)
 class InteractionsConfig:
-    """Envelope regions and the rules of the six exchanges."""
+    """Envelope regions and the rules of the six exchanges.
+
+    Regions are ellipses ``[cu, cv, ru, rv]`` on the skin canvas, in 0..1
+    across the camera's sensitive patch (the touch events' ``u``/``v``), which
+    the calibration map carries to the projector; they match the default
+    avatar's layout.
+    """
 
     enabled: bool = setting(True, "Run the interaction engine.")
+    head: tuple[float, ...] = setting((0.5, 0.2, 0.3, 0.14), "Head (forehead) region [cu, cv, ru, rv].", min=0.0, max=1.0)
+    cheek_left: tuple[float, ...] = setting((0.27, 0.58, 0.11, 0.09), "Left cheek region.", min=0.0, max=1.0)
+    cheek_right: tuple[float, ...] = setting((0.73, 0.58, 0.11, 0.09), "Right cheek region.", min=0.0, max=1.0)
+    palm_zone: tuple[float, ...] = setting(
+        (0.5, 0.8, 0.36, 0.18), "Palm zone: where the wearer's raised palm appears.", min=0.0, max=1.0
+    )
+    pat_window_s: float = setting(1.5, "Taps on the head closer than this count as one greeting pat.", min=0.1, max=10.0)
+    palm_area_px: int = setting(2500, "Least contact area (camera px) of a palm-sized hold.", min=1, max=10_000_000)
+    palm_hold_s: float = setting(0.6, "How long a palm-sized contact must stay to count as a palm hold.", min=0.0, max=30.0)
+    hug_area_px: int = setting(12000, "Total contact area (camera px) of a lean-in hug.", min=1, max=10_000_000)
+    hug_hold_s: float = setting(1.5, "How long the large-area contact must last to start the breathing glow.", min=0.0, max=60.0)
+    stroke_min_px: float = setting(
+        25.0, "Path length (camera px) after which a moving contact is a drawing stroke.", min=1.0, max=10000.0
+    )
+    drawing_idle_s: float = setting(45.0, "A drawing round with no stroke or guess for this long ends.", min=1.0, max=3600.0)
+    ignite_s: float = setting(3.0, "How long the ignited drawing burns before the round clears.", min=0.1, max=60.0)
+    words: tuple[str, ...] = setting(
+        ("heart", "sun", "cat|kitten|kitty", "house|home", "tree", "star", "fish", "flower", "moon", "boat|ship"),
+        "Secret words of the drawing game; 'word|synonym|...' accepts the synonyms as correct guesses.",
+    )
+    seed: int = setting(7, "Seed of the secret-word draw (rounds are reproducible).", min=0)
+    heart_reply_s: float = setting(
+        10.0, "A wearer's heart within this long after a peck goes back to that cheek.", min=0.1, max=600.0
+    )
+    shimmer_s: float = setting(6.0, "How long the inviting shimmer lasts.", min=0.5, max=120.0)
+    drift_hold_s: float = setting(0.6, "Forward motion of the 'drift closer' reply.", min=0.05, max=2.0)
+    bounce_hold_s: float = setting(0.4, "Each half (up, then down) of the 'gentle bounce' reply.", min=0.05, max=2.0)

@@ -5,13 +5,63 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from feelium.settings import setting
+from feelium.settings import section, setting
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """Gray-code calibration of the camera-to-projector map (`feelium calibrate projector`)."""
+
+    file: str = setting(
+        "projector_calibration.npz",
+        "Where the calibration map is saved and loaded; a relative path is taken beside the config file.",
+    )
+    block_px: int = setting(
+        8, "Gray code resolves projector blocks of this many pixels (finer stripes blur away in the camera).", min=1, max=64
+    )
+    phase_period_px: int = setting(
+        32, "Period of the phase-shift fringes that refine the Gray code to sub-pixel precision.", min=8, max=256
+    )
+    phase_steps: int = setting(8, "Phase shifts per axis (8 cancels projector gamma harmonics).", min=3, max=16)
+    frames_per_pattern: int = setting(2, "Camera frames averaged per projected pattern.", min=1, max=16)
+    settle_frames: int = setting(2, "Camera frames skipped after each pattern change (projector and exposure settle).", min=0, max=30)
+    min_contrast: float = setting(
+        10.0, "Least white-minus-black difference (grey levels) for a camera pixel to be decoded.", min=1.0, max=255.0
+    )
+    smooth_sigma_px: float = setting(
+        1.5, "Gaussian smoothing (camera px) of the decoded map over covered pixels.", min=0.0, max=20.0
+    )
 
 
 @dataclass(frozen=True)
 class ProjectorConfig:
     """Inner projector output and what it renders."""
 
-    backend: Literal["auto", "fbdev", "window", "null"] = setting(
-        "auto", "Display output; auto uses the framebuffer on the blimp and null elsewhere."
+    backend: Literal["auto", "fbdev", "null"] = setting(
+        "auto", "Display output; auto uses the framebuffer when /dev/fb0 exists and null elsewhere."
     )
+    width: int = setting(1280, "Projector native width (Ultimems HD309: 1280).", min=16, max=7680)
+    height: int = setting(720, "Projector native height (Ultimems HD309: 720).", min=16, max=4320)
+    fps: float = setting(30.0, "Render rate.", min=1.0, max=120.0)
+    fb_device: str = setting("/dev/fb0", "Linux framebuffer device of the fbdev backend.")
+    canvas_width: int = setting(
+        512, "Width of the skin canvas (the camera's sensitive patch) that layers are drawn on before warping.", min=16, max=4096
+    )
+    canvas_height: int = setting(384, "Height of the skin canvas.", min=16, max=4096)
+    gamma: float = setting(2.2, "Projector gamma: light output ~ (value / 255) ^ gamma.", min=1.0, max=3.0)
+    black_level: float = setting(
+        0.03, "Light a black projector pixel still gives, relative to white (predicts the back-light).", min=0.0, max=0.5
+    )
+    flat_level: float = setting(
+        0.85,
+        "Grey level (0..1) of the flat projection the touch reference corresponds to; back-light gain 1.0 means this.",
+        min=0.05,
+        max=1.0,
+    )
+    diffusion_px: float = setting(
+        1.5, "Membrane diffusion of projected light, in camera px, for the back-light prediction.", min=0.0, max=30.0
+    )
+    face_timeout_s: float = setting(
+        3.0, "Show the default avatar when no face frame came from the headset for this long.", min=0.1, max=600.0
+    )
+    calibration: CalibrationConfig = section(CalibrationConfig)

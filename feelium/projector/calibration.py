@@ -1,0 +1,205 @@
+"""The calibration map: which projector pixel lights the membrane spot each camera pixel sees.
+
+The rear camera and the projector look at the same membrane through different
+lenses (the projector through a 180 degree fisheye), so a spot on the skin has
+a camera position and a projector position related by a smooth, strongly
+non-linear map. Calibration measures it densely, camera to projector (that is
+what structured light decodes); the renderer needs the other direction
+(projector pixel to skin canvas), which :meth:`CalibrationMap.projector_to_camera`
+derives once by a least-squares polynomial fit of the inverse.
+
+Pure: arrays in, arrays out; :func:`load_calibration`/:meth:`save` are the only I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+Size = tuple[int, int]  # (width, height)
+Roi = tuple[int, int, int, int]
+
+_INVERSE_DEGREE = 5
+_INVERSE_STEP = 4  # evaluate the inverse on a grid this much coarser, then resize (smooth map; saves memory on a Pi)
+
+
+class CalibrationError(ValueError):
+    """A calibration file or map is unusable: says which and why."""
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationMap:
+    """Dense camera-to-projector map over the sensitive patch.
+
+    ``proj_x``/``proj_y`` are (H, W) float32 at camera resolution: the projector
+    pixel (centres at integer coordinates) that lights what camera pixel
+    ``(x, y)`` sees; NaN where the calibration did not cover the pixel.
+    """
+
+    camera_size: Size
+    projector_size: Size
+    roi: Roi
+    proj_x: np.ndarray
+    proj_y: np.ndarray
+    source: str = "default"
+
+    def __post_init__(self) -> None:
+        w, h = self.camera_size
+        for name in ("proj_x", "proj_y"):
+            arr = getattr(self, name)
+            if arr.shape != (h, w):
+                raise CalibrationError(f"{name} is {arr.shape}, camera is {(h, w)}")
+        x, y, rw, rh = self.roi
+        if rw <= 0 or rh <= 0 or x < 0 or y < 0 or x + rw > w or y + rh > h:
+            raise CalibrationError(f"roi {self.roi} does not fit the camera frame {self.camera_size}")
+
+    @property
+    def covered(self) -> np.ndarray:
+        """(H, W) bool: camera pixels with a projector position."""
+        return np.isfinite(self.proj_x) & np.isfinite(self.proj_y)
+
+    def coverage(self) -> float:
+        """Share of the ROI's pixels the map covers."""
+        x, y, w, h = self.roi
+        return float(self.covered[y : y + h, x : x + w].mean())
+
+    def to_projector(self, x: float, y: float) -> tuple[float, float] | None:
+        """Projector position of camera point ``(x, y)`` (bilinear over covered neighbours); None if uncovered."""
+        w, h = self.camera_size
+        if not (math.isfinite(x) and math.isfinite(y)) or not (0 <= x <= w - 1 and 0 <= y <= h - 1):
+            return None
+        x0, y0 = min(int(x), w - 2), min(int(y), h - 2)
+        fx, fy = x - x0, y - y0
+        weights = np.array([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy])
+        px = self.proj_x[y0 : y0 + 2, x0 : x0 + 2].reshape(-1)
+        py = self.proj_y[y0 : y0 + 2, x0 : x0 + 2].reshape(-1)
+        ok = np.isfinite(px) & np.isfinite(py) & (weights > 0)
+        if not ok.any():
+            return None
+        wsum = float(weights[ok].sum())
+        return float((px[ok] * weights[ok]).sum() / wsum), float((py[ok] * weights[ok]).sum() / wsum)
+
+    def projector_to_camera(self) -> tuple[np.ndarray, np.ndarray]:
+        """Inverse map at projector resolution: (H_p, W_p) float32 camera x and y, NaN where not covered.
+
+        A degree-5 polynomial in projector coordinates is fitted by least
+        squares to the covered pixels; a projector pixel counts as covered
+        when its fitted camera position lands on a covered camera pixel.
+        """
+        pw, ph = self.projector_size
+        cov = self.covered
+        ys, xs = np.nonzero(cov[::2, ::2])
+        if len(xs) < 50:
+            raise CalibrationError(f"only {int(cov.sum())} covered camera pixels; cannot invert the map")
+        cam_x, cam_y = xs * 2.0, ys * 2.0
+        px = self.proj_x[ys * 2, xs * 2].astype(np.float64)
+        py = self.proj_y[ys * 2, xs * 2].astype(np.float64)
+        design = _poly_terms(px / pw, py / ph)
+        coef_x, *_ = np.linalg.lstsq(design, cam_x, rcond=None)
+        coef_y, *_ = np.linalg.lstsq(design, cam_y, rcond=None)
+
+        gw, gh = pw // _INVERSE_STEP + 2, ph // _INVERSE_STEP + 2
+        gx, gy = np.meshgrid(np.arange(gw) * _INVERSE_STEP / pw, np.arange(gh) * _INVERSE_STEP / ph)
+        terms = _poly_terms(gx.ravel(), gy.ravel())
+        coarse_x = (terms @ coef_x).reshape(gh, gw).astype(np.float32)
+        coarse_y = (terms @ coef_y).reshape(gh, gw).astype(np.float32)
+        inv_x, inv_y = _upsample_aligned(coarse_x, pw, ph), _upsample_aligned(coarse_y, pw, ph)
+
+        inside = cv2.remap(
+            cov.astype(np.uint8), inv_x, inv_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0
+        ).astype(bool)
+        inv_x[~inside] = np.nan
+        inv_y[~inside] = np.nan
+        return inv_x, inv_y
+
+    def save(self, path: str | Path) -> Path:
+        """Write the map as ``.npz`` (temporary file renamed into place)."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        np.savez_compressed(
+            tmp,
+            version=np.int32(1),
+            camera_size=np.asarray(self.camera_size, np.int32),
+            projector_size=np.asarray(self.projector_size, np.int32),
+            roi=np.asarray(self.roi, np.int32),
+            proj_x=self.proj_x.astype(np.float32),
+            proj_y=self.proj_y.astype(np.float32),
+            source=np.asarray(self.source),
+        )
+        tmp.replace(path)
+        return path
+
+
+def _poly_terms(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """All monomials u^i v^j with i + j <= degree, as columns."""
+    cols = [u**i * v**j for i in range(_INVERSE_DEGREE + 1) for j in range(_INVERSE_DEGREE + 1 - i)]
+    return np.stack(cols, axis=1)
+
+
+def _upsample_aligned(coarse: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Bilinear upsampling where coarse sample (j, i) sits on full pixel (j*step, i*step)."""
+    xs = (np.arange(width, dtype=np.float32) / _INVERSE_STEP)[None, :].repeat(height, 0)
+    ys = (np.arange(height, dtype=np.float32) / _INVERSE_STEP)[:, None].repeat(width, 1)
+    return cv2.remap(coarse, xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def sample(image: np.ndarray, xs: np.ndarray, ys: np.ndarray, border: float = np.nan) -> np.ndarray:
+    """Bilinear samples of ``image`` at float points (any count; remap limits one axis to 32767)."""
+    n = xs.size
+    cols = 1024
+    rows = -(-n // cols)
+    px = np.zeros(rows * cols, np.float32)
+    py = np.zeros(rows * cols, np.float32)
+    px[:n], py[:n] = xs.ravel(), ys.ravel()
+    out = cv2.remap(
+        image.astype(np.float32, copy=False), px.reshape(rows, cols), py.reshape(rows, cols), cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT, borderValue=float(border),
+    )
+    return out.ravel()[:n].reshape(xs.shape)
+
+
+def default_calibration(camera_size: Size, roi: Roi | None, projector_size: Size, margin: float = 0.08) -> CalibrationMap:
+    """An uncalibrated stand-in: the ROI mapped affinely onto the projector frame (keeps the aspect, centred).
+
+    Lets the daemon render and annotate before anyone ran `feelium calibrate projector`.
+    """
+    w, h = camera_size
+    pw, ph = projector_size
+    x, y, rw, rh = roi if roi is not None else (0, 0, w, h)
+    scale = (1.0 - 2 * margin) * min(pw / rw, ph / rh)
+    ox = (pw - rw * scale) / 2.0
+    oy = (ph - rh * scale) / 2.0
+    xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+    proj_x = (ox + (xs - x) * scale).astype(np.float32)
+    proj_y = (oy + (ys - y) * scale).astype(np.float32)
+    outside = (xs < x) | (xs >= x + rw) | (ys < y) | (ys >= y + rh)
+    proj_x[outside] = np.nan
+    proj_y[outside] = np.nan
+    return CalibrationMap((w, h), (pw, ph), (x, y, rw, rh), proj_x, proj_y, source="default")
+
+
+def load_calibration(path: str | Path) -> CalibrationMap:
+    """Read a map written by :meth:`CalibrationMap.save`; :class:`CalibrationError` names the file if it is wrong."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            version = int(data["version"])
+            if version != 1:
+                raise CalibrationError(f"{path}: unsupported calibration version {version}")
+            cw, ch = (int(v) for v in data["camera_size"])
+            pw, ph = (int(v) for v in data["projector_size"])
+            roi = tuple(int(v) for v in data["roi"])
+            proj_x, proj_y = data["proj_x"].astype(np.float32), data["proj_y"].astype(np.float32)
+            source = str(data["source"])
+    except CalibrationError:
+        raise
+    except (OSError, KeyError, ValueError) as exc:
+        raise CalibrationError(f"{path}: not a projector calibration ({exc})") from exc
+    try:
+        return CalibrationMap((cw, ch), (pw, ph), roi, proj_x, proj_y, source=source)  # type: ignore[arg-type]
+    except CalibrationError as exc:
+        raise CalibrationError(f"{path}: {exc}") from exc
