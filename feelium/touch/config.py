@@ -1,4 +1,9 @@
-"""The ``[touch]`` config section: every parameter of the shadow pipeline."""
+"""The ``[touch]`` config section: every parameter of the shadow pipeline.
+
+Distances are in camera pixels of the input frame (the pipeline scales them to
+its working resolution), times in seconds of the camera clock, depths are
+relative shadow depth (0 = full back-light, 1 = none left).
+"""
 
 from __future__ import annotations
 
@@ -11,5 +16,107 @@ from feelium.settings import setting
 class TouchConfig:
     """Rear-camera shadow pipeline (reference, depth, gates, fingertip, tracker)."""
 
-    width: int = setting(640, "Working resolution width in pixels; frames are resized to it.", min=32, max=4096)
-    height: int = setting(480, "Working resolution height in pixels.", min=24, max=4096)
+    width: int = setting(
+        320,
+        "Working resolution width for the whole camera frame; the ROI is cut out and resized by the same factor.",
+        min=32,
+        max=4096,
+    )
+    height: int = setting(240, "Working resolution height for the whole camera frame.", min=24, max=4096)
+
+    # Reference and exposure.
+    reference_tau_s: float = setting(
+        4.0, "Time constant of the reference where no shadow is seen (slow adaptation).", min=0.05, max=3600.0
+    )
+    reference_bright_tau_s: float = setting(
+        0.5,
+        "Faster time constant where the membrane got brighter than the reference (a shadow cannot brighten).",
+        min=0.01,
+        max=3600.0,
+    )
+    reference_forced_tau_s: float = setting(
+        90.0,
+        "Very slow forced update under a shadow that is not anchored, so the reference never freezes forever.",
+        min=1.0,
+        max=1e6,
+    )
+    dark_reference_level: float = setting(
+        12.0, "Reference brightness (grey levels) below which a pixel is masked: too dark to divide by.", min=0.5, max=254.0
+    )
+    saturation_level: int = setting(
+        250, "Frame value at or above which a pixel is masked as saturated.", min=1, max=255
+    )
+    rebaseline_gain_step: float = setting(
+        0.12,
+        "Relative jump of the exposure gain between frames that counts as a lighting step and re-baselines.",
+        min=0.01,
+        max=10.0,
+    )
+    reference_margin_px: float = setting(
+        4.0,
+        "Darkened regions are widened by this much (camera px) before freezing the reference, so penumbras never creep in.",
+        min=0.0,
+        max=200.0,
+    )
+    gain_sample_step: int = setting(
+        3, "Sample every n-th pixel (each axis) for the robust exposure-gain median.", min=1, max=32
+    )
+
+    # Depth, activity and candidates.
+    blur_sigma_px: float = setting(
+        2.0, "Gaussian smoothing of the depth map before segmentation (camera px).", min=0.0, max=50.0
+    )
+    noise_floor: float = setting(
+        0.07, "Smoothed depth above which a pixel counts as darkened (activity, reference masking).", min=0.0, max=1.0
+    )
+    activity_min_area_px: int = setting(
+        40, "Darkened area (camera px) a frame needs to raise the activity flag.", min=1, max=10_000_000
+    )
+    candidate_depth: float = setting(
+        0.15, "Smoothed depth a connected shadow must exceed to become a candidate.", min=0.0, max=1.0
+    )
+    candidate_min_area_px: int = setting(
+        25, "Smallest candidate shadow (camera px above candidate_depth).", min=1, max=10_000_000
+    )
+    max_candidates: int = setting(6, "Largest candidates considered per frame (by area).", min=1, max=64)
+    core_fraction: float = setting(
+        0.75, "The darkening core is where depth >= this fraction of the candidate's peak depth.", min=0.05, max=0.99
+    )
+
+    # Gates.
+    instant_depth: float = setting(
+        0.55, "Instant gate: a core at least this deep is a firm press.", min=0.0, max=1.0
+    )
+    anchor_window_s: float = setting(
+        1.0, "Sustained-anchoring window: rolling minimum of core depth over this much camera time.", min=0.05, max=30.0
+    )
+    anchor_threshold: float = setting(
+        0.30, "Sustained gate: rolling minimum core depth at or above this is an anchored touch.", min=0.0, max=1.0
+    )
+    anchor_min_age_s: float = setting(
+        0.5, "The sustained gate needs a candidate seen at least this long.", min=0.0, max=30.0
+    )
+    release_depth: float = setting(
+        0.25, "While down, a contact stays down as long as its core is at least this deep (hysteresis).", min=0.0, max=1.0
+    )
+
+    # Tracker.
+    match_distance_px: float = setting(
+        60.0, "Largest centre jump (camera px) for a candidate to continue a track between frames.", min=1.0, max=10000.0
+    )
+    down_frames: int = setting(
+        2, "Consecutive touching frames that confirm a touch (debouncing of the onset).", min=1, max=100
+    )
+    release_s: float = setting(
+        0.15, "A down contact not touching for this long is released (debouncing of the release).", min=0.0, max=10.0
+    )
+    move_min_px: float = setting(
+        2.0, "Fingertip displacement (camera px) since the last reported position that emits a move.", min=0.0, max=1000.0
+    )
+    hold_min_s: float = setting(0.6, "Contacts at least this long (and not swipes) are holds.", min=0.0, max=60.0)
+    swipe_min_path_px: float = setting(
+        40.0, "Fingertip path length (camera px) from which a contact is a swipe.", min=0.0, max=100000.0
+    )
+    path_deadband_px: float = setting(
+        3.0, "Fingertip jitter below this (camera px) does not add to the path length.", min=0.0, max=1000.0
+    )

@@ -1,0 +1,72 @@
+"""Where the pipeline looks: the ROI cut out of the camera frame at the working resolution.
+
+All heavy work runs on the ROI only, resized by the factor that maps the whole
+camera frame to ``[touch] width x height``, so thresholds in camera pixels mean
+the same at every working resolution and results map back exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class WorkingGeometry:
+    """The mapping between camera pixels and the working image of the ROI."""
+
+    frame_size: tuple[int, int]  # (width, height) of the camera frames
+    roi: tuple[int, int, int, int]  # [x, y, w, h] in camera pixels
+    work_size: tuple[int, int]  # (width, height) of the working image of the ROI
+    dtype: type
+
+    @classmethod
+    def build(
+        cls,
+        frame_size: tuple[int, int],
+        roi: tuple[int, int, int, int] | None,
+        work_frame_size: tuple[int, int],
+        dtype: type = np.float32,
+    ) -> "WorkingGeometry":
+        fw, fh = (int(v) for v in frame_size)
+        if fw <= 0 or fh <= 0:
+            raise ValueError(f"frame_size must be positive, got {frame_size}")
+        if roi is None:
+            roi = (0, 0, fw, fh)
+        x, y, w, h = (int(v) for v in roi)
+        if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > fw or y + h > fh:
+            raise ValueError(f"roi {list(roi)} does not fit the {fw}x{fh} frame")
+        sx, sy = work_frame_size[0] / fw, work_frame_size[1] / fh
+        ww, wh = max(4, int(round(w * sx))), max(4, int(round(h * sy)))
+        return cls((fw, fh), (x, y, w, h), (ww, wh), dtype)
+
+    @property
+    def scale(self) -> tuple[float, float]:
+        """Working pixels per camera pixel along x and y."""
+        return self.work_size[0] / self.roi[2], self.work_size[1] / self.roi[3]
+
+    @property
+    def area_scale(self) -> float:
+        """Camera pixels per working pixel (to report areas in camera pixels)."""
+        sx, sy = self.scale
+        return 1.0 / (sx * sy)
+
+    def px(self, camera_px: float) -> float:
+        """A length in camera pixels expressed in working pixels."""
+        sx, sy = self.scale
+        return camera_px * 0.5 * (sx + sy)
+
+    def to_camera(self, wx: float, wy: float) -> tuple[float, float]:
+        """Working-image coordinates (pixel centres at integers) to camera pixels."""
+        sx, sy = self.scale
+        x, y, _, _ = self.roi
+        return x + (wx + 0.5) / sx - 0.5, y + (wy + 0.5) / sy - 0.5
+
+    def cut_roi(self, part: np.ndarray) -> np.ndarray:
+        """An ROI-size image at the working resolution, in the working dtype (always a new array)."""
+        w, h = self.roi[2], self.roi[3]
+        if (w, h) != self.work_size:
+            part = cv2.resize(part, self.work_size, interpolation=cv2.INTER_AREA)
+        return part.astype(self.dtype, copy=False) if part.dtype != self.dtype else part.copy()

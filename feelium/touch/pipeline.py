@@ -1,0 +1,241 @@
+"""The touch pipeline: one camera frame in, touch decisions and events out.
+
+Pure and frame-by-frame: time comes in with every frame, nothing reads a clock
+or does I/O, so the daemon, `feelium replay`, `feelium eval` and the tests run
+exactly the same code. Stages (each its own module):
+geometry (ROI at working resolution) -> reference (exposure gain, adaptive
+reference) -> depth (relative shadow depth, masked) -> candidates (components
+of smoothed depth, fingertip as core centroid) -> gates + tracker (events).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from feelium.events import TouchEvent
+from feelium.touch.candidates import find_candidates
+from feelium.touch.config import TouchConfig
+from feelium.touch.depth import MaskCounts, relative_depth
+from feelium.touch.geometry import WorkingGeometry
+from feelium.touch.reference import AdaptiveReference
+from feelium.touch.tracker import Contact, Observation, Tracker
+
+BACKLIGHT_MIN = 0.05  # predicted back-light scale below which a pixel carries no signal
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """What one frame produced."""
+
+    t: float
+    events: tuple[TouchEvent, ...]  # emitted this frame (x, y in camera pixels of the input frame)
+    activity: bool  # any shadow above the noise floor in the ROI (touch or not)
+    anchor: float  # this frame's sustained-anchoring score (max over candidate shadows; 0.0 when none)
+    depth_max: float  # largest (smoothed) relative shadow depth in the ROI this frame
+    area: int  # darkened area (camera px) above the activity floor
+    contacts: tuple[Contact, ...]  # contacts currently down
+
+
+class TouchPipeline:
+    """Rear-camera frames to touch events, restricted to the ROI, driven by frame timestamps."""
+
+    def __init__(
+        self,
+        config: TouchConfig,
+        frame_size: tuple[int, int],
+        roi: tuple[int, int, int, int] | None,
+        *,
+        plain: bool = False,
+    ) -> None:
+        """frame_size = (width, height) of the camera frames fed in; roi = [x, y, w, h] in those pixels.
+
+        ``plain=True`` runs the same algorithm the plain way (float64, whole
+        frame at camera resolution, candidates outside the ROI dropped); it is
+        the speed and accuracy baseline of `feelium bench touch`.
+        """
+        self.config = config
+        self.plain = plain
+        if plain:
+            self.geometry = WorkingGeometry.build(frame_size, None, frame_size, np.float64)
+            self._roi = WorkingGeometry.build(frame_size, roi, frame_size, np.float64).roi
+        else:
+            self.geometry = WorkingGeometry.build(frame_size, roi, (config.width, config.height), np.float32)
+            self._roi = self.geometry.roi
+        self.reference = AdaptiveReference(
+            tau_s=config.reference_tau_s,
+            bright_tau_s=config.reference_bright_tau_s,
+            forced_tau_s=config.reference_forced_tau_s,
+            dark_level=config.dark_reference_level,
+            saturation_level=float(config.saturation_level),
+            rebaseline_step=config.rebaseline_gain_step,
+            sample_step=config.gain_sample_step,
+            bright_margin=config.noise_floor,
+        )
+        self.tracker = Tracker(config)
+        self.masked = MaskCounts()
+        self.frames = 0
+        self._last_t: float | None = None
+        self._shadow: np.ndarray | None = None
+        g = self.geometry
+        self._sigma = g.px(config.blur_sigma_px)
+        self._min_area = max(1, int(math.ceil(config.candidate_min_area_px / g.area_scale)))
+        self._activity_area = config.activity_min_area_px
+        margin = int(math.ceil(g.px(config.reference_margin_px)))
+        self._margin_kernel = (
+            cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin + 1, 2 * margin + 1)) if margin > 0 else None
+        )
+
+    @property
+    def roi(self) -> tuple[int, int, int, int]:
+        return self._roi
+
+    def reset(self) -> None:
+        """Forget the reference, tracks and time (a new recording or a camera restart)."""
+        self.reference.reset()
+        self.tracker.reset()
+        self._last_t = None
+        self._shadow = None
+
+    def finish(self) -> tuple[TouchEvent, ...]:
+        """Release contacts still down at the last frame's time (end of a recording)."""
+        if self._last_t is None:
+            return ()
+        return tuple(self.tracker.finish(self._last_t))
+
+    def process(self, t: float, frame: np.ndarray, backlight_gain: np.ndarray | None = None) -> FrameResult:
+        """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing)."""
+        t = float(t)
+        if not math.isfinite(t):
+            raise ValueError(f"frame time {t} is not finite")
+        if self._last_t is not None and t <= self._last_t:
+            raise ValueError(f"frame time {t} does not follow the previous frame time {self._last_t}")
+        work, unusable = self._prepare(frame, backlight_gain)
+        self._last_t = t
+        self.frames += 1
+        ref = self.reference
+        if ref.image is None:
+            ref.initialise(t, work)
+            self._shadow = np.zeros(work.shape, bool)
+            return FrameResult(t, (), False, 0.0, 0.0, 0, ())
+        cfg = self.config
+        gain = ref.measure_gain(work, self._shadow)
+        ref.observe_gain(gain, work, self._shadow)
+        depth = relative_depth(
+            work,
+            ref.image,
+            ref.gain,
+            dark_level=cfg.dark_reference_level,
+            saturation_level=float(cfg.saturation_level),
+            counts=self.masked,
+        )
+        if self._sigma > 0.2:
+            smooth = cv2.GaussianBlur(depth, (0, 0), self._sigma, borderType=cv2.BORDER_REPLICATE)
+        else:
+            smooth = depth
+        shadow = smooth > cfg.noise_floor
+        darkened = int(np.count_nonzero(shadow))
+        area = int(round(darkened * self.geometry.area_scale))
+        depth_max = float(smooth.max()) if smooth.size else 0.0
+        candidates, segmentation = find_candidates(
+            smooth,
+            threshold=cfg.candidate_depth,
+            min_area=self._min_area,
+            core_fraction=cfg.core_fraction,
+            max_candidates=cfg.max_candidates,
+        )
+        observations = []
+        kept = []
+        for cand in candidates:
+            cx, cy = self.geometry.to_camera(cand.x, cand.y)
+            if self.plain and not _inside(self._roi, cx, cy):
+                continue
+            u, v = _uv(self._roi, cx, cy)
+            area_px = int(round(cand.area * self.geometry.area_scale))
+            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px))
+            kept.append(cand)
+        step = self.tracker.step(t, observations)
+        if self._margin_kernel is not None and darkened:
+            shadow = cv2.dilate(shadow.view(np.uint8), self._margin_kernel).view(bool)
+        seeds = [(c.x, c.y) for c, p in zip(kept, step.protected) if p]
+        anchored = _regions_containing(shadow, seeds) if seeds else None
+        frozen = shadow if unusable is None else (shadow | unusable)
+        ref.update(t, work, frozen, anchored)
+        self._shadow = frozen
+        return FrameResult(
+            t=t,
+            events=tuple(step.events),
+            activity=area >= self._activity_area,
+            anchor=step.anchor,
+            depth_max=depth_max,
+            area=area,
+            contacts=tuple(self.tracker.contacts()),
+        )
+
+    def _prepare(self, frame: np.ndarray, backlight_gain: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """Validate the frame; return the gray working image (back-light divided out) and unusable pixels."""
+        fw, fh = self.geometry.frame_size
+        if not isinstance(frame, np.ndarray):
+            raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
+        if frame.dtype != np.uint8:
+            raise ValueError(f"frame must be uint8, got {frame.dtype}")
+        if frame.shape[:2] != (fh, fw) or frame.ndim not in (2, 3) or (frame.ndim == 3 and frame.shape[2] not in (1, 3)):
+            raise ValueError(f"frame shape {frame.shape} does not match the camera's {fw}x{fh} (gray or BGR)")
+        x, y, w, h = self.geometry.roi
+        part = frame[y : y + h, x : x + w]
+        if part.ndim == 3:
+            part = part[:, :, 0] if part.shape[2] == 1 else cv2.cvtColor(part, cv2.COLOR_BGR2GRAY)
+        work = self.geometry.cut_roi(part)
+        if backlight_gain is None:
+            return work, None
+        if backlight_gain.shape != (fh, fw):
+            raise ValueError(f"backlight_gain shape {backlight_gain.shape} does not match the camera's {fw}x{fh}")
+        light = np.nan_to_num(
+            self.geometry.cut_roi(backlight_gain[y : y + h, x : x + w].astype(np.float32, copy=False)),
+            nan=0.0,
+            posinf=0.0,
+            neginf=0.0,
+        )
+        unusable = light < BACKLIGHT_MIN
+        np.maximum(light, BACKLIGHT_MIN, out=light)
+        work /= light
+        work[unusable] = float(self.config.saturation_level)
+        return work, unusable
+
+
+def _regions_containing(mask: np.ndarray, seeds: list[tuple[float, float]]) -> np.ndarray:
+    """The connected regions of ``mask`` that hold a seed point: a contact's whole shadow, penumbra included.
+
+    Protecting the whole region (not only the candidate's deep part) keeps the
+    forced update from eating a long press's shadow ring by ring.
+    """
+    h, w = mask.shape
+    bx, by, bw, bh = cv2.boundingRect(mask.view(np.uint8))
+    out = np.zeros(mask.shape, bool)
+    if bw == 0:
+        return out
+    _, labels = cv2.connectedComponents(mask[by : by + bh, bx : bx + bw].view(np.uint8), connectivity=8)
+    wanted = set()
+    for sx, sy in seeds:
+        ix = min(max(int(round(sx)) - bx, 0), bw - 1)
+        iy = min(max(int(round(sy)) - by, 0), bh - 1)
+        label = int(labels[iy, ix])
+        if label:
+            wanted.add(label)
+    box = out[by : by + bh, bx : bx + bw]
+    for label in wanted:
+        box |= labels == label
+    return out
+
+
+def _inside(roi: tuple[int, int, int, int], x: float, y: float) -> bool:
+    rx, ry, rw, rh = roi
+    return rx - 0.5 <= x < rx + rw - 0.5 and ry - 0.5 <= y < ry + rh - 0.5
+
+
+def _uv(roi: tuple[int, int, int, int], x: float, y: float) -> tuple[float, float]:
+    rx, ry, rw, rh = roi
+    return (x - rx + 0.5) / rw, (y - ry + 0.5) / rh

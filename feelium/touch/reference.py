@@ -1,0 +1,154 @@
+"""The adaptive reference: what the untouched, back-lit membrane looks like now.
+
+Relative shadow depth is only as good as this image. It must follow slow
+changes (projector warm-up, exposure drift, a new projected face) but never
+learn a shadow that is present, or a 30 s palm press would fade away. So:
+
+- a global exposure gain is measured every frame as the median ratio
+  frame / reference over unshadowed pixels; drift becomes gain, not shadow;
+- where no shadow is seen, the reference follows the gain-normalised frame with
+  an exponential average whose rate comes from the camera time step (gaps and
+  jitter are handled by construction); where the membrane got brighter it
+  follows faster, because a shadow cannot brighten (only beyond a noise
+  margin: a faster update on every noisy upward pixel would bias the reference
+  up, the gain down, and the two would run away together);
+- under a shadow it does not move, except a much slower forced update where the
+  shadow is not anchored (so a stray dark patch cannot freeze it forever);
+- a jump of the gain between frames is a lighting step: the reference is
+  re-baselined to the new frame outside shadows (inside, it is the old
+  reference times the new gain), and gain returns to 1, without any event.
+
+The reference is floored at a tiny positive value so a long run of black
+frames decays to the floor, never into denormals.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+REFERENCE_FLOOR = 1.0 / 64.0  # grey levels; far below the dark mask, far above denormals
+GAIN_LIMITS = (1e-3, 1e3)
+
+
+class AdaptiveReference:
+    """Reference image plus exposure gain, updated from frames and shadow masks."""
+
+    def __init__(
+        self,
+        *,
+        tau_s: float,
+        bright_tau_s: float,
+        forced_tau_s: float,
+        dark_level: float,
+        saturation_level: float,
+        rebaseline_step: float,
+        sample_step: int,
+        bright_margin: float = 0.07,
+    ) -> None:
+        self.tau_s = tau_s
+        self.bright_tau_s = bright_tau_s
+        self.forced_tau_s = forced_tau_s
+        self.dark_level = dark_level
+        self.saturation_level = saturation_level
+        self.rebaseline_step = rebaseline_step
+        self.sample_step = sample_step
+        self.bright_margin = bright_margin
+        self.image: np.ndarray | None = None
+        self.gain = 1.0
+        self.last_t: float | None = None
+        self.rebaselines = 0
+        self._rate_cache: tuple[float, tuple[float, float, float]] | None = None
+
+    def reset(self) -> None:
+        self.image = None
+        self.gain = 1.0
+        self.last_t = None
+
+    def initialise(self, t: float, frame: np.ndarray) -> None:
+        """Take ``frame`` as the untouched membrane."""
+        self.image = np.maximum(frame, REFERENCE_FLOOR).astype(frame.dtype)
+        self.gain = 1.0
+        self.last_t = t
+
+    def measure_gain(self, frame: np.ndarray, shadow: np.ndarray | None) -> float:
+        """Robust exposure gain: median of frame / reference over usable, unshadowed pixels.
+
+        Keeps the previous gain when too few pixels are usable (all dark, all
+        saturated, all shadowed), so nothing degenerate can come out.
+        """
+        assert self.image is not None
+        s = self.sample_step
+        f = frame[::s, ::s]
+        r = self.image[::s, ::s]
+        usable = (r * self.gain >= self.dark_level) & (f < self.saturation_level)
+        if shadow is not None:
+            usable &= ~shadow[::s, ::s]
+        if np.count_nonzero(usable) < max(8, usable.size // 50):
+            return self.gain
+        ratio = float(np.median(f[usable] / r[usable]))
+        if not math.isfinite(ratio):
+            return self.gain
+        return min(max(ratio, GAIN_LIMITS[0]), GAIN_LIMITS[1])
+
+    def observe_gain(self, gain: float, frame: np.ndarray, shadow: np.ndarray | None) -> bool:
+        """Adopt this frame's gain; on a lighting step, re-baseline. Returns True when it re-baselined."""
+        assert self.image is not None
+        step = abs(gain / self.gain - 1.0)
+        if step <= self.rebaseline_step:
+            self.gain = gain
+            return False
+        # Lighting step: outside shadows the frame is the new truth; inside, scale the old reference.
+        scaled = self.image * self.dtype_cast(gain)
+        if shadow is not None and shadow.any():
+            np.copyto(scaled, frame, where=~shadow)
+        else:
+            scaled = frame.astype(self.image.dtype, copy=True)
+        np.maximum(scaled, REFERENCE_FLOOR, out=scaled)
+        self.image = scaled
+        self.gain = 1.0
+        self.rebaselines += 1
+        return True
+
+    def dtype_cast(self, value: float) -> np.floating:
+        assert self.image is not None
+        return self.image.dtype.type(value)
+
+    def update(self, t: float, frame: np.ndarray, shadow: np.ndarray, anchored: np.ndarray | None) -> None:
+        """Move the reference towards ``frame / gain``.
+
+        ``shadow``: bool mask of darkened pixels (frozen unless not anchored);
+        ``anchored``: bool mask of pixels under anchored contacts (never updated), or None.
+        """
+        assert self.image is not None and self.last_t is not None
+        dt = t - self.last_t
+        self.last_t = t
+        if dt <= 0.0:
+            return
+        alpha, extra, alpha_forced = self._rates(dt)
+        target = frame / self.dtype_cast(self.gain) if self.gain != 1.0 else frame
+        free = ~shadow
+        cv2.accumulateWeighted(target, self.image, alpha, mask=free.view(np.uint8))
+        if extra > 0.0:
+            # Second step so the total rate where it got brighter equals the bright rate.
+            brighter = np.greater(target, self.image * self.dtype_cast(1.0 + self.bright_margin))
+            brighter &= free
+            cv2.accumulateWeighted(target, self.image, extra, mask=brighter.view(np.uint8))
+        forced = shadow if anchored is None else (shadow & ~anchored)
+        if forced.any():
+            cv2.accumulateWeighted(target, self.image, alpha_forced, mask=forced.view(np.uint8))
+        np.maximum(self.image, REFERENCE_FLOOR, out=self.image)
+
+    def _rates(self, dt: float) -> tuple[float, float, float]:
+        """Per-update blend factors for a time step (cached: frame intervals repeat)."""
+        cached = self._rate_cache
+        if cached is not None and cached[0] == dt:
+            return cached[1]
+        alpha = 1.0 - math.exp(-dt / self.tau_s)
+        alpha_bright = 1.0 - math.exp(-dt / self.bright_tau_s)
+        extra = 1.0 - (1.0 - alpha_bright) / (1.0 - alpha) if alpha_bright > alpha and alpha < 1.0 else 0.0
+        rates = (alpha, extra, 1.0 - math.exp(-dt / self.forced_tau_s))
+        self._rate_cache = (dt, rates)
+        return rates

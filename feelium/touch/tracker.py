@@ -1,0 +1,242 @@
+"""From per-frame shadow decisions to touch events (down, move, up) with ids and kinds.
+
+Shadows are associated frame to frame by nearest centre (greedy on distance,
+within ``match_distance_px``), so two or more simultaneous contacts keep their
+own ids. A touch is confirmed after ``down_frames`` consecutive touching frames
+and released after ``release_s`` of not touching (debouncing both ends). On
+release the contact is classified: a swipe when its fingertip path (with a
+jitter deadband) is long, else a hold when it lasted long, else a tap. Area is
+reported with every event so a palm or a lean-in hug is recognisable.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from feelium.events import TouchEvent, TouchKind
+from feelium.touch.config import TouchConfig
+from feelium.touch.gates import anchoring_score, is_touching
+from feelium.touch.rolling import RollingMin
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One candidate shadow this frame, in camera pixels."""
+
+    x: float
+    y: float
+    u: float
+    v: float
+    depth: float  # core depth
+    area: int  # camera pixels
+
+
+@dataclass
+class Track:
+    """One shadow followed over frames; a contact while ``event_id`` is set."""
+
+    first_t: float
+    last_seen_t: float
+    obs: Observation
+    rolling: RollingMin
+    anchor: float = 0.0
+    seen: bool = True
+    streak: int = 0
+    event_id: int | None = None
+    down_t: float = 0.0
+    last_touch_t: float = 0.0
+    release_t: float | None = None
+    path_len: float = 0.0
+    path_anchor: tuple[float, float] = (0.0, 0.0)
+    reported: tuple[float, float] = (0.0, 0.0)
+    touch_obs: Observation | None = None
+    max_area: int = 0
+    max_depth: float = 0.0
+
+    @property
+    def down(self) -> bool:
+        return self.event_id is not None
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A contact currently down, for overlays and the projector."""
+
+    id: int
+    x: float
+    y: float
+    u: float
+    v: float
+    depth: float
+    area: int
+    anchor: float
+    since: float
+
+
+@dataclass
+class TrackerStep:
+    events: list[TouchEvent] = field(default_factory=list)
+    anchor: float = 0.0  # max anchoring score over shadows seen this frame
+    protected: list[bool] = field(default_factory=list)  # per observation: under a contact or anchored
+
+
+class Tracker:
+    """Segments per-frame decisions into events. Pure: time comes in with each frame."""
+
+    def __init__(self, config: TouchConfig) -> None:
+        self.config = config
+        self.tracks: list[Track] = []
+        self.next_id = 1
+
+    def reset(self) -> None:
+        self.tracks = []
+
+    def step(self, t: float, observations: list[Observation]) -> TrackerStep:
+        cfg = self.config
+        out = TrackerStep()
+        matched = self._associate(observations)
+        for track in self.tracks:
+            track.seen = False
+        new_tracks = []
+        for index, obs in enumerate(observations):
+            track = matched.get(index)
+            if track is None:
+                track = Track(first_t=t, last_seen_t=t, obs=obs, rolling=RollingMin(cfg.anchor_window_s))
+                new_tracks.append(track)
+            track.obs = obs
+            track.seen = True
+            track.last_seen_t = t
+        self.tracks.extend(new_tracks)
+
+        survivors = []
+        for track in self.tracks:
+            depth = track.obs.depth if track.seen else 0.0
+            window_min = track.rolling.push(t, depth)
+            track.anchor = anchoring_score(cfg, window_min, t - track.first_t)
+            if track.seen:
+                out.anchor = max(out.anchor, track.anchor)
+            touching = is_touching(cfg, down=track.down, seen=track.seen, core_depth=depth, anchor=track.anchor)
+            self._advance(track, t, touching, out.events)
+            if track.down or t - track.last_seen_t <= cfg.release_s:
+                survivors.append(track)
+        self.tracks = survivors
+        by_obs = {id(track.obs): track for track in survivors if track.seen}
+        for obs in observations:
+            track = by_obs.get(id(obs))
+            out.protected.append(
+                track is not None and (track.down or track.streak > 0 or track.anchor >= cfg.anchor_threshold)
+            )
+        return out
+
+    def finish(self, t: float) -> list[TouchEvent]:
+        """Release every contact still down (end of a recording) at time ``t``."""
+        events = []
+        for track in self.tracks:
+            if track.down:
+                track.release_t = track.release_t if track.release_t is not None else t
+                events.append(self._release(track))
+        self.tracks = []
+        return events
+
+    def contacts(self) -> list[Contact]:
+        out = []
+        for track in self.tracks:
+            if track.down and track.touch_obs is not None:
+                o = track.touch_obs
+                out.append(Contact(track.event_id or 0, o.x, o.y, o.u, o.v, o.depth, o.area, track.anchor, track.down_t))
+        return out
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _associate(self, observations: list[Observation]) -> dict[int, Track]:
+        """Greedy nearest-centre matching of this frame's shadows to existing tracks."""
+        limit = self.config.match_distance_px
+        pairs = []
+        for ti, track in enumerate(self.tracks):
+            for oi, obs in enumerate(observations):
+                d = math.hypot(obs.x - track.obs.x, obs.y - track.obs.y)
+                if d <= limit:
+                    pairs.append((d, ti, oi))
+        pairs.sort()
+        used_t: set[int] = set()
+        matched: dict[int, Track] = {}
+        for _, ti, oi in pairs:
+            if ti in used_t or oi in matched:
+                continue
+            used_t.add(ti)
+            matched[oi] = self.tracks[ti]
+        return matched
+
+    def _advance(self, track: Track, t: float, touching: bool, events: list[TouchEvent]) -> None:
+        cfg = self.config
+        if not track.down:
+            track.streak = track.streak + 1 if touching else 0
+            if touching and track.streak >= cfg.down_frames:
+                track.event_id = self.next_id
+                self.next_id += 1
+                track.down_t = track.last_touch_t = t
+                track.release_t = None
+                track.path_len = 0.0
+                track.path_anchor = track.reported = (track.obs.x, track.obs.y)
+                track.touch_obs = track.obs
+                track.max_area = track.obs.area
+                track.max_depth = track.obs.depth
+                events.append(self._event(track, "down", t, None))
+            return
+        if touching:
+            track.last_touch_t = t
+            track.release_t = None
+            obs = track.obs
+            track.touch_obs = obs
+            track.max_area = max(track.max_area, obs.area)
+            track.max_depth = max(track.max_depth, obs.depth)
+            ax, ay = track.path_anchor
+            step = math.hypot(obs.x - ax, obs.y - ay)
+            if step >= cfg.path_deadband_px:
+                track.path_len += step
+                track.path_anchor = (obs.x, obs.y)
+            rx, ry = track.reported
+            if math.hypot(obs.x - rx, obs.y - ry) >= cfg.move_min_px:
+                track.reported = (obs.x, obs.y)
+                events.append(self._event(track, "move", t, self._kind_so_far(track, t)))
+            return
+        if track.release_t is None:
+            track.release_t = t
+        if t - track.last_touch_t >= cfg.release_s:
+            events.append(self._release(track))
+
+    def _release(self, track: Track) -> TouchEvent:
+        assert track.release_t is not None
+        kind = self._final_kind(track, track.release_t)
+        event = self._event(track, "up", track.release_t, kind)
+        track.event_id = None
+        track.streak = 0
+        track.touch_obs = None
+        return event
+
+    def _kind_so_far(self, track: Track, t: float) -> TouchKind | None:
+        if track.path_len >= self.config.swipe_min_path_px:
+            return "swipe"
+        if t - track.down_t >= self.config.hold_min_s:
+            return "hold"
+        return None
+
+    def _final_kind(self, track: Track, end_t: float) -> TouchKind:
+        return self._kind_so_far(track, end_t) or "tap"
+
+    def _event(self, track: Track, phase: str, t: float, kind: TouchKind | None) -> TouchEvent:
+        obs = track.touch_obs or track.obs
+        return TouchEvent(
+            id=track.event_id or 0,
+            phase=phase,  # type: ignore[arg-type]
+            kind=kind,
+            t=t,
+            x=obs.x,
+            y=obs.y,
+            u=obs.u,
+            v=obs.v,
+            depth=obs.depth,
+            area=obs.area if phase != "up" else track.max_area,
+            anchor=track.anchor,
+        )

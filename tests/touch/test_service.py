@@ -1,0 +1,191 @@
+"""The touch service shell: frames through the pipeline to the bus, bad frames counted, debug view, state."""
+
+from __future__ import annotations
+
+import asyncio
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from feelium.cameras.base import Frame
+from feelium.cameras.select import CameraSource
+from feelium.events import TouchEvent
+from feelium.hub import Hub
+from feelium.touch.config import TouchConfig
+from feelium.touch.service import TouchService
+
+
+@dataclass(frozen=True)
+class FakeContact:
+    id: int
+    x: float
+    y: float
+    depth: float
+
+
+@dataclass(frozen=True)
+class FakeResult:
+    t: float
+    events: tuple
+    activity: bool
+    anchor: float
+    depth_max: float
+    area: int
+    contacts: tuple
+
+
+def _event(t: float, phase: str) -> TouchEvent:
+    return TouchEvent(id=1, phase=phase, kind=None, t=t, x=5.0, y=6.0, u=0.5, v=0.5, depth=0.5, area=10, anchor=1.0)
+
+
+class FakePipeline:
+    """Emits a down on its 2nd frame; rejects non-increasing times like the real one; 'explodes' on demand."""
+
+    created: list["FakePipeline"] = []
+
+    def __init__(self, config, size, roi):
+        self.size, self.roi = size, roi
+        self.times: list[float] = []
+        self.finished = False
+        FakePipeline.created.append(self)
+
+    def process(self, t, frame):
+        if self.times and t <= self.times[-1]:
+            raise ValueError(f"frame time {t} does not follow {self.times[-1]}")
+        if frame[0, 0] == 13:
+            raise RuntimeError("pipeline bug")
+        self.times.append(t)
+        events = (_event(t, "down"),) if len(self.times) == 2 else ()
+        contacts = (FakeContact(1, 5.0, 6.0, 0.5),) if len(self.times) >= 2 else ()
+        return FakeResult(t, events, bool(contacts), 0.9, 0.5, 10, contacts)
+
+    def finish(self):
+        self.finished = True
+        return (_event(self.times[-1], "up"),) if len(self.times) >= 2 else ()
+
+
+class ScriptedCamera:
+    name = "scripted"
+    realtime = False
+
+    def __init__(self, frames):
+        self.frames = list(frames)
+        self.closed = False
+
+    def read(self):
+        return self.frames.pop(0) if self.frames else None
+
+    def close(self):
+        self.closed = True
+
+
+def _frame(t, segment=0, value=100, size=(8, 6), roi=(1, 1, 4, 4)):
+    return Frame(t=t, image=np.full((size[1], size[0]), value, np.uint8), segment=segment, roi=roi)
+
+
+def _overlay(frame, result, roi):
+    out = np.zeros((*frame.shape[:2], 3), np.uint8)
+    out[...] = len(result.contacts)
+    return out
+
+
+def _service(frames, hub, **kwargs):
+    camera = ScriptedCamera(frames)
+    service = TouchService(
+        CameraSource("scripted", lambda: camera), hub, TouchConfig(), pipeline_factory=FakePipeline, overlay=_overlay, **kwargs
+    )
+    return service, camera
+
+
+@pytest.fixture(autouse=True)
+def _fresh():
+    FakePipeline.created.clear()
+
+
+async def test_events_reach_the_bus_and_the_state_board():
+    hub = Hub()
+    sub = hub.bus.subscribe([TouchEvent])
+    service, camera = _service([_frame(0.1 * i) for i in range(1, 5)], hub)
+    await service.run()
+    events = sub.drain()
+    assert [(e.phase, e.t) for e in events] == [("down", pytest.approx(0.2)), ("up", pytest.approx(0.4))]
+    assert FakePipeline.created[0].finished  # contacts still down are released when the source ends
+    state = hub.state.snapshot()["touch"]
+    assert state["contacts"] == [{"id": 1, "x": 5.0, "y": 6.0, "depth": 0.5}]
+    assert state["activity"] is True and state["backend"] == "scripted"
+    health = service.health()
+    assert health["frames"] == 4 and health["events"] == 2 and health["bad_frames"] == 0
+    assert health["last_frame_at"] is not None and camera.closed
+
+
+async def test_bad_frames_are_counted_and_skipped():
+    hub = Hub()
+    frames = [
+        _frame(0.1),
+        _frame(0.1),  # repeated time: the pipeline's ValueError
+        Frame(t=0.2, image=np.zeros((6, 8, 4), np.uint8)),  # wrong shape
+        Frame(t=0.25, image=np.zeros((6, 8), np.float32)),  # wrong dtype
+        _frame(0.3),
+    ]
+    service, _ = _service(frames, hub)
+    await service.run()
+    health = service.health()
+    assert health["frames"] == 2 and health["bad_frames"] == 3
+    assert "uint8" in health["last_bad_frame"]
+
+
+async def test_a_pipeline_bug_crashes_the_service_for_the_supervisor_to_restart():
+    hub = Hub()
+    service, camera = _service([_frame(0.1), _frame(0.2, value=13), _frame(0.3)], hub)
+    with pytest.raises(RuntimeError, match="pipeline bug"):
+        await service.run()
+    assert camera.closed
+
+
+async def test_a_new_segment_or_frame_size_gets_a_fresh_pipeline_and_releases_open_contacts():
+    hub = Hub()
+    sub = hub.bus.subscribe([TouchEvent])
+    frames = [_frame(0.1), _frame(0.2), _frame(0.3, segment=1), _frame(0.4, segment=1, size=(10, 8), roi=None)]
+    service, _ = _service(frames, hub)
+    await service.run()
+    sizes = [(p.size, p.roi) for p in FakePipeline.created]
+    assert sizes == [((8, 6), (1, 1, 4, 4)), ((8, 6), (1, 1, 4, 4)), ((10, 8), None)]
+    assert [e.phase for e in sub.drain()] == ["down", "up"]
+
+
+async def test_debug_view_is_published_at_its_own_modest_rate():
+    hub = Hub()
+    service, _ = _service([_frame(0.05 * i) for i in range(1, 41)], hub, debug_video_fps=5.0)  # 2 s at 20 fps
+    await service.run()
+    assert 9 <= hub.rear_video.published <= 11
+    assert hub.rear_video.get().value.shape == (6, 8, 3)
+    quiet, _ = _service([_frame(0.05 * i) for i in range(1, 10)], Hub(), debug_video_fps=0.0)
+    await quiet.run()
+    assert quiet.hub.rear_video.published == 0
+
+
+async def test_stop_ends_a_running_service():
+    class Endless(ScriptedCamera):
+        realtime = True
+
+        def __init__(self):
+            super().__init__([])
+            self.t = 0.0
+
+        def read(self):
+            import time
+
+            time.sleep(0.005)
+            self.t += 0.01
+            return _frame(self.t)
+
+    hub = Hub()
+    camera = Endless()
+    service = TouchService(CameraSource("endless", lambda: camera), hub, TouchConfig(), pipeline_factory=FakePipeline, overlay=_overlay)
+    task = asyncio.create_task(service.run())
+    while service.frames < 3:
+        await asyncio.sleep(0.01)
+    await service.stop()
+    await asyncio.wait_for(task, 2.0)
+    assert camera.closed

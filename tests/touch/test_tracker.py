@@ -1,0 +1,95 @@
+"""Tracker: debouncing, tap/hold/swipe, several simultaneous contacts, ids, area."""
+
+from dataclasses import replace
+
+from feelium.touch.config import TouchConfig
+from feelium.touch.tracker import Observation, Tracker
+
+CFG = TouchConfig()
+DT = 1 / 15
+
+
+def obs(x, y, depth=0.8, area=150):
+    return Observation(x, y, x / 640, y / 480, depth, area)
+
+
+def run(tracker, frames, t0=0.0):
+    events = []
+    for k, observations in enumerate(frames):
+        events += tracker.step(t0 + k * DT, observations).events
+    return events
+
+
+def test_tap_gives_one_down_and_one_up_of_kind_tap():
+    tracker = Tracker(CFG)
+    events = run(tracker, [[obs(100, 100)]] * 4 + [[]] * 6)
+    assert [e.phase for e in events] == ["down", "up"]
+    assert events[0].kind is None and events[1].kind == "tap"
+    assert events[0].id == events[1].id == 1
+    assert events[0].t == DT  # confirmed on the second touching frame
+
+
+def test_single_frame_flicker_is_debounced():
+    tracker = Tracker(CFG)
+    assert run(tracker, [[obs(100, 100)], [], [], [], []]) == []
+
+
+def test_long_contact_is_a_hold_and_short_dropout_does_not_split_it():
+    tracker = Tracker(CFG)
+    frames = [[obs(200, 150)]] * 10 + [[]] + [[obs(200, 150)]] * 10 + [[]] * 6
+    events = run(tracker, frames)
+    assert [e.phase for e in events] == ["down", "up"]
+    assert events[-1].kind == "hold"
+
+
+def test_long_path_is_a_swipe_with_moves():
+    tracker = Tracker(CFG)
+    frames = [[obs(100 + 8 * k, 200)] for k in range(12)] + [[]] * 6
+    events = run(tracker, frames)
+    assert events[0].phase == "down" and events[-1].phase == "up"
+    assert events[-1].kind == "swipe"
+    assert sum(e.phase == "move" for e in events) >= 5
+    assert any(e.kind == "swipe" for e in events if e.phase == "move")
+
+
+def test_jitter_does_not_make_a_swipe():
+    tracker = Tracker(CFG)
+    frames = [[obs(300 + (1.2 if k % 2 else -1.2), 200)] for k in range(20)] + [[]] * 6
+    events = run(tracker, frames)
+    assert events[-1].kind == "hold"
+
+
+def test_two_simultaneous_contacts_keep_their_ids():
+    tracker = Tracker(CFG)
+    frames = [[obs(100 + k, 100), obs(400 - k, 300, area=3000)] for k in range(10)] + [[]] * 6
+    events = run(tracker, frames)
+    downs = [e for e in events if e.phase == "down"]
+    ups = [e for e in events if e.phase == "up"]
+    assert len(downs) == 2 and len(ups) == 2
+    by_id = {e.id: e for e in downs}
+    assert len(by_id) == 2
+    palm = [e for e in ups if e.area == 3000]
+    assert palm and abs(palm[0].x - 391) < 2  # the big shadow kept its own track and area
+
+
+def test_shallow_shadow_needs_the_sustained_gate():
+    cfg = replace(CFG, instant_depth=0.6, anchor_threshold=0.3, anchor_min_age_s=0.5)
+    tracker = Tracker(cfg)
+    events = run(tracker, [[obs(100, 100, depth=0.4)]] * 12)
+    assert len(events) == 1
+    assert events[0].t >= 0.5 and events[0].anchor >= 0.3
+
+
+def test_wobbling_shadow_is_not_anchored():
+    cfg = replace(CFG, instant_depth=0.6, anchor_threshold=0.3)
+    tracker = Tracker(cfg)
+    frames = [[obs(100, 100, depth=0.45 if k % 5 else 0.1)] for k in range(60)]
+    assert run(tracker, frames) == []
+
+
+def test_finish_releases_open_contacts():
+    tracker = Tracker(CFG)
+    run(tracker, [[obs(100, 100)]] * 5)
+    events = tracker.finish(1.0)
+    assert [e.phase for e in events] == ["up"]
+    assert tracker.contacts() == []
