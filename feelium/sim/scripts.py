@@ -244,7 +244,7 @@ def disturbance(rng: np.random.Generator, kind: str, roi: Roi) -> Script:
         keys = (
             Keyframe(0.0, x0, y0, FAR_MM),
             Keyframe(t0, x0, y0, height),
-            Keyframe(t1, x1, y0 + rng.normal(0, 40), height + rng.normal(0, 5)),
+            Keyframe(t1, x1, y0 + rng.normal(0, 40), max(10.0, height + rng.normal(0, 5))),
             Keyframe(duration, x1, y0, FAR_MM),
         )
     elif kind == "wave":
@@ -256,13 +256,13 @@ def disturbance(rng: np.random.Generator, kind: str, roi: Roi) -> Script:
         side = 1.0
         while t + half < duration - 0.6:
             t += half
-            frames.append(Keyframe(t, cx + side * amp, cy + rng.normal(0, 8), height + rng.normal(0, 3)))
+            frames.append(Keyframe(t, cx + side * amp, cy + rng.normal(0, 8), max(10.0, height + rng.normal(0, 3))))
             side = -side
         frames.append(Keyframe(duration, cx, cy + 150, FAR_MM))
         keys = tuple(frames)
     else:
         raise ValueError(f"unknown disturbance kind {kind!r}; expected sweep, wave or body")
-    hand = HandTrack(keys=keys, tremor=Tremor.draw(rng), **posture)
+    hand = HandTrack(keys=keys, tremor=Tremor.draw(rng, drift_mm=1.0), **posture)
     return Script("disturbance", duration, (hand,), params={"kind": kind, "height_mm": height, **posture})
 
 
