@@ -15,3 +15,18 @@ class AudioConfig:
     backend: Literal["auto", "alsa", "fake", "off"] = setting(
         "auto", "Audio device; auto uses ALSA when a sound card is found, else the fake."
     )
+    sample_rate: int = setting(16000, "Sample rate of speech both ways (PCM16 mono); uploads at other rates are resampled.",
+                               min=8000, max=48000)
+    chunk_ms: int = setting(40, "Capture chunk length; also the playback write size.", min=10, max=500)
+    max_playback_ms: int = setting(
+        400, "Most wearer speech queued for the speaker; older audio is dropped so latency never grows.", min=40, max=5000
+    )
+    capture_keep_ms: int = setting(
+        2000, "Blimp-to-wearer audio kept for the headset to fetch; a client further behind skips ahead.",
+        min=100, max=30000,
+    )
+    playback_device: str = setting("default", "ALSA playback device (aplay -D).")
+    capture_device: str = setting("default", "ALSA capture device (arecord -D).")
+    fake_tone_hz: float = setting(
+        440.0, "The fake microphone's tone (0 = silence), so a browser can hear the link works.", min=0.0, max=4000.0
+    )

@@ -9,7 +9,47 @@ from feelium.settings import setting
 
 @dataclass(frozen=True)
 class HttpConfig:
-    """The headset API server."""
+    """The headset API server (the wearer's link to the blimp)."""
 
+    enabled: bool = setting(True, "Serve the headset API and the browser client.")
     host: str = setting("127.0.0.1", "Address to listen on; 0.0.0.0 to reach it from the room's Wi-Fi.")
     port: int = setting(8080, "TCP port.", min=0, max=65535)
+    token: str = setting(
+        "", "Bearer token every endpoint but health requires; empty = read (or create on first run) token_file."
+    )
+    token_file: str = setting(
+        "~/.config/feelium/http-token", "Where the generated token lives (created 0600 on first run)."
+    )
+    cors_origins: str = setting(
+        "", "Comma-separated origins (https://host:port) other than the server itself allowed to call the API."
+    )
+    tls_cert: str = setting("", "PEM certificate file; with tls_key, the server speaks HTTPS only.")
+    tls_key: str = setting("", "PEM private key file for tls_cert.")
+    max_json_bytes: int = setting(16384, "Largest JSON request body (413 above).", min=256, max=1048576)
+    max_face_bytes: int = setting(
+        2_000_000, "Largest face upload: one JPEG, or all frames of a looping avatar (413 above).", min=1024, max=16_000_000
+    )
+    max_avatar_frames: int = setting(64, "Most frames a looping avatar may have.", min=1, max=1000)
+    max_speech_bytes: int = setting(
+        256_000, "Largest speech upload (one WAV chunk; 413 above).", min=1024, max=4_000_000
+    )
+    motion_rate_per_s: float = setting(
+        25.0, "Sustained motion commands per second accepted (headsets refresh the dead man ~10/s); 429 above.",
+        min=1.0, max=1000.0,
+    )
+    motion_burst: int = setting(25, "Motion commands accepted in a burst before the rate limit applies.", min=1, max=1000)
+    event_ring_size: int = setting(
+        512, "Events kept for long-poll, SSE and WebSocket catch-up; a client further behind gets reset.",
+        min=8, max=100000,
+    )
+    longpoll_max_s: float = setting(30.0, "Longest long-poll wait a client may ask for.", min=0.0, max=300.0)
+    stream_write_timeout_s: float = setting(
+        2.0, "A video, SSE or WebSocket client that accepts nothing for this long is dropped.", min=0.05, max=60.0
+    )
+    max_stream_clients: int = setting(
+        16, "Concurrent MJPEG streams per camera; more get 429.", min=1, max=1000
+    )
+    jpeg_quality: int = setting(80, "JPEG quality of the video streams (encoded once per frame).", min=10, max=100)
+    keepalive_s: float = setting(
+        15.0, "SSE comment / WebSocket ping interval that keeps idle connections and proxies alive.", min=0.5, max=300.0
+    )

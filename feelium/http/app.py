@@ -1,0 +1,123 @@
+"""The headset API application: routes, middlewares and the background pumps, built from config and a hub."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from pathlib import Path
+
+from aiohttp import web
+
+from feelium.audio.config import AudioConfig
+from feelium.http import control, events_api, video
+from feelium.http.config import HttpConfig
+from feelium.http.context import CONTEXT, LinkContext, ctx
+from feelium.http.errors import ERROR_STATS, json_errors
+from feelium.http.face import FacePlayer
+from feelium.http.feed import EventFeed
+from feelium.http.jpeg import JpegFeed
+from feelium.http.openapi import openapi_document
+from feelium.http.ratelimit import TokenBucket
+from feelium.http.security import API_PREFIX, add_cors_headers, make_cors_middleware, parse_origins, require_token
+from feelium.http.speech import SpeechFeed
+from feelium.hub import Hub
+
+STATIC_DIR = Path(__file__).with_name("static")
+_PUMPS: web.AppKey[list[asyncio.Task[None]]] = web.AppKey("feelium_pumps", list)
+
+
+def build_context(config: HttpConfig, hub: Hub, token: str, audio: AudioConfig | None = None) -> LinkContext:
+    audio = audio or AudioConfig()
+    videos = {
+        "front": JpegFeed("front", hub.front_video, config.jpeg_quality),
+        "rear": JpegFeed("rear", hub.rear_video, config.jpeg_quality),
+        "projector": JpegFeed("projector", hub.projector_video, config.jpeg_quality),
+    }
+    return LinkContext(
+        config=config,
+        audio=audio,
+        hub=hub,
+        token=token,
+        events=EventFeed(hub.bus, config.event_ring_size),
+        speech=SpeechFeed(hub.bus, audio.capture_keep_ms),
+        videos=videos,
+        motion_bucket=TokenBucket(config.motion_rate_per_s, config.motion_burst, hub.clock()),
+        face=FacePlayer(hub),
+    )
+
+
+async def _start_pumps(app: web.Application) -> None:
+    link = app[CONTEXT]
+    link.events.start()  # subscribe now, so nothing published after startup is missed
+    app[_PUMPS] = [asyncio.create_task(link.events.pump()), asyncio.create_task(link.speech.pump())]
+
+
+async def _stop_pumps(app: web.Application) -> None:
+    link = app[CONTEXT]
+    for task in app.get(_PUMPS, []):
+        task.cancel()
+    for task in app.get(_PUMPS, []):
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+    link.events.close()
+    link.speech.close()
+    await link.face.close()
+
+
+async def openapi(request: web.Request) -> web.Response:
+    return web.json_response(openapi_document())
+
+
+async def index(request: web.Request) -> web.FileResponse:
+    return web.FileResponse(STATIC_DIR / "index.html", headers={"Cache-Control": "no-cache"})
+
+
+async def partner(request: web.Request) -> web.FileResponse:
+    return web.FileResponse(STATIC_DIR / "partner.html", headers={"Cache-Control": "no-cache"})
+
+
+def create_app(config: HttpConfig, hub: Hub, token: str, audio: AudioConfig | None = None) -> web.Application:
+    """The aiohttp application of the headset link (the caller runs it)."""
+    if len(token) < 16:
+        raise ValueError("the API token must be at least 16 characters")
+    link = build_context(config, hub, token, audio)
+    limit = max(config.max_json_bytes, config.max_face_bytes, config.max_speech_bytes) + 65536
+    app = web.Application(
+        client_max_size=limit,
+        middlewares=[json_errors, make_cors_middleware(parse_origins(config.cors_origins)), require_token],
+    )
+    app[CONTEXT] = link
+    app[ERROR_STATS] = link.counters
+    app.on_startup.append(_start_pumps)
+    app.on_shutdown.append(_stop_pumps)
+    app.on_response_prepare.append(add_cors_headers)
+    p = API_PREFIX
+    app.router.add_get(f"{p}/openapi.json", openapi)
+    app.router.add_get(f"{p}/health", control.get_health)
+    app.router.add_get(f"{p}/state", control.get_state)
+    app.router.add_get(f"{p}/video/{{camera}}.mjpeg", video.mjpeg)
+    app.router.add_get(f"{p}/video/{{camera}}.jpg", video.jpeg)
+    app.router.add_post(f"{p}/motion", control.post_motion)
+    app.router.add_get(f"{p}/motion", control.get_motion)
+    app.router.add_get(f"{p}/events", events_api.long_poll)
+    app.router.add_get(f"{p}/events/stream", events_api.sse)
+    app.router.add_get(f"{p}/events/ws", events_api.websocket)
+    app.router.add_put(f"{p}/face", control.put_face)
+    app.router.add_post(f"{p}/speech", control.post_speech)
+    app.router.add_get(f"{p}/speech", control.get_speech)
+    app.router.add_post(f"{p}/actions/{{action}}", control.post_action)
+    app.router.add_get(f"{p}/sim", control.get_sim)
+    app.router.add_post(f"{p}/sim/press", control.post_sim_press)
+    app.router.add_post(f"{p}/sim/release", control.post_sim_release)
+    app.router.add_get("/", index)
+    app.router.add_get("/partner", partner)
+    app.router.add_static("/static/", STATIC_DIR, show_index=False)
+    return app
+
+
+def link_of(app: web.Application) -> LinkContext:
+    """The shared state of a built app (tests and the service read counters from it)."""
+    return app[CONTEXT]
+
+
+__all__ = ["create_app", "link_of", "ctx"]

@@ -1,0 +1,55 @@
+"""What the handlers share: the config, the hub, the feeds and the link's counters."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from aiohttp import web
+
+from feelium.audio.config import AudioConfig
+from feelium.http.config import HttpConfig
+from feelium.http.face import FacePlayer
+from feelium.http.feed import EventFeed
+from feelium.http.jpeg import JpegFeed
+from feelium.http.ratelimit import TokenBucket
+from feelium.http.speech import SpeechFeed
+from feelium.hub import Hub
+
+
+@dataclass
+class LinkContext:
+    config: HttpConfig
+    audio: AudioConfig
+    hub: Hub
+    token: str
+    events: EventFeed
+    speech: SpeechFeed
+    videos: dict[str, JpegFeed]
+    motion_bucket: TokenBucket
+    face: FacePlayer
+    counters: dict[str, int] = field(default_factory=dict)
+    last_request_at: float | None = None
+    last_motion_at: float | None = None
+
+    def count(self, name: str, n: int = 1) -> None:
+        self.counters[name] = self.counters.get(name, 0) + n
+
+    def link_state(self, now: float) -> dict[str, Any]:
+        """How alive the headset link looks from the blimp (for ``/state``)."""
+        def age(t: float | None) -> float | None:
+            return None if t is None else round(now - t, 3)
+
+        return {
+            "last_request_age_s": age(self.last_request_at),
+            "last_motion_age_s": age(self.last_motion_at),
+            "video_clients": sum(f.clients for f in self.videos.values()),
+            "event_clients": self.counters.get("event_clients", 0),
+        }
+
+
+CONTEXT: web.AppKey[LinkContext] = web.AppKey("feelium_link", LinkContext)
+
+
+def ctx(request: web.Request) -> LinkContext:
+    return request.app[CONTEXT]

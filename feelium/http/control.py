@@ -1,0 +1,267 @@
+"""Motion, wearer actions, face, speech, simulated touches, state and health: thin handlers over the hub."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+from aiohttp import web
+
+from feelium.audio.chunks import SpeechIn
+from feelium.audio.wav import WavError, decode_wav, encode_wav, resample
+from feelium.events import WearerAction
+from feelium.http.context import ctx
+from feelium.http.errors import ApiError
+from feelium.http.face import JpegError, check_jpeg
+from feelium.http.params import check_keys, number_field, query_number, read_body, read_json_object
+from feelium.motion import DEFAULT_HOLD_S, MOTION_NAMES
+
+ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
+MAX_WORD = 40
+
+
+def _motion_json(cmd, now: float) -> dict:  # type: ignore[no-untyped-def]
+    if cmd is None:
+        return {"command": "stop", "active": False, "remaining_ms": 0, "source": None}
+    return {
+        "command": cmd.name,
+        "active": True,
+        "remaining_ms": round(1000.0 * max(0.0, cmd.expires_at - now), 1),
+        "source": cmd.source,
+    }
+
+
+async def post_motion(request: web.Request) -> web.Response:
+    """A dead-man motion command: it lapses unless refreshed within ``hold_ms``."""
+    link = ctx(request)
+    now = link.hub.clock()
+    if not link.motion_bucket.take(now):
+        wait = link.motion_bucket.retry_after(now)
+        raise ApiError(
+            429,
+            f"motion commands are limited to {link.config.motion_rate_per_s:g}/s; retry in {wait:.2f} s",
+            headers={"Retry-After": str(max(1, round(wait + 0.5)))},
+        )
+    body = await read_json_object(request, link.config.max_json_bytes)
+    check_keys(body, {"command", "hold_ms"})
+    name = body.get("command")
+    if not isinstance(name, str) or name not in MOTION_NAMES:
+        raise ApiError(400, f"command must be one of {', '.join(MOTION_NAMES)}, got {str(name)[:40]!r}")
+    max_ms = 1000.0 * link.hub.motion.max_hold_s
+    hold_ms = number_field(body, "hold_ms", 1000.0 * DEFAULT_HOLD_S, 1.0, max_ms)
+    assert hold_ms is not None
+    cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
+    link.last_motion_at = now
+    return web.json_response(_motion_json(link.hub.motion.active(now), now) | {"accepted": cmd.name})
+
+
+async def get_motion(request: web.Request) -> web.Response:
+    link = ctx(request)
+    now = link.hub.clock()
+    return web.json_response(_motion_json(link.hub.motion.active(now), now))
+
+
+async def post_action(request: web.Request) -> web.Response:
+    """A wearer action (heart, palm, shimmer, guess) for the interaction engine."""
+    link = ctx(request)
+    name = request.match_info["action"]
+    if name not in ACTIONS:
+        raise ApiError(404, f"no action {name!r}; expected one of {', '.join(ACTIONS)}")
+    body = await read_json_object(request, link.config.max_json_bytes, required=name == "guess")
+    detail: dict = {}
+    if name == "guess":
+        check_keys(body, {"word"})
+        word = body.get("word")
+        if not isinstance(word, str) or not word.strip() or len(word) > MAX_WORD:
+            raise ApiError(400, f"word must be a non-empty string of at most {MAX_WORD} characters")
+        detail["word"] = word.strip()
+    else:
+        check_keys(body, set())
+    action = WearerAction(name, link.hub.clock(), detail)  # type: ignore[arg-type]
+    link.hub.bus.publish(action)
+    link.count(f"action_{name}")
+    return web.json_response(action.to_json(), status=202)
+
+
+async def _avatar_frames(request: web.Request, limit: int, max_frames: int) -> list[bytes]:
+    frames: list[bytes] = []
+    total = 0
+    try:
+        reader = await request.multipart()
+    except (ValueError, AssertionError) as exc:
+        raise ApiError(400, f"malformed multipart body: {exc}") from exc
+    while True:
+        try:
+            part = await reader.next()
+        except ValueError as exc:
+            raise ApiError(400, f"malformed multipart body: {exc}") from exc
+        if part is None:
+            break
+        data = await part.read()  # type: ignore[union-attr]
+        total += len(data)
+        if total > limit:
+            raise ApiError(413, f"avatar exceeds the limit of {limit} bytes")
+        frames.append(bytes(data))
+        if len(frames) > max_frames:
+            raise ApiError(400, f"an avatar may have at most {max_frames} frames")
+    return frames
+
+
+async def put_face(request: web.Request) -> web.Response:
+    """The wearer's face: one ``image/jpeg``, or a looping avatar as ``multipart/form-data`` JPEG parts."""
+    link = ctx(request)
+    cfg = link.config
+    ctype = request.content_type
+    fps = query_number(request, "fps", 12.0, 0.5, 60.0)
+    if ctype == "image/jpeg":
+        frames = [await read_body(request, cfg.max_face_bytes)]
+    elif ctype in ("multipart/form-data", "multipart/mixed"):
+        if request.content_length is not None and request.content_length > cfg.max_face_bytes:
+            raise ApiError(413, f"avatar of {request.content_length} bytes exceeds the limit of {cfg.max_face_bytes} bytes")
+        frames = await _avatar_frames(request, cfg.max_face_bytes, cfg.max_avatar_frames)
+        if not frames:
+            raise ApiError(400, "the avatar has no frames")
+    else:
+        raise ApiError(415, f"expected image/jpeg or multipart/form-data of JPEG frames, got {ctype}")
+    try:
+        for i, frame in enumerate(frames):
+            check_jpeg(frame, "body" if len(frames) == 1 else f"frame {i}")
+    except JpegError as exc:
+        raise ApiError(400, str(exc)) from exc
+    link.face.show(frames, fps)
+    return web.json_response({"frames": len(frames), "fps": fps if len(frames) > 1 else None, "bytes": sum(map(len, frames))})
+
+
+async def post_speech(request: web.Request) -> web.Response:
+    """One chunk of the wearer's speech as a PCM16 WAV; played in the room after at most max_playback_ms."""
+    link = ctx(request)
+    if request.content_type not in ("audio/wav", "audio/x-wav", "audio/wave", "application/octet-stream"):
+        raise ApiError(415, f"expected audio/wav (PCM16), got {request.content_type}")
+    data = await read_body(request, link.config.max_speech_bytes)
+    try:
+        samples, rate = decode_wav(data)
+    except WavError as exc:
+        raise ApiError(400, str(exc)) from exc
+    target = link.audio.sample_rate
+    pcm = resample(samples, rate, target).astype("<i2").tobytes()
+    link.hub.bus.publish(SpeechIn(pcm, target, link.hub.clock()))
+    link.count("speech_chunks_in")
+    return web.json_response(
+        {"samples": len(pcm) // 2, "rate": target, "ms": round(1000.0 * len(pcm) / (2 * target), 1)}, status=202
+    )
+
+
+async def get_speech(request: web.Request) -> web.StreamResponse:
+    """Room audio captured after ``?after=SEQ`` as one WAV; 204 when none came within ``timeout``."""
+    link = ctx(request)
+    after = int(query_number(request, "after", 0, 0, 2**53, integer=True))
+    timeout = query_number(request, "timeout", 0.0, 0.0, 5.0)
+    chunks, last = await link.speech.wait_after(after, timeout)
+    headers = {"X-Speech-Seq": str(last), "Cache-Control": "no-store"}
+    if not chunks:
+        return web.Response(status=204, headers=headers)
+    rate = chunks[-1].rate
+    pcm = b"".join(c.pcm for c in chunks if c.rate == rate)
+    link.count("speech_chunks_out", len(chunks))
+    return web.Response(body=encode_wav(pcm, rate), content_type="audio/wav", headers=headers)
+
+
+def _scene(request: web.Request):  # type: ignore[no-untyped-def]
+    scene = ctx(request).hub.rear_scene
+    if scene is None:
+        raise ApiError(404, "simulated touches need the daemon in sim mode (no live rear scene here)", "not_sim")
+    return scene
+
+
+async def post_sim_press(request: web.Request) -> web.Response:
+    """Press (or hover) a simulated fingertip on the rear camera at ``x``, ``y`` (camera pixels)."""
+    link = ctx(request)
+    scene = _scene(request)
+    body = await read_json_object(request, link.config.max_json_bytes)
+    check_keys(body, {"x", "y", "hover"})
+    width = float(getattr(scene, "width", 10000))
+    height = float(getattr(scene, "height", 10000))
+    if "x" not in body or "y" not in body:
+        raise ApiError(400, "x and y (camera pixels) are required")
+    x = number_field(body, "x", None, 0.0, width - 1)
+    y = number_field(body, "y", None, 0.0, height - 1)
+    if x is None or y is None:
+        raise ApiError(400, "x and y must be numbers")
+    hover = body.get("hover", False)
+    if not isinstance(hover, bool):
+        raise ApiError(400, "hover must be true or false")
+    try:
+        scene.press(x, y, link.hub.clock(), hover=hover)
+    except ValueError as exc:
+        raise ApiError(409, f"the simulator refused the press: {exc}") from exc
+    link.count("sim_presses")
+    return web.json_response({"x": x, "y": y, "hover": hover}, status=202)
+
+
+async def post_sim_release(request: web.Request) -> web.Response:
+    """Lift the simulated fingertip."""
+    link = ctx(request)
+    scene = _scene(request)
+    body = await read_json_object(request, link.config.max_json_bytes, required=False)
+    check_keys(body, set())
+    try:
+        scene.release(link.hub.clock())
+    except ValueError as exc:
+        raise ApiError(409, f"the simulator refused the release: {exc}") from exc
+    return web.json_response({"released": True}, status=202)
+
+
+async def get_sim(request: web.Request) -> web.Response:
+    """Whether simulated touches are available, and the rear camera's size."""
+    scene = ctx(request).hub.rear_scene
+    if scene is None:
+        return web.json_response({"sim": False})
+    return web.json_response(
+        {"sim": True, "width": getattr(scene, "width", None), "height": getattr(scene, "height", None)}
+    )
+
+
+async def get_state(request: web.Request) -> web.Response:
+    """Everything the services report (touch, presence, altitude, battery...) plus the link and motion."""
+    link = ctx(request)
+    now = link.hub.clock()
+    state = link.hub.state.snapshot()
+    body = {
+        "t": round(now, 4),
+        "services": state,
+        "motion_command": _motion_json(link.hub.motion.active(now), now),
+        "headset_link": link.link_state(now),
+        "last_seq": link.events.ring.last_seq,
+    }
+    return web.json_response(body, dumps=_dumps)
+
+
+async def get_health(request: web.Request) -> web.Response:
+    """Per-service health from the daemon's supervisor (public: no token needed)."""
+    link = ctx(request)
+    try:
+        report = dict(link.hub.health())
+    except Exception as exc:  # the supervisor's report must never take the endpoint down
+        report = {"status": "degraded", "error": f"{type(exc).__name__}: {exc}"}
+    report.setdefault("status", "ok")
+    return web.json_response(report, dumps=_dumps)
+
+
+def _dumps(obj: object) -> str:
+    """JSON of service reports, which may hold numpy scalars or non-finite floats (sent as null)."""
+
+    def clean(value: object) -> object:
+        if isinstance(value, dict):
+            return {str(k): clean(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return [clean(v) for v in value]
+        if isinstance(value, np.generic):
+            value = value.item()
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        if value is None or isinstance(value, (str, int, float, bool)):
+            return value
+        return str(value)
+
+    return json.dumps(clean(obj))

@@ -1,0 +1,137 @@
+"""Touch, presence and interaction events three ways: long-poll, Server-Sent Events and WebSocket.
+
+All three read the same ring and send the same envelopes
+(``{"seq", "type", "event"}``), so a client can switch transports and keep
+its place with the sequence number.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+from typing import Any
+
+from aiohttp import WSMsgType, web
+
+from feelium.http.context import LinkContext, ctx
+from feelium.http.errors import ApiError
+from feelium.http.params import query_number
+from feelium.http.ring import Catchup
+
+log = logging.getLogger(__name__)
+
+MAX_SEQ = 2**53
+
+
+def _after(request: web.Request, header_value: str | None = None) -> int | None:
+    """The client's last seen sequence: ``?after=`` (or ``Last-Event-ID``); ``None`` = only new events."""
+    if header_value:
+        try:
+            value = int(header_value)
+        except ValueError:
+            raise ApiError(400, f"Last-Event-ID must be an integer sequence, got {header_value[:40]!r}") from None
+        if not 0 <= value <= MAX_SEQ:
+            raise ApiError(400, f"Last-Event-ID must be within 0..{MAX_SEQ}")
+        return value
+    if request.query.get("after", "") == "":
+        return None
+    return int(query_number(request, "after", 0, 0, MAX_SEQ, integer=True))
+
+
+def catchup_body(link: LinkContext, catchup: Catchup) -> dict[str, Any]:
+    body: dict[str, Any] = {"events": catchup.events, "last_seq": catchup.last_seq, "reset": catchup.reset}
+    if catchup.reset:
+        body["state"] = link.hub.state.snapshot()
+    return body
+
+
+async def long_poll(request: web.Request) -> web.Response:
+    """``GET /events?after=SEQ&timeout=S``: events after SEQ, waiting up to S seconds for the first."""
+    link = ctx(request)
+    after = _after(request)
+    timeout = query_number(request, "timeout", 0.0, 0.0, link.config.longpoll_max_s)
+    if after is None:
+        after = link.events.ring.last_seq
+    catchup = await link.events.wait_after(after, timeout)
+    return web.json_response(catchup_body(link, catchup), headers={"Cache-Control": "no-store"})
+
+
+def sse_message(item: dict[str, Any]) -> bytes:
+    """One SSE message whose ``id`` is the sequence, so ``Last-Event-ID`` resumes after it."""
+    return f"id: {item['seq']}\nevent: {item['type']}\ndata: {json.dumps(item, separators=(',', ':'))}\n\n".encode()
+
+
+async def sse(request: web.Request) -> web.StreamResponse:
+    """``GET /events/stream``: Server-Sent Events; resumes after ``Last-Event-ID`` (or ``?after=``)."""
+    link = ctx(request)
+    after = _after(request, request.headers.get("Last-Event-ID"))
+    response = web.StreamResponse(
+        headers={"Content-Type": "text/event-stream", "Cache-Control": "no-store", "X-Accel-Buffering": "no"}
+    )
+    await response.prepare(request)
+    timeout = link.config.stream_write_timeout_s
+    seq = link.events.ring.last_seq if after is None else after
+    link.count("event_clients")
+    try:
+        await asyncio.wait_for(response.write(b"retry: 1000\n\n"), timeout)
+        while True:
+            catchup = await link.events.wait_after(seq, link.config.keepalive_s)
+            if catchup.reset:
+                reset = {"seq": catchup.last_seq, "type": "reset", "event": {"state": link.hub.state.snapshot()}}
+                await asyncio.wait_for(response.write(sse_message(reset)), timeout)
+            if catchup.events or catchup.reset:
+                payload = b"".join(sse_message(item) for item in catchup.events)
+                if payload:
+                    await asyncio.wait_for(response.write(payload), timeout)
+                seq = catchup.last_seq
+            else:
+                await asyncio.wait_for(response.write(b": keepalive\n\n"), timeout)
+    except asyncio.TimeoutError:
+        link.count("stalled_clients_dropped")
+        if request.transport is not None:
+            request.transport.abort()
+    except (ConnectionResetError, ConnectionError):
+        pass
+    finally:
+        link.count("event_clients", -1)
+    return response
+
+
+async def websocket(request: web.Request) -> web.StreamResponse:
+    """``GET /events/ws``: the same envelopes as WebSocket text messages; ``?after=`` to resume."""
+    link = ctx(request)
+    after = _after(request)
+    ws = web.WebSocketResponse(heartbeat=link.config.keepalive_s, max_msg_size=4096)
+    if not ws.can_prepare(request).ok:
+        raise ApiError(400, "expected a WebSocket upgrade request")
+    await ws.prepare(request)
+    timeout = link.config.stream_write_timeout_s
+    seq = link.events.ring.last_seq if after is None else after
+    link.count("event_clients")
+
+    async def drain_incoming() -> None:
+        async for msg in ws:  # the client sends nothing we act on; reading keeps pings and close working
+            if msg.type == WSMsgType.ERROR:
+                return
+
+    reader = asyncio.create_task(drain_incoming())
+    try:
+        while not ws.closed and not reader.done():
+            catchup = await link.events.wait_after(seq, link.config.keepalive_s)
+            if catchup.reset:
+                reset = {"seq": catchup.last_seq, "type": "reset", "event": {"state": link.hub.state.snapshot()}}
+                await asyncio.wait_for(ws.send_json(reset), timeout)
+            for item in catchup.events:
+                await asyncio.wait_for(ws.send_json(item), timeout)
+            seq = catchup.last_seq
+    except asyncio.TimeoutError:
+        link.count("stalled_clients_dropped")
+    except (ConnectionResetError, ConnectionError):
+        pass
+    finally:
+        link.count("event_clients", -1)
+        reader.cancel()
+        if not ws.closed:
+            await ws.close()
+    return ws

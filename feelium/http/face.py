@@ -1,0 +1,69 @@
+"""The wearer's face or avatar for the projector: one JPEG, or a short loop played at a fixed rate.
+
+Newest wins: a new upload replaces whatever was showing, and a loop is played
+on an absolute schedule (frame k at start + k / fps) so it never drifts.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Sequence
+
+from feelium.hub import Hub
+
+
+class JpegError(ValueError):
+    """An upload is not a complete JPEG."""
+
+
+def check_jpeg(data: bytes, what: str = "body") -> None:
+    """Cheap structural check (no decode on the Pi): SOI at the start, EOI at the end."""
+    if len(data) < 4 or not data.startswith(b"\xff\xd8\xff"):
+        raise JpegError(f"{what} is not a JPEG (it must start with the FF D8 FF marker)")
+    if not data.rstrip(b"\x00").endswith(b"\xff\xd9"):
+        raise JpegError(f"{what} is a truncated JPEG (no FF D9 end marker)")
+
+
+class FacePlayer:
+    """Publishes uploads to ``hub.face``; loops multi-frame avatars until replaced."""
+
+    def __init__(self, hub: Hub) -> None:
+        self.hub = hub
+        self._loop_task: asyncio.Task[None] | None = None
+        self.uploads = 0
+
+    def show(self, frames: Sequence[bytes], fps: float) -> None:
+        """Show one frame, or loop several at ``fps``; replaces what was showing."""
+        if not frames:
+            raise ValueError("no frames")
+        self.stop()
+        self.uploads += 1
+        self.hub.face.publish(self.hub.clock(), frames[0])
+        if len(frames) > 1:
+            self._loop_task = asyncio.get_running_loop().create_task(self._play(list(frames), fps))
+
+    async def _play(self, frames: list[bytes], fps: float) -> None:
+        loop = asyncio.get_running_loop()
+        start = loop.time()
+        k = 1
+        while True:
+            await asyncio.sleep(max(0.0, start + k / fps - loop.time()))
+            self.hub.face.publish(self.hub.clock(), frames[k % len(frames)])
+            k += 1
+
+    @property
+    def looping(self) -> bool:
+        return self._loop_task is not None and not self._loop_task.done()
+
+    def stop(self) -> None:
+        if self._loop_task is not None:
+            self._loop_task.cancel()
+            self._loop_task = None
+
+    async def close(self) -> None:
+        task = self._loop_task
+        self.stop()
+        if task is not None:
+            with contextlib.suppress(asyncio.CancelledError):
+                await task

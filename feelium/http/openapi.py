@@ -1,0 +1,245 @@
+"""The OpenAPI 3.1 description of the headset API (served at ``/api/v1/openapi.json``).
+
+Written by hand next to the handlers so a visionOS developer gets one exact
+contract; ``tests/http`` validates it and runs schemathesis against a live
+server to keep the two in step.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Any
+
+from feelium.motion import MAX_HOLD_S, MOTION_NAMES
+
+ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
+
+
+def _ref(name: str) -> dict[str, str]:
+    return {"$ref": f"#/components/schemas/{name}"}
+
+
+def _json(schema: dict[str, Any], description: str) -> dict[str, Any]:
+    return {"description": description, "content": {"application/json": {"schema": schema}}}
+
+
+def _errors(*codes: int) -> dict[str, Any]:
+    text = {
+        400: "The request is malformed; the message says which field.",
+        401: "Missing or wrong token.",
+        403: "The Origin is not allowed.",
+        404: "Not found (or not available in this mode).",
+        409: "The simulator refused the request.",
+        413: "The body exceeds the configured limit.",
+        415: "Wrong Content-Type.",
+        429: "Rate limit or stream limit reached; see Retry-After.",
+    }
+    return {str(c): _json(_ref("Error"), text[c]) for c in codes}
+
+
+def _query(name: str, schema: dict[str, Any], description: str) -> dict[str, Any]:
+    return {"name": name, "in": "query", "required": False, "schema": schema, "description": description}
+
+
+TOKEN_QUERY = _query("token", {"type": "string"}, "The token, for clients that cannot set headers (img, EventSource).")
+
+
+@lru_cache(maxsize=1)
+def openapi_document() -> dict[str, Any]:
+    """The whole document (built once)."""
+    event = {
+        "type": "object",
+        "required": ["seq", "type", "event"],
+        "properties": {
+            "seq": {"type": "integer", "minimum": 0},
+            "type": {"type": "string", "enum": ["touch", "presence", "interaction", "wearer_action", "reset"]},
+            "event": {"type": "object", "description": "The event's own JSON (TouchEvent.to_json() etc.)."},
+        },
+    }
+    motion_state = {
+        "type": "object",
+        "required": ["command", "active", "remaining_ms"],
+        "properties": {
+            "command": {"type": "string", "enum": list(MOTION_NAMES)},
+            "active": {"type": "boolean"},
+            "remaining_ms": {"type": "number", "minimum": 0},
+            "source": {"type": ["string", "null"]},
+            "accepted": {"type": "string", "enum": list(MOTION_NAMES)},
+        },
+    }
+    schemas: dict[str, Any] = {
+        "Error": {
+            "type": "object",
+            "required": ["error", "message"],
+            "properties": {"error": {"type": "string"}, "message": {"type": "string"}},
+        },
+        "Event": event,
+        "EventBatch": {
+            "type": "object",
+            "required": ["events", "last_seq", "reset"],
+            "properties": {
+                "events": {"type": "array", "items": _ref("Event")},
+                "last_seq": {"type": "integer", "minimum": 0},
+                "reset": {"type": "boolean", "description": "Events were lost: re-read `state` (included)."},
+                "state": {"type": "object"},
+            },
+        },
+        "MotionRequest": {
+            "type": "object",
+            "required": ["command"],
+            "additionalProperties": False,
+            "properties": {
+                "command": {"type": "string", "enum": list(MOTION_NAMES)},
+                "hold_ms": {
+                    "type": "number", "minimum": 1, "maximum": 1000 * MAX_HOLD_S, "default": 500,
+                    "description": "Dead man: the command lapses unless refreshed within this time.",
+                },
+            },
+        },  # fmt: skip
+        "MotionState": motion_state,
+        "State": {
+            "type": "object",
+            "required": ["t", "services", "motion_command", "headset_link", "last_seq"],
+            "properties": {
+                "t": {"type": "number"},
+                "services": {"type": "object", "description": "Each service's part: touch, presence, flight..."},
+                "motion_command": motion_state,
+                "headset_link": {"type": "object"},
+                "last_seq": {"type": "integer"},
+            },
+        },
+        "Health": {"type": "object", "required": ["status"], "properties": {"status": {"type": "string"}}},
+        "WearerAction": {
+            "type": "object",
+            "required": ["action", "t"],
+            "properties": {"action": {"type": "string", "enum": list(ACTIONS)}, "t": {"type": ["number", "null"]}},
+        },
+        "SimPress": {
+            "type": "object",
+            "required": ["x", "y"],
+            "additionalProperties": False,
+            "properties": {
+                "x": {"type": "number", "minimum": 0, "description": "Rear camera pixels."},
+                "y": {"type": "number", "minimum": 0},
+                "hover": {"type": "boolean", "default": False, "description": "Hover above instead of pressing."},
+            },
+        },
+    }
+    json_body = lambda schema, required=True: {  # noqa: E731
+        "required": required,
+        "content": {"application/json": {"schema": schema}},
+    }
+    cameras = {"name": "camera", "in": "path", "required": True, "schema": {"type": "string", "enum": ["front", "rear", "projector"]}}
+    after = _query("after", {"type": "integer", "minimum": 0}, "Last sequence seen; omitted = only new events.")
+    paths: dict[str, Any] = {
+        "/health": {"get": {
+            "operationId": "health", "summary": "Per-service health (no token needed).", "security": [],
+            "responses": {"200": _json(_ref("Health"), "The supervisor's report.")},
+        }},
+        "/state": {"get": {
+            "operationId": "state", "summary": "Live state as the services provide it.",
+            "responses": {"200": _json(_ref("State"), "State.")} | _errors(401),
+        }},
+        "/video/{camera}.jpg": {"get": {
+            "operationId": "videoJpeg", "summary": "The newest frame as a JPEG.", "parameters": [cameras, TOKEN_QUERY],
+            "responses": {
+                "200": {"description": "JPEG.", "content": {"image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}}}},
+            } | _errors(401, 404),
+        }},
+        "/video/{camera}.mjpeg": {"get": {
+            "operationId": "videoMjpeg",
+            "summary": "MJPEG stream (multipart/x-mixed-replace; boundary=feeliumframe), newest frame always.",
+            "parameters": [cameras, TOKEN_QUERY, _query("fps", {"type": "number", "minimum": 0, "maximum": 120}, "Rate cap; 0 = camera rate.")],
+            "x-streaming": True,
+            "responses": {
+                "200": {"description": "Endless stream of JPEG parts.", "content": {"multipart/x-mixed-replace": {"schema": {"type": "string"}}}},
+            } | _errors(400, 401, 404, 429),
+        }},
+        "/motion": {
+            "post": {
+                "operationId": "motion", "summary": "Dead-man motion command (refresh within hold_ms or the blimp stops).",
+                "requestBody": json_body(_ref("MotionRequest")),
+                "responses": {"200": _json(_ref("MotionState"), "The command now in force.")} | _errors(400, 401, 413, 415, 429),
+            },
+            "get": {
+                "operationId": "motionState", "summary": "The motion command in force.",
+                "responses": {"200": _json(_ref("MotionState"), "Motion.")} | _errors(401),
+            },
+        },
+        "/events": {"get": {
+            "operationId": "events", "summary": "Long-poll for touch, presence and interaction events.",
+            "parameters": [after, _query("timeout", {"type": "number", "minimum": 0, "maximum": 300}, "Longest wait in seconds (capped by config).")],
+            "responses": {"200": _json(_ref("EventBatch"), "Events after `after`.")} | _errors(400, 401),
+        }},
+        "/events/stream": {"get": {
+            "operationId": "eventStream", "summary": "Server-Sent Events; `id` is the seq, resume with Last-Event-ID.",
+            "parameters": [after, TOKEN_QUERY, {"name": "Last-Event-ID", "in": "header", "required": False, "schema": {"type": "integer", "minimum": 0}}],
+            "x-streaming": True,
+            "responses": {"200": {"description": "text/event-stream of Event objects.", "content": {"text/event-stream": {"schema": {"type": "string"}}}}} | _errors(400, 401),
+        }},
+        "/events/ws": {"get": {
+            "operationId": "eventSocket", "summary": "WebSocket: each text message is one Event object.",
+            "parameters": [after, TOKEN_QUERY], "x-streaming": True,
+            "responses": {"101": {"description": "Switching to WebSocket."}} | _errors(400, 401),
+        }},
+        "/face": {"put": {
+            "operationId": "face", "summary": "The wearer's face (one JPEG) or a looping avatar (multipart JPEG frames); newest wins.",
+            "parameters": [_query("fps", {"type": "number", "minimum": 0.5, "maximum": 60}, "Avatar loop rate.")],
+            "requestBody": {"required": True, "content": {
+                "image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}},
+                "multipart/form-data": {"schema": {"type": "object", "properties": {"frame": {"type": "array", "items": {"type": "string", "contentMediaType": "image/jpeg"}}}}},
+            }},
+            "responses": {"200": _json({"type": "object", "required": ["frames"], "properties": {"frames": {"type": "integer"}, "fps": {"type": ["number", "null"]}, "bytes": {"type": "integer"}}}, "Shown.")} | _errors(400, 401, 413, 415),
+        }},
+        "/speech": {
+            "post": {
+                "operationId": "speechIn", "summary": "A chunk of the wearer's speech (PCM16 WAV, any rate; resampled).",
+                "requestBody": {"required": True, "content": {"audio/wav": {"schema": {"type": "string", "contentMediaType": "audio/wav"}}}},
+                "responses": {"202": _json({"type": "object", "required": ["samples", "rate", "ms"], "properties": {"samples": {"type": "integer"}, "rate": {"type": "integer"}, "ms": {"type": "number"}}}, "Queued for the speaker.")} | _errors(400, 401, 413, 415),
+            },
+            "get": {
+                "operationId": "speechOut", "summary": "Room audio captured after `after` as one PCM16 WAV; X-Speech-Seq is the next `after`.",
+                "parameters": [after, _query("timeout", {"type": "number", "minimum": 0, "maximum": 5}, "Longest wait in seconds.")],
+                "responses": {
+                    "200": {"description": "WAV.", "content": {"audio/wav": {"schema": {"type": "string", "contentMediaType": "audio/wav"}}}},
+                    "204": {"description": "No audio within the timeout."},
+                } | _errors(400, 401),
+            },
+        },
+        "/actions/{action}": {"post": {
+            "operationId": "wearerAction", "summary": "A wearer action for the interaction engine (guess needs {\"word\"}).",
+            "parameters": [{"name": "action", "in": "path", "required": True, "schema": {"type": "string", "enum": list(ACTIONS)}}],
+            "requestBody": json_body({"type": "object", "properties": {"word": {"type": "string", "minLength": 1, "maxLength": 40}}}, required=False),
+            "responses": {"202": _json(_ref("WearerAction"), "Published.")} | _errors(400, 401, 404, 413, 415),
+        }},
+        "/sim": {"get": {
+            "operationId": "sim", "summary": "Whether simulated touches are available.",
+            "responses": {"200": _json({"type": "object", "required": ["sim"], "properties": {"sim": {"type": "boolean"}}}, "Sim mode.")} | _errors(401),
+        }},
+        "/sim/press": {"post": {
+            "operationId": "simPress", "summary": "Press or hover a simulated fingertip on the rear camera (sim mode only).",
+            "requestBody": json_body(_ref("SimPress")),
+            "responses": {"202": _json({"type": "object"}, "Pressed.")} | _errors(400, 401, 404, 409, 413, 415),
+        }},
+        "/sim/release": {"post": {
+            "operationId": "simRelease", "summary": "Lift the simulated fingertip (sim mode only).",
+            "requestBody": json_body({"type": "object", "additionalProperties": False}, required=False),
+            "responses": {"202": _json({"type": "object"}, "Released.")} | _errors(400, 401, 404, 409, 413, 415),
+        }},
+    }  # fmt: skip
+    return {
+        "openapi": "3.1.0",
+        "info": {
+            "title": "Feelium headset API",
+            "version": "1.0.0",
+            "description": "The link between the wearer's headset and the blimp. Every endpoint but /health "
+            "needs the bearer token; video, SSE and WebSocket also accept ?token=.",
+        },
+        "servers": [{"url": "/api/v1"}],
+        "security": [{"bearer": []}],
+        "components": {
+            "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer"}},
+            "schemas": schemas,
+        },
+        "paths": paths,
+    }

@@ -1,0 +1,70 @@
+"""Blimp-to-wearer speech: the newest captured chunks, numbered, for the headset to fetch as WAV.
+
+Kept bounded in milliseconds: a headset that polls late skips ahead to the
+newest audio instead of hearing the room with a growing delay.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections import deque
+from typing import Any
+
+from feelium.audio.chunks import SpeechOut
+from feelium.bus import EventBus, Subscription
+
+
+class SpeechFeed:
+    """Numbered :class:`SpeechOut` chunks, at most ``keep_ms`` of them."""
+
+    def __init__(self, bus: EventBus, keep_ms: int) -> None:
+        self._bus = bus
+        self.keep_ms = keep_ms
+        self._chunks: deque[tuple[int, SpeechOut]] = deque()
+        self._ms = 0.0
+        self.last_seq = 0
+        self._sub: Subscription[Any] | None = None
+        self._changed = asyncio.Event()
+
+    def add(self, chunk: SpeechOut) -> None:
+        self.last_seq += 1
+        self._chunks.append((self.last_seq, chunk))
+        self._ms += _ms(chunk)
+        while self._ms > self.keep_ms and len(self._chunks) > 1:
+            self._ms -= _ms(self._chunks.popleft()[1])
+        self._changed.set()
+        self._changed = asyncio.Event()
+
+    def after(self, seq: int) -> tuple[list[SpeechOut], int]:
+        """Chunks numbered above ``seq`` (all held ones when ``seq`` is stale or from the future)."""
+        if seq > self.last_seq:
+            seq = 0
+        return [c for s, c in self._chunks if s > seq], self.last_seq
+
+    async def wait_after(self, seq: int, timeout: float) -> tuple[list[SpeechOut], int]:
+        chunks, last = self.after(seq)
+        if chunks or timeout <= 0:
+            return chunks, last
+        changed = self._changed
+        try:
+            await asyncio.wait_for(changed.wait(), timeout)
+        except asyncio.TimeoutError:
+            pass
+        return self.after(seq)
+
+    async def pump(self) -> None:
+        if self._sub is None:
+            self._sub = self._bus.subscribe([SpeechOut], maxsize=64)
+        while True:
+            chunk = await self._sub.get()
+            if chunk is not None:
+                self.add(chunk)
+
+    def close(self) -> None:
+        if self._sub is not None:
+            self._sub.close()
+            self._sub = None
+
+
+def _ms(chunk: SpeechOut) -> float:
+    return 1000.0 * len(chunk.pcm) / (2 * chunk.rate) if chunk.rate > 0 else 0.0

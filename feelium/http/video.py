@@ -1,0 +1,98 @@
+"""Video for the headset: MJPEG streams (one coroutine per client, newest frame always) and single JPEGs.
+
+A client never gets a queue: each loop iteration waits for a frame newer than
+the last one it sent, so a slow client simply skips frames. A client whose
+socket accepts nothing for ``stream_write_timeout_s`` is dropped, so a
+stalled headset cannot pin memory or a coroutine forever.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+
+from aiohttp import web
+
+from feelium.http.context import ctx
+from feelium.http.errors import ApiError
+from feelium.http.params import query_number
+
+log = logging.getLogger(__name__)
+
+BOUNDARY = "feeliumframe"
+
+
+def _feed(request: web.Request):  # type: ignore[no-untyped-def]
+    name = request.match_info["camera"]
+    feed = ctx(request).videos.get(name)
+    if feed is None:
+        raise ApiError(404, f"no camera {name!r}; expected one of {', '.join(ctx(request).videos)}")
+    return feed
+
+
+def part_header(length: int, t: float, seq: int) -> bytes:
+    """The MIME part header that precedes one JPEG in the multipart stream."""
+    return (
+        f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {length}\r\n"
+        f"X-Timestamp: {t:.4f}\r\nX-Frame-Seq: {seq}\r\n\r\n"
+    ).encode("ascii")
+
+
+async def jpeg(request: web.Request) -> web.Response:
+    """The newest frame as one JPEG (for polling clients); 404 until the camera has published one."""
+    feed = _feed(request)
+    item = await feed.newest()
+    if item is None:
+        raise ApiError(404, f"no {feed.name} frame yet", "no_frame")
+    return web.Response(
+        body=item.value,
+        content_type="image/jpeg",
+        headers={"Cache-Control": "no-store", "X-Timestamp": f"{item.t:.4f}", "X-Frame-Seq": str(item.seq)},
+    )
+
+
+async def mjpeg(request: web.Request) -> web.StreamResponse:
+    """``multipart/x-mixed-replace`` stream of the newest frames; ``?fps=`` caps the rate."""
+    link = ctx(request)
+    feed = _feed(request)
+    max_fps = query_number(request, "fps", 0.0, 0.0, 120.0)
+    if feed.clients >= link.config.max_stream_clients:
+        raise ApiError(429, f"already {feed.clients} {feed.name} streams; close one first", headers={"Retry-After": "1"})
+    response = web.StreamResponse(
+        headers={
+            "Content-Type": f"multipart/x-mixed-replace; boundary={BOUNDARY}",
+            "Cache-Control": "no-store",
+            "X-Accel-Buffering": "no",
+        }
+    )
+    timeout = link.config.stream_write_timeout_s
+    feed.clients += 1
+    link.count("video_streams")
+    try:
+        await response.prepare(request)
+        seq = 0
+        loop = asyncio.get_running_loop()
+        next_at = 0.0
+        while True:
+            item = await feed.next_after(seq, timeout=link.config.keepalive_s)
+            if item is None:
+                continue
+            seq = item.seq
+            part = part_header(len(item.value), item.t, item.seq) + item.value + b"\r\n"
+            try:
+                await asyncio.wait_for(response.write(part), timeout)
+            except asyncio.TimeoutError:
+                link.count("stalled_clients_dropped")
+                log.info("dropping stalled %s stream client %s", feed.name, request.remote)
+                if request.transport is not None:
+                    request.transport.abort()
+                break
+            link.count("video_frames_sent")
+            if max_fps > 0:
+                next_at = max(next_at + 1.0 / max_fps, loop.time())
+                await asyncio.sleep(next_at - loop.time())
+    except (ConnectionResetError, ConnectionError):
+        pass
+    finally:
+        feed.clients -= 1
+    return response

@@ -1,0 +1,36 @@
+"""A headset-link app over a hub the tests feed directly, with a controllable clock."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from feelium.http.app import create_app, link_of
+from feelium.http.config import HttpConfig
+from feelium.hub import Hub
+
+from http_support import TOKEN, FakeClock, FakeScene
+
+
+@pytest.fixture
+def clock() -> FakeClock:
+    return FakeClock()
+
+
+@pytest.fixture
+def hub(clock: FakeClock) -> Hub:
+    return Hub(clock=clock)
+
+
+@pytest.fixture
+def http_config() -> HttpConfig:
+    return replace(HttpConfig(), token=TOKEN, stream_write_timeout_s=0.3, keepalive_s=0.5, event_ring_size=8)
+
+
+@pytest.fixture
+async def client(aiohttp_client, hub: Hub, http_config: HttpConfig):  # type: ignore[no-untyped-def]
+    app = create_app(http_config, hub, TOKEN)
+    c = await aiohttp_client(app)
+    c.link = link_of(app)
+    return c
