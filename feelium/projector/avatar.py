@@ -1,0 +1,53 @@
+"""The default avatar: a friendly face on the skin when the headset sends none.
+
+Drawn procedurally (no asset files) on the skin canvas, laid out to match the
+default envelope regions (forehead = head, blush = cheeks, chin = palm zone).
+It blinks and breathes a little so the blimp looks alive; the face-video
+robustness test uses the same animation (`talking=True` moves the mouth) as a
+moving face that changes the back-light.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+SKIN_BGR = (120, 170, 215)
+BLUSH_BGR = (135, 140, 240)
+FEATURE_BGR = (50, 45, 60)
+BACKGROUND_BGR = (70, 50, 40)
+
+
+class Avatar:
+    """Renders the animated default face at a canvas size."""
+
+    def __init__(self, width: int, height: int) -> None:
+        self.width, self.height = width, height
+        base = np.full((height, width, 3), BACKGROUND_BGR, np.uint8)
+        c = (width // 2, height // 2)
+        cv2.ellipse(base, c, (int(0.44 * width), int(0.48 * height)), 0, 0, 360, SKIN_BGR, -1, cv2.LINE_AA)
+        for cu in (0.27, 0.73):
+            blush = np.zeros_like(base)
+            cv2.ellipse(blush, (int(cu * width), int(0.6 * height)), (int(0.07 * width), int(0.05 * height)), 0, 0, 360, (40, 30, 70), -1, cv2.LINE_AA)
+            base = cv2.add(base, cv2.GaussianBlur(blush, (0, 0), 0.02 * width))
+        self._base = base
+
+    def render(self, t: float, talking: bool = False) -> np.ndarray:
+        """The face at time ``t`` (seconds): blinking every few seconds, mouth moving when ``talking``."""
+        w, h = self.width, self.height
+        img = self._base.copy()
+        sway = 0.012 * w * math.sin(2 * math.pi * t / 5.0)
+        blink = (t % 4.3) < 0.15
+        eye_h = max(1, int(0.008 * h)) if blink else int(0.045 * h)
+        for cu in (0.36, 0.64):
+            centre = (int(cu * w + sway), int(0.42 * h))
+            cv2.ellipse(img, centre, (int(0.035 * w), eye_h), 0, 0, 360, FEATURE_BGR, -1, cv2.LINE_AA)
+        if talking:
+            open_ = 0.5 + 0.5 * math.sin(2 * math.pi * 3.1 * t) * math.sin(2 * math.pi * 0.7 * t)
+            mouth_h = int((0.01 + 0.06 * max(open_, 0.0)) * h)
+            cv2.ellipse(img, (int(0.5 * w + sway), int(0.72 * h)), (int(0.09 * w), mouth_h), 0, 0, 360, FEATURE_BGR, -1, cv2.LINE_AA)
+        else:
+            cv2.ellipse(img, (int(0.5 * w + sway), int(0.7 * h)), (int(0.1 * w), int(0.05 * h)), 0, 10, 170, FEATURE_BGR, max(2, w // 120), cv2.LINE_AA)
+        return img

@@ -1,0 +1,56 @@
+"""Predicting what projected content does to the back-light the rear camera sees.
+
+The projector *is* the back-light: a dark pixel of the wearer's face dims the
+membrane behind it exactly like a shadow would. The touch pipeline divides
+this prediction out (``TouchPipeline.process(..., backlight_gain=...)``), so
+a moving face is not mistaken for a touch. The prediction follows the light
+path: projector value -> light (gamma, black level) -> membrane spot (the
+calibration map) -> a little diffusion, relative to the flat grey the
+pipeline's reference was learned under. Camera pixels the calibration does
+not cover get 1.0 (no correction).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from feelium.projector.calibration import CalibrationMap
+from feelium.projector.config import ProjectorConfig
+
+
+class BacklightPredictor:
+    """Projector frame in, per-camera-pixel back-light gain (float32, ~1.0 = flat) out."""
+
+    def __init__(self, config: ProjectorConfig, calibration: CalibrationMap, frame_size: tuple[int, int] | None = None) -> None:
+        """``frame_size``: (width, height) of the frames the touch pipeline gets; default the calibration's camera size."""
+        self.config = config
+        cw, ch = calibration.camera_size
+        fw, fh = frame_size if frame_size is not None else (cw, ch)
+        map_x, map_y = calibration.proj_x, calibration.proj_y
+        if (fw, fh) != (cw, ch):
+            map_x = cv2.resize(map_x, (fw, fh), interpolation=cv2.INTER_LINEAR)
+            map_y = cv2.resize(map_y, (fw, fh), interpolation=cv2.INTER_LINEAR)
+        self._uncovered = ~(np.isfinite(map_x) & np.isfinite(map_y))
+        map_x = np.where(self._uncovered, -10.0, map_x).astype(np.float32)
+        map_y = np.where(self._uncovered, -10.0, map_y).astype(np.float32)
+        self._map1, self._map2 = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
+        self.frame_size = (fw, fh)
+        self.diffusion_px = config.diffusion_px * fw / cw
+        levels = np.arange(256, dtype=np.float64) / 255.0
+        light = config.black_level + (1.0 - config.black_level) * levels**config.gamma
+        flat = config.black_level + (1.0 - config.black_level) * config.flat_level**config.gamma
+        self._lut = (light / flat).astype(np.float32)  # gain per projector grey level
+
+    def gain(self, projector_frame: np.ndarray) -> np.ndarray:
+        """(H, W) float32 gain at the touch pipeline's frame size for a projector frame (BGR or gray uint8)."""
+        pw, ph = self.config.width, self.config.height
+        if projector_frame.shape[:2] != (ph, pw):
+            raise ValueError(f"projector frame is {projector_frame.shape[1]}x{projector_frame.shape[0]}, expected {pw}x{ph}")
+        gray = cv2.cvtColor(projector_frame, cv2.COLOR_BGR2GRAY) if projector_frame.ndim == 3 else projector_frame
+        light = self._lut[gray]
+        seen = cv2.remap(light, self._map1, self._map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=1.0)
+        if self.diffusion_px > 0:
+            seen = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px)
+        seen[self._uncovered] = 1.0
+        return seen

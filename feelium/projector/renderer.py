@@ -1,0 +1,100 @@
+"""The projector's frame: layers on the skin canvas, warped through the calibration to projector pixels.
+
+Layers are composed on a *skin canvas* that spans the camera's sensitive
+patch (u, v in 0..1, the touch events' own coordinates): the wearer's face (or
+the default avatar), then every answer at the spot it answers. One remap with
+a precomputed fixed-point map then carries the canvas to the projector's
+native resolution, so what is meant for a spot on the skin lands there through
+the fisheye, and a circle drawn on the canvas is a circle on the skin.
+
+Pure: time, face image and answers in, a BGR frame out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import cv2
+import numpy as np
+
+from feelium.interactions.answers import Answer
+from feelium.projector.avatar import BACKGROUND_BGR, Avatar
+from feelium.projector.calibration import CalibrationMap
+from feelium.projector.config import ProjectorConfig
+from feelium.projector.layers import DRAWERS
+
+
+class Renderer:
+    """Renders projector frames for one calibration."""
+
+    def __init__(self, config: ProjectorConfig, calibration: CalibrationMap) -> None:
+        if calibration.projector_size != (config.width, config.height):
+            raise ValueError(
+                f"calibration is for a {calibration.projector_size[0]}x{calibration.projector_size[1]} projector, "
+                f"config says {config.width}x{config.height}; recalibrate with `feelium calibrate projector`"
+            )
+        self.config = config
+        self.calibration = calibration
+        self.canvas_size = (config.canvas_width, config.canvas_height)
+        cw, ch = self.canvas_size
+        inv_x, inv_y = calibration.projector_to_camera()
+        rx, ry, rw, rh = calibration.roi
+        map_x = (inv_x - rx) * np.float32(cw / rw)
+        map_y = (inv_y - ry) * np.float32(ch / rh)
+        off = ~(np.isfinite(map_x) & np.isfinite(map_y))
+        map_x[off] = -10.0  # outside the canvas: the border colour
+        map_y[off] = -10.0
+        self.covered = ~off  # projector pixels that land on the sensitive patch
+        # Only the covered box is remapped each frame; the rest of the frame is the constant border.
+        ys, xs = np.nonzero(self.covered)
+        if len(xs) == 0:
+            raise ValueError("the calibration covers no projector pixel")
+        self._box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
+        x0, y0, x1, y1 = self._box
+        self._map1, self._map2 = cv2.convertMaps(map_x[y0:y1, x0:x1], map_y[y0:y1, x0:x1], cv2.CV_16SC2)
+        self._border = tuple(int(c * 0.5) for c in BACKGROUND_BGR)
+        self.avatar = Avatar(cw, ch)
+        self.skipped: dict[str, int] = {}
+        self._face_size: tuple[int, int] | None = None
+
+    def fit_face(self, face: np.ndarray) -> np.ndarray:
+        """The wearer's face image scaled to cover the canvas (centre crop), BGR uint8."""
+        cw, ch = self.canvas_size
+        if face.ndim == 2:
+            face = cv2.cvtColor(face, cv2.COLOR_GRAY2BGR)
+        h, w = face.shape[:2]
+        scale = max(cw / w, ch / h)
+        resized = cv2.resize(face, (max(cw, int(round(w * scale))), max(ch, int(round(h * scale)))), interpolation=cv2.INTER_AREA)
+        y0 = (resized.shape[0] - ch) // 2
+        x0 = (resized.shape[1] - cw) // 2
+        return np.ascontiguousarray(resized[y0 : y0 + ch, x0 : x0 + cw])
+
+    def canvas(self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False) -> np.ndarray:
+        """The skin canvas at ``now``: ``face`` (already canvas-sized, see :meth:`fit_face`) or the avatar, plus answers."""
+        cw, ch = self.canvas_size
+        if face is not None:
+            if face.shape[:2] != (ch, cw):
+                raise ValueError(f"face is {face.shape[1]}x{face.shape[0]}, canvas is {cw}x{ch}; use fit_face()")
+            img = face.copy()
+        else:
+            img = self.avatar.render(now, talking=talking)
+        for answer in answers:
+            drawer = DRAWERS.get(answer.kind)
+            if drawer is None:
+                self.skipped[answer.kind] = self.skipped.get(answer.kind, 0) + 1
+                continue
+            drawer(img, answer, now)
+        return img
+
+    def warp(self, canvas: np.ndarray) -> np.ndarray:
+        """Carry a canvas to projector pixels (H_p, W_p, 3) through the calibration."""
+        frame = np.empty((self.config.height, self.config.width, 3), np.uint8)
+        frame[...] = self._border
+        x0, y0, x1, y1 = self._box
+        frame[y0:y1, x0:x1] = cv2.remap(
+            canvas, self._map1, self._map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=self._border
+        )
+        return frame
+
+    def render(self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False) -> np.ndarray:
+        return self.warp(self.canvas(now, face, answers, talking))

@@ -1,0 +1,185 @@
+"""The projector service: interaction engine + renderer + display, on the daemon's hub.
+
+Each tick (at ``projector.fps``) it drains touch events and wearer actions
+from the bus into the interaction engine, publishes the engine's
+``InteractionEvent``s for the wearer's view, hands its motion replies to the
+dead-man motion path (never over the wearer's own steering), decodes the
+newest face JPEG if one arrived, renders the frame in a worker thread and
+shows it; the newest frame also goes to ``hub.projector_video`` for the HTTP
+preview. Bad input (an undecodable JPEG, an out-of-range event) is counted
+and skipped.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from feelium.config import Config
+from feelium.events import TouchEvent, WearerAction
+from feelium.hub import Hub
+from feelium.interactions.engine import InteractionEngine, MotionReply
+from feelium.interactions.regions import Regions
+from feelium.projector.calibration import CalibrationError, CalibrationMap, default_calibration, load_calibration
+from feelium.projector.display import Display, open_display
+from feelium.projector.renderer import Renderer
+from feelium.service import Service
+
+log = logging.getLogger(__name__)
+
+DEFAULT_CAMERA_SIZE = (640, 480)
+DEFAULT_ROI = (64, 48, 512, 384)
+
+
+def calibration_path(config: Config, config_file: str | Path | None = None) -> Path:
+    """The calibration file: absolute as configured, else beside ``config_file`` (or the working directory)."""
+    path = Path(config.projector.calibration.file)
+    if path.is_absolute():
+        return path
+    base = Path(config_file).resolve().parent if config_file else Path.cwd()
+    return base / path
+
+
+def load_or_default(config: Config, config_file: str | Path | None = None) -> CalibrationMap:
+    """The saved calibration, or the uncalibrated stand-in (ROI mapped affinely) when there is none."""
+    path = calibration_path(config, config_file)
+    if path.exists():
+        calibration = load_calibration(path)
+        if calibration.projector_size == (config.projector.width, config.projector.height):
+            return calibration
+        log.warning("%s is for a %s projector; using the uncalibrated map", path, calibration.projector_size)
+    roi = tuple(config.rear_camera.roi) if config.rear_camera.roi else DEFAULT_ROI
+    return default_calibration(DEFAULT_CAMERA_SIZE, roi, (config.projector.width, config.projector.height))  # type: ignore[arg-type]
+
+
+class ProjectorService:
+    """Renders the skin at a fixed rate and runs the six exchanges."""
+
+    name = "projector"
+    stop_order = 40
+
+    def __init__(self, config: Config, hub: Hub, display: Display, calibration: CalibrationMap) -> None:
+        self.config = config
+        self.hub = hub
+        self.display = display
+        self.calibration = calibration
+        self.renderer = Renderer(config.projector, calibration)
+        self.engine = InteractionEngine(config.interactions, Regions.from_config(config.interactions)) if config.interactions.enabled else None
+        self._face: np.ndarray | None = None
+        self._face_seq = 0
+        self._face_t = -float("inf")
+        self._stopping = False
+        self.counters: dict[str, Any] = {
+            "frames": 0, "touch_events": 0, "actions": 0, "interaction_events": 0, "motions_sent": 0,
+            "motions_skipped": 0, "faces": 0, "bad_faces": 0, "bad_events": 0, "render_ms": 0.0, "last_error": None,
+        }
+
+    def step_engine(self, subscription: Any, now: float) -> None:
+        """Feed what arrived on the bus to the engine, publish its events, send its motion replies."""
+        for item in subscription.drain():
+            try:
+                if isinstance(item, TouchEvent):
+                    self.counters["touch_events"] += 1
+                    if self.engine is not None:
+                        self.engine.touch(item, now)
+                elif isinstance(item, WearerAction):
+                    self.counters["actions"] += 1
+                    if self.engine is not None:
+                        self.engine.action(item, now)
+            except (ValueError, TypeError, KeyError) as exc:
+                self.counters["bad_events"] += 1
+                self.counters["last_error"] = f"{type(item).__name__}: {exc}"
+        if self.engine is None:
+            return
+        step = self.engine.tick(now)
+        for event in step.events:
+            self.hub.bus.publish(event)
+            self.counters["interaction_events"] += 1
+        for motion in step.motions:
+            self._send_motion(motion, now)
+
+    def _send_motion(self, motion: MotionReply, now: float) -> None:
+        active = self.hub.motion.active(now)
+        if active is not None and active.source != "interaction":
+            self.counters["motions_skipped"] += 1  # the wearer is steering: a reply never overrides them
+            return
+        try:
+            self.hub.motion.command(motion.name, now, motion.hold_s, source="interaction")
+            self.counters["motions_sent"] += 1
+        except ValueError as exc:
+            self.counters["motions_skipped"] += 1
+            self.counters["last_error"] = str(exc)
+
+    def _decode_face(self, jpeg: Any) -> np.ndarray | None:
+        data = np.frombuffer(bytes(jpeg), np.uint8) if not isinstance(jpeg, np.ndarray) else jpeg
+        if data.ndim == 3:
+            return self.renderer.fit_face(data)
+        image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        return None if image is None else self.renderer.fit_face(image)
+
+    async def update_face(self, now: float) -> None:
+        item = self.hub.face.get()
+        if item is not None and item.seq != self._face_seq:
+            self._face_seq = item.seq
+            face = await asyncio.to_thread(self._decode_face, item.value)
+            if face is None:
+                self.counters["bad_faces"] += 1
+            else:
+                self._face, self._face_t = face, now
+                self.counters["faces"] += 1
+        if self._face is not None and now - self._face_t > self.config.projector.face_timeout_s:
+            self._face = None  # the headset stopped sending: back to the avatar
+
+    def _render_and_show(self, now: float, face: np.ndarray | None, answers: tuple) -> np.ndarray:
+        start = time.perf_counter()
+        frame = self.renderer.render(now, face, answers)
+        self.display.show(frame)
+        self.counters["render_ms"] = round((time.perf_counter() - start) * 1000.0, 2)
+        return frame
+
+    async def run(self) -> None:
+        period = 1.0 / self.config.projector.fps
+        with self.hub.bus.subscribe((TouchEvent, WearerAction), maxsize=512) as subscription:
+            try:
+                await self._loop(subscription, period)
+            finally:
+                self.display.close()
+
+    async def _loop(self, subscription: Any, period: float) -> None:
+        while not self._stopping:
+            now = self.hub.clock()
+            self.step_engine(subscription, now)
+            await self.update_face(now)
+            answers = self.engine.answers(now) if self.engine is not None else ()
+            frame = await asyncio.to_thread(self._render_and_show, now, self._face, answers)
+            self.hub.projector_video.publish(now, frame)
+            self.counters["frames"] += 1
+            await asyncio.sleep(max(0.0, period - (self.hub.clock() - now)))
+
+    async def stop(self) -> None:
+        self._stopping = True
+
+    def health(self) -> dict[str, Any]:
+        report = dict(self.counters)
+        report["display"] = self.display.name
+        report["calibration"] = self.calibration.source
+        if self.engine is not None:
+            report["engine"] = dict(self.engine.counts)
+        return report
+
+
+def build_services(config: Config, hub: Hub) -> list[Service]:
+    try:
+        calibration = load_or_default(config)
+    except CalibrationError as exc:
+        log.error("projector calibration unusable (%s); using the uncalibrated map", exc)
+        roi = tuple(config.rear_camera.roi) if config.rear_camera.roi else DEFAULT_ROI
+        calibration = default_calibration(DEFAULT_CAMERA_SIZE, roi, (config.projector.width, config.projector.height))  # type: ignore[arg-type]
+    display = open_display(config.projector.backend, config.projector.fb_device)
+    return [ProjectorService(config, hub, display, calibration)]

@@ -1,0 +1,42 @@
+"""Touch-event sequences as the touch pipeline emits them, on the default 640x480 camera with ROI (64, 48, 512, 384)."""
+
+from __future__ import annotations
+
+from feelium.events import TouchEvent
+
+ROI = (64, 48, 512, 384)
+
+
+def uv(x: float, y: float) -> tuple[float, float]:
+    return (x - ROI[0]) / ROI[2], (y - ROI[1]) / ROI[3]
+
+
+def at_uv(u: float, v: float) -> tuple[float, float]:
+    return ROI[0] + u * ROI[2], ROI[1] + v * ROI[3]
+
+
+def event(id: int, phase: str, t: float, x: float, y: float, area: int = 300, kind: str | None = None) -> TouchEvent:
+    u, v = uv(x, y)
+    return TouchEvent(id=id, phase=phase, kind=kind, t=t, x=x, y=y, u=u, v=v, depth=0.6, area=area, anchor=0.7)  # type: ignore[arg-type]
+
+
+def tap(id: int, t: float, x: float, y: float) -> list[TouchEvent]:
+    return [event(id, "down", t, x, y), event(id, "up", t + 0.15, x, y, kind="tap")]
+
+
+def hold(id: int, t: float, x: float, y: float, duration: float, area: int, step: float = 0.1) -> list[TouchEvent]:
+    events = [event(id, "down", t, x, y, area)]
+    k = 1
+    while k * step < duration:
+        events.append(event(id, "move", t + k * step, x, y, area))
+        k += 1
+    events.append(event(id, "up", t + duration, x, y, area, kind="hold"))
+    return events
+
+
+def swipe(id: int, t: float, points: list[tuple[float, float]], step: float = 0.07) -> list[TouchEvent]:
+    events = [event(id, "down", t, *points[0])]
+    for k, p in enumerate(points[1:], start=1):
+        events.append(event(id, "move", t + k * step, *p))
+    events.append(event(id, "up", t + len(points) * step, *points[-1], kind="swipe"))
+    return events
