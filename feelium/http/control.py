@@ -167,6 +167,15 @@ async def get_speech(request: web.Request) -> web.StreamResponse:
     return web.Response(body=encode_wav(pcm, rate), content_type="audio/wav", headers=headers)
 
 
+def scene_size(scene: object) -> tuple[int | None, int | None]:
+    """The rear camera's size from the live scene (or the scene a thread-safe wrapper holds)."""
+    for obj in (scene, getattr(scene, "scene", None)):
+        width, height = getattr(obj, "width", None), getattr(obj, "height", None)
+        if isinstance(width, int) and isinstance(height, int):
+            return width, height
+    return None, None
+
+
 def _scene(request: web.Request):  # type: ignore[no-untyped-def]
     scene = ctx(request).hub.rear_scene
     if scene is None:
@@ -180,8 +189,8 @@ async def post_sim_press(request: web.Request) -> web.Response:
     scene = _scene(request)
     body = await read_json_object(request, link.config.max_json_bytes)
     check_keys(body, {"x", "y", "hover"})
-    width = float(getattr(scene, "width", 10000))
-    height = float(getattr(scene, "height", 10000))
+    size = scene_size(scene)
+    width, height = float(size[0] or 10000), float(size[1] or 10000)
     if "x" not in body or "y" not in body:
         raise ApiError(400, "x and y (camera pixels) are required")
     x = number_field(body, "x", None, 0.0, width - 1)
@@ -217,9 +226,8 @@ async def get_sim(request: web.Request) -> web.Response:
     scene = ctx(request).hub.rear_scene
     if scene is None:
         return web.json_response({"sim": False})
-    return web.json_response(
-        {"sim": True, "width": getattr(scene, "width", None), "height": getattr(scene, "height", None)}
-    )
+    width, height = scene_size(scene)
+    return web.json_response({"sim": True, "width": width, "height": height})
 
 
 async def get_state(request: web.Request) -> web.Response:
