@@ -61,6 +61,10 @@ def _palm_sprite(size: int) -> np.ndarray:
         centre = (int(cx + dx * size), int(cy + dy * size))
         cv2.ellipse(mask, centre, (int(0.055 * size), int(length * size / 2 + 0.05 * size)), angle, 0, 360, 1.0, -1, cv2.LINE_AA)
     mask = cv2.GaussianBlur(mask, (0, 0), max(1.0, size * 0.04))
+    # Centre the glow's mass on the sprite's centre: a palm contact's landing point is its centroid.
+    m = cv2.moments(mask)
+    shift = np.float32([[1, 0, (n - 1) / 2 - m["m10"] / m["m00"]], [0, 1, (n - 1) / 2 - m["m01"] / m["m00"]]])
+    mask = cv2.warpAffine(mask, shift, (n, n), flags=cv2.INTER_LINEAR)
     return mask / max(float(mask.max()), 1e-6)
 
 

@@ -1,0 +1,97 @@
+"""The projector service end to end on a hub: touch in, wearer's event out, answer on the projected frame."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+
+import cv2
+import numpy as np
+import pytest
+
+from feelium.config import Config
+from feelium.events import InteractionEvent, WearerAction
+from feelium.hub import Hub
+from feelium.projector.display import NullDisplay
+from feelium.projector.service import ProjectorService, build_services, load_or_default
+from tests.interactions.touches import at_uv, tap
+from tests.projector.helpers import centroid, truth_calibration
+
+
+async def _until(predicate, timeout=10.0):
+    deadline = asyncio.get_running_loop().time() + timeout
+    while not predicate():
+        if asyncio.get_running_loop().time() > deadline:
+            raise AssertionError("condition not reached in time")
+        await asyncio.sleep(0.02)
+
+
+@pytest.fixture
+async def running():
+    hub = Hub()
+    service = ProjectorService(Config(), hub, NullDisplay(), truth_calibration())
+    task = asyncio.create_task(service.run())
+    yield hub, service
+    await service.stop()
+    await asyncio.wait_for(task, 5.0)
+
+
+async def test_a_peck_reaches_the_wearer_and_the_heart_lands_on_the_cheek(running):
+    hub, service = running
+    events = hub.bus.subscribe([InteractionEvent])
+    await _until(lambda: hub.projector_video.get() is not None)
+    x, y = at_uv(0.73, 0.58)
+    now = hub.clock()
+    for e in tap(1, now, x, y):
+        hub.bus.publish(dataclasses.replace(e, t=e.t))
+    await _until(lambda: service.counters["interaction_events"] >= 1)
+    got = events.drain()
+    assert [(e.name, e.phase, e.region) for e in got] == [("peck", "bloom", "cheek_right")]
+    assert got[0].to_json()["x"] == pytest.approx(x)
+    seq = hub.projector_video.get().seq
+    await _until(lambda: hub.projector_video.get().seq > seq + 3)
+    item = hub.projector_video.get()
+    frame = item.value
+    before = service.renderer.render(item.t, None, [])  # the same instant of the avatar, without answers
+    diff = np.abs(frame.astype(np.int16) - before.astype(np.int16)).sum(axis=2)
+    diff[diff < 60] = 0
+    expected = truth_calibration().to_projector(x, y)
+    got_xy = centroid(diff)
+    assert np.hypot(got_xy[0] - expected[0], got_xy[1] - expected[1]) < 20.0
+
+
+async def test_motion_replies_use_the_dead_man_path_but_never_override_the_wearer(running):
+    hub, service = running
+    hub.bus.publish(WearerAction("shimmer", hub.clock()))
+    await _until(lambda: service.counters["motions_sent"] >= 1)
+    cmd = hub.motion.active(hub.clock())
+    assert cmd is not None and cmd.name == "forward" and cmd.source == "interaction"
+    hub.motion.command("turn_left", hub.clock(), 2.0, source="headset")
+    hub.bus.publish(tap(1, hub.clock(), *at_uv(0.5, 0.5))[0])  # accepts the invite: a bounce is due
+    await _until(lambda: service.counters["motions_skipped"] >= 1)
+    assert hub.motion.active(hub.clock()).name == "turn_left"
+
+
+async def test_face_jpeg_is_shown_and_a_broken_one_is_counted(running):
+    hub, service = running
+    face = np.zeros((240, 320, 3), np.uint8)
+    face[:] = (0, 220, 0)
+    ok, jpeg = cv2.imencode(".jpg", face)
+    hub.face.publish(hub.clock(), jpeg.tobytes())
+    await _until(lambda: service.counters["faces"] == 1)
+    seq = hub.projector_video.get().seq
+    await _until(lambda: hub.projector_video.get().seq > seq + 1)
+    assert hub.projector_video.get().value[360, 640, 1] > 200
+    hub.face.publish(hub.clock(), b"not a jpeg")
+    await _until(lambda: service.counters["bad_faces"] == 1)
+    assert service.health()["frames"] > 0 and service.health()["display"] == "null"
+
+
+def test_build_services_without_calibration_uses_the_default_map(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    config = Config()
+    config = dataclasses.replace(config, projector=dataclasses.replace(config.projector, backend="null"))
+    [service] = build_services(config, Hub())
+    assert service.name == "projector" and service.calibration.source == "default"
+    truth_calibration().save(tmp_path / "projector_calibration.npz")
+    assert load_or_default(config).source == "truth"
