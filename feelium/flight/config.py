@@ -5,7 +5,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from feelium.settings import setting
+from feelium.settings import section, setting
+
+
+@dataclass(frozen=True)
+class FlightSimConfig:
+    """The emulated motor board flown by `feelium run --sim` (its physics are in docs/blimp-simulator.md)."""
+
+    drafts: bool = setting(True, "Simulate indoor air drafts (random gusts of about 0.15 m/s).")
+    start_altitude_m: float = setting(1.2, "Altitude the simulated blimp starts at.", min=0.1, max=3.0)
+    rangefinder_dropout: float = setting(0.02, "Probability that one rangefinder reading is missing.", min=0.0, max=1.0)
 
 
 @dataclass(frozen=True)
@@ -15,3 +24,62 @@ class FlightConfig:
     backend: Literal["auto", "serial", "sim", "off"] = setting(
         "auto", "Motor board: a serial port, the blimp simulator, or off; auto picks sim without hardware."
     )
+    port: str = setting("/dev/ttyAMA0", "Serial device or pyserial URL (socket://host:port, loop://) of the motor board.")
+    baudrate: int = setting(115200, "Serial speed of the MSP link.", min=9600, max=2000000)
+    rate_hz: float = setting(50.0, "Control loop rate.", min=5.0, max=200.0)
+    reply_timeout_s: float = setting(0.03, "How long one control cycle waits for the board's replies.", min=0.005, max=1.0)
+    reconnect_min_s: float = setting(0.5, "First delay before reopening a lost serial port (doubles each try).", min=0.05, max=60.0)
+    reconnect_max_s: float = setting(8.0, "Longest delay between reopening attempts.", min=0.1, max=600.0)
+    battery_every: int = setting(25, "Poll the battery every N control cycles.", min=1, max=1000)
+
+    # What the controller knows about the body (feed-forward and the mixer).
+    net_buoyancy_n: float = setting(0.356, "Upward force with motors off: (360 g lift - 323.7 g body) x g.", min=0.0, max=5.0)
+    mass_kg: float = setting(0.59, "Inertial mass: body, helium and added air mass.", min=0.05, max=10.0)
+    yaw_inertia_kg_m2: float = setting(0.055, "Yaw moment of inertia.", min=0.001, max=10.0)
+    arm_m: float = setting(0.25, "Lateral distance of each horizontal motor from the centre line.", min=0.02, max=2.0)
+    horizontal_thrust_n: float = setting(0.25, "Full-command thrust of one horizontal motor.", min=0.01, max=10.0)
+    vertical_thrust_n: float = setting(0.5, "Full-command thrust of one vertical motor.", min=0.01, max=10.0)
+    reverse_ratio: float = setting(0.6, "Reverse thrust as a fraction of forward thrust.", min=0.0, max=1.0)
+    motor_deadband: float = setting(0.06, "Command below which a motor makes no thrust.", min=0.0, max=0.5)
+    quadratic_drag: float = setting(0.197, "Air drag coefficient 0.5 rho Cd A in N/(m/s)^2, for the speed observer.", min=0.0, max=10.0)
+
+    # Gains (accelerations per unit error, so they do not change with mass).
+    altitude_kp: float = setting(2.2, "Altitude stiffness, (m/s^2) per m.", min=0.0, max=50.0)
+    altitude_kd: float = setting(2.4, "Vertical speed damping, (m/s^2) per m/s.", min=0.0, max=50.0)
+    altitude_observer_hz: float = setting(0.6, "Bandwidth of the altitude observer (rangefinder, modelled thrust).", min=0.05, max=10.0)
+    disturbance_observer_hz: float = setting(0.06, "Bandwidth of learning the unmodelled vertical force (the integral).", min=0.001, max=5.0)
+    altitude_integral_limit: float = setting(0.2, "Largest disturbance the observer may learn (the integral), m/s^2.", min=0.0, max=5.0)
+    altitude_integral_band_m: float = setting(0.12, "Learn the disturbance only within this altitude error (anti-windup).", min=0.0, max=5.0)
+    altitude_error_limit_m: float = setting(0.3, "Altitude error the controller acts on at most (bounded return speed).", min=0.01, max=5.0)
+    reference_hz: float = setting(0.4, "Bandwidth of the smooth reference that altitude and heading targets follow.", min=0.05, max=5.0)
+    heading_kp: float = setting(3.0, "Heading stiffness, (rad/s^2) per rad.", min=0.0, max=100.0)
+    heading_kd: float = setting(3.2, "Yaw rate damping, (rad/s^2) per rad/s.", min=0.0, max=100.0)
+    brake_m_s2: float = setting(0.4, "Deceleration planned when forward/backward is released.", min=0.01, max=10.0)
+    brake_climb_m_s2: float = setting(0.8, "Deceleration planned when up/down is released.", min=0.01, max=10.0)
+    brake_yaw_dps2: float = setting(60.0, "Deceleration of the turn rate planned when a turn is released.", min=1.0, max=1000.0)
+    speed_kp: float = setting(5.0, "Forward speed damping, (m/s^2) per m/s.", min=0.0, max=50.0)
+
+    # The six motion commands.
+    forward_speed_m_s: float = setting(0.15, "Speed while forward/backward is held.", min=0.0, max=2.0)
+    climb_rate_m_s: float = setting(0.25, "Climb rate while up/down is held.", min=0.0, max=2.0)
+    yaw_rate_dps: float = setting(20.0, "Turn rate while turn_left/turn_right is held.", min=0.0, max=180.0)
+    altitude_min_m: float = setting(0.4, "Lowest altitude a down command may ask for.", min=0.0, max=10.0)
+    altitude_max_m: float = setting(2.6, "Highest altitude an up command may ask for.", min=0.0, max=10.0)
+
+    # Quietness.
+    max_output: float = setting(0.9, "Largest motor command magnitude (fraction of full).", min=0.05, max=1.0)
+    slew_per_s: float = setting(25.0, "Largest change of a motor command per second (full range is 2).", min=0.1, max=100.0)
+
+    # Safety.
+    soften_factor: float = setting(0.25, "Gain scale while a firm touch or hug is active.", min=0.0, max=1.0)
+    soften_hold_s: float = setting(0.8, "Stay soft this long after the last firm touch event.", min=0.0, max=10.0)
+    firm_touch_depth: float = setting(0.5, "Relative shadow depth from which a touch counts as firm.", min=0.0, max=1.0)
+    range_hold_s: float = setting(0.5, "Hold the last vertical output this long when the rangefinder drops out.", min=0.0, max=10.0)
+    telemetry_stale_s: float = setting(0.3, "Telemetry older than this is stale: hold, then fail safe.", min=0.02, max=10.0)
+    failsafe_buoyancy_fraction: float = setting(
+        0.9, "In failsafe the vertical motors cancel this fraction of the net buoyancy: it rises slowly.", min=0.0, max=1.0
+    )
+    battery_low_v: float = setting(3.5, "Battery voltage reported as low.", min=0.0, max=60.0)
+    battery_critical_v: float = setting(3.35, "Battery voltage reported as critical.", min=0.0, max=60.0)
+
+    sim: FlightSimConfig = section(FlightSimConfig)

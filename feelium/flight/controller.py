@@ -1,0 +1,378 @@
+"""The flight controller: a pure class, ``step(t, telemetry, setpoint) -> ControlOutput``.
+
+Three loops share one mixer:
+
+- altitude: rangefinder through an alpha-beta filter, PD on a smooth
+  reference plus an integral that only runs near the target and never
+  against a saturated output (anti-windup), with the net buoyancy as
+  feed-forward (the vertical motors always push down about 0.36 N);
+- heading: PD on the IMU heading with gyro yaw-rate damping;
+- surge: a model-based speed observer (there is no airspeed sensor) so that
+  releasing ``forward`` brakes actively instead of coasting.
+
+Releasing a rate command first brakes (damping only) and then holds the
+altitude or heading where the body came to rest, so nothing springs back.
+Failsafes (``docs/flight.md``) are decided here from telemetry age; time is
+an input, so all of it runs faster than real time in tests.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from feelium.flight.config import FlightConfig
+from feelium.flight.mixer import Mixer, MixerGeometry, thrust_for_command, to_microseconds
+from feelium.flight.setpoint import Setpoint
+from feelium.flight.telemetry import Telemetry
+
+YAW_RATE_TAU_S = 0.06
+SETTLE_S = 0.6  # damping-only phase after a braking ramp
+SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
+THRUST_LAG_S = 0.08
+
+
+@dataclass(frozen=True)
+class ControlOutput:
+    """Motor commands and what the controller believes, for health and the state board."""
+
+    t: float
+    commands: tuple[float, float, float, float]
+    motors_us: tuple[int, ...]
+    mode: str  # flying | soft | range_hold | altitude_failsafe | telemetry_failsafe | waiting
+    altitude_m: float | None
+    altitude_target_m: float | None
+    climb_m_s: float
+    heading_deg: float | None
+    heading_target_deg: float | None
+    speed_m_s: float
+    battery: str  # ok | low | critical | unknown
+    battery_v: float | None
+
+
+def wrap_deg(angle: float) -> float:
+    """An angle difference folded into [-180, 180)."""
+    return (angle + 180.0) % 360.0 - 180.0
+
+
+class _Reference:
+    """A critically damped second-order reference: targets are approached smoothly, never jumped to."""
+
+    def __init__(self, omega: float) -> None:
+        self.omega = omega
+        self.value = 0.0
+        self.rate = 0.0
+        self.accel = 0.0
+
+    def reset(self, value: float, rate: float = 0.0) -> None:
+        self.value, self.rate, self.accel = value, rate, 0.0
+
+    def advance(self, error: float, dt: float) -> None:
+        """Move toward ``value + error`` (error given, so angles can wrap)."""
+        w = self.omega
+        self.accel = w * w * error - 2.0 * w * self.rate
+        self.rate += self.accel * dt
+        self.value += self.rate * dt
+
+
+class FlightController:
+    """Altitude, heading and speed control with failsafes; no clock, no I/O."""
+
+    def __init__(self, config: FlightConfig) -> None:
+        self.c = config
+        self.mixer = Mixer(
+            MixerGeometry(
+                arm_m=config.arm_m,
+                horizontal_thrust_n=config.horizontal_thrust_n,
+                vertical_thrust_n=config.vertical_thrust_n,
+                reverse_ratio=config.reverse_ratio,
+                deadband=config.motor_deadband,
+                max_output=config.max_output,
+                slew_per_s=config.slew_per_s,
+            )
+        )
+        omega = 2.0 * math.pi * config.reference_hz
+        self._last_t: float | None = None
+        # altitude
+        self.z_hat: float | None = None
+        self.vz_hat = 0.0
+        self._last_range_t: float | None = None
+        self.z_target: float | None = None
+        self._z_ref = _Reference(omega)
+        self._climbing = False
+        self._braking_z = False
+        self._settle_z_until: float | None = None
+        self.disturbance = 0.0  # observed unmodelled vertical acceleration: the altitude loop's integral
+        self._freeze_disturbance = False
+        self._vertical_thrust = -config.net_buoyancy_n  # modelled upward motor force after the motor lag
+        self._up_n = -config.net_buoyancy_n
+        self._altitude_failsafe = False
+        # heading
+        self.heading: float | None = None
+        self.yaw_rate = 0.0
+        self._last_heading_t: float | None = None
+        self.heading_target: float | None = None
+        self._psi_ref = _Reference(omega)
+        self._turning = False
+        self._braking_yaw = False
+        self._settle_yaw_until: float | None = None
+        # surge
+        self.speed_hat = 0.0
+        self._speed_ref = 0.0
+        self._surge_thrust = 0.0
+        # other
+        self._was_soft = False
+        self._telemetry_failsafe = False
+        self.battery_v: float | None = None
+        self.mode_counts: dict[str, int] = {}
+
+    # ---------------------------------------------------------------- public
+    def step(self, t: float, telemetry: Telemetry | None, setpoint: Setpoint) -> ControlOutput:
+        """One control cycle at time ``t``: fold in the telemetry, return the motor commands."""
+        dt = 1.0 / self.c.rate_hz if self._last_t is None else min(max(t - self._last_t, 0.0), 0.2)
+        self._last_t = t
+        if telemetry is not None:
+            self._absorb(t, telemetry, dt)
+        else:
+            self._predict_only(dt)
+
+        heading_age = math.inf if self._last_heading_t is None else t - self._last_heading_t
+        range_age = math.inf if self._last_range_t is None else t - self._last_range_t
+        if self.z_hat is None and self.heading is None:
+            return self._output(t, self.mixer.limit((0.0, 0.0, 0.0, 0.0), dt), "waiting", setpoint)
+
+        stale = min(heading_age, range_age) > self.c.telemetry_stale_s
+        if stale:
+            self._telemetry_failsafe = True
+            commands = self.mixer.mix(0.0, -self.c.failsafe_buoyancy_fraction * self.c.net_buoyancy_n, 0.0, dt)
+            return self._output(t, commands, "telemetry_failsafe", setpoint)
+        if self._telemetry_failsafe:  # back from a link outage: hold wherever the body now is
+            self._telemetry_failsafe = False
+            self.z_target = self.z_hat
+            self.heading_target = self.heading
+            if self.z_hat is not None:
+                self._z_ref.reset(self.z_hat)
+            if self.heading is not None:
+                self._psi_ref.reset(self.heading)
+
+        soft = setpoint.soften
+        if self._was_soft and not soft:  # the partner let go: stay where they left it
+            self.z_target, self.heading_target = self.z_hat, self.heading
+            if self.z_hat is not None:
+                self._z_ref.reset(self.z_hat)
+            if self.heading is not None:
+                self._psi_ref.reset(self.heading)
+        self._was_soft = soft
+        gain = self.c.soften_factor if soft else 1.0
+
+        up_n, mode = self._altitude(t, dt, setpoint, range_age, gain, soft)
+        yaw_nm = self._heading(t, dt, setpoint, heading_age, gain) if heading_age <= self.c.telemetry_stale_s else 0.0
+        surge_n = self._surge(dt, 0.0 if soft else setpoint.forward_m_s, gain)
+        commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt)
+        vertical = -sum(thrust_for_command(c, self.c.vertical_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[2:])
+        self._vertical_thrust += (vertical - self._vertical_thrust) * min(1.0, dt / THRUST_LAG_S)
+        self._surge_thrust += (
+            sum(thrust_for_command(c, self.c.horizontal_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[:2])
+            - self._surge_thrust
+        ) * min(1.0, dt / THRUST_LAG_S)
+        return self._output(t, commands, "soft" if soft and mode == "flying" else mode, setpoint)
+
+    def safe_commands(self) -> tuple[float, float, float, float]:
+        """The safe state: all motors at neutral (no thrust). The body then rises slowly to the ceiling."""
+        self.mixer.reset()
+        return (0.0, 0.0, 0.0, 0.0)
+
+    # ---------------------------------------------------------------- sensing
+    def _absorb(self, t: float, tel: Telemetry, dt: float) -> None:
+        if tel.battery_v is not None:
+            self.battery_v = tel.battery_v
+        if tel.range_m is not None:
+            self._range_update(t, tel.range_m, dt)
+        else:
+            self._predict_altitude(dt)
+        if tel.heading_deg is not None:
+            if self.heading is None:
+                self.heading_target = tel.heading_deg
+                self._psi_ref.reset(tel.heading_deg)
+            self.heading = tel.heading_deg
+            self._last_heading_t = t
+        if tel.yaw_rate_dps is not None:
+            self.yaw_rate += (tel.yaw_rate_dps - self.yaw_rate) * min(1.0, dt / YAW_RATE_TAU_S)
+
+    def _predict_only(self, dt: float) -> None:
+        self._predict_altitude(dt)
+
+    def _predict_altitude(self, dt: float) -> None:
+        """Propagate the altitude observer with the modelled forces (thrust, buoyancy, drag)."""
+        if self.z_hat is None:
+            return
+        c = self.c
+        drag = c.quadratic_drag * self.vz_hat * abs(self.vz_hat) + 0.02 * self.vz_hat
+        accel = (self._vertical_thrust + c.net_buoyancy_n - drag) / c.mass_kg + self.disturbance
+        self.z_hat += self.vz_hat * dt
+        self.vz_hat += accel * dt
+
+    def _range_update(self, t: float, range_m: float, dt: float) -> None:
+        reacquired = self._last_range_t is None or self._altitude_failsafe
+        self._last_range_t = t
+        if self.z_hat is None or reacquired:
+            self.z_hat, self.vz_hat = range_m, 0.0
+            if self.z_target is None or self._altitude_failsafe:
+                self.z_target = range_m
+                self._z_ref.reset(range_m)
+            self._altitude_failsafe = False
+            return
+        self._predict_altitude(dt)
+        residual = range_m - self.z_hat
+        # Observer poles: a double pole at p for altitude and speed, a slow one at q for the
+        # disturbance, so the learned buoyancy error does not pick up rangefinder noise.
+        p = 2.0 * math.pi * self.c.altitude_observer_hz
+        q = 2.0 * math.pi * self.c.disturbance_observer_hz
+        self.z_hat += (2.0 * p + q) * dt * residual
+        self.vz_hat += (p * p + 2.0 * p * q) * dt * residual
+        if not self._freeze_disturbance:
+            limit = self.c.altitude_integral_limit
+            self.disturbance = min(max(self.disturbance + p * p * q * dt * residual, -limit), limit)
+
+    # ---------------------------------------------------------------- loops
+    def _altitude(self, t: float, dt: float, sp: Setpoint, range_age: float, gain: float, soft: bool) -> tuple[float, str]:
+        c = self.c
+        if range_age > c.range_hold_s or self.z_hat is None:
+            self._altitude_failsafe = True
+            self._up_n = -c.failsafe_buoyancy_fraction * c.net_buoyancy_n
+            return self._up_n, "altitude_failsafe"
+        if range_age > 0.0:
+            return self._up_n, "range_hold"
+        z = self.z_hat
+        assert self.z_target is not None
+        ref = self._z_ref
+        climb = 0.0 if soft else sp.climb_m_s
+        if climb:
+            self._climbing = True
+            ref.rate, ref.accel = climb, 0.0
+            ref.value = min(max(ref.value + climb * dt, z - 0.25, c.altitude_min_m), z + 0.25, c.altitude_max_m)
+            self.z_target = ref.value
+        elif self._climbing:
+            # Just released: decelerate along a planned ramp from the present climb rate, then hold
+            # where that ramp ends, so the body neither coasts on nor springs back.
+            self._climbing = False
+            ref.reset(z, self.vz_hat)
+            self._braking_z = True
+        p_gain = 1.0
+        if not climb and self._braking_z:
+            ref.rate, ref.accel = _ramp_to_zero(ref.rate, c.brake_climb_m_s2, dt)
+            ref.value += ref.rate * dt
+            self.z_target = ref.value
+            if ref.rate == 0.0:
+                self._braking_z, self._settle_z_until = False, t + SETTLE_S
+        elif not climb and self._settle_z_until is not None:
+            # After the ramp the body may still drift a little (motor lag): damp it out and hold
+            # where it comes to rest instead of pulling it back to the ramp's end.
+            p_gain, gain = 0.0, gain * SETTLE_DAMPING / max(c.altitude_kd, 1e-6)
+            ref.reset(z)
+            self.z_target = z
+            if t >= self._settle_z_until:
+                self._settle_z_until = None
+        elif not climb:
+            if sp.altitude_m is not None:
+                self.z_target = min(max(sp.altitude_m, c.altitude_min_m), c.altitude_max_m)
+            ref.advance(self.z_target - ref.value, dt)
+        error = min(max(ref.value - z, -c.altitude_error_limit_m), c.altitude_error_limit_m)
+        accel = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (ref.rate - self.vz_hat)) + ref.accel - self.disturbance
+        drag_ff = c.quadratic_drag * ref.rate * abs(ref.rate)
+        up_n = c.mass_kg * accel - c.net_buoyancy_n + drag_ff
+        lo, hi = self.mixer.limits_up_n()
+        saturated = up_n >= hi or up_n <= lo
+        # Anti-windup: the disturbance estimate (our integral) learns only while the loop is in
+        # charge: not saturated, not softened by a touch, and near its target (a partner holding
+        # the body away from it must not wind it up).
+        self._freeze_disturbance = soft or saturated or abs(ref.value - z) > c.altitude_integral_band_m
+        self._up_n = min(max(up_n, lo), hi)
+        return self._up_n, "flying"
+
+    def _heading(self, t: float, dt: float, sp: Setpoint, heading_age: float, gain: float) -> float:
+        c = self.c
+        if self.heading is None or self.heading_target is None:
+            return 0.0
+        ref = self._psi_ref
+        turn = 0.0 if sp.soften else sp.yaw_rate_dps
+        if turn:
+            self._turning = True
+            ref.rate, ref.accel = turn, 0.0
+            ahead = wrap_deg(ref.value + turn * dt - self.heading)
+            ref.value = (self.heading + min(max(ahead, -20.0), 20.0)) % 360.0
+            self.heading_target = ref.value
+        elif self._turning:
+            self._turning = False
+            ref.reset(self.heading, self.yaw_rate)
+            self._braking_yaw = True
+        p_gain = 1.0
+        if not turn and self._braking_yaw:
+            ref.rate, ref.accel = _ramp_to_zero(ref.rate, c.brake_yaw_dps2, dt)
+            ref.value = (ref.value + ref.rate * dt) % 360.0
+            self.heading_target = ref.value
+            if ref.rate == 0.0:
+                self._braking_yaw, self._settle_yaw_until = False, t + SETTLE_S
+        elif not turn and self._settle_yaw_until is not None:
+            p_gain, gain = 0.0, gain * SETTLE_DAMPING / max(c.heading_kd, 1e-6)
+            ref.reset(self.heading)
+            self.heading_target = self.heading
+            if t >= self._settle_yaw_until:
+                self._settle_yaw_until = None
+        elif not turn:
+            if sp.heading_deg is not None:
+                self.heading_target = sp.heading_deg % 360.0
+            ref.advance(wrap_deg(self.heading_target - ref.value), dt)
+            ref.value %= 360.0
+        error = math.radians(min(max(wrap_deg(ref.value - self.heading), -45.0), 45.0))
+        rate_error = math.radians(ref.rate - self.yaw_rate)
+        alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
+        r_ref = math.radians(ref.rate)
+        return c.yaw_inertia_kg_m2 * alpha + 0.02 * r_ref * abs(r_ref)
+
+    def _surge(self, dt: float, speed_sp: float, gain: float) -> float:
+        c = self.c
+        drag = c.quadratic_drag * self.speed_hat * abs(self.speed_hat) + 0.02 * self.speed_hat
+        self.speed_hat += (self._surge_thrust - drag) / c.mass_kg * dt
+        if speed_sp:
+            self._speed_ref, accel = speed_sp, 0.0
+        else:  # released: brake along a ramp the reverse thrust can follow
+            self._speed_ref, accel = _ramp_to_zero(min(self._speed_ref, self.speed_hat, key=abs), c.brake_m_s2, dt)
+        v = self._speed_ref
+        feed_forward = c.mass_kg * accel + c.quadratic_drag * v * abs(v) + 0.02 * v
+        return feed_forward + gain * c.mass_kg * c.speed_kp * (v - self.speed_hat)
+
+    # ---------------------------------------------------------------- output
+    def _battery(self) -> str:
+        if self.battery_v is None:
+            return "unknown"
+        if self.battery_v <= self.c.battery_critical_v:
+            return "critical"
+        if self.battery_v <= self.c.battery_low_v:
+            return "low"
+        return "ok"
+
+    def _output(self, t: float, commands: tuple[float, float, float, float], mode: str, sp: Setpoint) -> ControlOutput:
+        self.mode_counts[mode] = self.mode_counts.get(mode, 0) + 1
+        return ControlOutput(
+            t=t,
+            commands=commands,
+            motors_us=to_microseconds(commands),
+            mode=mode,
+            altitude_m=self.z_hat,
+            altitude_target_m=self.z_target,
+            climb_m_s=self.vz_hat,
+            heading_deg=self.heading,
+            heading_target_deg=self.heading_target,
+            speed_m_s=self.speed_hat,
+            battery=self._battery(),
+            battery_v=self.battery_v,
+        )
+
+
+def _ramp_to_zero(rate: float, decel: float, dt: float) -> tuple[float, float]:
+    """One step of a constant-deceleration ramp from ``rate`` to zero: (new rate, acceleration)."""
+    step = decel * dt
+    if abs(rate) <= step:
+        return 0.0, -rate / dt if dt > 0 else 0.0
+    return rate - math.copysign(step, rate), -math.copysign(decel, rate)

@@ -1,0 +1,25 @@
+"""What the controller knows about the blimp at one instant."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """One poll of the motor board; a field is ``None`` when its reply did not arrive or was invalid.
+
+    ``t`` is the Pi's clock when the replies were collected. ``range_m`` is
+    the rangefinder's distance to the floor (``None`` when out of range).
+    Heading is in degrees, clockwise seen from above; yaw rate likewise.
+    """
+
+    t: float
+    range_m: float | None = None
+    heading_deg: float | None = None
+    yaw_rate_dps: float | None = None
+    roll_deg: float | None = None
+    pitch_deg: float | None = None
+    battery_v: float | None = None
+    baro_altitude_m: float | None = None
+    motors_us: tuple[int, ...] | None = None
