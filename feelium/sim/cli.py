@@ -26,6 +26,7 @@ def register(registry: CommandRegistry) -> None:
         "--jobs", type=int, default=min(4, os.cpu_count() or 1), help="parallel rendering processes (default: cores, at most 4)"
     )
     parser.add_argument("--overwrite", action="store_true", help="replace recordings that already exist")
+    parser.add_argument("--no-thermal", action="store_true", help="skip thermal.npz (the 8 Hz thermal channel)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
@@ -46,7 +47,8 @@ def _paper_protocol(args: argparse.Namespace) -> int:
 
     try:
         written = simulate_protocol(
-            args.out, seed=args.seed, scale=args.scale, jobs=max(1, args.jobs), overwrite=args.overwrite, progress=progress
+            args.out, seed=args.seed, scale=args.scale, jobs=max(1, args.jobs), overwrite=args.overwrite,
+            thermal=not args.no_thermal, progress=progress,
         )
     except FileExistsError as exc:
         print(f"feelium simulate paper-protocol: {exc} (use --overwrite to replace)", file=sys.stderr)

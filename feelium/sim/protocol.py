@@ -26,6 +26,7 @@ from feelium.sim.camera import SensorParams, frame_times
 from feelium.sim.optics import OpticsParams
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, Projected, SceneRenderer, Session
 from feelium.sim.shadow import ShadowParams
+from feelium.sim.warmth import THERMAL_FPS, render_thermal
 
 GENERATOR = "feelium.sim"
 GENERATOR_VERSION = 1
@@ -58,6 +59,7 @@ def session_presets(seed: int) -> dict[str, Session]:
         OpticsParams(level=185.0, throw_px=330.0, hotspot_gain=0.35, banding_amp=0.03, **placement()),
         ShadowParams(outside_share=0.55, spread_per_mm=0.6, contact_depth=0.45),
         SensorParams(gain=1.0, shot_dn=0.35, read_dn=1.8, drift_amp=0.025, jitter_ms=3.0, drop_rate=0.01),
+        ambient_c=22.0,
     )
     s2 = Session(
         "s2",
@@ -67,6 +69,7 @@ def session_presets(seed: int) -> dict[str, Session]:
         ),
         ShadowParams(outside_share=0.5, spread_per_mm=0.7, contact_depth=0.4),
         SensorParams(gain=1.0, shot_dn=0.6, read_dn=2.6, drift_amp=0.035, jitter_ms=5.0, drop_rate=0.025),
+        ambient_c=20.5,
     )  # fmt: skip
     s3 = Session(
         "s3",
@@ -76,6 +79,7 @@ def session_presets(seed: int) -> dict[str, Session]:
         ),
         ShadowParams(outside_share=0.62, spread_per_mm=0.45, contact_depth=0.5),
         SensorParams(gain=1.04, shot_dn=0.3, read_dn=1.5, drift_amp=0.02, jitter_ms=2.0, drop_rate=0.008),
+        ambient_c=24.5,
     )  # fmt: skip
     return {s.name: s for s in (s1, s2, s3)}
 
@@ -116,7 +120,7 @@ def plan(scale: float = 1.0) -> list[Item]:
 
 
 def recording_rng(seed: int, name: str, stream: int) -> np.random.Generator:
-    """Independent RNG streams per recording: 0 = script, 1 = camera noise and timing."""
+    """Independent RNG streams per recording: 0 = script, 1 = camera noise and timing, 2 = thermal."""
     return np.random.default_rng([seed, zlib.crc32(name.encode()), stream])
 
 
@@ -167,8 +171,9 @@ def write_item(
     *,
     projected_factory: Callable[[Item], Projected | None] | None = None,
     overwrite: bool = False,
+    thermal: bool = True,
 ) -> Path:
-    """Render and write one recording; returns its directory."""
+    """Render and write one recording (with ``thermal.npz`` at 8 Hz unless ``thermal`` is False)."""
     session = session_presets(seed)[item.session]
     script = build_script(item, seed)
     rng = recording_rng(seed, item.name, 1)
@@ -197,6 +202,12 @@ def write_item(
         for t, frame in render_frames(script, session, rng, projected=projected):
             writer.add_frame(t, frame)
         writer.set_labels(script.labels())
+        if thermal:
+            data = render_thermal(
+                script.state, script.duration, ROI, session.shadow.px_per_mm, session.ambient_c,
+                recording_rng(seed, item.name, 2),
+            )  # fmt: skip
+            writer.set_thermal(data, THERMAL_FPS)
     return out / item.relpath
 
 
@@ -212,9 +223,9 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-def _write_star(args: tuple[Item, Path, int, float, bool]) -> str:
-    item, out, seed, scale, overwrite = args
-    return str(write_item(item, out, seed, scale, overwrite=overwrite))
+def _write_star(args: tuple[Item, Path, int, float, bool, bool]) -> str:
+    item, out, seed, scale, overwrite, thermal = args
+    return str(write_item(item, out, seed, scale, overwrite=overwrite, thermal=thermal))
 
 
 def simulate_protocol(
@@ -224,6 +235,7 @@ def simulate_protocol(
     scale: float = 1.0,
     jobs: int = 1,
     overwrite: bool = False,
+    thermal: bool = True,
     progress: Callable[[int, int, str], None] | None = None,
 ) -> list[Path]:
     """Write the whole protocol under ``out``; ``jobs`` > 1 renders recordings in parallel processes."""
@@ -231,7 +243,7 @@ def simulate_protocol(
     items = plan(scale)
     # Longest first, so parallel workers finish together.
     order = sorted(items, key=lambda it: -it.clip_seconds if it.clip else 0.0)
-    args = [(item, out, seed, scale, overwrite) for item in order]
+    args = [(item, out, seed, scale, overwrite, thermal) for item in order]
     written: list[Path] = []
     if jobs <= 1:
         results: Iterator[str] = map(_write_star, args)

@@ -38,6 +38,7 @@ class Session:
     shadow: ShadowParams = field(default_factory=ShadowParams)
     sensor: SensorParams = field(default_factory=SensorParams)
     membrane_seed: int = 0  # the membrane texture is the same physical skin in every session
+    ambient_c: float = 22.0  # room temperature, for the thermal channel
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -46,6 +47,7 @@ class Session:
             "shadow": vars(self.shadow).copy(),
             "sensor": self.sensor.to_json(),
             "membrane_seed": self.membrane_seed,
+            "ambient_c": self.ambient_c,
         }
 
 

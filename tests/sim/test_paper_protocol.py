@@ -111,3 +111,21 @@ def test_empty_trials_have_no_hand(recordings) -> None:
             smooth = np.median(ratio)
             blurred = cv2.blur(ratio, (15, 15))
             assert np.abs(blurred - smooth).max() < 0.25 * max(smooth, 0.2)
+
+
+def test_every_recording_has_a_thermal_channel_that_sees_the_hand(recordings) -> None:
+    warm_touch = 0
+    for rec, frames in recordings:
+        thermal = rec.thermal()
+        assert thermal is not None and rec.meta.thermal == {"width": 32, "height": 24, "fps": 8.0}
+        assert np.all(np.diff(thermal.t) > 0) and thermal.t[-1] <= rec.timestamps[-1] + 0.2
+        assert len(thermal.t) == pytest.approx(8.0 * (rec.timestamps[-1] - rec.timestamps[0]), abs=3)
+        ambient = float(np.median(thermal.celsius[0]))
+        if rec.labels.label == "empty":
+            assert np.abs(thermal.celsius - ambient).max() < 2.0
+        for c in rec.labels.contacts:
+            during = thermal.celsius[(thermal.t >= c.t_on) & (thermal.t < c.t_off)]
+            if len(during):
+                assert during.max() > ambient + 2.0
+                warm_touch += 1
+    assert warm_touch >= 2
