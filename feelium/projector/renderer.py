@@ -53,6 +53,8 @@ class Renderer:
         x0, y0, x1, y1 = self._box
         self._map1, self._map2 = cv2.convertMaps(map_x[y0:y1, x0:x1], map_y[y0:y1, x0:x1], cv2.CV_16SC2)
         self._border = tuple(int(c * 0.5) for c in BACKGROUND_BGR)
+        self._blank = np.empty((config.height, config.width, 3), np.uint8)
+        self._blank[...] = self._border
         self.avatar = Avatar(cw, ch)
         self.skipped: dict[str, int] = {}
         self._face_size: tuple[int, int] | None = None
@@ -88,8 +90,7 @@ class Renderer:
 
     def warp(self, canvas: np.ndarray) -> np.ndarray:
         """Carry a canvas to projector pixels (H_p, W_p, 3) through the calibration."""
-        frame = np.empty((self.config.height, self.config.width, 3), np.uint8)
-        frame[...] = self._border
+        frame = self._blank.copy()
         x0, y0, x1, y1 = self._box
         frame[y0:y1, x0:x1] = cv2.remap(
             canvas, self._map1, self._map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=self._border

@@ -1,0 +1,108 @@
+"""`feelium bench projector`: render time per frame at the projector's resolution on one core.
+
+Scenes: the avatar alone, the avatar with a typical exchange's answers, and
+every answer at once (the worst case). The baseline, measured in the same run,
+is the least any renderer must do: one plain resize of the skin canvas to the
+projector's resolution. The back-light prediction the touch service runs per
+camera frame is measured too.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import cv2
+import numpy as np
+
+from feelium.interactions.answers import Answer
+from feelium.projector.backlight import BacklightPredictor
+from feelium.projector.calibration import CalibrationMap
+from feelium.projector.config import ProjectorConfig
+from feelium.projector.renderer import Renderer
+
+_STROKE = ((0.2, 0.3), (0.3, 0.35), (0.4, 0.33), (0.5, 0.45), (0.55, 0.6))
+
+
+def _scenes() -> dict[str, list[Answer]]:
+    typical = [
+        Answer("ripple", 0.0, 0.5, 0.2, 1.2),
+        Answer("warm_pulse", 0.0, 0.5, 0.2, 1.6),
+        Answer("heart", 0.0, 0.27, 0.58, 2.0, {"from": "partner"}),
+        Answer("stroke", 0.0, 0.5, 0.5, detail={"points": _STROKE}),
+    ]
+    everything = typical + [
+        Answer("palm_glow", 0.0, 0.6, 0.75, detail={"side": "partner"}),
+        Answer("palm_glow", 0.0, 0.6, 0.75, detail={"side": "wearer", "from_u": 0.5, "from_v": 0.8, "glide_s": 0.8}),
+        Answer("breathing", 0.0, 0.5, 0.5),
+        Answer("shimmer", 0.0, 0.5, 0.5, 6.0),
+        Answer("ignite", 0.0, 0.4, 0.4, 3.0, {"strokes": (_STROKE,)}),
+        Answer("prompt", 0.0, 0.5, 0.93, 4.0, {"text": "draw: cat"}),
+    ]
+    return {"avatar": [], "typical": typical, "everything": everything}
+
+
+def _time(fn: Callable[[int], Any], frames: int) -> dict[str, float]:
+    """CPU time of this thread per call (what one core spends; robust on a busy machine) and wall time."""
+    cpu, wall = [], []
+    for i in range(frames):
+        start_wall, start_cpu = time.perf_counter(), time.thread_time()
+        fn(i)
+        cpu.append((time.thread_time() - start_cpu) * 1000.0)
+        wall.append((time.perf_counter() - start_wall) * 1000.0)
+    c, w = np.asarray(cpu), np.asarray(wall)
+    return {
+        "median_ms": round(float(np.median(c)), 3),
+        "p95_ms": round(float(np.percentile(c, 95)), 3),
+        "wall_median_ms": round(float(np.median(w)), 3),
+        "wall_p95_ms": round(float(np.percentile(w, 95)), 3),
+    }
+
+
+def run_bench(config: ProjectorConfig, calibration: CalibrationMap, frames: int = 90) -> dict[str, Any]:
+    """Timings (one OpenCV thread, CPU time per frame) and ratios against the resize baseline."""
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        renderer = Renderer(config, calibration)
+        canvas = renderer.canvas(0.0, None, [])
+        size = (config.width, config.height)
+        baseline = _time(lambda i: cv2.resize(canvas, size, interpolation=cv2.INTER_LINEAR), frames)
+        rows: dict[str, Any] = {"baseline_resize": baseline}
+        for name, answers in _scenes().items():
+            rows[f"render_{name}"] = _time(lambda i, a=answers: renderer.render(0.5 + i / config.fps, None, a), frames)
+        predictor = BacklightPredictor(config, calibration)
+        frame = renderer.render(0.5, None, _scenes()["typical"])
+        rows["backlight_gain"] = _time(lambda i: predictor.gain(frame), frames)
+    finally:
+        cv2.setNumThreads(threads)
+    base = baseline["median_ms"]
+    for name, row in rows.items():
+        row["fps"] = round(1000.0 / row["median_ms"], 1) if row["median_ms"] > 0 else None
+        row["ratio_to_baseline"] = round(row["median_ms"] / base, 2) if base > 0 else None
+    return {
+        "projector": {"width": config.width, "height": config.height, "target_fps": config.fps},
+        "canvas": {"width": config.canvas_width, "height": config.canvas_height},
+        "calibration": calibration.source,
+        "threads": 1,
+        "frames": frames,
+        "rows": rows,
+        "meets_target": rows["render_everything"]["median_ms"] <= 1000.0 / config.fps,
+    }
+
+
+def format_table(report: dict[str, Any]) -> str:
+    lines = [
+        f"projector {report['projector']['width']}x{report['projector']['height']}, one core, "
+        f"{report['frames']} frames, calibration: {report['calibration']}",
+        "CPU ms of one core per frame; the wall columns are inflated when the machine is busy",
+        f"{'step':<20}{'median ms':>10}{'p95 ms':>9}{'fps':>8}{'x baseline':>12}{'wall median':>13}{'wall p95':>10}",
+    ]
+    for name, row in report["rows"].items():
+        lines.append(
+            f"{name:<20}{row['median_ms']:>10.2f}{row['p95_ms']:>9.2f}{row['fps']:>8}{row['ratio_to_baseline']:>12}"
+            f"{row['wall_median_ms']:>13.2f}{row['wall_p95_ms']:>10.2f}"
+        )
+    lines.append(f"30 fps worst case met: {report['meets_target']}")
+    return "\n".join(lines)

@@ -1,0 +1,153 @@
+"""Commands of the projector: `feelium calibrate projector` and `feelium bench projector`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from feelium.cli import CommandRegistry
+
+
+def register(registry: CommandRegistry) -> None:
+    cal = registry.subcommand(
+        "calibrate", "projector",
+        "Project Gray-code and phase patterns, decode them in the rear camera, save the camera-to-projector map.",
+        _calibrate,
+    )
+    cal.add_argument("--config", help="TOML config file; the map is saved beside it (projector.calibration.file)")
+    cal.add_argument("--sim", action="store_true", help="run against the scene simulator's known warp and report the error to the truth")
+    cal.add_argument("--json", action="store_true", help="print a machine-readable summary")
+    cal.add_argument("--out", help="where to save the map (default: beside the config)")
+    cal.add_argument("--seed", type=int, default=1, help="simulator seed (--sim)")
+    bench = registry.subcommand("bench", "projector", "Render time per frame at the projector's resolution on one core.", _bench)
+    bench.add_argument("--config", help="TOML config file")
+    bench.add_argument("--frames", type=int, default=90, help="frames per measurement")
+    bench.add_argument("--json", help="also write the report to this JSON file")
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    import numpy as np
+
+    from feelium.config import load_config
+    from feelium.projector.calibrate import run_calibration, truth_error
+    from feelium.projector.service import calibration_path
+
+    config = load_config(args.config)
+    projector = config.projector
+    size = (projector.width, projector.height)
+    truth = None
+    if args.sim:
+        from feelium.sim.projection import FisheyeWarp, ProjectedLight, SimPatternCapture
+        from feelium.sim.scene import HEIGHT, WIDTH, Session
+
+        warp = FisheyeWarp()
+        light = ProjectedLight(warp, (WIDTH, HEIGHT))
+        capture = SimPatternCapture(Session("projector-calibration"), light, np.random.default_rng(args.seed))
+        truth = warp.truth_map(*capture.camera_size)
+        result = run_calibration(capture, projector.calibration, size, source="sim")
+    else:
+        capture = _device_capture(config)
+        try:
+            result = run_calibration(capture, projector.calibration, size, source="device")
+        finally:
+            capture.close()
+    summary = dict(result.summary)
+    summary["source"] = result.calibration.source
+    if truth is not None:
+        summary["truth_error_px"] = truth_error(result.calibration, *truth)
+    out = Path(args.out) if args.out else calibration_path(config, args.config)
+    summary["saved"] = str(result.calibration.save(out))
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        _print_summary(summary)
+    return 0 if summary["coverage"] > 0 else 1
+
+
+def _print_summary(summary: dict) -> None:
+    def stats(name: str, s: dict) -> str:
+        return f"{name}: median {s['median']} px, p95 {s['p95']} px, max {s['max']} px"
+
+    print(f"coverage of the sensitive patch: {summary['coverage'] * 100:.1f} % ({summary['patterns']} patterns)")
+    print(stats("fit residual (projector px)", summary["fit_residual_px"]))
+    print(stats("round trip camera->projector->camera (camera px)", summary["roundtrip_px"]))
+    if "truth_error_px" in summary:
+        t = summary["truth_error_px"]
+        print(stats("error to the simulator's true map (projector px)", t) + f", within 1 px: {t['within_1px'] * 100:.2f} %")
+    print(f"saved {summary['saved']}")
+
+
+class _DeviceCapture:
+    """Patterns on the real projector (display backend), frames from the real rear camera."""
+
+    def __init__(self, display, camera, camera_size, roi) -> None:
+        self._display = display
+        self._camera = camera
+        self.camera_size = camera_size
+        self.roi = roi
+
+    def show(self, pattern) -> None:
+        import cv2
+
+        self._display.show(cv2.cvtColor(pattern, cv2.COLOR_GRAY2BGR))
+
+    def capture(self):
+        frame = self._camera.read()
+        if frame is None:
+            raise RuntimeError("the rear camera stopped delivering frames during calibration")
+        return frame.image
+
+    def close(self) -> None:
+        self._camera.close()
+        self._display.close()
+
+
+def _device_capture(config) -> _DeviceCapture:
+    import time
+
+    from feelium.cameras.select import rear_camera_source
+    from feelium.projector.display import FbdevDisplay
+
+    source = rear_camera_source(config, time.monotonic)
+    if source is None or source.backend != "picamera2":
+        print(
+            "feelium: calibrate projector needs the real rear camera and projector (use --sim to run against the simulator)",
+            file=sys.stderr,
+        )
+        raise SystemExit(1)
+    display = FbdevDisplay(config.projector.fb_device)
+    camera = source.open()
+    first = camera.read()
+    if first is None:
+        raise RuntimeError("the rear camera delivered no frame")
+    h, w = first.image.shape[:2]
+    return _DeviceCapture(display, camera, (w, h), first.roi)
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    import numpy as np
+
+    from feelium.config import load_config
+    from feelium.projector.bench import format_table, run_bench
+    from feelium.projector.calibration import CalibrationMap
+    from feelium.sim.projection import FisheyeWarp
+
+    config = load_config(args.config).projector
+    camera, roi = (640, 480), (64, 48, 512, 384)
+    px, py = FisheyeWarp().truth_map(*camera)
+    x, y, w, h = roi
+    outside = np.ones(px.shape, bool)
+    outside[y : y + h, x : x + w] = False
+    px[outside] = np.nan
+    py[outside] = np.nan
+    calibration = CalibrationMap(camera, (config.width, config.height), roi, px, py, source="sim fisheye warp")
+    report = run_bench(config, calibration, frames=args.frames)
+    print(format_table(report))
+    if args.json:
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+    return 0
