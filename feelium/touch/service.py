@@ -95,6 +95,8 @@ class TouchService:
         self.dropped_frames = 0
         self.opens = 0
         self.last_error: str | None = None
+        self.overlay_errors = 0
+        self.last_overlay_error: str | None = None
         self.last_frame_at: float | None = None
         self.cpu_s = 0.0  # worker-thread time spent in the pipeline (wall time of the calls)
         self._rate = RateMeter()
@@ -102,9 +104,11 @@ class TouchService:
         self._pipeline_key: tuple[Any, ...] | None = None
         self._last_debug: float | None = None
         self._slot: FrameSlot | None = None
+        self._stopping = False
 
     async def run(self) -> None:
         self._pipeline, self._pipeline_key = None, None  # a restart starts from a fresh reference
+        self._stopping = False
         camera = await asyncio.to_thread(self.source.open)
         self.opens += 1
         log.info("touch: rear camera on the %s backend", self.source.backend)
@@ -112,7 +116,8 @@ class TouchService:
         reader = asyncio.create_task(pump(camera, slot), name="touch.camera")
         try:
             await self._consume(slot)
-            await reader  # the source ended: re-raise a camera error, if that was why
+            if not self._stopping:
+                await reader  # the source ended: re-raise a camera error, if that was why
         finally:
             self.dropped_frames += slot.dropped
             self._slot = None
@@ -149,7 +154,13 @@ class TouchService:
     def _step(self, pipeline: Any, frame: Frame, want_debug: bool) -> tuple[Any, np.ndarray | None]:
         """Worker-thread part: the pipeline and, at the debug rate, the overlay."""
         result = pipeline.process(frame.t, frame.image)
-        debug = self.overlay(frame.image, result, frame.roi) if want_debug else None
+        debug = None
+        if want_debug:
+            try:
+                debug = self.overlay(frame.image, result, frame.roi)
+            except Exception as exc:  # the debug view is a nicety: it must never take touch sensing down
+                self.overlay_errors += 1
+                self.last_overlay_error = f"{type(exc).__name__}: {exc}"
         return result, debug
 
     def _pipeline_for(self, frame: Frame) -> Any:
@@ -199,6 +210,7 @@ class TouchService:
             log.warning("touch: skipped a bad frame (%d so far): %s", self.bad_frames, reason)
 
     async def stop(self) -> None:
+        self._stopping = True
         if self._slot is not None:
             self._slot.end()
 
@@ -213,6 +225,8 @@ class TouchService:
             "bad_frames": self.bad_frames,
             "last_bad_frame": self.last_error,
             "opens": self.opens,
+            "overlay_errors": self.overlay_errors,
+            "last_overlay_error": self.last_overlay_error,
             "ms_per_frame": round(1000.0 * self.cpu_s / self.frames, 2) if self.frames else None,
             "last_frame_at": self.last_frame_at,
         }

@@ -189,3 +189,16 @@ async def test_stop_ends_a_running_service():
     await service.stop()
     await asyncio.wait_for(task, 2.0)
     assert camera.closed
+
+
+async def test_a_failing_overlay_costs_only_the_debug_view():
+    def broken(frame, result, roi):
+        raise ImportError("no overlay yet")
+
+    hub = Hub()
+    camera = ScriptedCamera([_frame(0.1 * i) for i in range(1, 5)])
+    service = TouchService(CameraSource("s", lambda: camera), hub, TouchConfig(), pipeline_factory=FakePipeline, overlay=broken)
+    await service.run()
+    health = service.health()
+    assert health["frames"] == 4 and health["overlay_errors"] >= 1
+    assert "no overlay yet" in health["last_overlay_error"] and hub.rear_video.published == 0

@@ -1,0 +1,132 @@
+"""The daemon in-process: a replayed recording's touches reach the bus; crashes are contained; systemd is told."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import importlib.util
+import socket
+import sys
+import time
+import types
+
+import pytest
+
+from feelium.config import Config
+from feelium.daemon.runner import run_daemon
+from feelium.daemon.sdnotify import Notifier
+from feelium.events import TouchEvent
+from feelium.hub import Hub
+
+from .fakes import CrashingService
+from .synthetic import PRESS_OFF, PRESS_ON, PRESS_XY, write_press_recording
+
+REAR_ONLY = ["feelium.touch.service"]
+
+
+def _replay_config(path, *, realtime=False, loop=False) -> Config:
+    base = Config()
+    return dataclasses.replace(
+        base,
+        rear_camera=dataclasses.replace(
+            base.rear_camera, backend="replay", replay_path=str(path), replay_realtime=realtime, replay_loop=loop
+        ),
+        daemon=dataclasses.replace(base.daemon, restart_initial_s=0.01, restart_max_s=0.05, status_interval_s=0.2),
+    )
+
+
+async def _run_until(config, condition, *, hub=None, modules=REAR_ONLY, notifier=None, timeout=20.0):
+    hub = hub if hub is not None else Hub()
+    stop = asyncio.Event()
+    holder = {}
+
+    async def watch():
+        deadline = time.monotonic() + timeout
+        while "supervisor" not in holder or not condition(hub, holder["supervisor"]):
+            assert time.monotonic() < deadline, "daemon never reached the condition"
+            await asyncio.sleep(0.01)
+        stop.set()
+
+    watcher = asyncio.create_task(watch())
+    supervisor = await run_daemon(
+        config,
+        stop=stop,
+        hub=hub,
+        modules=modules,
+        notifier=notifier or Notifier({}),
+        on_started=lambda h, s: holder.setdefault("supervisor", s),
+    )
+    await watcher
+    return hub, supervisor
+
+
+@pytest.mark.slow
+async def test_touches_of_a_replayed_recording_reach_the_bus(tmp_path):
+    recording = write_press_recording(tmp_path / "press")
+    hub = Hub()
+    sub = hub.bus.subscribe([TouchEvent])
+    _, supervisor = await _run_until(
+        _replay_config(recording), lambda h, s: s.records["touch"].state == "finished", hub=hub
+    )
+    events = sub.drain()
+    phases = [e.phase for e in events]
+    assert phases[0] == "down" and phases[-1] == "up" and phases.count("down") == 1
+    down, up = events[0], events[-1]
+    assert PRESS_ON <= down.t <= PRESS_ON + 0.3
+    assert PRESS_OFF <= up.t <= PRESS_OFF + 0.3
+    assert abs(down.x - PRESS_XY[0]) < 4 and abs(down.y - PRESS_XY[1]) < 4
+    report = hub.health()
+    assert report["services"]["touch"]["frames"] == int(3.5 * 15)
+    assert report["services"]["touch"]["dropped_frames"] == 0  # as-fast-as-possible replay loses nothing
+    assert report["services"]["touch"]["backend"] == "replay"
+    if importlib.util.find_spec("feelium.touch.overlay") is not None:
+        assert hub.rear_video.published > 0  # the debug view with the overlay
+        assert report["services"]["touch"]["overlay_errors"] == 0
+    assert report["status"] == "stopped"
+
+
+@pytest.mark.slow
+async def test_a_crashing_service_is_restarted_while_the_touch_pipeline_keeps_working(tmp_path, monkeypatch):
+    recording = write_press_recording(tmp_path / "press", seconds=1.0)
+    crashy = CrashingService(3, name="crashy")
+    module = types.ModuleType("feelium_test_crashy")
+    module.build_services = lambda config, hub: [crashy]
+    monkeypatch.setitem(sys.modules, "feelium_test_crashy", module)
+    frames_at_first_crash = {}
+
+    def condition(hub, supervisor):
+        record = supervisor.records["crashy"]
+        if record.crashes >= 1 and "n" not in frames_at_first_crash:
+            frames_at_first_crash["n"] = supervisor.records["touch"].service.frames
+        return crashy.runs >= 4 and crashy.ticks > 0 and supervisor.records["touch"].service.frames > frames_at_first_crash.get("n", 1e9) + 5
+
+    hub, supervisor = await _run_until(
+        _replay_config(recording, realtime=True, loop=True),
+        condition,
+        modules=["feelium.touch.service", "feelium_test_crashy"],
+    )
+    assert supervisor.records["crashy"].crashes == 3
+    assert supervisor.records["touch"].crashes == 0
+
+
+@pytest.mark.slow
+async def test_ready_status_and_watchdog_reach_systemd_while_frames_flow(tmp_path):
+    recording = write_press_recording(tmp_path / "press", seconds=1.0)
+    path = str(tmp_path / "notify")
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    listener.bind(path)
+    listener.setblocking(False)
+    notifier = Notifier({"NOTIFY_SOCKET": path, "WATCHDOG_USEC": "200000"})
+    messages: list[bytes] = []
+
+    def condition(hub, supervisor):
+        while True:
+            try:
+                messages.append(listener.recv(4096))
+            except BlockingIOError:
+                break
+        return b"WATCHDOG=1" in messages and any(m.startswith(b"STATUS=ok") for m in messages)
+
+    await _run_until(_replay_config(recording, realtime=True, loop=True), condition, notifier=notifier)
+    listener.close()
+    assert messages[0].startswith(b"READY=1\nSTATUS=starting: touch")
