@@ -85,26 +85,23 @@ async def post_action(request: web.Request) -> web.Response:
 
 
 async def _avatar_frames(request: web.Request, limit: int, max_frames: int) -> list[bytes]:
+    """The JPEG parts of a multipart avatar upload, in order; any parse failure is the client's (400)."""
     frames: list[bytes] = []
     total = 0
     try:
         reader = await request.multipart()
-    except (ValueError, AssertionError) as exc:
-        raise ApiError(400, f"malformed multipart body: {exc}") from exc
-    while True:
-        try:
-            part = await reader.next()
-        except ValueError as exc:
-            raise ApiError(400, f"malformed multipart body: {exc}") from exc
-        if part is None:
-            break
-        data = await part.read()  # type: ignore[union-attr]
-        total += len(data)
-        if total > limit:
-            raise ApiError(413, f"avatar exceeds the limit of {limit} bytes")
-        frames.append(bytes(data))
-        if len(frames) > max_frames:
-            raise ApiError(400, f"an avatar may have at most {max_frames} frames")
+        while (part := await reader.next()) is not None:
+            data = await part.read()  # type: ignore[union-attr]
+            total += len(data)
+            if total > limit:
+                raise ApiError(413, f"avatar exceeds the limit of {limit} bytes")
+            frames.append(bytes(data))
+            if len(frames) > max_frames:
+                raise ApiError(400, f"an avatar may have at most {max_frames} frames")
+    except ApiError:
+        raise
+    except Exception as exc:  # aiohttp raises assorted types for malformed multipart input
+        raise ApiError(400, f"malformed multipart body: {type(exc).__name__}: {str(exc)[:200]}") from exc
     return frames
 
 
@@ -193,10 +190,12 @@ async def post_sim_press(request: web.Request) -> web.Response:
     width, height = float(size[0] or 10000), float(size[1] or 10000)
     if "x" not in body or "y" not in body:
         raise ApiError(400, "x and y (camera pixels) are required")
-    x = number_field(body, "x", None, 0.0, width - 1)
-    y = number_field(body, "y", None, 0.0, height - 1)
+    x = number_field(body, "x", None, 0.0, float("inf"))
+    y = number_field(body, "y", None, 0.0, float("inf"))
     if x is None or y is None:
         raise ApiError(400, "x and y must be numbers")
+    if x > width - 1 or y > height - 1:  # valid numbers, but the live camera is smaller
+        raise ApiError(409, f"({x:g}, {y:g}) is outside the {width:g}x{height:g} rear camera", "outside_frame")
     hover = body.get("hover", False)
     if not isinstance(hover, bool):
         raise ApiError(400, "hover must be true or false")

@@ -50,7 +50,7 @@ async def long_poll(request: web.Request) -> web.Response:
     """``GET /events?after=SEQ&timeout=S``: events after SEQ, waiting up to S seconds for the first."""
     link = ctx(request)
     after = _after(request)
-    timeout = query_number(request, "timeout", 0.0, 0.0, link.config.longpoll_max_s)
+    timeout = min(query_number(request, "timeout", 0.0, 0.0, 300.0), link.config.longpoll_max_s)
     if after is None:
         after = link.events.ring.last_seq
     catchup = await link.events.wait_after(after, timeout)

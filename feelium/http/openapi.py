@@ -207,17 +207,25 @@ def openapi_document() -> dict[str, Any]:
             },
         },
         "/actions/{action}": {"post": {
-            "operationId": "wearerAction", "summary": "A wearer action for the interaction engine (guess needs {\"word\"}).",
-            "parameters": [{"name": "action", "in": "path", "required": True, "schema": {"type": "string", "enum": list(ACTIONS)}}],
-            "requestBody": json_body({"type": "object", "properties": {"word": {"type": "string", "minLength": 1, "maxLength": 40}}}, required=False),
+            "operationId": "wearerAction", "summary": "A wearer action for the interaction engine (heart, palm, shimmer).",
+            "parameters": [{"name": "action", "in": "path", "required": True, "schema": {"type": "string", "enum": [a for a in ACTIONS if a != "guess"]}}],
+            "requestBody": json_body({"type": "object", "additionalProperties": False}, required=False),
             "responses": {"202": _json(_ref("WearerAction"), "Published.")} | _errors(400, 401, 404, 413, 415),
+        }},
+        "/actions/guess": {"post": {
+            "operationId": "guess", "summary": "The wearer's guess of the partner's drawing.",
+            "requestBody": json_body({
+                "type": "object", "required": ["word"], "additionalProperties": False,
+                "properties": {"word": {"type": "string", "minLength": 1, "maxLength": 40, "pattern": "\\S"}},
+            }),
+            "responses": {"202": _json(_ref("WearerAction"), "Published.")} | _errors(400, 401, 413, 415),
         }},
         "/sim": {"get": {
             "operationId": "sim", "summary": "Whether simulated touches are available.",
             "responses": {"200": _json({"type": "object", "required": ["sim"], "properties": {"sim": {"type": "boolean"}}}, "Sim mode.")} | _errors(401),
         }},
         "/sim/press": {"post": {
-            "operationId": "simPress", "summary": "Press or hover a simulated fingertip on the rear camera (sim mode only).",
+            "operationId": "simPress", "summary": "Press or hover a simulated fingertip on the rear camera (sim mode only; 409 outside the frame).",
             "requestBody": json_body(_ref("SimPress")),
             "responses": {"202": _json({"type": "object"}, "Pressed.")} | _errors(400, 401, 404, 409, 413, 415),
         }},

@@ -217,7 +217,7 @@ async def test_client_too_far_behind_gets_reset_and_state(client, hub):
     assert body["reset"] is True  # a sequence from an earlier daemon run
 
 
-@pytest.mark.parametrize("query, fragment", [("after=-1", "after"), ("after=x", "integer"), ("timeout=1e9", "timeout"), ("timeout=nan", "timeout")])
+@pytest.mark.parametrize("query, fragment", [("after=-1", "after"), ("after=x", "integer"), ("timeout=301", "timeout"), ("timeout=nan", "timeout")])
 async def test_long_poll_rejects_bad_queries(client, query, fragment):
     await assert_error(await client.get(f"/api/v1/events?{query}", headers=AUTH), 400, fragment)
 
@@ -430,7 +430,7 @@ async def test_sim_press_and_release_reach_the_scene(client, hub, clock):
     assert (await client.post("/api/v1/sim/press", json={"x": 100, "y": 50.5, "hover": True}, headers=AUTH)).status == 202
     assert (await client.post("/api/v1/sim/release", headers=AUTH)).status == 202
     assert scene.calls == [("press", 100.0, 50.5, clock.now, True), ("release", clock.now)]
-    await assert_error(await client.post("/api/v1/sim/press", json={"x": 700, "y": 5}, headers=AUTH), 400, "x must be within")
+    await assert_error(await client.post("/api/v1/sim/press", json={"x": 700, "y": 5}, headers=AUTH), 409, "outside the 640x480")
     await assert_error(await client.post("/api/v1/sim/press", json={"x": 5}, headers=AUTH), 400, "required")
     await assert_error(await client.post("/api/v1/sim/press", json={"x": 5, "y": 5, "hover": 1}, headers=AUTH), 400, "hover")
     await assert_error(await client.post("/api/v1/sim/press", json={"x": 0, "y": 5, "hover": True}, headers=AUTH), 409, "refused")
@@ -454,7 +454,7 @@ async def test_openapi_is_public_and_valid(client):
     assert doc["openapi"] == "3.1.0"
     routes = {r.resource.canonical for r in client.app.router.routes() if r.resource is not None}
     api = {r[len("/api/v1"):] for r in routes if r.startswith("/api/v1/") and r != "/api/v1/openapi.json"}
-    assert api == set(doc["paths"])
+    assert api == set(doc["paths"]) - {"/actions/guess"}  # documented apart: its body differs from /actions/{action}
 
 
 async def test_static_client_pages_are_served(client):
