@@ -152,4 +152,66 @@ def _erf(x: np.ndarray | float) -> np.ndarray:
     return sign * (1.0 - poly * np.exp(-a * a))
 
 
-__all__ = ["COLS", "ROWS", "ThermalSceneRenderer", "WarmBody"]
+
+
+
+@dataclass(frozen=True)
+class Visit:
+    """One body walking in from ``far_mm``, staying at ``near_mm``, and walking out again.
+
+    Times in seconds: it starts moving at ``t_start``, arrives after
+    ``walk_s``, stays ``stay_s``, and takes ``walk_s`` to leave.
+    """
+
+    t_start: float
+    walk_s: float
+    stay_s: float
+    u: float
+    v: float
+    radius: float
+    skin_c: float = 33.0
+    far_mm: float = 2000.0
+    near_mm: float = 0.0
+
+    @property
+    def t_end(self) -> float:
+        return self.t_start + 2 * self.walk_s + self.stay_s
+
+    def distance(self, t: float) -> float | None:
+        """Distance from the membrane at ``t``; ``None`` before it starts or after it has gone."""
+        if t < self.t_start or t > self.t_end:
+            return None
+        walk = max(self.walk_s, 1e-9)
+        if t < self.t_start + self.walk_s:
+            f = (t - self.t_start) / walk
+        elif t <= self.t_start + self.walk_s + self.stay_s:
+            f = 1.0
+        else:
+            f = 1.0 - (t - self.t_start - self.walk_s - self.stay_s) / walk
+        return self.far_mm + (self.near_mm - self.far_mm) * f
+
+    def body(self, t: float) -> WarmBody | None:
+        d = self.distance(t)
+        return None if d is None else WarmBody(self.u, self.v, d, self.radius, self.skin_c)
+
+    def near_interval(self, near_mm: float) -> tuple[float, float] | None:
+        """When the body is within ``near_mm`` of the membrane (linear walk), or ``None`` if never."""
+        if self.near_mm >= near_mm:
+            return None
+        f = (self.far_mm - near_mm) / (self.far_mm - self.near_mm) if self.far_mm > self.near_mm else 0.0
+        return self.t_start + f * self.walk_s, self.t_end - f * self.walk_s
+
+
+def demo_visits(period_s: float = 40.0) -> tuple[Visit, ...]:
+    """One cycle of the simulator's default thermal scene: a partner walks up and touches, then leaves."""
+    return (
+        Visit(t_start=5.0, walk_s=4.0, stay_s=6.0, u=0.45, v=0.55, radius=0.45, skin_c=30.0, near_mm=250.0),
+        Visit(t_start=8.0, walk_s=1.0, stay_s=3.0, u=0.6, v=0.4, radius=0.12, skin_c=33.0, far_mm=400.0),
+    )
+
+
+def demo_bodies(t: float, period_s: float = 40.0) -> list[WarmBody]:
+    """The warm bodies of the repeating demo scene at ``t`` (every ``period_s`` seconds a visit)."""
+    phase = t % period_s
+    return [b for b in (v.body(phase) for v in demo_visits(period_s)) if b is not None]
+__all__ = ["COLS", "ROWS", "ThermalSceneRenderer", "Visit", "WarmBody", "demo_bodies", "demo_visits"]

@@ -1,0 +1,212 @@
+"""The thermal service: sensor (or emulator) -> decoder -> presence detector -> hub.
+
+A thin shell. Bus work and decoding run in a worker thread (``asyncio.to_thread``)
+so the event loop never waits on I2C; presence events are published on
+``hub.bus`` and summarised in ``hub.state["presence"]``. Nothing here is fatal:
+an I2C error or a bad EEPROM dump is counted, reported in ``health()``, and
+retried after a backoff that doubles while failures continue.
+
+In sim (``backend = "emulator"``, or ``auto`` without an I2C bus) the
+emulated sensor sees the scene renderer's frames: the live simulator's warm
+bodies when it offers them (``hub.rear_scene.warm_bodies(t)``), else a
+repeating demo visit.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import os
+import time
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+import numpy as np
+
+from feelium.config import Config
+from feelium.hub import Hub
+from feelium.service import Service
+from feelium.thermal import registers as reg
+from feelium.thermal.calibration import CalibrationError
+from feelium.thermal.config import ThermalConfig
+from feelium.thermal.decoder import FrameAssembler
+from feelium.thermal.driver import Mlx90640Driver
+from feelium.thermal.presence import PresenceDetector
+
+MAX_BACKOFF_FACTOR = 8
+
+
+def control_settings(config: ThermalConfig) -> reg.ControlSettings:
+    return reg.ControlSettings(config.refresh_hz, config.resolution_bits, config.mode)
+
+
+def smbus2_driver(config: ThermalConfig) -> Mlx90640Driver:
+    from feelium.thermal.transport import SMBus2Transport
+
+    transport = SMBus2Transport.open(config.i2c_bus, config.i2c_address, config.max_read_words, config.attempts)
+    return Mlx90640Driver(transport, control_settings(config))
+
+
+def emulated_driver(config: ThermalConfig, hub: Hub, seed: int) -> Mlx90640Driver:
+    """A driver on the emulated sensor, which sees the scene renderer's frames on the hub's clock."""
+    from feelium.sim.thermal import ThermalSceneRenderer, demo_bodies
+    from feelium.thermal.emulator import Mlx90640Emulator
+    from feelium.thermal.transport import SMBus2Transport
+
+    renderer = ThermalSceneRenderer(np.random.default_rng(seed), 22.0, fps=config.refresh_hz / 2)
+
+    def scene(t: float) -> np.ndarray:
+        live = getattr(hub.rear_scene, "warm_bodies", None)
+        bodies = live(t) if callable(live) else demo_bodies(t)
+        return renderer.frame(t, bodies)
+
+    emulator = Mlx90640Emulator(scene, clock=hub.clock, sleep=time.sleep, rng=np.random.default_rng(seed + 1), ta_c=29.0)
+    transport = SMBus2Transport(emulator.bus(), emulator.device, config.max_read_words, config.attempts)
+    return Mlx90640Driver(transport, control_settings(config))
+
+
+class ThermalService:
+    """Reads sub-pages, assembles frames, runs presence, publishes (see the module docstring)."""
+
+    name = "thermal"
+    stop_order = 50
+
+    def __init__(
+        self,
+        config: ThermalConfig,
+        hub: Hub,
+        make_driver: Callable[[], Mlx90640Driver],
+        source: str,
+        sleep: Callable[[float], Awaitable[None]] = asyncio.sleep,
+    ) -> None:
+        self.config = config
+        self.sleep = sleep
+        self.hub = hub
+        self.make_driver = make_driver
+        self.source = source
+        self.driver: Mlx90640Driver | None = None
+        self.assembler: FrameAssembler | None = None
+        self.detector = PresenceDetector(config.presence)
+        self.frames = 0
+        self.events = 0
+        self.failures = 0  # start or read attempts that raised
+        self.last_error: str | None = None
+        self.last_frame: np.ndarray | None = None
+        self.last_ta: float | None = None
+        self._stopping = False
+        self._consecutive_failures = 0
+
+    def _backoff(self) -> float:
+        factor = min(MAX_BACKOFF_FACTOR, 2 ** max(0, self._consecutive_failures - 1))
+        return self.config.retry_backoff_s * factor
+
+    def _start_driver(self) -> None:
+        driver = self.make_driver()
+        try:
+            calibration = driver.start()
+        except BaseException:
+            driver.close()
+            raise
+        self.driver = driver
+        self.assembler = FrameAssembler(calibration, self.config.emissivity, self.config.reflected_offset_c)
+
+    def _read_once(self) -> np.ndarray | None:
+        """Worker thread: start if needed, poll one sub-page, decode it; the new full frame or ``None``."""
+        if self.driver is None:
+            self._start_driver()
+        assert self.driver is not None and self.assembler is not None
+        words = self.driver.poll()
+        if words is None:
+            return None
+        image = self.assembler.add(words)
+        if image is None or not self.assembler.complete:
+            return None
+        return image
+
+    def _publish(self, t: float, image: np.ndarray) -> None:
+        self.frames += 1
+        self.last_frame = image
+        if self.assembler is not None and self.assembler.last is not None:
+            self.last_ta = self.assembler.last.ta
+        for event in self.detector.step(t, image):
+            self.events += 1
+            self.hub.bus.publish(event)
+        cluster = self.detector.cluster if self.detector.present else None
+        self.hub.state.update(
+            "presence",
+            present=self.detector.present,
+            t=round(t, 3),
+            x=None if cluster is None else round(cluster.x, 2),
+            y=None if cluster is None else round(cluster.y, 2),
+            size=0 if cluster is None else cluster.size,
+            peak_rise_c=None if cluster is None else round(cluster.peak_rise_c, 2),
+            ambient_c=None if not np.isfinite(image).any() else round(float(np.nanmedian(image)), 2),
+        )
+
+    async def run(self) -> None:
+        poll_s = 0.25 / self.config.refresh_hz
+        while not self._stopping:
+            try:
+                image = await asyncio.to_thread(self._read_once)
+            except (OSError, CalibrationError) as exc:
+                self.failures += 1
+                self._consecutive_failures += 1
+                self.last_error = f"{type(exc).__name__}: {exc}"
+                if isinstance(exc, CalibrationError) and self.driver is not None:
+                    self.driver.close()
+                    self.driver = None
+                await self.sleep(self._backoff())
+                continue
+            self._consecutive_failures = 0
+            if image is None:
+                await self.sleep(poll_s)
+                continue
+            self._publish(self.hub.clock(), image)
+
+    async def stop(self) -> None:
+        self._stopping = True
+        if self.driver is not None:
+            try:
+                self.driver.close()
+            except OSError:
+                pass
+
+    def health(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "source": self.source,
+            "frames": self.frames,
+            "events": self.events,
+            "failures": self.failures,
+            "last_error": self.last_error,
+            "present": self.detector.present,
+            "ta_c": None if self.last_ta is None or not math.isfinite(self.last_ta) else round(self.last_ta, 2),
+        }
+        if self.driver is not None:
+            out["driver"] = self.driver.health()
+        if self.assembler is not None:
+            out["decoded"] = self.assembler.decoded
+            out["rejected"] = dict(self.assembler.rejected)
+            out["nan_pixels"] = self.assembler.failed_pixels
+        out["presence_skipped"] = self.detector.skipped
+        return out
+
+
+def choose_backend(config: ThermalConfig) -> str:
+    """``smbus2`` or ``emulator`` (``auto``: the real bus if its device node exists)."""
+    if config.backend != "auto":
+        return config.backend
+    return "smbus2" if os.path.exists(f"/dev/i2c-{config.i2c_bus}") else "emulator"
+
+
+def build_services(config: Config, hub: Hub) -> list[Service]:
+    cfg = config.thermal
+    if cfg.backend == "off":
+        return []
+    backend = choose_backend(cfg)
+    if backend == "smbus2":
+        return [ThermalService(cfg, hub, lambda: smbus2_driver(cfg), "smbus2")]
+    seed = config.sim.seed
+    return [ThermalService(cfg, hub, lambda: emulated_driver(cfg, hub, seed), "emulator")]
+
+
+__all__ = ["ThermalService", "build_services", "choose_backend", "emulated_driver", "smbus2_driver"]

@@ -1,0 +1,109 @@
+"""The thermal service end to end: emulated sensor seeing a scene -> presence events on the hub."""
+
+import asyncio
+
+import numpy as np
+import pytest
+
+from feelium.config import Config, parse_config
+from feelium.events import PresenceEvent
+from feelium.hub import Hub
+from feelium.service import Service
+from feelium.sim.thermal import ThermalSceneRenderer, WarmBody
+from feelium.thermal import registers as reg
+from feelium.thermal.config import ThermalConfig
+from feelium.thermal.driver import Mlx90640Driver
+from feelium.thermal.emulator import Faults, Mlx90640Emulator
+from feelium.thermal.service import ThermalService, build_services
+from feelium.thermal.transport import SMBus2Transport
+
+
+class FakeClock:
+    """Hub time that advances a fixed step per read, so the test never waits on the wall clock."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        self.t += 0.01
+        return self.t
+
+    def sleep(self, dt: float) -> None:
+        self.t += dt
+
+
+def make_service(scene, faults=None, config=None, eeprom=None):
+    clock = FakeClock()
+    hub = Hub(clock=clock)
+    cfg = config or ThermalConfig(refresh_hz=16.0, retry_backoff_s=0.01)
+    emulators = []
+
+    def make_driver():
+        emu = Mlx90640Emulator(scene, clock=clock, sleep=clock.sleep, rng=np.random.default_rng(1), faults=faults, eeprom=eeprom)
+        emulators.append(emu)
+        return Mlx90640Driver(SMBus2Transport(emu.bus(), max_read_words=cfg.max_read_words), reg.ControlSettings(16.0, 18, "chess"))
+
+    async def sleep(dt):
+        clock.sleep(dt)
+        await asyncio.sleep(0)
+
+    return hub, clock, ThermalService(cfg, hub, make_driver, "emulator", sleep=sleep), emulators
+
+
+async def run_until(service, clock, t_end):
+    task = asyncio.create_task(service.run())
+    while clock.t < t_end and not task.done():
+        await asyncio.sleep(0)
+    assert not task.done(), task.exception()
+    await service.stop()
+    task.cancel()
+    try:
+        await task
+    except asyncio.CancelledError:
+        pass
+
+
+def test_build_services_honours_backend():
+    hub = Hub()
+    assert build_services(parse_config('[thermal]\nbackend = "off"\n'), hub) == []
+    services = build_services(parse_config('[thermal]\nbackend = "emulator"\n'), hub)
+    assert len(services) == 1 and isinstance(services[0], Service) and services[0].name == "thermal"
+
+
+def test_bad_refresh_rate_is_a_config_error():
+    with pytest.raises(Exception, match="refresh_hz"):
+        parse_config("[thermal]\nrefresh_hz = 3.0\n")
+
+
+async def test_presence_events_reach_the_bus_and_state():
+    renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
+    scene = lambda t: renderer.frame(t, [WarmBody(0.25, 0.5, 0.0, 0.15)] if 3.0 < t < 6.0 else [])
+    hub, clock, service, _ = make_service(scene)
+    sub = hub.bus.subscribe([PresenceEvent])
+    await run_until(service, clock, 10.0)
+    events = sub.drain()
+    phases = [e.phase for e in events if e.phase != "update"]
+    assert phases == ["approach", "leave"], service.health()
+    approach = next(e for e in events if e.phase == "approach")
+    assert 3.0 < approach.t < 4.0 and approach.azimuth_deg < -10
+    assert hub.state.snapshot()["presence"]["present"] is False
+    health = service.health()
+    assert health["frames"] > 50 and health["driver"]["io_errors"] == 0 and health["rejected"] == {}
+
+
+async def test_i2c_errors_are_counted_never_fatal():
+    renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
+    scene = lambda t: renderer.frame(t, [])
+    hub, clock, service, emulators = make_service(scene, faults=Faults(nack_rate=0.3, invalid_word_rate=0.2))
+    await run_until(service, clock, 10.0)
+    health = service.health()
+    assert health["failures"] > 0 and "OSError" in health["last_error"]
+    assert health["rejected"].get("invalid_word", 0) > 0
+    assert health["frames"] > 10
+
+
+async def test_bad_eeprom_is_reported_and_retried():
+    hub, clock, service, emulators = make_service(np.full((24, 32), 22.0), eeprom=np.zeros(832, dtype=np.uint16))
+    await run_until(service, clock, 0.5)
+    health = service.health()
+    assert health["frames"] == 0 and "all zero" in health["last_error"] and health["failures"] >= 2
