@@ -24,6 +24,7 @@ class SensorParams:
     """One session's camera."""
 
     fps: float = 15.0
+    exposure_s: float = 0.03  # shutter time: a dim membrane needs about half the frame period
     gain: float = 1.0  # overall exposure gain (DN per unit back-light)
     drift_amp: float = 0.025  # slow gain drift amplitude, relative (sensor temperature, projector power)
     drift_period_s: float = 41.0

@@ -24,7 +24,7 @@ from feelium.recording import RecordingWriter
 from feelium.sim import scripts
 from feelium.sim.camera import SensorParams, frame_times
 from feelium.sim.optics import OpticsParams
-from feelium.sim.scene import HEIGHT, ROI, WIDTH, Projected, SceneRenderer, Session
+from feelium.sim.scene import HEIGHT, ROI, WIDTH, Projected, SceneRenderer, Session, exposure_samples
 from feelium.sim.shadow import ShadowParams
 from feelium.sim.warmth import THERMAL_FPS, render_thermal
 
@@ -160,7 +160,8 @@ def render_frames(
     """``(t, frame)`` for every captured frame of ``script`` under ``session``."""
     renderer = SceneRenderer(session, rng, width=WIDTH, height=HEIGHT, roi=ROI, projected=projected)
     for t in frame_times(session.sensor, script.duration, rng):
-        yield float(t), renderer.frame(float(t), script.state(float(t)))
+        states = exposure_samples(script.state, float(t), session.sensor.exposure_s)
+        yield float(t), renderer.frame(float(t), states)
 
 
 def write_item(

@@ -12,7 +12,8 @@ RNG that draws the noise.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -97,10 +98,16 @@ class SceneRenderer:
             parts += blob.parts()
         return parts, contacts
 
-    def signal(self, t: float, state: SceneState) -> np.ndarray:
-        """The noiseless signal in DN (H, W) float32 at camera time ``t``."""
+    def signal(self, t: float, state: SceneState | Sequence[SceneState]) -> np.ndarray:
+        """The noiseless signal in DN (H, W) float32 at camera time ``t``.
+
+        ``state`` may be several sub-samples across the exposure (see :func:`exposure_samples`):
+        their shadows are averaged, which is the motion blur of a moving hand.
+        """
+        states = [state] if isinstance(state, SceneState) else list(state)
         s = self.session
-        gain = gain_at(s.sensor, t, self._gain_phase) * state.exposure
+        mid = states[len(states) // 2]
+        gain = gain_at(s.sensor, t, self._gain_phase) * mid.exposure
         image = self._lit * laser_banding(s.optics, self.height, t)
         if self._projected is not None:
             factor = self._projected(t)
@@ -108,12 +115,39 @@ class SceneRenderer:
                 if factor.shape != (self.height, self.width):
                     raise ValueError(f"projected factor is {factor.shape}, camera is {(self.height, self.width)}")
                 image = image * factor.astype(np.float32, copy=False)
-        parts, contacts = self.parts(state)
-        if parts or contacts or state.room != 1.0:
-            shadow = render_shadow(parts, contacts, s.shadow, self.width, self.height)
-            image = image * shadow.transmission(s.shadow, state.room)
+        transmission: np.ndarray | None = None
+        for sub in states:
+            parts, contacts = self.parts(sub)
+            if not (parts or contacts or sub.room != 1.0):
+                continue
+            shadow = render_shadow(parts, contacts, s.shadow, self.width, self.height).transmission(s.shadow, sub.room)
+            transmission = shadow if transmission is None else transmission + shadow
+        if transmission is not None:
+            unshadowed = len(states) - sum(1 for sub in states if sub.hands or sub.blobs or sub.room != 1.0)
+            image = image * ((transmission + unshadowed) / len(states))
         return image * np.float32(gain)
 
-    def frame(self, t: float, state: SceneState) -> np.ndarray:
+    def frame(self, t: float, state: SceneState | Sequence[SceneState]) -> np.ndarray:
         """One 8-bit camera frame (H, W) uint8 at camera time ``t``."""
         return expose(self.signal(t, state), self.session.sensor, self._rng)
+
+
+def exposure_samples(
+    state_at: Callable[[float], SceneState], t: float, exposure_s: float, *, px_per_step: float = 3.0, most: int = 4
+) -> list[SceneState]:
+    """Scene sub-samples across the exposure centred on ``t``: one when still, up to ``most`` when moving.
+
+    A fingertip that moves ``d`` px during the exposure gets ``ceil(d / px_per_step)``
+    samples, so a fast swipe smears as it does on the sensor while still frames cost nothing extra.
+    """
+    mid = state_at(t)
+    if exposure_s <= 0.0 or not mid.hands:
+        return [mid]
+    start, end = state_at(t - exposure_s / 2), state_at(t + exposure_s / 2)
+    travel = 0.0
+    for a, b in zip(start.hands, end.hands):
+        travel = max(travel, math.hypot(b.x - a.x, b.y - a.y))
+    n = min(most, max(1, math.ceil(travel / px_per_step)))
+    if n == 1:
+        return [mid]
+    return [state_at(t - exposure_s / 2 + exposure_s * (i + 0.5) / n) for i in range(n)]

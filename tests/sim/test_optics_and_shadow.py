@@ -132,3 +132,24 @@ def test_projected_hook_multiplies_the_backlight() -> None:
     bad = SceneRenderer(session, np.random.default_rng(0), projected=lambda t: np.ones((10, 10), np.float32))
     with pytest.raises(ValueError, match="projected factor"):
         bad.signal(0.5, SceneState())
+
+
+def test_fast_moving_hand_is_smeared_over_the_exposure_still_hand_is_not() -> None:
+    from feelium.sim.scene import exposure_samples
+
+    def moving(t: float) -> SceneState:
+        return SceneState(hands=(HandPose(200 + 600 * t, 240, 0.0),))  # 600 px/s: 18 px in 30 ms
+
+    def still(t: float) -> SceneState:
+        return SceneState(hands=(HandPose(320, 240, 0.0),))
+
+    assert len(exposure_samples(still, 0.2, 0.03)) == 1
+    samples = exposure_samples(moving, 0.2, 0.03)
+    assert len(samples) == 4 and samples[0].hands[0].x < 320 < samples[-1].hands[0].x
+    session = session_presets(1)["s1"]
+    r = SceneRenderer(session, np.random.default_rng(0))
+    sharp, blurred = r.signal(0.2, moving(0.2)), r.signal(0.2, samples)
+    ref = r.signal(0.2, SceneState())
+    row_sharp, row_blur = 1 - sharp[240] / ref[240], 1 - blurred[240] / ref[240]
+    assert row_blur.max() < row_sharp.max()  # the core is shallower...
+    assert (row_blur > 0.3).sum() > (row_sharp > 0.3).sum()  # ...and longer along the motion
