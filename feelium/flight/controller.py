@@ -28,6 +28,7 @@ from feelium.flight.telemetry import Telemetry
 
 YAW_RATE_TAU_S = 0.06
 SETTLE_S = 0.6  # damping-only phase after a braking ramp
+RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an outage
 SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 THRUST_LAG_S = 0.08
 
@@ -144,16 +145,15 @@ class FlightController:
         stale = min(heading_age, range_age) > self.c.telemetry_stale_s
         if stale:
             self._telemetry_failsafe = True
+            self._altitude_failsafe = True  # the next range reading restarts the altitude observer
             commands = self.mixer.mix(0.0, -self.c.failsafe_buoyancy_fraction * self.c.net_buoyancy_n, 0.0, dt)
             return self._output(t, commands, "telemetry_failsafe", setpoint)
-        if self._telemetry_failsafe:  # back from a link outage: hold wherever the body now is
+        if self._telemetry_failsafe:
+            # Back from a link outage, probably drifting up: damp the motion out, then hold
+            # wherever the body comes to rest (no return trip through the air).
             self._telemetry_failsafe = False
-            self.z_target = self.z_hat
-            self.heading_target = self.heading
-            if self.z_hat is not None:
-                self._z_ref.reset(self.z_hat)
-            if self.heading is not None:
-                self._psi_ref.reset(self.heading)
+            self._climbing = self._braking_z = self._turning = self._braking_yaw = False
+            self._settle_z_until = self._settle_yaw_until = t + RECOVERY_SETTLE_S
 
         soft = setpoint.soften
         if self._was_soft and not soft:  # the partner let go: stay where they left it
@@ -220,6 +220,9 @@ class FlightController:
             if self.z_target is None or self._altitude_failsafe:
                 self.z_target = range_m
                 self._z_ref.reset(range_m)
+            if self._altitude_failsafe:  # it was floating up: damp that out, hold where it stops
+                self._climbing = self._braking_z = False
+                self._settle_z_until = t + RECOVERY_SETTLE_S
             self._altitude_failsafe = False
             return
         self._predict_altitude(dt)

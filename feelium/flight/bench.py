@@ -1,0 +1,153 @@
+"""``feelium bench flight``: the issue's measures on the simulator, against an untuned PID, with plots.
+
+Every number is measured on the simulator's true state. Wall-clock timing
+of the controller step is reported too (median and p95 per step), because
+the Pi has to afford 50 of them a second next to the touch pipeline.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from feelium.flight import scenarios as sc
+from feelium.flight.baseline import BaselinePid
+from feelium.flight.config import FlightConfig
+from feelium.flight.setpoint import Setpoint
+
+MOTIONS = ("forward", "backward", "up", "down", "turn_left", "turn_right")
+TARGETS = {
+    "altitude_rms_still_m": 0.03,
+    "altitude_rms_drafts_m": 0.08,
+    "heading_rms_deg": 3.0,
+    "climb_settling_s": 4.0,
+    "climb_overshoot": 0.10,
+    "latency_s": 0.100,
+    "stop_s": 0.5,
+}
+
+
+def step_timing(config: FlightConfig, steps: int = 2000) -> dict[str, float]:
+    """Wall time of one controller step (median, p95) in microseconds, on logged telemetry."""
+    flight = sc.new_flight(config, True)
+    telemetry = []
+    for _ in range(steps):
+        telemetry.append(flight.client.poll())
+        flight.clock.t += flight.period
+        flight.board.advance_to(flight.clock.t)
+    from feelium.flight.controller import FlightController
+
+    controller = FlightController(config)
+    durations = []
+    hold = Setpoint(altitude_m=sc.START_ALTITUDE_M)
+    for i, tel in enumerate(telemetry):
+        start = time.perf_counter()
+        controller.step(i * flight.period, tel, hold)
+        durations.append(time.perf_counter() - start)
+    us = np.asarray(durations) * 1e6
+    return {"median_us": float(np.median(us)), "p95_us": float(np.percentile(us, 95))}
+
+
+def run_bench(config: FlightConfig, out_dir: Path, seed: int = 1) -> dict[str, Any]:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    results: dict[str, Any] = {"seed": seed, "targets": TARGETS}
+    still = sc.hold(config, False, seed)
+    drafts = sc.hold(config, True, seed)
+    base_still = sc.hold(config, False, seed, controller=BaselinePid(config))
+    base_drafts = sc.hold(config, True, seed, controller=BaselinePid(config))
+    results["hold"] = {
+        "altitude_rms_still_m": still.altitude_rms_m,
+        "altitude_rms_drafts_m": drafts.altitude_rms_m,
+        "heading_rms_still_deg": still.heading_rms_deg,
+        "heading_rms_drafts_deg": drafts.heading_rms_deg,
+        "roughness_still": still.roughness,
+        "roughness_drafts": drafts.roughness,
+    }
+    results["baseline_pid"] = {
+        "altitude_rms_still_m": base_still.altitude_rms_m,
+        "altitude_rms_drafts_m": base_drafts.altitude_rms_m,
+        "heading_rms_still_deg": base_still.heading_rms_deg,
+        "heading_rms_drafts_deg": base_drafts.heading_rms_deg,
+        "roughness_still": base_still.roughness,
+        "roughness_drafts": base_drafts.roughness,
+    }
+    results["quietness_ratio_drafts"] = base_drafts.roughness / max(drafts.roughness, 1e-12)
+    climb = sc.altitude_step(config, 0.3, seed)
+    base_climb = sc.altitude_step(config, 0.3, seed, controller=BaselinePid(config))
+    turn = sc.heading_step(config, 45.0, seed)
+    results["climb_30cm"] = {"settling_s": climb.settling_s, "overshoot": climb.overshoot_fraction}
+    results["climb_30cm_baseline"] = {"settling_s": base_climb.settling_s, "overshoot": base_climb.overshoot_fraction}
+    results["heading_step_45deg"] = {"settling_s": turn.settling_s, "overshoot": turn.overshoot_fraction}
+    motions = {name: sc.motion(config, name, seed=seed) for name in MOTIONS}
+    results["motion"] = {name: {"latency_s": r.latency_s, "stop_s": r.stop_s} for name, r in motions.items()}
+    results["worst_latency_s"] = max(r.latency_s for r in motions.values())
+    results["worst_stop_s"] = max(r.stop_s for r in motions.values())
+    results["controller_step"] = step_timing(config)
+    results["plots"] = _plots(out_dir, climb, base_climb, turn, drafts)
+    (out_dir / "flight-bench.json").write_text(json.dumps(results, indent=2, default=_json_default))
+    return results
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    raise TypeError(repr(value))
+
+
+def _plots(out_dir: Path, climb: sc.StepResult, base: sc.StepResult, turn: sc.StepResult, drafts: sc.HoldResult) -> list[str]:
+    from feelium.plot import Series, line_plot
+
+    paths = [
+        line_plot(
+            out_dir / "flight-climb-step.png",
+            [Series(climb.t, climb.values * 100, "controller"), Series(base.t, base.values * 100, "untuned PID")],
+            title="30 cm climb (still air, true altitude)",
+            xlabel="time since step (s)",
+            ylabel="altitude (cm)",
+            hlines=((climb.target * 100, "target"), (climb.target * 100 + 3, "+10 %")),
+        ),
+        line_plot(
+            out_dir / "flight-heading-step.png",
+            [Series(turn.t, turn.values, "controller")],
+            title="45 degree heading step (true heading)",
+            xlabel="time since step (s)",
+            ylabel="heading (deg)",
+            hlines=((turn.target, "target"),),
+        ),
+        line_plot(
+            out_dir / "flight-hold-drafts.png",
+            [Series(drafts.log["t"], (drafts.log["z"] - sc.START_ALTITUDE_M) * 100, "altitude error (cm)")],
+            title="Altitude hold in drafts",
+            xlabel="time (s)",
+            ylabel="error (cm)",
+            hlines=((0.0, "target"),),
+        ),
+    ]
+    return [str(p) for p in paths]
+
+
+def format_table(results: dict[str, Any]) -> str:
+    hold, base = results["hold"], results["baseline_pid"]
+    rows = [
+        ("altitude RMS, still air", f"{hold['altitude_rms_still_m'] * 100:.2f} cm", f"{base['altitude_rms_still_m'] * 100:.2f} cm", "<= 3 cm"),
+        ("altitude RMS, drafts", f"{hold['altitude_rms_drafts_m'] * 100:.2f} cm", f"{base['altitude_rms_drafts_m'] * 100:.2f} cm", "<= 8 cm"),
+        ("heading RMS, still air", f"{hold['heading_rms_still_deg']:.2f} deg", f"{base['heading_rms_still_deg']:.2f} deg", "<= 3 deg"),
+        ("heading RMS, drafts", f"{hold['heading_rms_drafts_deg']:.2f} deg", f"{base['heading_rms_drafts_deg']:.2f} deg", "<= 3 deg"),
+        ("30 cm climb settling (5 %)", f"{results['climb_30cm']['settling_s']:.2f} s", f"{results['climb_30cm_baseline']['settling_s']:.2f} s", "<= 4 s"),
+        ("30 cm climb overshoot", f"{results['climb_30cm']['overshoot'] * 100:.1f} %", f"{results['climb_30cm_baseline']['overshoot'] * 100:.1f} %", "<= 10 %"),
+        ("command-to-motion latency (worst)", f"{results['worst_latency_s'] * 1000:.0f} ms", "-", "<= 100 ms"),
+        ("stop after dead man expires (worst)", f"{results['worst_stop_s']:.2f} s", "-", "<= 0.5 s"),
+        ("roughness in drafts (sum dcmd^2 / s)", f"{hold['roughness_drafts']:.3f}", f"{base['roughness_drafts']:.1f}", f"{results['quietness_ratio_drafts']:.0f}x quieter"),
+        ("controller step (median / p95)", f"{results['controller_step']['median_us']:.0f} / {results['controller_step']['p95_us']:.0f} us", "-", "-"),
+    ]
+    width = max(len(r[0]) for r in rows)
+    lines = [f"{'measure':<{width}}  {'controller':>16}  {'untuned PID':>14}  target"]
+    lines += [f"{a:<{width}}  {b:>16}  {c:>14}  {d}" for a, b, c, d in rows]
+    lines.append("per command (latency ms / stop s): " + ", ".join(
+        f"{k} {v['latency_s'] * 1000:.0f}/{v['stop_s']:.2f}" for k, v in results["motion"].items()
+    ))
+    return "\n".join(lines)

@@ -1,0 +1,53 @@
+"""``feelium flight probe`` and ``feelium bench flight``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from feelium.cli import CommandRegistry
+
+
+def register(registry: CommandRegistry) -> None:
+    flight = registry.group("flight", "The motor board and the flight controller.")
+    probe = flight.add_parser(
+        "probe",
+        help="Ask a motor board what it reports (API version, attitude, altitude, rangefinder, battery, motors) as JSON.",
+        description="Connect to a motor board over MSP and print what it reports as JSON; exit 1 when nothing answers.",
+    )
+    target = probe.add_mutually_exclusive_group(required=True)
+    target.add_argument("--port", help="serial device or pyserial URL, e.g. /dev/ttyUSB0 or socket://127.0.0.1:5761")
+    target.add_argument("--sim", action="store_true", help="probe the emulated motor board instead")
+    probe.add_argument("--baud", type=int, default=115200, help="serial speed (default 115200)")
+    probe.add_argument("--timeout", type=float, default=0.5, help="seconds to wait for each reply (default 0.5)")
+    probe.set_defaults(handler=_probe)
+    bench = registry.subcommand("bench", "flight", "Fly the simulator: hold, climb, commands, quietness against an untuned PID.", _bench)
+    bench.add_argument("--out", default="bench-out/flight", help="directory for the JSON and PNG plots")
+    bench.add_argument("--seed", type=int, default=1, help="simulation seed")
+    bench.add_argument("--config", help="TOML config file (its [flight] section is used)")
+
+
+def _probe(args: argparse.Namespace) -> int:
+    from feelium.flight.probe import ProbeError, probe_board
+
+    try:
+        report = probe_board(port=args.port, sim=args.sim, baudrate=args.baud, timeout_s=args.timeout)
+    except ProbeError as exc:
+        print(f"feelium flight probe: {exc}", file=sys.stderr)
+        return 1
+    print(json.dumps(report, indent=2))
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from feelium.config import load_config
+    from feelium.flight.bench import format_table, run_bench
+
+    config = load_config(args.config).flight
+    results = run_bench(config, Path(args.out), seed=args.seed)
+    print(format_table(results))
+    print(f"JSON and plots in {args.out}/")
+    return 0

@@ -1,0 +1,265 @@
+"""The flight service: motor board link, control loop, failsafes, state on the hub.
+
+A thin shell around :class:`FlightController`. Every period it polls the
+board (in a worker thread, so the loop never blocks on the serial port),
+steps the controller with the wearer's dead-man command and the soften
+flag, commands the motors at once, and publishes altitude, heading, battery
+and link state. When the port disappears it keeps stepping the controller
+without telemetry (which goes to its failsafe; the board's own watchdog
+stops the motors) and reopens the port with a doubling backoff.
+
+``stop()`` runs first on shutdown (``stop_order = 0``): it commands every
+motor to neutral at once and stops the loop from commanding anything else.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import os
+from collections.abc import Callable
+from typing import Any, Protocol
+
+from feelium.config import Config
+from feelium.events import InteractionEvent, TouchEvent
+from feelium.flight.client import MspClient
+from feelium.flight.config import FlightConfig
+from feelium.flight.controller import ControlOutput, FlightController
+from feelium.flight.messages import MOTOR_NEUTRAL_US
+from feelium.flight.setpoint import setpoint_for_motion
+from feelium.flight.soften import SoftenTracker
+from feelium.flight.transport import ByteLink, open_serial
+from feelium.hub import Hub
+from feelium.service import Service
+
+log = logging.getLogger(__name__)
+NEUTRAL_US = (MOTOR_NEUTRAL_US,) * 4
+STOP_WRITE_TIMEOUT_S = 0.3
+
+
+class LinkOpener(Protocol):
+    """Opens the byte link to a motor board: a serial port, or the emulated board."""
+
+    description: str
+
+    def open(self) -> ByteLink: ...
+
+
+class SerialOpener:
+    def __init__(self, port: str, baudrate: int, timeout_s: float) -> None:
+        self.port, self.baudrate, self.timeout_s = port, baudrate, timeout_s
+        self.description = f"serial {port} @ {baudrate}"
+
+    def open(self) -> ByteLink:
+        return open_serial(self.port, self.baudrate, self.timeout_s)
+
+
+class SimOpener:
+    """The emulated board on the hub's clock; one board for the daemon's life, reconnects reuse it."""
+
+    def __init__(self, config: FlightConfig, seed: int, clock: Callable[[], float]) -> None:
+        from feelium.flight.blimp_model import DraftParams
+        from feelium.flight.emulated_board import BoardParams, EmulatedMotorBoard, SensorParams, board_with
+
+        params = board_with(
+            BoardParams(
+                drafts=DraftParams() if config.sim.drafts else None,
+                sensors=SensorParams(range_dropout_probability=config.sim.rangefinder_dropout),
+            ),
+            z=config.sim.start_altitude_m,
+        )
+        self.clock = clock
+        self.board = EmulatedMotorBoard(params, seed=seed, start_t=clock())
+        self.description = "emulated motor board (blimp simulator)"
+
+    def open(self) -> ByteLink:
+        from feelium.flight.emulated_board import EmulatedSerial
+
+        return EmulatedSerial(self.board, self.clock)
+
+
+def resolve_backend(config: FlightConfig) -> str:
+    """``auto``: the serial port when its device exists (or it is a URL), else the simulator."""
+    if config.backend != "auto":
+        return config.backend
+    if "://" in config.port or os.path.exists(config.port):
+        return "serial"
+    return "sim"
+
+
+class FlightService:
+    """Closed-loop flight as a supervised daemon service."""
+
+    name = "flight"
+    stop_order = 0
+
+    def __init__(self, config: FlightConfig, hub: Hub, opener: LinkOpener) -> None:
+        self.config = config
+        self.hub = hub
+        self.opener = opener
+        self.controller = FlightController(config)
+        self.soften = SoftenTracker(config.firm_touch_depth, config.soften_hold_s)
+        self.link: ByteLink | None = None
+        self.client: MspClient | None = None
+        self.link_state = "down"
+        self.stopping = False
+        self.cycles = 0
+        self.overruns = 0
+        self.link_losses = 0
+        self.reconnects = 0
+        self.open_failures = 0
+        self.bad_events = 0
+        self.last_error: str | None = None
+        self.last: ControlOutput | None = None
+        self._next_open_t = float("-inf")
+        self._backoff_s = config.reconnect_min_s
+
+    # ------------------------------------------------------------ lifecycle
+    async def run(self) -> None:
+        period = 1.0 / self.config.rate_hz
+        events = self.hub.bus.subscribe(types=(TouchEvent, InteractionEvent), maxsize=64)
+        try:
+            next_t = self.hub.clock()
+            while not self.stopping:
+                await self._cycle(events)
+                next_t += period
+                delay = next_t - self.hub.clock()
+                if delay < 0:
+                    self.overruns += 1
+                    next_t = self.hub.clock()
+                    delay = 0.0
+                await asyncio.sleep(delay)
+        finally:
+            events.close()
+
+    async def stop(self) -> None:
+        """Motors to neutral now; the loop commands nothing after this."""
+        self.stopping = True
+        link = self.link
+        if link is None:
+            return
+        try:
+            from feelium.flight.msp import encode_v2
+            from feelium.flight.messages import MSP_SET_MOTOR, encode_motors
+
+            frame = encode_v2(MSP_SET_MOTOR, encode_motors(list(NEUTRAL_US)))
+            await asyncio.wait_for(asyncio.to_thread(link.write, frame), STOP_WRITE_TIMEOUT_S)
+        except (OSError, asyncio.TimeoutError) as exc:  # the board's watchdog stops them within 300 ms anyway
+            self.last_error = f"stop: {exc}"
+        finally:
+            self._close()
+
+    def health(self) -> dict[str, Any]:
+        out = self.last
+        report: dict[str, Any] = {
+            "backend": self.opener.description,
+            "link": self.link_state,
+            "cycles": self.cycles,
+            "overruns": self.overruns,
+            "link_losses": self.link_losses,
+            "reconnects": self.reconnects,
+            "open_failures": self.open_failures,
+            "bad_events": self.bad_events,
+            "mode": out.mode if out else None,
+            "modes": dict(self.controller.mode_counts),
+            "battery": out.battery if out else "unknown",
+            "last_error": self.last_error,
+            "fps": self.config.rate_hz if self.link_state == "up" else 0.0,
+        }
+        if self.client is not None:
+            report["msp"] = self.client.health()
+        board = getattr(self.opener, "board", None)
+        if board is not None:
+            report["sim_watchdog_trips"] = board.watchdog_trips
+        return report
+
+    # ------------------------------------------------------------ one cycle
+    async def _cycle(self, events: Any) -> None:
+        now = self.hub.clock()
+        for event in events.drain():
+            try:
+                self.soften.observe(event, now)
+            except (AttributeError, TypeError, ValueError):
+                self.bad_events += 1
+        if self.client is None and now >= self._next_open_t:
+            await self._open(now)
+        telemetry = None
+        if self.client is not None:
+            try:
+                telemetry = await asyncio.to_thread(self.client.poll, self.cycles % self.config.battery_every == 0)
+            except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
+                self._lost(now, exc)
+        now = self.hub.clock()
+        soft = self.soften.active(now)
+        command = self.hub.motion.active(now)
+        setpoint = setpoint_for_motion(command.name if command else None, self.config, soften=soft)
+        out = self.controller.step(now, telemetry, setpoint)
+        self.last = out
+        self.cycles += 1
+        if self.client is not None and not self.stopping:
+            try:
+                await asyncio.to_thread(self.client.send_motors, out.motors_us)
+            except (OSError, ValueError) as exc:
+                self._lost(now, exc)
+        self._publish(out)
+
+    async def _open(self, now: float) -> None:
+        self.link_state = "connecting"
+        try:
+            link = await asyncio.to_thread(self.opener.open)
+        except (OSError, ValueError) as exc:
+            self.open_failures += 1
+            self.last_error = f"open {self.opener.description}: {exc}"
+            self.link_state = "down"
+            self._next_open_t = now + self._backoff_s
+            self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_max_s)
+            return
+        if self.link_losses:
+            self.reconnects += 1
+        self.link = link
+        self.client = MspClient(link, timeout_s=self.config.reply_timeout_s, clock=self.hub.clock)
+        self.link_state = "up"
+        self._backoff_s = self.config.reconnect_min_s
+
+    def _lost(self, now: float, exc: Exception) -> None:
+        log.warning("flight: motor board link lost: %s", exc)
+        self.link_losses += 1
+        self.last_error = f"link: {exc}"
+        self._close()
+        self.link_state = "down"
+        self._next_open_t = now + self._backoff_s
+        self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_max_s)
+
+    def _close(self) -> None:
+        link, self.link, self.client = self.link, None, None
+        if link is not None:
+            try:
+                link.close()
+            except OSError:
+                pass
+
+    def _publish(self, out: ControlOutput) -> None:
+        self.hub.state.update(
+            "flight",
+            altitude_m=None if out.altitude_m is None else round(out.altitude_m, 3),
+            altitude_target_m=None if out.altitude_target_m is None else round(out.altitude_target_m, 3),
+            heading_deg=out.heading_deg,
+            heading_target_deg=None if out.heading_target_deg is None else round(out.heading_target_deg, 1),
+            battery_v=out.battery_v,
+            battery=out.battery,
+            link=self.link_state,
+            mode=out.mode,
+            motors_us=list(out.motors_us),
+        )
+
+
+def build_services(config: Config, hub: Hub) -> list[Service]:
+    flight = config.flight
+    backend = resolve_backend(flight)
+    if backend == "off":
+        return []
+    if backend == "sim":
+        opener: LinkOpener = SimOpener(flight, config.sim.seed, hub.clock)
+    else:
+        opener = SerialOpener(flight.port, flight.baudrate, flight.reply_timeout_s)
+    return [FlightService(flight, hub, opener)]

@@ -1,0 +1,146 @@
+"""The controller flying the emulated board faster than real time: hold, steps, commands, safety."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from feelium.config import Config
+from feelium.flight import scenarios as sc
+from feelium.flight.emulated_board import BoardParams, SensorParams, board_with
+from feelium.flight.setpoint import HOLD, Setpoint, setpoint_for_motion
+from feelium.flight.simulation import SimFlight
+
+pytestmark = pytest.mark.slow
+CONFIG = Config().flight
+
+
+def test_hold_in_still_air_meets_the_targets() -> None:
+    result = sc.hold(CONFIG, drafts=False, seconds=20.0)
+    assert result.altitude_rms_m <= 0.03
+    assert result.heading_rms_deg <= 3.0
+
+
+def test_hold_in_drafts_meets_the_targets() -> None:
+    result = sc.hold(CONFIG, drafts=True, seconds=20.0)
+    assert result.altitude_rms_m <= 0.08
+    assert result.heading_rms_deg <= 3.0
+
+
+def test_controller_is_much_quieter_than_an_untuned_pid() -> None:
+    from feelium.flight.baseline import BaselinePid
+
+    ours = sc.hold(CONFIG, drafts=True, seconds=10.0)
+    baseline = sc.hold(CONFIG, drafts=True, seconds=10.0, controller=BaselinePid(CONFIG))
+    assert ours.roughness * 10 < baseline.roughness
+
+
+def test_30_cm_climb_settles_within_4_s_with_little_overshoot() -> None:
+    step = sc.altitude_step(CONFIG, 0.3, seconds=8.0)
+    assert step.settling_s <= 4.0
+    assert step.overshoot_fraction <= 0.10
+
+
+def test_heading_step_settles_without_overshoot() -> None:
+    step = sc.heading_step(CONFIG, 45.0, seconds=8.0)
+    assert step.settling_s <= 4.0 and step.overshoot_fraction <= 0.10
+
+
+@pytest.mark.parametrize("name", ["forward", "backward", "up", "down", "turn_left", "turn_right"])
+def test_each_command_moves_the_right_way_and_stops_when_the_dead_man_lapses(name: str) -> None:
+    result = sc.motion(CONFIG, name, hold_s=2.0)
+    # Measured numbers are reported by `feelium bench flight`; here: it moves at once and it stops.
+    assert result.latency_s < 0.3
+    assert result.stop_s < 1.0
+
+
+def test_release_holds_the_new_altitude_and_heading() -> None:
+    flight = sc.new_flight(CONFIG, drafts=False)
+    flight.run(4.0)
+    flight.run(2.0, setpoint_for_motion("up", CONFIG))
+    flight.run(2.0, setpoint_for_motion("turn_right", CONFIG))
+    flight.run(3.0)
+    z_after, heading_after = flight.board.state.z, flight.board.state.heading_deg
+    flight.run(8.0)
+    assert z_after > sc.START_ALTITUDE_M + 0.3
+    assert abs(flight.board.state.z - z_after) < 0.03
+    assert heading_after > 20.0
+    assert abs(flight.board.state.heading_deg - heading_after) < 3.0
+
+
+def _held_then_released(config, hold_s: float) -> tuple[float, float]:
+    flight = sc.new_flight(config, drafts=False)
+    flight.run(5.0)
+    board = flight.board
+    board.state = replace(board.state, z=board.state.z - 0.3)  # a partner pulls it down 30 cm...
+    board.held = True  # ...and holds it there
+    flight.run(hold_s)
+    board.held = False
+    start = len(flight.log["t"])
+    flight.run(8.0)
+    z = flight.log["z"][start:]
+    w = flight.log["w"][start:]
+    return float(np.max(z) - sc.START_ALTITUDE_M), float(np.max(np.abs(w)))
+
+
+def test_no_lunge_after_being_held_for_10_s() -> None:
+    overshoot, peak_speed = _held_then_released(CONFIG, 10.0)
+    # It returns to its altitude no faster than a gentle climb and does not shoot past it.
+    assert overshoot < 0.05
+    assert peak_speed < 0.4
+
+
+def test_rangefinder_dropout_holds_briefly_then_floats_up_slowly() -> None:
+    flight = sc.new_flight(CONFIG, drafts=False)
+    flight.run(5.0)
+    flight.board.params = replace(flight.board.params, sensors=SensorParams(range_dropout_probability=1.0))
+    modes = [flight.step(HOLD).mode for _ in range(int(0.4 * CONFIG.rate_hz))]
+    assert set(modes) == {"range_hold"}
+    flight.run(4.0)
+    assert flight.last is not None and flight.last.mode == "altitude_failsafe"
+    assert 0.0 < flight.board.state.w < 0.6  # rising, gently (positively buoyant: never falls on anyone)
+    flight.board.params = replace(flight.board.params, sensors=SensorParams(range_dropout_probability=0.0))
+    flight.run(6.0)
+    assert flight.last.mode == "flying"
+    assert abs(flight.board.state.w) < 0.05  # and it holds again where it is
+
+
+def test_link_loss_trips_the_board_watchdog_and_recovery_holds_the_new_altitude() -> None:
+    flight = sc.new_flight(CONFIG, drafts=False)
+    flight.run(5.0)
+    flight.link_up = False
+    flight.run(2.0)
+    assert flight.board.watchdog_trips == 1
+    assert flight.board.motors_us == (1500,) * 4
+    assert flight.last is not None and flight.last.mode == "telemetry_failsafe"
+    assert flight.board.state.z > sc.START_ALTITUDE_M + 0.2  # motors off: it floated up
+    flight.link_up = True
+    flight.run(6.0)
+    assert flight.last.mode == "flying"
+    z = flight.board.state.z
+    flight.run(3.0)
+    assert abs(flight.board.state.z - z) < 0.03
+
+
+def test_soft_mode_yields_to_a_push_that_stiff_mode_resists() -> None:
+    def displacement(soft: bool) -> float:
+        flight = sc.new_flight(CONFIG, drafts=False)
+        flight.run(5.0)
+        flight.board.external_force_n = (0.0, 0.0, -0.08)  # a palm pressing it down
+        flight.run(3.0, Setpoint(soften=soft))
+        return sc.START_ALTITUDE_M - flight.board.state.z
+
+    assert displacement(True) > 2 * displacement(False)
+
+
+def test_soft_mode_ignores_wearer_motion() -> None:
+    assert setpoint_for_motion("forward", CONFIG, soften=True) == Setpoint(soften=True)
+
+
+def test_low_battery_is_reported() -> None:
+    params = board_with(BoardParams(sensors=SensorParams(battery_capacity_mah=5.0)), z=1.2)
+    flight = SimFlight(CONFIG, params)
+    flight.run(30.0)
+    assert flight.last is not None and flight.last.battery in ("low", "critical")
