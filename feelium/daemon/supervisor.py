@@ -107,7 +107,7 @@ class Supervisor:
                 await asyncio.sleep(delay)
                 continue
             record.state = "finished" if self.phase == "running" else "stopped"
-            log.info("service %s finished", service.name)
+            log.info("service %s %s", service.name, record.state)
             return
 
     async def shutdown(self) -> None:

@@ -131,7 +131,7 @@ class TouchService:
             frame = await slot.take()
             if frame is None:
                 self._flush()
-                log.info("touch: rear camera source ended after %d frames", self.frames)
+                log.info("touch: %s after %d frames", "stopped" if self._stopping else "rear camera source ended", self.frames)
                 return
             problem = _check_frame(frame.image)
             if problem is not None:

@@ -130,3 +130,42 @@ async def test_ready_status_and_watchdog_reach_systemd_while_frames_flow(tmp_pat
     await _run_until(_replay_config(recording, realtime=True, loop=True), condition, notifier=notifier)
     listener.close()
     assert messages[0].startswith(b"READY=1\nSTATUS=starting: touch")
+
+
+@pytest.mark.slow
+async def test_a_press_on_the_sim_scene_becomes_a_touch_on_the_bus():
+    """The partner page's path: hub.rear_scene.press/release with hub.clock() times -> sim camera -> pipeline -> bus."""
+    base = Config()
+    config = dataclasses.replace(
+        base,
+        rear_camera=dataclasses.replace(base.rear_camera, backend="sim"),
+        sim=dataclasses.replace(base.sim, autoplay=False),
+    )
+    hub = Hub()
+    sub = hub.bus.subscribe([TouchEvent])
+    plan = {}
+
+    def condition(hub, supervisor):
+        scene = hub.rear_scene
+        now = hub.clock()
+        if "pressed" not in plan and supervisor.records["touch"].service.frames >= 20:  # the reference has settled
+            x, y, w, h = scene.roi
+            plan["xy"] = (x + 0.4 * w, y + 0.6 * h)
+            scene.press(*plan["xy"], now)
+            plan["pressed"] = now
+        elif "pressed" in plan and "released" not in plan and now - plan["pressed"] > 1.2:
+            scene.release(now)
+            plan["released"] = now
+        elif "released" in plan and now - plan["released"] > 1.0:
+            return True
+        return False
+
+    await _run_until(config, condition, hub=hub, timeout=30.0)
+    events = sub.drain()
+    downs = [e for e in events if e.phase == "down"]
+    ups = [e for e in events if e.phase == "up"]
+    assert len(downs) == 1 and len(ups) == 1, [e.to_json() for e in events]
+    assert abs(downs[0].x - plan["xy"][0]) < 12 and abs(downs[0].y - plan["xy"][1]) < 12
+    scene_t_of_press = plan["pressed"] - hub.rear_scene.origin
+    assert scene_t_of_press <= downs[0].t <= scene_t_of_press + 1.0  # events are on the camera (scene) clock
+    assert hub.health()["services"]["touch"]["backend"] == "sim"

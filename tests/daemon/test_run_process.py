@@ -1,0 +1,76 @@
+"""`feelium run` as a real process: it starts, and SIGTERM/SIGINT stop it cleanly within 2 s; config errors name the key."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from .synthetic import write_press_recording
+
+
+def _start(args, tmp_path):
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    env.pop("NOTIFY_SOCKET", None)
+    return subprocess.Popen(
+        [sys.executable, "-m", "feelium", "run", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        env=env,
+        cwd=tmp_path,
+        text=True,
+    )
+
+
+def _wait_for_line(proc, fragment, timeout=30.0):
+    seen = []
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
+        if ready:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            seen.append(line)
+            if fragment in line:
+                return seen
+    proc.kill()
+    raise AssertionError(f"no line with {fragment!r}; got:\n{''.join(seen)}")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_stops_the_daemon_within_two_seconds(tmp_path, sig):
+    recording = write_press_recording(tmp_path / "press", seconds=1.0)
+    config = tmp_path / "feelium.toml"
+    config.write_text("[http]\nport = 0\n[daemon]\nstatus_interval_s = 0.5\n")
+    proc = _start(["--config", str(config), "--replay", str(recording)], tmp_path)
+    try:
+        _wait_for_line(proc, "feelium running")
+        _wait_for_line(proc, "touch 1")  # a status line with the touch pipeline at 1x fps: frames flow
+        sent = time.monotonic()
+        proc.send_signal(sig)
+        rest, _ = proc.communicate(timeout=10)
+        elapsed = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, rest
+    assert elapsed < 2.0, f"took {elapsed:.2f} s to stop\n{rest}"
+    assert "shutting down" in rest and "Traceback" not in rest
+
+
+@pytest.mark.slow
+def test_a_config_error_names_the_key_and_exits_1(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[rear_camera]\nbackend = "webcam"\n')
+    proc = subprocess.run(
+        [sys.executable, "-m", "feelium", "run", "--config", str(bad)], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 1
+    assert "rear_camera.backend" in proc.stderr and "bad.toml" in proc.stderr
