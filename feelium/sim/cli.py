@@ -28,6 +28,22 @@ def register(registry: CommandRegistry) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace recordings that already exist")
     parser.add_argument("--no-thermal", action="store_true", help="skip thermal.npz (the 8 Hz thermal channel)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    bench = registry.subcommand("bench", "sim", "Scene simulator render time per 640x480 frame, by scene, against an empty frame.", _bench)
+    bench.add_argument("--frames", type=int, default=60, help="frames per scene")
+    bench.add_argument("--json", help="also write the report here")
+
+
+def _bench(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from feelium.sim.bench import format_table, run_bench
+
+    report = run_bench(frames=max(5, args.frames))
+    print(format_table(report))
+    if args.json:
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    return 0
 
 
 def _paper_protocol(args: argparse.Namespace) -> int:

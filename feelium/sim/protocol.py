@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from feelium.recording import RecordingWriter
@@ -229,6 +230,11 @@ def _write_star(args: tuple[Item, Path, int, float, bool, bool]) -> str:
     return str(write_item(item, out, seed, scale, overwrite=overwrite, thermal=thermal))
 
 
+def _single_threaded() -> None:
+    """Worker processes already use every core; OpenCV's own threads would only contend."""
+    cv2.setNumThreads(1)
+
+
 def simulate_protocol(
     out: str | Path,
     *,
@@ -253,7 +259,7 @@ def simulate_protocol(
             if progress:
                 progress(i, len(items), path)
     else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
+        with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded) as pool:
             for i, path in enumerate(pool.map(_write_star, args), start=1):
                 written.append(Path(path))
                 if progress:

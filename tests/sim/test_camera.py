@@ -51,3 +51,12 @@ def test_gain_drifts_slowly_within_its_amplitude() -> None:
     g = np.array([gain_at(p, t, 0.4) for t in np.arange(0, 120, 1 / 15)])
     assert g.max() <= 1.03 + 1e-9 and g.min() >= 0.97 - 1e-9 and g.max() - g.min() > 0.02
     assert np.abs(np.diff(g)).max() < 0.002  # slow: tiny change frame to frame
+
+
+def test_bench_reports_every_scene_against_the_baseline() -> None:
+    from feelium.sim.bench import format_table, run_bench
+
+    report = run_bench(frames=5)
+    scenes = report["scenes"]
+    assert scenes["empty (baseline)"]["ratio"] == 1.0 and {"pressed", "hover", "swipe", "sweep", "body"} <= set(scenes)
+    assert all(s["median_ms"] > 0 for s in scenes.values()) and "ffv1 encode" in format_table(report)
