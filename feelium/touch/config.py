@@ -58,6 +58,12 @@ class TouchConfig:
         min=0.0,
         max=200.0,
     )
+    row_gain_clip: float = setting(
+        0.12,
+        "Per-row gain (laser banding against the rolling shutter) is measured with ratios clipped to 1 +- this; 0 disables.",
+        min=0.0,
+        max=1.0,
+    )
     gain_sample_step: int = setting(
         3, "Sample every n-th pixel (each axis) for the robust exposure-gain median.", min=1, max=32
     )
@@ -69,8 +75,14 @@ class TouchConfig:
     noise_floor: float = setting(
         0.07, "Smoothed depth above which a pixel counts as darkened (activity, reference masking).", min=0.0, max=1.0
     )
+    noise_sigmas: float = setting(
+        4.0,
+        "The darkening floor is at least this many times the measured noise of the smoothed depth (dim, noisy sessions).",
+        min=0.0,
+        max=100.0,
+    )
     activity_min_area_px: int = setting(
-        40, "Darkened area (camera px) a frame needs to raise the activity flag.", min=1, max=10_000_000
+        200, "Darkened area (camera px, specks removed) a frame needs to raise the activity flag.", min=1, max=10_000_000
     )
     candidate_depth: float = setting(
         0.15, "Smoothed depth a connected shadow must exceed to become a candidate.", min=0.0, max=1.0

@@ -74,12 +74,15 @@ class TouchPipeline:
             rebaseline_step=config.rebaseline_gain_step,
             sample_step=config.gain_sample_step,
             bright_margin=config.noise_floor,
+            row_clip=config.row_gain_clip,
         )
         self.tracker = Tracker(config)
         self.masked = MaskCounts()
         self.frames = 0
+        self.noise = 0.0
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
+        self._deep: np.ndarray | None = None
         g = self.geometry
         self._sigma = g.px(config.blur_sigma_px)
         self._min_area = max(1, int(math.ceil(config.candidate_min_area_px / g.area_scale)))
@@ -99,6 +102,7 @@ class TouchPipeline:
         self.tracker.reset()
         self._last_t = None
         self._shadow = None
+        self._deep = None
 
     def finish(self) -> tuple[TouchEvent, ...]:
         """Release contacts still down at the last frame's time (end of a recording)."""
@@ -120,23 +124,31 @@ class TouchPipeline:
         if ref.image is None:
             ref.initialise(t, work)
             self._shadow = np.zeros(work.shape, bool)
+            self._deep = None
             return FrameResult(t, (), False, 0.0, 0.0, 0, ())
         cfg = self.config
         gain = ref.measure_gain(work, self._shadow)
         ref.observe_gain(gain, work, self._shadow)
+        ref.measure_rows(work, self._deep)
         depth = relative_depth(
             work,
             ref.image,
-            ref.gain,
+            ref.expected_gain(),
             dark_level=cfg.dark_reference_level,
             saturation_level=float(cfg.saturation_level),
             counts=self.masked,
+            signed=True,
         )
         if self._sigma > 0.2:
             smooth = cv2.GaussianBlur(depth, (0, 0), self._sigma, borderType=cv2.BORDER_REPLICATE)
         else:
             smooth = depth
-        shadow = smooth > cfg.noise_floor
+        floor = _noise_floor_map(smooth, cfg.noise_sigmas, cfg.noise_floor)
+        self.noise = float(floor.max()) if floor.size else 0.0
+        np.maximum(smooth, 0.0, out=smooth)
+        shadow = smooth > floor
+        # Opening drops isolated specks of noise and keeps the area of real shadows.
+        shadow = cv2.morphologyEx(shadow.view(np.uint8), cv2.MORPH_OPEN, _SPECK_KERNEL).view(bool)
         darkened = int(np.count_nonzero(shadow))
         area = int(round(darkened * self.geometry.area_scale))
         depth_max = float(smooth.max()) if smooth.size else 0.0
@@ -165,6 +177,7 @@ class TouchPipeline:
         frozen = shadow if unusable is None else (shadow | unusable)
         ref.update(t, work, frozen, anchored)
         self._shadow = frozen
+        self._deep = (smooth > cfg.candidate_depth) if candidates else None
         return FrameResult(
             t=t,
             events=tuple(step.events),
@@ -204,6 +217,28 @@ class TouchPipeline:
         work /= light
         work[unusable] = float(self.config.saturation_level)
         return work, unusable
+
+
+NOISE_TILES = (8, 6)
+_SPECK_KERNEL = np.ones((3, 3), np.uint8)
+
+
+def _noise_floor_map(signed_depth: np.ndarray, sigmas: float, minimum: float) -> np.ndarray:
+    """Per-pixel darkening floor: ``sigmas`` times the local noise of the smoothed depth, at least ``minimum``.
+
+    Noise is measured per coarse tile from the negative half of the signed
+    depth (shadows only add positive depth; for zero-mean gaussian noise the
+    mean of min(d, 0)^2 is sigma^2 / 2), because relative noise is several
+    times larger in the dim corners of an uneven back-light than at its centre.
+    """
+    h, w = signed_depth.shape
+    negative = np.minimum(signed_depth, 0.0)
+    negative *= negative
+    tiles = cv2.resize(negative, NOISE_TILES, interpolation=cv2.INTER_AREA)
+    np.sqrt(tiles * 2.0, out=tiles)
+    tiles *= sigmas
+    np.maximum(tiles, minimum, out=tiles)
+    return cv2.resize(tiles, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
 def _regions_containing(mask: np.ndarray, seeds: list[tuple[float, float]]) -> np.ndarray:

@@ -47,6 +47,7 @@ class AdaptiveReference:
         rebaseline_step: float,
         sample_step: int,
         bright_margin: float = 0.07,
+        row_clip: float = 0.0,
     ) -> None:
         self.tau_s = tau_s
         self.bright_tau_s = bright_tau_s
@@ -56,6 +57,8 @@ class AdaptiveReference:
         self.rebaseline_step = rebaseline_step
         self.sample_step = sample_step
         self.bright_margin = bright_margin
+        self.row_clip = row_clip
+        self.rows: np.ndarray | None = None
         self.image: np.ndarray | None = None
         self.gain = 1.0
         self.last_t: float | None = None
@@ -65,11 +68,15 @@ class AdaptiveReference:
     def reset(self) -> None:
         self.image = None
         self.gain = 1.0
+        self.rows = None
         self.last_t = None
 
     def initialise(self, t: float, frame: np.ndarray) -> None:
         """Take ``frame`` as the untouched membrane."""
         self.image = np.maximum(frame, REFERENCE_FLOOR).astype(frame.dtype)
+        self._bright_factor = frame.dtype.type(1.0 + self.bright_margin)
+        self._floor = frame.dtype.type(REFERENCE_FLOOR)
+        self.updates = 0
         self.gain = 1.0
         self.last_t = t
 
@@ -112,6 +119,42 @@ class AdaptiveReference:
         self.rebaselines += 1
         return True
 
+    def measure_rows(self, frame: np.ndarray, exclude: np.ndarray | None) -> np.ndarray | None:
+        """Per-row gain relative to the global gain, (H, 1), or None when disabled.
+
+        A laser-scanning projector beating with a rolling-shutter camera puts
+        faint horizontal bands on the membrane that crawl from frame to frame;
+        measured per row they are divided out like exposure instead of looking
+        like shadows. Each row's gain is the mean of frame / expected over its
+        usable pixels with every ratio clipped to ``1 +- row_clip``, so a
+        shadow that arrived this frame pulls its rows by at most that much;
+        rows with nothing usable keep the global gain. ``exclude`` should be
+        only the deep shadows: excluding every faintly darkened pixel would let
+        a dark band mask itself out and persist.
+        """
+        assert self.image is not None
+        c = self.row_clip
+        if c <= 0.0:
+            self.rows = None
+            return None
+        one = self.dtype_cast(1.0)
+        ratio = frame / self.image
+        ratio *= self.dtype_cast(1.0 / self.gain)
+        np.clip(ratio, one - self.dtype_cast(c), one + self.dtype_cast(c), out=ratio)
+        usable = (self.image >= self.dtype_cast(self.dark_level / self.gain)) & (frame < self.saturation_level)
+        if exclude is not None:
+            usable &= ~exclude
+        ratio[~usable] = one
+        rows = ratio.mean(axis=1, keepdims=True, dtype=self.image.dtype)
+        self.rows = rows
+        return rows
+
+    def expected_gain(self) -> float | np.ndarray:
+        """What multiplies the reference to predict this frame: global gain, times row gains if any."""
+        if self.rows is None:
+            return self.gain
+        return self.rows * self.dtype_cast(self.gain)
+
     def dtype_cast(self, value: float) -> np.floating:
         assert self.image is not None
         return self.image.dtype.type(value)
@@ -128,18 +171,27 @@ class AdaptiveReference:
         if dt <= 0.0:
             return
         alpha, extra, alpha_forced = self._rates(dt)
-        target = frame / self.dtype_cast(self.gain) if self.gain != 1.0 else frame
-        free = ~shadow
-        cv2.accumulateWeighted(target, self.image, alpha, mask=free.view(np.uint8))
+        self.updates += 1
+        if self.updates * alpha < 1.0:
+            # Warm-up: a plain running mean of the first frames, so the reference
+            # starts as an average, not as one noisy frame.
+            alpha = 1.0 / (self.updates + 1)
+        scale = self.expected_gain()
+        target = frame / scale if (self.rows is not None or self.gain != 1.0) else frame
+        image = self.image
+        any_shadow = bool(shadow.any())
+        free = ~shadow if any_shadow else None
+        cv2.accumulateWeighted(target, image, alpha, mask=None if free is None else free.view(np.uint8))
         if extra > 0.0:
-            # Second step so the total rate where it got brighter equals the bright rate.
-            brighter = np.greater(target, self.image * self.dtype_cast(1.0 + self.bright_margin))
-            brighter &= free
-            cv2.accumulateWeighted(target, self.image, extra, mask=brighter.view(np.uint8))
-        forced = shadow if anchored is None else (shadow & ~anchored)
-        if forced.any():
-            cv2.accumulateWeighted(target, self.image, alpha_forced, mask=forced.view(np.uint8))
-        np.maximum(self.image, REFERENCE_FLOOR, out=self.image)
+            # Second step so the total rate where it got clearly brighter equals the bright rate.
+            brighter = np.greater(target, image * self._bright_factor)
+            if free is not None:
+                brighter &= free
+            cv2.accumulateWeighted(target, image, extra, mask=brighter.view(np.uint8))
+        if any_shadow:
+            forced = shadow if anchored is None else (shadow & ~anchored)
+            cv2.accumulateWeighted(target, image, alpha_forced, mask=forced.view(np.uint8))
+        np.maximum(image, self._floor, out=image)
 
     def _rates(self, dt: float) -> tuple[float, float, float]:
         """Per-update blend factors for a time step (cached: frame intervals repeat)."""
