@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import socket
 
 from aiohttp import web
 
@@ -20,6 +21,9 @@ from feelium.http.params import query_number
 log = logging.getLogger(__name__)
 
 BOUNDARY = "feeliumframe"
+# The kernel send buffer of a stream socket: a few frames in flight over Wi-Fi, not megabytes of stale video
+# (Linux autotunes loopback and LAN buffers to MBs, which both delays frames and hides a stalled client).
+STREAM_SNDBUF_BYTES = 256 * 1024
 
 
 def _feed(request: web.Request):  # type: ignore[no-untyped-def]
@@ -69,6 +73,9 @@ async def mjpeg(request: web.Request) -> web.StreamResponse:
     feed.clients += 1
     link.count("video_streams")
     try:
+        sock = request.transport.get_extra_info("socket") if request.transport is not None else None
+        if sock is not None:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, STREAM_SNDBUF_BYTES)
         await response.prepare(request)
         seq = 0
         loop = asyncio.get_running_loop()

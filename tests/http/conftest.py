@@ -34,3 +34,13 @@ async def client(aiohttp_client, hub: Hub, http_config: HttpConfig):  # type: ig
     c = await aiohttp_client(app)
     c.link = link_of(app)
     return c
+
+
+@pytest.fixture(scope="session")
+def live(tmp_path_factory):  # type: ignore[no-untyped-def]
+    """One real sim-mode daemon for every end-to-end test of the headset link."""
+    from live_daemon import start_daemon, stop_daemon
+
+    daemon = start_daemon(tmp_path_factory.mktemp("live"))
+    yield daemon
+    stop_daemon(daemon)
