@@ -4,8 +4,33 @@ from __future__ import annotations
 
 import asyncio
 from collections import deque
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, TypeVar
 
 from feelium.cameras.base import Camera, Frame
+
+T = TypeVar("T")
+
+
+class Worker:
+    """One dedicated thread for a blocking job (a camera's reads, a pipeline's frames).
+
+    Dedicated, not the loop's shared pool: a camera read that sleeps until its
+    next frame, or another service's slow device call, must never make a
+    frame wait for a free thread; and one thread per job keeps memory flat
+    (each thread that allocates gets its own malloc arena).
+    """
+
+    def __init__(self, name: str) -> None:
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix=name)
+
+    async def call(self, fn: Callable[..., T], *args: Any) -> T:
+        return await asyncio.get_running_loop().run_in_executor(self._executor, fn, *args)
+
+    def shutdown(self) -> None:
+        """Let the thread end after its current job; never waits (a stuck device read cannot hold shutdown up)."""
+        self._executor.shutdown(wait=False, cancel_futures=True)
 
 
 class RateMeter:
@@ -66,11 +91,11 @@ class FrameSlot:
         return frame
 
 
-async def pump(camera: Camera, slot: FrameSlot) -> None:
-    """Read frames in a worker thread and hand them over until the camera ends (raises what the camera raises)."""
+async def pump(camera: Camera, slot: FrameSlot, worker: Worker) -> None:
+    """Read frames on ``worker`` and hand them over until the camera ends (raises what the camera raises)."""
     try:
         while True:
-            frame = await asyncio.to_thread(camera.read)
+            frame = await worker.call(camera.read)
             if frame is None:
                 return
             if camera.realtime:
@@ -81,6 +106,9 @@ async def pump(camera: Camera, slot: FrameSlot) -> None:
         slot.end()
 
 
-async def close_camera(camera: Camera) -> None:
-    """Close in a worker thread: backends wait for an in-flight read, which must not block the loop."""
-    await asyncio.to_thread(camera.close)
+async def close_camera(camera: Camera, worker: Worker) -> None:
+    """Close on the camera's own thread, after any in-flight read, then let the thread go."""
+    try:
+        await worker.call(camera.close)
+    finally:
+        worker.shutdown()

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import asyncio
 import logging
 from typing import Any
 
-from feelium.cameras.reader import RateMeter, close_camera
+from feelium.cameras.reader import RateMeter, Worker, close_camera
 from feelium.cameras.select import CameraSource, front_camera_source
 from feelium.config import Config
 from feelium.hub import Hub
@@ -33,12 +32,17 @@ class FrontCameraService:
 
     async def run(self) -> None:
         self._stopping = False
-        camera = await asyncio.to_thread(self.source.open)
+        worker = Worker("front-camera")
+        try:
+            camera = await worker.call(self.source.open)
+        except BaseException:
+            worker.shutdown()
+            raise
         self.opens += 1
         log.info("front camera: %s backend", self.source.backend)
         try:
             while not self._stopping:
-                frame = await asyncio.to_thread(camera.read)
+                frame = await worker.call(camera.read)
                 if frame is None:
                     log.info("front camera: source ended")
                     return
@@ -52,7 +56,7 @@ class FrontCameraService:
                 self.last_frame_at = now
                 self._rate.tick(now)
         finally:
-            await close_camera(camera)
+            await close_camera(camera, worker)
 
     async def stop(self) -> None:
         self._stopping = True

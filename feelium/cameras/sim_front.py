@@ -67,34 +67,33 @@ def _fisheye_rays(width: int, height: int, fov_deg: float) -> tuple[np.ndarray, 
 
 
 class SimFisheyeRoom:
-    """Renders the moving fisheye room view; deterministic for a seed."""
+    """Renders the moving fisheye room view; deterministic for a seed.
+
+    The lens mapping is fixed (16-bit fixed-point maps: small and fast on a
+    Pi); the blimp's yaw turns the panorama under it instead. A 180 degree
+    lens never looks behind, so the panorama's seam is never sampled.
+    """
 
     def __init__(self, width: int, height: int, *, seed: int = 1, fov_deg: float = 180.0) -> None:
         self.width, self.height = width, height
         self._panorama = _room_panorama(np.random.default_rng(seed))
         azimuth, elevation = _fisheye_rays(width, height, fov_deg)
-        self._outside = np.isnan(azimuth)
-        azimuth = np.nan_to_num(azimuth)
-        elevation = np.nan_to_num(elevation)
-        self._map_x = ((azimuth + math.pi) / (2 * math.pi) * PANORAMA_WIDTH).astype(np.float32)
-        self._map_y = ((math.pi / 2 - elevation) / math.pi * PANORAMA_HEIGHT).astype(np.float32)
+        outside = np.isnan(azimuth)
+        map_x = ((np.nan_to_num(azimuth) + math.pi) / (2 * math.pi) * PANORAMA_WIDTH).astype(np.float32)
+        map_y = ((math.pi / 2 - np.nan_to_num(elevation)) / math.pi * PANORAMA_HEIGHT).astype(np.float32)
+        map_x[outside] = -16.0  # off the panorama: remap's constant border paints the lens's black surround
+        self._map1, self._map2 = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
 
     def frame(self, t: float) -> np.ndarray:
-        """The BGR view at time ``t``: a slow yaw sweep, a gentle bob and a person walking around."""
-        pano = self._panorama.copy()
+        """The BGR view at time ``t``: a slow yaw sweep and a person walking around."""
+        yaw_px = int(round(math.sin(t * 0.1) * 0.35 * PANORAMA_WIDTH))
+        pano = np.roll(self._panorama, -yaw_px, axis=1)
         walk = (0.5 + 0.5 * math.sin(t * 0.21)) * PANORAMA_WIDTH
-        px, top = int(walk) % PANORAMA_WIDTH, PANORAMA_HEIGHT // 2 - 120
+        px, top = (int(walk) - yaw_px) % PANORAMA_WIDTH, PANORAMA_HEIGHT // 2 - 120
         cv2.ellipse(pano, (px, top + 70), (22, 70), 0, 0, 360, (70, 60, 160), -1)  # body
         cv2.circle(pano, (px, top - 10), 18, (120, 150, 200), -1)  # head
-        yaw_px = (math.sin(t * 0.1) * 0.35) * PANORAMA_WIDTH
-        bob_px = math.sin(t * 0.7) * 6.0
         view = cv2.remap(
-            pano,
-            self._map_x + np.float32(yaw_px),
-            self._map_y + np.float32(bob_px),
-            interpolation=cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_WRAP,
+            pano, self._map1, self._map2, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0
         )
-        view[self._outside] = 0
         cv2.putText(view, f"SIM {t:7.2f}s", (8, self.height - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1)
         return view

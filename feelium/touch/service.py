@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from feelium.cameras.base import Frame
-from feelium.cameras.reader import FrameSlot, RateMeter, close_camera, pump
+from feelium.cameras.reader import FrameSlot, RateMeter, Worker, close_camera, pump
 from feelium.cameras.select import CameraSource, rear_camera_source
 from feelium.config import Config
 from feelium.hub import Hub
@@ -109,13 +109,19 @@ class TouchService:
     async def run(self) -> None:
         self._pipeline, self._pipeline_key = None, None  # a restart starts from a fresh reference
         self._stopping = False
-        camera = await asyncio.to_thread(self.source.open)
+        camera_worker = Worker("rear-camera")
+        try:
+            camera = await camera_worker.call(self.source.open)
+        except BaseException:
+            camera_worker.shutdown()
+            raise
         self.opens += 1
         log.info("touch: rear camera on the %s backend", self.source.backend)
         slot = self._slot = FrameSlot()
-        reader = asyncio.create_task(pump(camera, slot), name="touch.camera")
+        reader = asyncio.create_task(pump(camera, slot, camera_worker), name="touch.camera")
+        pipeline_worker = Worker("touch-pipeline")
         try:
-            await self._consume(slot)
+            await self._consume(slot, pipeline_worker)
             if not self._stopping:
                 await reader  # the source ended: re-raise a camera error, if that was why
         finally:
@@ -124,9 +130,10 @@ class TouchService:
             reader.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await reader
-            await close_camera(camera)
+            pipeline_worker.shutdown()
+            await close_camera(camera, camera_worker)
 
-    async def _consume(self, slot: FrameSlot) -> None:
+    async def _consume(self, slot: FrameSlot, worker: Worker) -> None:
         while True:
             frame = await slot.take()
             if frame is None:
@@ -144,7 +151,7 @@ class TouchService:
             loop = asyncio.get_running_loop()
             started = loop.time()
             try:
-                result, debug = await asyncio.to_thread(self._step, pipeline, frame, want_debug)
+                result, debug = await worker.call(self._step, pipeline, frame, want_debug)
             except ValueError as exc:  # bad input (e.g. a timestamp that goes backwards): count and skip
                 self._reject(str(exc))
                 continue

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from feelium.cameras.base import Frame, Pacer
-from feelium.cameras.reader import FrameSlot, RateMeter, pump
+from feelium.cameras.reader import FrameSlot, RateMeter, Worker, pump
 
 
 class FakeClock:
@@ -95,12 +95,14 @@ class ListCamera:
 
 async def test_pump_of_an_on_demand_source_loses_nothing_for_a_slow_consumer():
     slot = FrameSlot()
-    task = asyncio.create_task(pump(ListCamera(20, realtime=False), slot))
+    worker = Worker("test")
+    task = asyncio.create_task(pump(ListCamera(20, realtime=False), slot, worker))
     seen = []
     while (frame := await slot.take()) is not None:
         seen.append(frame.t)
         await asyncio.sleep(0.001)  # slower than the camera
     await task
+    worker.shutdown()
     assert seen == [float(i) for i in range(20)]
     assert slot.dropped == 0
 
@@ -114,8 +116,10 @@ class RaisingCamera(ListCamera):
 
 async def test_pump_ends_the_slot_and_raises_when_the_camera_fails():
     slot = FrameSlot()
-    task = asyncio.create_task(pump(RaisingCamera(2, realtime=True), slot))
+    worker = Worker("test")
+    task = asyncio.create_task(pump(RaisingCamera(2, realtime=True), slot, worker))
     while await slot.take() is not None:
         pass
     with pytest.raises(OSError, match="unplugged"):
         await task
+    worker.shutdown()
