@@ -75,6 +75,7 @@ def test_bad_refresh_rate_is_a_config_error():
         parse_config("[thermal]\nrefresh_hz = 3.0\n")
 
 
+@pytest.mark.slow
 async def test_presence_events_reach_the_bus_and_state():
     renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
     scene = lambda t: renderer.frame(t, [WarmBody(0.25, 0.5, 0.0, 0.15)] if 3.0 < t < 6.0 else [])

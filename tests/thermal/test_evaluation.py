@@ -1,0 +1,44 @@
+"""Presence scoring on simulated clips: the scorer's bookkeeping and the detector's numbers on a small set."""
+
+import numpy as np
+import pytest
+
+from feelium.sim.thermal import Visit
+from feelium.thermal.config import PresenceConfig
+from feelium.thermal.evaluation import Clip, approach_clip, evaluate_presence, run_clip
+
+
+def test_visit_near_interval_matches_its_distance():
+    v = Visit(t_start=2.0, walk_s=4.0, stay_s=3.0, u=0.5, v=0.5, radius=0.1, far_mm=2000.0, near_mm=0.0)
+    t_in, t_out = v.near_interval(500.0)
+    assert v.distance(t_in) == pytest.approx(500.0) and v.distance(t_out) == pytest.approx(500.0)
+    assert v.distance(1.0) is None and v.distance(v.t_end + 0.1) is None
+    assert Visit(0, 1, 1, 0.5, 0.5, 0.1, near_mm=600.0).near_interval(500.0) is None
+
+
+def test_approach_clips_are_seeded():
+    a = approach_clip(np.random.default_rng(4), 0)
+    b = approach_clip(np.random.default_rng(4), 0)
+    assert a == b and a.duration_s > a.visits[0].t_end
+
+
+def test_a_hot_enough_detector_misses_everything():
+    # a detector that needs 30 degC of rise can never fire: the scorer must report misses, not invent hits
+    report = evaluate_presence(approach=3, empty=1, empty_s=30.0, config=PresenceConfig(enter_rise_c=19.0, leave_rise_c=19.0))
+    assert report["detection_rate"] == 0.0 and len(report["missed"]) == 3
+    assert report["approach_latency_ms"] is None
+
+
+@pytest.mark.slow
+def test_default_detector_on_a_small_simulated_set():
+    report = evaluate_presence(approach=12, empty=2, empty_s=300.0, seed=1)
+    assert report["detection_rate"] >= 0.9
+    assert report["false_alarms_per_hour"] == 0.0
+    assert report["approach_latency_ms"]["median"] < 1000.0
+    assert report["leave_latency_ms"]["median"] < 3000.0
+
+
+def test_empty_clip_with_a_low_threshold_raises_false_alarms():
+    clip = Clip("empty", 60.0, (), 22.0, 3)
+    events = run_clip(clip, PresenceConfig(enter_rise_c=0.2, leave_rise_c=0.1, min_pixels=1, enter_frames=1), 8.0)
+    assert any(e.phase == "approach" for e in events)
