@@ -38,6 +38,7 @@ class FrameResult:
     depth_max: float  # largest (smoothed) relative shadow depth in the ROI this frame
     area: int  # darkened area (camera px) above the activity floor
     contacts: tuple[Contact, ...]  # contacts currently down
+    core_depth: float = 0.0  # deepest candidate core this frame (what the instant gate sees)
 
 
 class TouchPipeline:
@@ -125,7 +126,7 @@ class TouchPipeline:
             ref.initialise(t, work)
             self._shadow = np.zeros(work.shape, bool)
             self._deep = None
-            return FrameResult(t, (), False, 0.0, 0.0, 0, ())
+            return FrameResult(t, (), False, 0.0, 0.0, 0, (), 0.0)
         cfg = self.config
         gain = ref.measure_gain(work, self._shadow)
         ref.observe_gain(gain, work, self._shadow)
@@ -186,6 +187,7 @@ class TouchPipeline:
             depth_max=depth_max,
             area=area,
             contacts=tuple(self.tracker.contacts()),
+            core_depth=max((o.depth for o in observations), default=0.0),
         )
 
     def _prepare(self, frame: np.ndarray, backlight_gain: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:

@@ -31,6 +31,7 @@ class ReplayResult:
     anchor: np.ndarray = field(default_factory=lambda: np.zeros(0))
     area: np.ndarray = field(default_factory=lambda: np.zeros(0))
     depth_max: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    core_depth: np.ndarray = field(default_factory=lambda: np.zeros(0))
     seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))
     work_size: tuple[int, int] = (0, 0)
 
@@ -47,7 +48,7 @@ def replay_recording(
     meta = recording.meta
     pipeline = TouchPipeline(config, (meta.camera.width, meta.camera.height), meta.roi, plain=plain)
     out = ReplayResult(recording=recording)
-    ts, act, anc, area, dmax, spf = [], [], [], [], [], []
+    ts, act, anc, area, dmax, core, spf = [], [], [], [], [], [], []
     for t, frame in frames if frames is not None else recording.frames(gray=True):
         start = time.perf_counter()
         result = pipeline.process(t, frame)
@@ -58,6 +59,7 @@ def replay_recording(
         anc.append(result.anchor)
         area.append(result.area)
         dmax.append(result.depth_max)
+        core.append(result.core_depth)
         if on_frame is not None:
             on_frame(t, frame, result)
     out.events.extend(pipeline.finish())
@@ -66,6 +68,7 @@ def replay_recording(
     out.anchor = np.asarray(anc, float)
     out.area = np.asarray(area, float)
     out.depth_max = np.asarray(dmax, float)
+    out.core_depth = np.asarray(core, float)
     out.seconds_per_frame = np.asarray(spf, float)
     out.work_size = pipeline.geometry.work_size
     return out

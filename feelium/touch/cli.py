@@ -1,0 +1,70 @@
+"""Commands of the touch pipeline: replay, eval, calibrate touch, bench touch.
+
+Heavy imports stay inside the handlers so `feelium --help` is quick on a Pi.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from feelium.cli import CommandRegistry
+
+
+def register(registry: CommandRegistry) -> None:
+    replay = registry.command(
+        "replay", "Run the touch pipeline over a recording or dataset; print events as JSON lines.", _replay
+    )
+    replay.add_argument("path", help="a recording directory or a dataset (any tree of recordings)")
+    replay.add_argument("--config", help="TOML config file (its [touch] section is used)")
+    replay.add_argument("--annotate", metavar="OUT", help="write an annotated video (a directory for datasets)")
+
+    ev = registry.command("eval", "Score the touch pipeline on a labelled dataset (shared/specs/evaluation.md).", _eval)
+    ev.add_argument("dataset", help="dataset directory")
+    ev.add_argument("--json", metavar="REPORT", help="write the version-1 report as JSON here")
+    ev.add_argument("--figure", metavar="PNG", help="anchoring figure (default: beside the report, or ./touch-anchoring.png)")
+    ev.add_argument("--config", help="TOML config file (its [touch] section is used)")
+    ev.add_argument(
+        "--fit-on-clips",
+        action="store_true",
+        help="fit the gates' thresholds on the dataset's contact and hover clips first, then score with them",
+    )
+
+    cal = registry.subcommand(
+        "calibrate", "touch", "Fit the touch gates' thresholds on a dataset's contact and hover clips.", _calibrate
+    )
+    cal.add_argument("dataset", help="dataset directory holding continuous contact and hover clips")
+    cal.add_argument("--out", metavar="FILE", help="write the [touch] TOML fragment here (default: print it)")
+    cal.add_argument("--config", help="TOML config file to start from")
+
+    bench = registry.subcommand(
+        "bench", "touch", "Speed against accuracy of the touch pipeline at several working resolutions.", _bench
+    )
+    bench.add_argument("--dataset", help="dataset to use (default: simulate a small one into a temp dir)")
+    bench.add_argument("--seed", type=int, default=1, help="simulator seed when simulating")
+    bench.add_argument("--scale", type=float, default=0.1, help="simulator scale when simulating")
+    bench.add_argument("--json", metavar="FILE", help="write the results as JSON here")
+    bench.add_argument("--config", help="TOML config file (its [touch] section is the starting point)")
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from feelium.touch.commands import run_replay
+
+    return run_replay(args)
+
+
+def _eval(args: argparse.Namespace) -> int:
+    from feelium.touch.commands import run_eval
+
+    return run_eval(args)
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from feelium.touch.commands import run_calibrate
+
+    return run_calibrate(args)
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from feelium.touch.bench import run_bench
+
+    return run_bench(args)

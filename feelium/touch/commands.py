@@ -1,0 +1,280 @@
+"""The work behind `feelium replay`, `feelium eval` and `feelium calibrate touch`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from feelium.config import load_config
+from feelium.plot import Series, line_plot
+from feelium.recording import Recording, RecordingError, find_recordings
+from feelium.touch.calibrate import ClipSeries, Fit, fit_gates
+from feelium.touch.config import TouchConfig
+from feelium.touch.evaluate import ClipData, TrialData, build_report
+from feelium.touch.replay import ReplayResult, relative_name, replay_recording
+
+
+def _touch_config(path: str | None) -> TouchConfig:
+    return load_config(path).touch
+
+
+def _open_all(root: Path) -> list[Recording]:
+    return [Recording(p) for p in find_recordings(root)]
+
+
+# -- replay ------------------------------------------------------------------------------
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    config = _touch_config(args.config)
+    root = Path(args.path)
+    paths = find_recordings(root)
+    dataset = not (len(paths) == 1 and paths[0].resolve() == root.resolve())
+    annotate = Path(args.annotate) if args.annotate else None
+    out = sys.stdout
+    for path in paths:
+        recording = Recording(path)
+        name = relative_name(root, path)
+        writer = None
+        on_frame = None
+        if annotate is not None:
+            target = annotate / f"{name.replace('/', '__')}.mp4" if dataset else annotate
+            writer = _VideoOut(target, recording.meta.camera.fps, (recording.meta.camera.width, recording.meta.camera.height))
+            on_frame = writer.frame_hook(recording.meta.roi)
+        try:
+            result = replay_recording(recording, config, on_frame=on_frame)
+        finally:
+            if writer is not None:
+                writer.close()
+        for event in result.events:
+            obj = event.to_json()
+            if dataset:
+                obj["recording"] = name
+            out.write(json.dumps(obj) + "\n")
+        out.flush()
+    return 0
+
+
+class _VideoOut:
+    """An annotated video for people: MP4 (mp4v) where FFmpeg can, else MJPEG AVI."""
+
+    def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
+        import cv2
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self._writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+        if not self._writer.isOpened():
+            self.path = path.with_suffix(".avi")
+            self._writer = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+        if not self._writer.isOpened():
+            raise OSError(f"{path}: cannot write a video here")
+
+    def frame_hook(self, roi: tuple[int, int, int, int] | None):
+        from feelium.touch.overlay import draw_overlay
+
+        def hook(t: float, frame: np.ndarray, result: Any) -> None:
+            self._writer.write(draw_overlay(frame, result, roi))
+
+        return hook
+
+    def close(self) -> None:
+        self._writer.release()
+        print(f"annotated video: {self.path}", file=sys.stderr)
+
+
+# -- calibrate ---------------------------------------------------------------------------
+
+
+def _clip_series(result: ReplayResult) -> ClipSeries:
+    labels = result.recording.labels
+    assert labels is not None
+    contact = np.zeros(result.t.size, bool)
+    for c in labels.contacts:
+        contact |= (result.t >= c.t_on) & (result.t < c.t_off)
+    return ClipSeries(labels.label, result.t, result.anchor, result.core_depth, contact)
+
+
+def fit_on_clips(recordings: list[Recording], config: TouchConfig) -> Fit:
+    clips = [r for r in recordings if r.labels is not None and r.labels.clip and r.labels.label in ("contact", "hover")]
+    if not clips:
+        raise ValueError("no continuous contact/hover clips in this dataset (labels with \"clip\": true)")
+    return fit_gates([_clip_series(replay_recording(r, config)) for r in clips])
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    config = _touch_config(args.config)
+    try:
+        fit = fit_on_clips(_open_all(Path(args.dataset)), config)
+    except ValueError as exc:
+        print(f"feelium calibrate touch: {exc}", file=sys.stderr)
+        return 1
+    text = fit.to_toml()
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text, encoding="utf-8")
+        print(f"wrote {args.out}: " + ", ".join(f"{k} = {v}" for k, v in fit.values().items()))
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+# -- eval --------------------------------------------------------------------------------
+
+
+def evaluate_dataset(root: Path, config: TouchConfig, *, dataset_name: str | None = None, plain: bool = False):
+    """Replay every labelled recording under ``root`` and build the report; returns (report, clips)."""
+    trials: list[TrialData] = []
+    clips: list[ClipData] = []
+    timings = []
+    for recording in _open_all(root):
+        if recording.labels is None:
+            continue
+        result = replay_recording(recording, config, plain=plain)
+        timings.append(result.seconds_per_frame)
+        if recording.labels.clip:
+            clips.append(ClipData(recording.labels, result.t, result.anchor))
+        else:
+            trials.append(
+                TrialData(
+                    name=relative_name(root, recording.path),
+                    labels=recording.labels,
+                    events=result.events,
+                    activity=bool(result.activity.any()),
+                    max_area=float(result.area.max()) if result.area.size else 0.0,
+                )
+            )
+    if not trials and not clips:
+        raise RecordingError(root, "holds no labelled recording to evaluate")
+    seconds = np.concatenate(timings) if timings else np.zeros(0)
+    width, height = (config.width, config.height)
+    report = build_report(dataset_name or str(root), trials, clips, seconds, width, height)
+    return report, clips
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    config = _touch_config(args.config)
+    root = Path(args.dataset)
+    fitted: dict[str, float] | None = None
+    if args.fit_on_clips:
+        try:
+            fit = fit_on_clips(_open_all(root), config)
+        except ValueError as exc:
+            print(f"feelium eval: --fit-on-clips: {exc}", file=sys.stderr)
+            return 1
+        fitted = fit.values()
+        config = replace(config, **fitted)
+    report, clips = evaluate_dataset(root, config, dataset_name=args.dataset)
+    report["touch_config"] = {
+        "fitted_on_clips": fitted is not None,
+        "instant_depth": config.instant_depth,
+        "anchor_threshold": config.anchor_threshold,
+        "anchor_window_s": config.anchor_window_s,
+        "width": config.width,
+        "height": config.height,
+    }
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    figure = Path(args.figure) if args.figure else (
+        Path(args.json).with_name(Path(args.json).stem + "-anchoring.png") if args.json else Path("touch-anchoring.png")
+    )
+    drawn = write_anchoring_figure(figure, clips, report["sustained"]["threshold"])
+    print(format_report(report))
+    if drawn:
+        print(f"figure: {figure}")
+    if args.json:
+        print(f"report: {args.json}")
+    return 0
+
+
+def write_anchoring_figure(path: Path, clips: list[ClipData], threshold: float | None) -> bool:
+    """The paper's figure: anchoring score over time on the contact and hover clips, with the fitted threshold."""
+    series = []
+    for label in ("contact", "hover"):
+        for clip in clips:
+            if clip.labels.label == label and clip.t.size:
+                series.append(Series(clip.t - clip.t[0], clip.anchor, f"{label} clip"))
+                break
+    if not series:
+        return False
+    hlines = [(threshold, f"fitted threshold {threshold:.2f}")] if threshold is not None else []
+    line_plot(
+        path,
+        series,
+        title="Sustained-anchoring score on the continuous clips",
+        xlabel="time in clip (s)",
+        ylabel="anchoring score",
+        hlines=hlines,
+    )
+    return True
+
+
+def _fmt(value: Any, digits: int = 3) -> str:
+    if value is None:
+        return "n/a"
+    if isinstance(value, float):
+        return f"{value:.{digits}f}"
+    return str(value)
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """A readable table of the report."""
+    t = report["trials"]
+    a = report["activity"]
+    ab = report["area_baseline"]
+    s = report["sustained"]
+    loc = report["localisation"]
+    lat = report["latency_ms"]
+    sp = report["speed"]
+    rows = [
+        ("trials", f"{t['n']}  (tp {t['tp']}, fp {t['fp']}, fn {t['fn']}, tn {t['tn']})"),
+        ("precision / recall / F1", f"{_fmt(t['precision'])} / {_fmt(t['recall'])} / {_fmt(t['f1'])}"),
+    ]
+    for label, entry in sorted(t["by_label"].items()):
+        key = "detected" if "detected" in entry else "fired"
+        rows.append((f"  {label}", f"{entry[key]} of {entry['n']} {key}"))
+    rows += [
+        ("kind accuracy", _fmt(t["kind_accuracy"])),
+        ("single-event rate", _fmt(t["single_event_rate"])),
+        ("activity (hand present)", f"{a['registered']} of {a['hand_present']}"),
+        ("activity (empty scenes)", f"{a['empty_fired']} of {a['empty']}"),
+        ("area-only baseline", f"threshold {_fmt(ab['threshold'], 0)} px: precision {_fmt(ab['precision'])}, recall {_fmt(ab['recall'])}"),
+        ("sustained anchoring AUC", _fmt(s["auc"])),
+        ("  fitted threshold", _fmt(s["threshold"])),
+        ("  hold-out balanced acc.", _fmt(s["balanced_accuracy_holdout"])),
+        ("localisation n", str(loc["n"])),
+    ]
+    if loc["spread_px"]:
+        sp_ = loc["spread_px"]
+        rows.append(("  spread px (med/min/max)", f"{sp_['median']:.1f} / {sp_['min']:.1f} / {sp_['max']:.1f}"))
+    else:
+        rows.append(("  spread px", "n/a"))
+    if loc["error_px"]:
+        rows.append(("  error px (median/p95)", f"{loc['error_px']['median']:.2f} / {loc['error_px']['p95']:.2f}"))
+    else:
+        rows.append(("  error px", "n/a"))
+    rows.append(("latency ms (median/p95)", f"{lat['median']:.0f} / {lat['p95']:.0f}" if lat else "n/a"))
+    if sp["ms_per_frame"]:
+        rows.append(
+            (
+                f"speed at {sp['width']}x{sp['height']}",
+                f"{sp['ms_per_frame']['median']:.3f} ms median, {sp['ms_per_frame']['p95']:.3f} ms p95, {sp['fps']:.0f} fps",
+            )
+        )
+    cfg = report.get("touch_config")
+    if cfg:
+        rows.append(
+            (
+                "gates used" + (" (fitted on clips)" if cfg["fitted_on_clips"] else ""),
+                f"instant_depth {cfg['instant_depth']:.3f}, anchor_threshold {cfg['anchor_threshold']:.3f}",
+            )
+        )
+    width = max(len(r[0]) for r in rows)
+    return "\n".join(f"{name.ljust(width)}  {value}" for name, value in rows)
