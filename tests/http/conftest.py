@@ -10,7 +10,7 @@ from feelium.http.app import create_app, link_of
 from feelium.http.config import HttpConfig
 from feelium.hub import Hub
 
-from http_support import TOKEN, FakeClock, FakeScene
+from tests.http.http_support import TOKEN, FakeClock, FakeScene
 
 
 @pytest.fixture
@@ -39,7 +39,7 @@ async def client(aiohttp_client, hub: Hub, http_config: HttpConfig):  # type: ig
 @pytest.fixture(scope="session")
 def live(tmp_path_factory):  # type: ignore[no-untyped-def]
     """One real sim-mode daemon for every end-to-end test of the headset link."""
-    from live_daemon import start_daemon, stop_daemon
+    from tests.http.live_daemon import start_daemon, stop_daemon
 
     daemon = start_daemon(tmp_path_factory.mktemp("live"))
     yield daemon

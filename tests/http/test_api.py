@@ -13,7 +13,7 @@ import pytest
 
 from feelium.audio.chunks import SpeechIn, SpeechOut
 from feelium.events import InteractionEvent, PresenceEvent, TouchEvent, WearerAction
-from http_support import AUTH, TOKEN, FakeScene
+from tests.http.http_support import AUTH, TOKEN, FakeScene
 
 
 def touch(i: int, t: float = 1.0) -> TouchEvent:
