@@ -48,6 +48,10 @@ class CommandRegistry:
         group_help = {
             "bench": "Measure speed against accuracy.",
             "calibrate": "Fit this blimp's parameters from its own data.",
+            "config": "Check or show the TOML configuration.",
+            "simulate": "Generate labelled datasets with the scene simulator.",
+            "thermal": "The MLX90640 thermal camera: live view and offline decoding.",
+            "flight": "The motor board and the flight controller.",
         }.get(group, group)
         parser = self.group(group, group_help).add_parser(name, help=help, description=help)
         parser.set_defaults(handler=handler)
