@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Callable, Iterator
+import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -259,7 +260,10 @@ def simulate_protocol(
             if progress:
                 progress(i, len(items), path)
     else:
-        with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded) as pool:
+        # Spawned, not forked: a fork of a process that already runs threads (OpenCV's pool, asyncio's
+        # executors, a test runner's fixtures) can inherit a held lock and hang the worker forever.
+        spawn = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded, mp_context=spawn) as pool:
             for i, path in enumerate(pool.map(_write_star, args), start=1):
                 written.append(Path(path))
                 if progress:
