@@ -11,7 +11,6 @@ CPU time of this thread is reported (robust on a busy machine) next to wall time
 from __future__ import annotations
 
 import tempfile
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -24,22 +23,7 @@ from feelium.sim.hand import Blob, HandPose
 from feelium.sim.motion import HandTrack, Keyframe, Tremor
 from feelium.sim.protocol import session_presets
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, exposure_samples
-
-
-def _time(fn: Callable[[int], Any], frames: int) -> dict[str, float]:
-    cpu, wall = [], []
-    for i in range(frames):
-        start_wall, start_cpu = time.perf_counter(), time.thread_time()
-        fn(i)
-        cpu.append((time.thread_time() - start_cpu) * 1000.0)
-        wall.append((time.perf_counter() - start_wall) * 1000.0)
-    c, w = np.asarray(cpu), np.asarray(wall)
-    return {
-        "median_ms": round(float(np.median(c)), 3),
-        "p95_ms": round(float(np.percentile(c, 95)), 3),
-        "wall_median_ms": round(float(np.median(w)), 3),
-        "wall_p95_ms": round(float(np.percentile(w, 95)), 3),
-    }
+from feelium.timing import time_calls
 
 
 def _scenes() -> dict[str, Callable[[float], SceneState]]:
@@ -78,7 +62,7 @@ def _run(frames: int, seed: int) -> dict[str, Any]:
     exposure = session.sensor.exposure_s
     results: dict[str, Any] = {}
     for name, state_at in _scenes().items():
-        results[name] = _time(
+        results[name] = time_calls(
             lambda i, f=state_at: renderer.frame(i / 15.0, exposure_samples(f, i / 15.0, exposure)), frames
         )
     base = results["empty (baseline)"]["median_ms"]
@@ -87,7 +71,7 @@ def _run(frames: int, seed: int) -> dict[str, Any]:
     sample = renderer.frame(0.0, SceneState(hands=(HandPose(320, 240, 0.0),)))
     with tempfile.TemporaryDirectory() as tmp:
         writer = RecordingWriter(Path(tmp) / "bench", name="bench", width=WIDTH, height=HEIGHT, fps=15.0, roi=ROI)
-        encode = _time(lambda i: writer.add_frame(i / 15.0, sample), frames)
+        encode = time_calls(lambda i: writer.add_frame(i / 15.0, sample), frames)
         writer.abort()
     encode["ratio"] = round(encode["median_ms"] / base, 2) if base > 0 else None
     return {"width": WIDTH, "height": HEIGHT, "frames": frames, "scenes": results, "ffv1_encode": encode}
