@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from feelium.thermal.calibration import extract_calibration
-from feelium.thermal.decoder import object_temperatures
+from feelium.thermal.decoder import Decoder
 from feelium.thermal.emulator import Mlx90640Emulator, VirtualClock
 from feelium.thermal.reference import reference_temperatures
 from feelium.thermal.vendor_eeprom import vendor_eeprom
@@ -48,14 +48,15 @@ def run_bench(repeats: int = 100, baseline_repeats: int = 15) -> dict[str, Any]:
     """Time both implementations on the same frames; a JSON-ready result."""
     pairs = _frames(max(repeats, baseline_repeats))
     cal = extract_calibration(vendor_eeprom())
+    decoder = Decoder(cal)
     for a, b in pairs[:3]:  # warm-up (imports, caches)
-        object_temperatures(cal, a)
-        object_temperatures(cal, b)
+        decoder.decode(a)
+        decoder.decode(b)
     fast: list[float] = []
     for a, b in pairs[:repeats]:
         t0 = time.perf_counter()
-        object_temperatures(cal, a)
-        object_temperatures(cal, b)
+        decoder.decode(a)
+        decoder.decode(b)
         fast.append(time.perf_counter() - t0)
     slow: list[float] = []
     worst = 0.0
@@ -66,7 +67,7 @@ def run_bench(repeats: int = 100, baseline_repeats: int = 15) -> dict[str, Any]:
         rb = reference_temperatures(cal, lb)
         slow.append(time.perf_counter() - t0)
         for raw, ref in ((a, ra), (b, rb)):
-            got = object_temperatures(cal, raw).celsius
+            got = decoder.decode(raw).celsius
             diff = np.abs(got - np.asarray(ref))
             worst = max(worst, float(np.nanmax(diff)))
     vec, base = _percentiles(fast), _percentiles(slow)

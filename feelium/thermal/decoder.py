@@ -14,6 +14,8 @@ counted, and the rest of the frame stands.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,9 +34,9 @@ class FrameRejected(ValueError):
         self.reason = reason
 
 
-def _signed16(words: np.ndarray) -> np.ndarray:
-    w = words.astype(np.int64)
-    return np.where(w >= 0x8000, w - 0x10000, w).astype(np.float64)
+def _s16(word: int) -> int:
+    word = int(word)
+    return word - 0x10000 if word >= 0x8000 else word
 
 
 def _patterns() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -55,13 +57,17 @@ def subpage_mask(mode: reg.Mode, subpage: int) -> np.ndarray:
 
 
 def raw_frame_check(words: np.ndarray) -> np.ndarray:
-    """``words`` as an (834,) int64 array, or :class:`FrameRejected` naming what is wrong."""
+    """``words`` as an (834,) uint16 array, or :class:`FrameRejected` naming what is wrong."""
     w = np.asarray(words)
     if w.shape != (reg.RAW_FRAME_WORDS,):
         raise FrameRejected("shape", f"a raw frame is {reg.RAW_FRAME_WORDS} words, got shape {w.shape}")
+    if w.dtype == np.uint16:
+        return w
     if w.dtype.kind not in "iu":
         raise FrameRejected("dtype", f"raw words must be integers, got {w.dtype}")
-    return w.astype(np.int64)
+    if w.min() < 0 or w.max() > 0xFFFF:
+        raise FrameRejected("range", "raw words must be 16-bit unsigned")
+    return w.astype(np.uint16)
 
 
 def supply_voltage(cal: Calibration, words: np.ndarray) -> float:
@@ -69,18 +75,18 @@ def supply_voltage(cal: Calibration, words: np.ndarray) -> float:
     control = int(words[reg.RAW_CONTROL])
     resolution_ram = (control & reg.CONTROL_RESOLUTION_MASK) >> reg.CONTROL_RESOLUTION_SHIFT
     correction = 2.0**cal.resolutionEE / 2.0**resolution_ram
-    vdd_raw = float(_signed16(words[reg.VDD_PIX]))
-    return (correction * vdd_raw - cal.vdd25) / cal.kVdd + 3.3
+    return (correction * _s16(words[reg.VDD_PIX]) - cal.vdd25) / cal.kVdd + 3.3
 
 
 def ambient_temperature(cal: Calibration, words: np.ndarray, vdd: float) -> float:
-    """Ta, the sensor's own temperature in degC, from the PTAT and VBE words."""
-    ptat = float(_signed16(words[reg.TA_PTAT]))
-    vbe = float(_signed16(words[reg.TA_VBE]))
-    with np.errstate(all="ignore"):
-        ptat_art = np.float64(ptat) / (ptat * cal.alphaPTAT + vbe) * 2.0**18
-        ta = (ptat_art / (1.0 + cal.KvPTAT * (vdd - 3.3)) - cal.vPTAT25) / cal.KtPTAT + 25.0
-    return float(ta)
+    """Ta, the sensor's own temperature in degC, from the PTAT and VBE words (NaN when undefined)."""
+    ptat = _s16(words[reg.TA_PTAT])
+    vbe = _s16(words[reg.TA_VBE])
+    try:
+        ptat_art = ptat / (ptat * cal.alphaPTAT + vbe) * 2.0**18
+        return (ptat_art / (1.0 + cal.KvPTAT * (vdd - 3.3)) - cal.vPTAT25) / cal.KtPTAT + 25.0
+    except ZeroDivisionError:
+        return math.nan
 
 
 @dataclass(frozen=True)
@@ -96,55 +102,37 @@ class SubpageTemperatures:
     failed_pixels: int  # refreshed pixels whose equations gave no finite value
 
 
-def object_temperatures(
-    cal: Calibration, words: np.ndarray, *, emissivity: float = 1.0, reflected_offset_c: float = -8.0
-) -> SubpageTemperatures:
-    """Decode one raw frame (834 words) into the temperatures of its sub-page's pixels.
+@dataclass(frozen=True)
+class _Plan:
+    """What one (mode, sub-page) needs from the calibration, sliced once to the refreshed pixels."""
+
+    mask: np.ndarray
+    idx: np.ndarray
+    offset: np.ndarray
+    kta: np.ndarray
+    kv: np.ndarray
+    alpha: np.ndarray  # TGC-compensated, before the Ta correction
+    interleave_correction: np.ndarray | None  # added when the mode is not the one calibrated
+
+
+class Decoder:
+    """Decodes raw frames of one device (see :func:`object_temperatures`), slicing the calibration once.
 
     ``reflected_offset_c``: the reflected (surroundings) temperature as an
     offset from Ta; Melexis recommends Ta - 8 when nothing better is known.
     """
-    if not 0.0 < emissivity <= 1.0:
-        raise ValueError(f"emissivity must be in (0, 1], got {emissivity!r}")
-    w = raw_frame_check(words)
-    subpage = int(w[reg.RAW_STATUS]) & 1
-    control = int(w[reg.RAW_CONTROL])
-    mode: reg.Mode = "chess" if control & reg.CONTROL_CHESS else "interleaved"
-    mask = subpage_mask(mode, subpage)
-    if np.any(w[: reg.PIXELS][mask] == reg.INVALID_WORD):
-        raise FrameRejected("invalid_word", "sub-page pixels hold 0x7FFF (no data): read before the device wrote them")
-    if np.any(w[reg.AUX + np.array(reg.AUX_USED)] == reg.INVALID_WORD):
-        raise FrameRejected("invalid_word", "auxiliary words hold 0x7FFF (no data)")
 
-    with np.errstate(all="ignore"):
-        vdd = supply_voltage(cal, w)
-        ta = ambient_temperature(cal, w, vdd)
-        ta4 = (ta + KELVIN) ** 4
-        tr4 = (ta + reflected_offset_c + KELVIN) ** 4
-        ta_tr = tr4 - (tr4 - ta4) / emissivity
-
-        gain = cal.gainEE / _signed16(w[reg.GAIN])
-        cal_mode = 0x80 if mode == "chess" else 0
-        dta, dvdd = ta - 25.0, vdd - 3.3
-        cp_scale = (1.0 + cal.cpKta * dta) * (1.0 + cal.cpKv * dvdd)
-        cp0 = _signed16(w[reg.CP_SUBPAGE0]) * gain - cal.cpOffset[0] * cp_scale
-        cp1_offset = cal.cpOffset[1] if cal_mode == cal.calibrationModeEE else cal.cpOffset[1] + cal.ilChessC[0]
-        cp1 = _signed16(w[reg.CP_SUBPAGE1]) * gain - cp1_offset * cp_scale
-        ir_cp = cp0 if subpage == 0 else cp1
-
-        idx = np.flatnonzero(mask)
-        ir = _signed16(w[idx]) * gain
-        ir -= cal.offset[idx] * (1.0 + cal.kta[idx] * dta) * (1.0 + cal.kv[idx] * dvdd)
-        if cal_mode != cal.calibrationModeEE:
-            ir += cal.ilChessC[2] * (2 * IL_PATTERN[idx] - 1) - cal.ilChessC[1] * CONVERSION_PATTERN[idx]
-        ir = ir / emissivity - cal.tgc * ir_cp
-        alpha = (cal.alpha[idx] - cal.tgc * cal.cpAlpha[subpage]) * (1.0 + cal.KsTa * dta)
-
-        ks_to = np.asarray(cal.ksTo)
-        ct = np.asarray(cal.ct, dtype=np.float64)
-        sx = np.sqrt(np.sqrt(alpha**3 * (ir + alpha * ta_tr))) * ks_to[1]
-        first = np.sqrt(np.sqrt(ir / (alpha * (1.0 - ks_to[1] * KELVIN) + sx) + ta_tr)) - KELVIN
-        corr = np.array(
+    def __init__(self, cal: Calibration, emissivity: float = 1.0, reflected_offset_c: float = -8.0) -> None:
+        if not 0.0 < emissivity <= 1.0:
+            raise ValueError(f"emissivity must be in (0, 1], got {emissivity!r}")
+        self.cal = cal
+        self.emissivity = float(emissivity)
+        self.reflected_offset_c = float(reflected_offset_c)
+        self._aux_used = reg.AUX + np.array(reg.AUX_USED)
+        ks_to, ct = cal.ksTo, cal.ct
+        self._ks_to = np.asarray(ks_to, dtype=np.float64)
+        self._ct = np.asarray(ct, dtype=np.float64)
+        self._corr = np.array(
             [
                 1.0 / (1.0 + ks_to[0] * 40.0),
                 1.0,
@@ -152,22 +140,90 @@ def object_temperatures(
                 (1.0 + ks_to[2] * ct[2]) * (1.0 + ks_to[3] * (ct[3] - ct[2])),
             ]
         )
-        rng = np.searchsorted(ct[1:], first, side="right")  # 0 below ct1, 1 below ct2, 2 below ct3, else 3
-        rng = np.where(np.isfinite(first), rng, 1)
-        to = np.sqrt(np.sqrt(ir / (alpha * corr[rng] * (1.0 + ks_to[rng] * (first - ct[rng]))) + ta_tr)) - KELVIN
+        self._plans: dict[tuple[str, int], _Plan] = {}
 
-    to = np.where(np.isfinite(to), to, np.nan)
-    celsius = np.full(reg.PIXELS, np.nan)
-    celsius[idx] = to
-    return SubpageTemperatures(
-        subpage=subpage,
-        mode=mode,
-        vdd=float(vdd),
-        ta=float(ta),
-        celsius=celsius,
-        mask=mask,
-        failed_pixels=int(np.sum(~np.isfinite(to))),
-    )
+    def _plan(self, mode: reg.Mode, subpage: int) -> _Plan:
+        key = (mode, subpage)
+        plan = self._plans.get(key)
+        if plan is None:
+            cal = self.cal
+            mask = subpage_mask(mode, subpage)
+            idx = np.flatnonzero(mask)
+            correction = None
+            if (0x80 if mode == "chess" else 0) != cal.calibrationModeEE:
+                correction = cal.ilChessC[2] * (2 * IL_PATTERN[idx] - 1) - cal.ilChessC[1] * CONVERSION_PATTERN[idx]
+            plan = _Plan(
+                mask=mask,
+                idx=idx,
+                offset=cal.offset[idx],
+                kta=cal.kta[idx],
+                kv=cal.kv[idx],
+                alpha=cal.alpha[idx] - cal.tgc * cal.cpAlpha[subpage],
+                interleave_correction=correction,
+            )
+            self._plans[key] = plan
+        return plan
+
+    def decode(self, words: np.ndarray) -> SubpageTemperatures:
+        """Decode one raw frame (834 words) into the temperatures of its sub-page's pixels."""
+        cal = self.cal
+        w = raw_frame_check(words)
+        subpage = int(w[reg.RAW_STATUS]) & 1
+        control = int(w[reg.RAW_CONTROL])
+        mode: reg.Mode = "chess" if control & reg.CONTROL_CHESS else "interleaved"
+        plan = self._plan(mode, subpage)
+        pixels = w[plan.idx]
+        if (pixels == reg.INVALID_WORD).any():
+            raise FrameRejected("invalid_word", "sub-page pixels hold 0x7FFF (no data): read before the device wrote them")
+        if (w[self._aux_used] == reg.INVALID_WORD).any():
+            raise FrameRejected("invalid_word", "auxiliary words hold 0x7FFF (no data)")
+
+        failed = SubpageTemperatures(subpage, mode, math.nan, math.nan, np.full(reg.PIXELS, np.nan), plan.mask, len(plan.idx))
+        vdd = supply_voltage(cal, w)
+        ta = ambient_temperature(cal, w, vdd)
+        if not math.isfinite(ta) or abs(ta) > 1e3:
+            return dataclasses.replace(failed, vdd=vdd, ta=ta)
+        gain_word = _s16(w[reg.GAIN])
+        if gain_word == 0:
+            return dataclasses.replace(failed, vdd=vdd, ta=ta)
+        ta4 = (ta + KELVIN) ** 4
+        tr4 = (ta + self.reflected_offset_c + KELVIN) ** 4
+        ta_tr = tr4 - (tr4 - ta4) / self.emissivity
+        gain = cal.gainEE / gain_word
+        dta, dvdd = ta - 25.0, vdd - 3.3
+        if subpage == 0:
+            ir_cp = _s16(w[reg.CP_SUBPAGE0]) * gain - cal.cpOffset[0] * (1.0 + cal.cpKta * dta) * (1.0 + cal.cpKv * dvdd)
+        else:
+            cp1_offset = cal.cpOffset[1] if plan.interleave_correction is None else cal.cpOffset[1] + cal.ilChessC[0]
+            ir_cp = _s16(w[reg.CP_SUBPAGE1]) * gain - cp1_offset * (1.0 + cal.cpKta * dta) * (1.0 + cal.cpKv * dvdd)
+
+        with np.errstate(all="ignore"):
+            ir = pixels.view(np.int16) * gain
+            ir -= plan.offset * (1.0 + plan.kta * dta) * (1.0 + plan.kv * dvdd)
+            if plan.interleave_correction is not None:
+                ir += plan.interleave_correction
+            ir = ir / self.emissivity - cal.tgc * ir_cp
+            alpha = plan.alpha * (1.0 + cal.KsTa * dta)
+            ks_to1 = cal.ksTo[1]
+            sx = np.sqrt(np.sqrt(alpha**3 * (ir + alpha * ta_tr))) * ks_to1
+            first = np.sqrt(np.sqrt(ir / (alpha * (1.0 - ks_to1 * KELVIN) + sx) + ta_tr)) - KELVIN
+            rng = np.searchsorted(self._ct[1:], first, side="right")  # 0 below ct1, 1 below ct2, 2 below ct3, else 3
+            rng[np.isnan(first)] = 1
+            ks_to, ct = self._ks_to[rng], self._ct[rng]
+            to = np.sqrt(np.sqrt(ir / (alpha * self._corr[rng] * (1.0 + ks_to * (first - ct))) + ta_tr)) - KELVIN
+            bad = ~np.isfinite(to)
+        if bad.any():
+            to[bad] = np.nan
+        celsius = np.full(reg.PIXELS, np.nan)
+        celsius[plan.idx] = to
+        return SubpageTemperatures(subpage, mode, float(vdd), float(ta), celsius, plan.mask, int(bad.sum()))
+
+
+def object_temperatures(
+    cal: Calibration, words: np.ndarray, *, emissivity: float = 1.0, reflected_offset_c: float = -8.0
+) -> SubpageTemperatures:
+    """Decode one raw frame (834 words) into the temperatures of its sub-page's pixels (one-off use)."""
+    return Decoder(cal, emissivity, reflected_offset_c).decode(words)
 
 
 def _neighbour_mean(image: np.ndarray, pixel: int) -> float:
@@ -194,9 +250,13 @@ class FrameAssembler:
     decoded: int = 0
     rejected: dict[str, int] = field(default_factory=dict)
     failed_pixels: int = 0
+    _decoder: Decoder = field(init=False)
     _image: np.ndarray = field(default_factory=lambda: np.full(reg.PIXELS, np.nan))
     _seen: set[int] = field(default_factory=set)
     last: SubpageTemperatures | None = None
+
+    def __post_init__(self) -> None:
+        self._decoder = Decoder(self.cal, self.emissivity, self.reflected_offset_c)
 
     @property
     def complete(self) -> bool:
@@ -206,9 +266,7 @@ class FrameAssembler:
     def add(self, words: np.ndarray) -> np.ndarray | None:
         """Decode one raw frame; the updated (24, 32) float32 image, or ``None`` if rejected (counted)."""
         try:
-            sub = object_temperatures(
-                self.cal, words, emissivity=self.emissivity, reflected_offset_c=self.reflected_offset_c
-            )
+            sub = self._decoder.decode(words)
         except FrameRejected as exc:
             self.rejected[exc.reason] = self.rejected.get(exc.reason, 0) + 1
             return None
@@ -229,6 +287,7 @@ class FrameAssembler:
 
 
 __all__ = [
+    "Decoder",
     "FrameAssembler",
     "FrameRejected",
     "SubpageTemperatures",

@@ -10,7 +10,7 @@ from hypothesis.extra.numpy import arrays
 
 from feelium.thermal import registers as reg
 from feelium.thermal.calibration import extract_calibration
-from feelium.thermal.decoder import FrameAssembler, FrameRejected, object_temperatures, subpage_mask
+from feelium.thermal.decoder import Decoder, FrameAssembler, FrameRejected, object_temperatures, subpage_mask
 from feelium.thermal.reference import reference_temperatures
 
 
@@ -113,6 +113,27 @@ def test_vectorised_matches_per_pixel_reference(cal, vendor_frames, k, noise, in
     assert np.array_equal(np.isnan(sub.celsius), np.isnan(ref))
     finite = np.isfinite(ref)
     assert np.allclose(sub.celsius[finite], ref[finite], rtol=0, atol=1e-9)
+
+
+def test_one_decoder_reused_across_modes_and_subpages_matches_the_reference(cal, vendor_frames):
+    """The decoder slices the calibration once per (mode, sub-page); switching back and forth must not mix them."""
+    decoder = Decoder(cal, emissivity=0.95, reflected_offset_c=-5.0)
+    rng = np.random.default_rng(3)
+    for step in range(8):
+        frame = _variant(vendor_frames[step % 2], rng.integers(-50, 50, 768), step // 2 % 2 == 1, (0, 0, 0))
+        sub = decoder.decode(frame)
+        ref = np.array(reference_temperatures(cal, frame.tolist(), 0.95, -5.0))
+        assert sub.mode == ("interleaved" if step // 2 % 2 else "chess") and sub.subpage == step % 2
+        assert np.array_equal(np.isnan(sub.celsius), np.isnan(ref))
+        assert np.allclose(sub.celsius[sub.mask], ref[sub.mask], rtol=0, atol=1e-9)
+
+
+def test_out_of_range_words_are_rejected(cal, vendor_frames):
+    frame = vendor_frames[0].astype(np.int64)
+    frame[5] = -1
+    with pytest.raises(FrameRejected) as err:
+        object_temperatures(cal, frame)
+    assert err.value.reason == "range"
 
 
 @given(words=arrays(np.uint16, 834))
