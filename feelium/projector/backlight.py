@@ -19,6 +19,9 @@ from feelium.projector.calibration import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 
 
+_REDUCE = 2
+
+
 class BacklightPredictor:
     """Projector frame in, per-camera-pixel back-light gain (float32, ~1.0 = flat) out."""
 
@@ -32,14 +35,24 @@ class BacklightPredictor:
             map_x = cv2.resize(map_x, (fw, fh), interpolation=cv2.INTER_LINEAR)
             map_y = cv2.resize(map_y, (fw, fh), interpolation=cv2.INTER_LINEAR)
         self._uncovered = ~(np.isfinite(map_x) & np.isfinite(map_y))
-        map_x = np.where(self._uncovered, -10.0, map_x).astype(np.float32)
-        map_y = np.where(self._uncovered, -10.0, map_y).astype(np.float32)
+        # The projector frame is first reduced by _REDUCE with area averaging: a camera pixel sees
+        # about two projector pixels through the fisheye, so sampling the full frame would alias at edges.
+        map_x = np.where(self._uncovered, -10.0, (map_x + 0.5) / _REDUCE - 0.5).astype(np.float32)
+        map_y = np.where(self._uncovered, -10.0, (map_y + 0.5) / _REDUCE - 0.5).astype(np.float32)
         self._map1, self._map2 = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
         self.frame_size = (fw, fh)
         self.diffusion_px = config.diffusion_px * fw / cw
+        covered = (~self._uncovered).astype(np.float32)
+        self._coverage_blur = np.maximum(
+            cv2.GaussianBlur(covered, (0, 0), self.diffusion_px) if self.diffusion_px > 0 else covered, 1e-3
+        )
+        # Measured by the calibration when it could, else the configured values.
+        black = calibration.black_level if calibration.black_level is not None else config.black_level
+        gamma = calibration.gamma if calibration.gamma is not None else config.gamma
+        self.black_level, self.gamma = black, gamma
         levels = np.arange(256, dtype=np.float64) / 255.0
-        light = config.black_level + (1.0 - config.black_level) * levels**config.gamma
-        flat = config.black_level + (1.0 - config.black_level) * config.flat_level**config.gamma
+        light = black + (1.0 - black) * levels**gamma
+        flat = black + (1.0 - black) * config.flat_level**gamma
         self._lut = (light / flat).astype(np.float32)  # gain per projector grey level
 
     def gain(self, projector_frame: np.ndarray) -> np.ndarray:
@@ -48,9 +61,13 @@ class BacklightPredictor:
         if projector_frame.shape[:2] != (ph, pw):
             raise ValueError(f"projector frame is {projector_frame.shape[1]}x{projector_frame.shape[0]}, expected {pw}x{ph}")
         gray = cv2.cvtColor(projector_frame, cv2.COLOR_BGR2GRAY) if projector_frame.ndim == 3 else projector_frame
-        light = self._lut[gray]
+        light = self._lut[gray]  # light is linear: average it, not the grey values
+        if _REDUCE > 1:
+            light = cv2.resize(light, (pw // _REDUCE, ph // _REDUCE), interpolation=cv2.INTER_AREA)
         seen = cv2.remap(light, self._map1, self._map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=1.0)
         if self.diffusion_px > 0:
-            seen = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px)
+            # Blur over covered pixels only (normalised), so the patch's border does not mix in the 1.0 outside.
+            seen[self._uncovered] = 0.0
+            seen = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px) / self._coverage_blur
         seen[self._uncovered] = 1.0
         return seen

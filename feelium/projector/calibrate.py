@@ -16,7 +16,7 @@ import numpy as np
 
 from feelium.projector.calibration import CalibrationMap, sample
 from feelium.projector.config import CalibrationConfig
-from feelium.projector.graycode import PatternPlan, decode, make_patterns, smooth_map
+from feelium.projector.graycode import PatternPlan, decode, make_patterns, photometric, smooth_map
 
 
 class PatternCapture(Protocol):
@@ -92,7 +92,13 @@ def calibrate(
     valid = decoded.valid & inside
     proj_x = smooth_map(decoded.proj_x, valid, config.smooth_sigma_px)
     proj_y = smooth_map(decoded.proj_y, valid, config.smooth_sigma_px)
-    calibration = CalibrationMap(camera_size, (plan.width, plan.height), roi, proj_x, proj_y, source=source)
+    try:
+        black_level, gamma = photometric(captures, valid)
+    except ValueError:
+        black_level = gamma = None
+    calibration = CalibrationMap(
+        camera_size, (plan.width, plan.height), roi, proj_x, proj_y, source=source, black_level=black_level, gamma=gamma
+    )
 
     covered = calibration.covered
     residual = np.hypot(decoded.proj_x - proj_x, decoded.proj_y - proj_y)[covered]
@@ -102,6 +108,8 @@ def calibrate(
         "patterns": len(make_patterns(plan)),
         "coverage": round(calibration.coverage(), 4),
         "fit_residual_px": _stats(residual),
+        "black_level": None if black_level is None else round(black_level, 4),
+        "gamma": None if gamma is None else round(gamma, 3),
     }
     if covered.sum() >= 50:
         inv_x, inv_y = calibration.projector_to_camera()

@@ -46,6 +46,8 @@ class CalibrationMap:
     proj_x: np.ndarray
     proj_y: np.ndarray
     source: str = "default"
+    black_level: float | None = None  # measured projector black relative to white (None: not measured)
+    gamma: float | None = None  # measured projector gamma (None: not measured)
 
     def __post_init__(self) -> None:
         w, h = self.camera_size
@@ -129,6 +131,10 @@ class CalibrationMap:
             proj_x=self.proj_x.astype(np.float32),
             proj_y=self.proj_y.astype(np.float32),
             source=np.asarray(self.source),
+            photometric=np.asarray(
+                [np.nan if self.black_level is None else self.black_level, np.nan if self.gamma is None else self.gamma],
+                np.float64,
+            ),
         )
         tmp.replace(path)
         return path
@@ -195,11 +201,16 @@ def load_calibration(path: str | Path) -> CalibrationMap:
             roi = tuple(int(v) for v in data["roi"])
             proj_x, proj_y = data["proj_x"].astype(np.float32), data["proj_y"].astype(np.float32)
             source = str(data["source"])
+            photo = data["photometric"] if "photometric" in data.files else np.array([np.nan, np.nan])
+            black_level = float(photo[0]) if np.isfinite(photo[0]) else None
+            gamma = float(photo[1]) if np.isfinite(photo[1]) else None
     except CalibrationError:
         raise
     except (OSError, KeyError, ValueError) as exc:
         raise CalibrationError(f"{path}: not a projector calibration ({exc})") from exc
     try:
-        return CalibrationMap((cw, ch), (pw, ph), roi, proj_x, proj_y, source=source)  # type: ignore[arg-type]
+        return CalibrationMap(
+            (cw, ch), (pw, ph), roi, proj_x, proj_y, source=source, black_level=black_level, gamma=gamma  # type: ignore[arg-type]
+        )
     except CalibrationError as exc:
         raise CalibrationError(f"{path}: {exc}") from exc

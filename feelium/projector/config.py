@@ -59,7 +59,7 @@ class ProjectorConfig:
         max=1.0,
     )
     diffusion_px: float = setting(
-        1.5, "Membrane diffusion of projected light, in camera px, for the back-light prediction.", min=0.0, max=30.0
+        0.7, "Membrane diffusion of projected light, in camera px, for the back-light prediction.", min=0.0, max=30.0
     )
     face_timeout_s: float = setting(
         3.0, "Show the default avatar when no face frame came from the headset for this long.", min=0.1, max=600.0

@@ -23,6 +23,9 @@ import cv2
 import numpy as np
 
 
+GREY_LEVELS = (64, 128, 192)  # flat greys for the photometric fit (black level and gamma)
+
+
 @dataclass(frozen=True)
 class Pattern:
     """One projector image of the sequence and what it encodes."""
@@ -52,7 +55,7 @@ class PatternPlan:
 
 
 def make_patterns(plan: PatternPlan) -> list[Pattern]:
-    """White, black, Gray-code pairs (x then y, most significant bit first) and phase fringes (x then y)."""
+    """White, black, flat greys, Gray-code pairs (x then y, most significant bit first) and phase fringes (x then y)."""
     if plan.period < 2 * plan.block:
         raise ValueError(f"phase period {plan.period} must be at least twice the Gray block {plan.block}")
     bw, bh = plan.blocks
@@ -65,6 +68,7 @@ def make_patterns(plan: PatternPlan) -> list[Pattern]:
         raise RuntimeError(f"expected {2 * (nx + ny)} Gray-code images, OpenCV made {len(coarse)}")
     w, h = plan.width, plan.height
     patterns = [Pattern("white", np.full((h, w), 255, np.uint8)), Pattern("black", np.zeros((h, w), np.uint8))]
+    patterns += [Pattern(f"level_{v}", np.full((h, w), v, np.uint8)) for v in GREY_LEVELS]
     for i, img in enumerate(coarse):
         axis, bit = ("x", i // 2) if i < 2 * nx else ("y", (i - 2 * nx) // 2)
         full = np.repeat(np.repeat(img, plan.block, axis=0), plan.block, axis=1)[:h, :w]
@@ -173,3 +177,31 @@ def smooth_map(values: np.ndarray, valid: np.ndarray, sigma: float) -> np.ndarra
     out = np.full(values.shape, np.nan, np.float32)
     out[ok] = (num[ok] / det[ok]).astype(np.float32)
     return out
+
+
+def photometric(captures: dict[str, np.ndarray], valid: np.ndarray) -> tuple[float, float]:
+    """Projector black level (relative to white) and gamma, from the flat captures over valid pixels.
+
+    The camera sees ``k * (black + (1 - black) * (v / 255) ^ gamma)`` for grey ``v``;
+    the dark frame includes the room light, so the black level measured here
+    is an upper bound, which is what the back-light prediction needs anyway
+    (the room light does not change with the projected content).
+    """
+    white = captures["white"][valid].astype(np.float64)
+    black = captures["black"][valid].astype(np.float64)
+    ok = white > black + 1.0
+    white, black = white[ok], black[ok]
+    if white.size < 10:
+        raise ValueError("too few lit pixels to measure the projector's black level and gamma")
+    black_level = float(np.median(black / white))
+    xs, ys = [], []
+    for v in GREY_LEVELS:
+        grey = captures[f"level_{v}"][valid].astype(np.float64)[ok]
+        rel = float(np.median((grey - black) / (white - black)))
+        if rel > 0:
+            xs.append(math.log(v / 255.0))
+            ys.append(math.log(rel))
+    if len(xs) < 2:
+        raise ValueError("grey-level captures are not brighter than black; cannot fit gamma")
+    gamma = float(np.dot(xs, ys) / np.dot(xs, xs))  # a line through the origin: log rel = gamma * log level
+    return black_level, gamma

@@ -32,8 +32,8 @@ def test_patterns_decode_to_themselves():
 def test_pattern_sequence_uses_opencv_gray_code_pairs():
     plan = PatternPlan(1280, 720, 8, 32, 8)
     names = [p.name for p in make_patterns(plan)]
-    assert names[:4] == ["white", "black", "gray_x0", "gray_x0_inv"]
-    assert len(names) == 2 + 2 * (8 + 7) + 2 * 8
+    assert names[:7] == ["white", "black", "level_64", "level_128", "level_192", "gray_x0", "gray_x0_inv"]
+    assert len(names) == 2 + 3 + 2 * (8 + 7) + 2 * 8
     with pytest.raises(ValueError, match="phase period"):
         make_patterns(PatternPlan(1280, 720, 16, 16, 8))
 
@@ -96,5 +96,7 @@ def test_sim_calibration_recovers_the_true_map_within_one_pixel():
     assert result.summary["coverage"] > 0.97
     assert error["within_1px"] == 1.0 and error["max"] < 1.0
     assert error["median"] < 0.2
+    assert result.calibration.black_level == pytest.approx(light.optics.black, abs=0.005)
+    assert result.calibration.gamma == pytest.approx(light.optics.gamma, abs=0.05)
     assert result.summary["fit_residual_px"]["median"] < 0.5
     json.dumps(result.summary)  # machine-readable as it stands
