@@ -58,3 +58,18 @@ def test_bench_presence_small_run(capsys):
     out = capsys.readouterr().out
     report = json.loads(out[out.index("\n{\n") + 1 :])
     assert report["clips"]["approach"] == 3 and report["false_alarms_per_hour"] is not None
+
+
+def test_decode_takes_emissivity_from_the_config(tmp_path, vendor_eeprom_words, vendor_frames, capsys):
+    raw = tmp_path / "raw.npz"
+    np.savez(raw, eeprom=vendor_eeprom_words, ram=np.stack(vendor_frames))
+    config = tmp_path / "feelium.toml"
+    temps = {}
+    for emissivity in (1.0, 0.9):
+        config.write_text(f"[thermal]\nemissivity = {emissivity}\n")
+        out = tmp_path / f"out-{emissivity}.npz"
+        assert main(["thermal", "decode", str(raw), "--config", str(config), "--out", str(out), "--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["emissivity"] == emissivity
+        with np.load(out) as data:
+            temps[emissivity] = data["celsius"][1]
+    assert np.all(temps[0.9] > temps[1.0])  # the vendor scene is warmer than its surroundings

@@ -70,6 +70,37 @@ def test_broken_pixel_is_filled_from_its_neighbours(vendor_eeprom_words, vendor_
     assert np.isfinite(image).all()
 
 
+def test_outlier_pixel_is_filled_from_its_neighbours_whatever_it_reads(vendor_eeprom_words, vendor_frames):
+    ee = vendor_eeprom_words.copy()
+    ee[64 + 500] |= 1  # pixel (15, 20) flagged as an outlier in the EEPROM
+    cal = extract_calibration(ee)
+    assert cal.outlier_pixels == (500,)
+    frames = [f.copy() for f in vendor_frames]
+    for f in frames:
+        f[500] = 0x7000  # a wild reading on the outlier itself
+    asm = FrameAssembler(cal)
+    asm.add(frames[0])
+    image = asm.add(frames[1])
+    expected = np.mean([image[14, 20], image[16, 20], image[15, 19], image[15, 21]])
+    assert image[15, 20] == pytest.approx(expected, abs=1e-4)
+    assert 20.0 < image[15, 20] < 40.0
+
+
+def test_emissivity_and_reflected_temperature_change_a_warm_reading(cal, vendor_frames):
+    """Below 1, emissivity scales up what a body radiates above its surroundings (To - Tr grows)."""
+    frame = vendor_frames[0]
+    black = object_temperatures(cal, frame, emissivity=1.0, reflected_offset_c=-8.0)
+    grey = object_temperatures(cal, frame, emissivity=0.9, reflected_offset_c=-8.0)
+    warm_room = object_temperatures(cal, frame, emissivity=0.9, reflected_offset_c=0.0)
+    m = black.mask
+    tr = black.ta - 8.0
+    assert np.all(black.celsius[m] > tr)  # the vendor scene is warmer than Ta - 8
+    assert np.all(grey.celsius[m] > black.celsius[m] + 0.05)
+    assert np.all(warm_room.celsius[m] < grey.celsius[m])  # warmer surroundings explain more of the signal
+    black_warm_room = object_temperatures(cal, frame, emissivity=1.0, reflected_offset_c=0.0)
+    assert np.allclose(black_warm_room.celsius[m], black.celsius[m], atol=1e-9)  # a black body reflects nothing
+
+
 def test_zero_gain_gives_nan_pixels_not_an_exception(cal, vendor_frames):
     frame = vendor_frames[0].copy()
     frame[reg.GAIN] = 0
