@@ -13,7 +13,7 @@ def register(registry: CommandRegistry) -> None:
     read = registry.subcommand(
         "thermal", "read", "Show live thermal frames as a terminal heat map (check the wiring in seconds).", _read
     )
-    read.add_argument("--frames", type=int, default=0, help="stop after N full frames (default: until Ctrl-C)")
+    read.add_argument("--frames", type=int, default=0, help="stop after N images (each new sub-page updates half the pixels; default: until Ctrl-C)")
     read.add_argument("--emulate", action="store_true", help="use the emulated sensor instead of the I2C bus")
     read.add_argument("--config", help="TOML config file (default: built-in defaults)")
     read.add_argument("--colors", choices=("auto", "truecolor", "256"), default="auto", help="terminal colour mode")
@@ -41,7 +41,7 @@ def register(registry: CommandRegistry) -> None:
     )
     presence.add_argument("--approach", type=int, default=60, help="number of approach clips")
     presence.add_argument("--empty", type=int, default=6, help="number of empty-room clips")
-    presence.add_argument("--empty-seconds", type=float, default=600.0, help="length of each empty clip (s)")
+    presence.add_argument("--empty-seconds", type=float, default=1800.0, help="length of each empty clip (s)")
     presence.add_argument("--seed", type=int, default=0)
     presence.add_argument("--config", help="TOML config file (its [thermal.presence] is evaluated)")
     presence.add_argument("--json", metavar="PATH", help="also write the report as JSON here ('-' for stdout)")
@@ -208,8 +208,9 @@ def _bench_presence(args: argparse.Namespace) -> int:
     print(f"approach clips {report['clips']['approach']}, detected {report['detection_rate']:.3f} {report['by_kind']}")
     print(f"false alarms: {report['false_alarms_per_hour']} per hour over {report['clips']['empty_hours']} h of empty room, "
           f"{report['false_alarms_in_approach_clips']} before a body moved")
+    at = report["detected_at_mm"] or {}
     print(f"approach latency vs entering {report['near_mm']:.0f} mm: median {lat.get('median')} ms, p95 {lat.get('p95')} ms"
-          f" (negative = noticed earlier); detected at median {report['detected_at_mm']} mm")
+          f" (negative = noticed earlier); body at {at.get('median')} mm (median), {at.get('max')} mm (farthest) when noticed")
     print(f"leave latency vs leaving {report['near_mm']:.0f} mm: median {leave.get('median')} ms, p95 {leave.get('p95')} ms")
     _write_json(args.json, report)
     return 0
