@@ -79,7 +79,11 @@ def _read(args: argparse.Namespace) -> int:
     except (OSError, CalibrationError) as exc:
         where = "emulator" if emulate else f"/dev/i2c-{cfg.i2c_bus} address 0x{cfg.i2c_address:02X}"
         print(f"feelium thermal read: no sensor on {where}: {exc}", file=sys.stderr)
-        print("check wiring (SDA, SCL, 3.3 V, GND), `i2cdetect -y 1`, or try --emulate", file=sys.stderr)
+        if isinstance(exc, FileNotFoundError):
+            print("the I2C bus is not enabled: dtparam=i2c_arm=on in /boot/firmware/config.txt, reboot", file=sys.stderr)
+        elif isinstance(exc, PermissionError):
+            print("no access to the I2C device: add the user to the i2c group (or run as root)", file=sys.stderr)
+        print(f"check wiring (SDA, SCL, 3.3 V, GND), `i2cdetect -y {cfg.i2c_bus}`, or try --emulate", file=sys.stderr)
         return 1
     assembler = FrameAssembler(calibration, cfg.emissivity, cfg.reflected_offset_c)
     truecolor = None if args.colors == "auto" else args.colors == "truecolor"

@@ -73,3 +73,11 @@ def test_decode_takes_emissivity_from_the_config(tmp_path, vendor_eeprom_words, 
         with np.load(out) as data:
             temps[emissivity] = data["celsius"][1]
     assert np.all(temps[0.9] > temps[1.0])  # the vendor scene is warmer than its surroundings
+
+
+def test_read_without_a_bus_says_what_to_do(tmp_path, capsys):
+    config = tmp_path / "feelium.toml"
+    config.write_text('[thermal]\nbackend = "smbus2"\ni2c_bus = 250\n')  # no /dev/i2c-250 anywhere
+    assert main(["thermal", "read", "--frames", "1", "--config", str(config)]) == 1
+    err = capsys.readouterr().err
+    assert "/dev/i2c-250" in err and "i2c_arm=on" in err and "--emulate" in err
