@@ -42,3 +42,15 @@ def test_empty_clip_with_a_low_threshold_raises_false_alarms():
     clip = Clip("empty", 60.0, (), 22.0, 3)
     events = run_clip(clip, PresenceConfig(enter_rise_c=0.2, leave_rise_c=0.1, min_pixels=1, enter_frames=1), 8.0)
     assert any(e.phase == "approach" for e in events)
+
+
+def test_a_room_as_warm_as_skin_hides_every_body():
+    # no body is warmer than a 34.5 degC room: nothing to see, and nothing must be invented
+    report = evaluate_presence(approach=3, empty=1, empty_s=30.0, room_c=(34.5, 34.5))
+    assert report["room_c"] == [34.5, 34.5]
+    assert report["detection_rate"] == 0.0 and report["false_alarms_per_hour"] == 0.0
+
+
+def test_room_range_must_be_ordered():
+    with pytest.raises(ValueError, match="room_c"):
+        evaluate_presence(approach=1, empty=0, room_c=(26.0, 19.0))
