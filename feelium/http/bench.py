@@ -1,0 +1,383 @@
+"""``feelium bench http``: motion round trip, touch-event latency per transport, MJPEG rate with a stalled client.
+
+The server runs on its own thread and event loop (as in the daemon), the
+clients on this one, both on 127.0.0.1; every number has a baseline measured
+in the same run: the plain ``/health`` round trip for motion, the in-process
+bus delivery for events, three readers without a stalled client for MJPEG.
+Times are ``time.perf_counter`` on both sides (one process, one clock).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import socket
+import statistics
+import sys
+import threading
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import aiohttp
+import cv2
+import numpy as np
+from aiohttp import web
+
+from feelium.events import TouchEvent
+from feelium.http.app import create_app, link_of
+from feelium.http.config import HttpConfig
+from feelium.http.video import BOUNDARY
+from feelium.hub import Hub
+from feelium.motion import DEFAULT_HOLD_S, DeadManCommands, MotionCommand
+
+TOKEN = "bench-token-0123456789abcdef"
+AUTH = {"Authorization": f"Bearer {TOKEN}"}
+
+
+def summary(values_s: list[float]) -> dict[str, float]:
+    """Median and p95 in milliseconds."""
+    ms = np.asarray(values_s) * 1000.0
+    return {"n": int(ms.size), "median_ms": round(float(np.median(ms)), 3), "p95_ms": round(float(np.percentile(ms, 95)), 3)}
+
+
+class TimedMotion(DeadManCommands):
+    """The hub's dead-man slot, noting when each command lands (what the flight loop would then read)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.applied: list[tuple[str, float]] = []
+
+    def command(self, name: str, now: float, hold_s: float = DEFAULT_HOLD_S, source: str = "headset") -> MotionCommand:
+        cmd = super().command(name, now, hold_s, source)
+        self.applied.append((name, time.perf_counter()))
+        return cmd
+
+
+class ServerThread:
+    """The headset app with its own hub, on a private loop in a thread."""
+
+    def __init__(self, config: HttpConfig) -> None:
+        self.config = config
+        self.loop = asyncio.new_event_loop()
+        self.ready = threading.Event()
+        self.port = 0
+        self.hub: Hub | None = None
+        self.motion = TimedMotion()
+        self.app: web.Application | None = None
+        self._thread = threading.Thread(target=self._main, daemon=True)
+        self._stop: asyncio.Event | None = None
+
+    def _main(self) -> None:
+        asyncio.set_event_loop(self.loop)
+        self.loop.run_until_complete(self._serve())
+
+    async def _serve(self) -> None:
+        self.hub = Hub(clock=time.perf_counter, motion=self.motion)
+        self.app = create_app(self.config, self.hub, TOKEN)
+        runner = web.AppRunner(self.app, access_log=None, shutdown_timeout=0.1)
+        await runner.setup()
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            self.port = s.getsockname()[1]
+        await web.TCPSite(runner, "127.0.0.1", self.port).start()
+        self._stop = asyncio.Event()
+        self.ready.set()
+        await self._stop.wait()
+        await runner.cleanup()
+
+    def __enter__(self) -> "ServerThread":
+        self._thread.start()
+        if not self.ready.wait(10):
+            raise RuntimeError("the bench server did not start")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.loop.call_soon_threadsafe(self._stop.set)  # type: ignore[union-attr]
+        self._thread.join(5)
+
+    def call(self, fn: Any, *args: Any) -> None:
+        """Run ``fn(*args)`` on the server's loop (the hub is not thread-safe)."""
+        self.loop.call_soon_threadsafe(fn, *args)
+
+    @property
+    def api(self) -> str:
+        return f"http://127.0.0.1:{self.port}/api/v1"
+
+
+async def bench_motion(server: ServerThread, n: int) -> dict[str, Any]:
+    """POST /motion: request sent -> command in force on the hub, and the full round trip; /health as baseline."""
+    motion_slot = server.motion
+    names = ("forward", "turn_left", "up", "backward", "turn_right", "down")
+    async with aiohttp.ClientSession(headers=AUTH) as session:
+        async def timed(method: str, path: str, **kw: Any) -> tuple[float, float]:
+            t0 = time.perf_counter()
+            async with session.request(method, server.api + path, **kw) as resp:
+                await resp.read()
+                if resp.status >= 400:
+                    raise RuntimeError(f"{method} {path}: {resp.status}")
+            return t0, time.perf_counter()
+
+        for i in range(20):  # warm the connection and the code paths
+            await timed("GET", "/health")
+            await timed("POST", "/motion", json={"command": names[i % len(names)], "hold_ms": 500})
+        health, motion, visible = [], [], []
+        for i in range(n):
+            t0, t1 = await timed("GET", "/health")
+            health.append(t1 - t0)
+            name = names[i % len(names)]
+            before = len(motion_slot.applied)
+            t0, t1 = await timed("POST", "/motion", json={"command": name, "hold_ms": 500})
+            landed = motion_slot.applied[before:]
+            if len(landed) != 1 or landed[0][0] != name:
+                raise RuntimeError(f"POST /motion {name}: the hub saw {landed}")
+            motion.append(t1 - t0)
+            visible.append(landed[0][1] - t0)
+    base, mot, vis = summary(health), summary(motion), summary(visible)
+    return {
+        "baseline_health": base,
+        "motion": mot,
+        "sent_to_hub": vis,
+        "ratio_median": round(mot["median_ms"] / base["median_ms"], 2),
+    }
+
+
+def _touch(i: int, sent: float) -> TouchEvent:
+    return TouchEvent(i, "down", None, sent, 320.0, 240.0, 0.5, 0.5, 0.4, 100, 0.9, extra={"sent": sent})
+
+
+async def _publish_series(server: ServerThread, n: int, gap: float) -> None:
+    hub = server.hub
+    assert hub is not None
+    for i in range(n):
+        await asyncio.sleep(gap)
+        server.call(lambda i=i: hub.bus.publish(_touch(i, time.perf_counter())))
+
+
+async def bench_events(server: ServerThread, n: int, gap: float = 0.02) -> dict[str, Any]:
+    """Publish ``n`` touches on the server's bus; each transport's client notes when each arrives."""
+    hub = server.hub
+    assert hub is not None
+    results: dict[str, Any] = {}
+
+    # baseline: a bus subscriber on the server loop itself (no HTTP)
+    bus_lat: list[float] = []
+    done = threading.Event()
+
+    async def bus_listener() -> None:
+        sub = hub.bus.subscribe([TouchEvent], maxsize=n + 8)
+        while len(bus_lat) < n:
+            ev = await sub.get()
+            bus_lat.append(time.perf_counter() - ev.extra["sent"])
+        sub.close()
+        done.set()
+
+    asyncio.run_coroutine_threadsafe(bus_listener(), server.loop)
+    await asyncio.sleep(0.05)
+    await _publish_series(server, n, gap)
+    await asyncio.to_thread(done.wait, 10)
+    results["baseline_bus"] = summary(bus_lat)
+
+    async with aiohttp.ClientSession(headers=AUTH) as session:
+        async def last_seq() -> int:
+            async with session.get(server.api + "/events", params={"timeout": 0}) as resp:
+                return int((await resp.json())["last_seq"])
+
+        async def collect(kind: str) -> list[float]:
+            lat: list[float] = []
+            after = await last_seq()
+
+            def note(item: dict[str, Any]) -> None:
+                if item["type"] == "touch":
+                    lat.append(time.perf_counter() - item["event"]["sent"])
+
+            async def reader() -> None:
+                nonlocal after
+                if kind == "long_poll":
+                    while len(lat) < n:
+                        async with session.get(server.api + "/events", params={"after": after, "timeout": 1}) as resp:
+                            body = await resp.json()
+                        for item in body["events"]:
+                            note(item)
+                        after = body["last_seq"]
+                elif kind == "sse":
+                    async with session.get(server.api + "/events/stream", params={"after": after}) as resp:
+                        async for raw in resp.content:
+                            if raw.startswith(b"data: "):
+                                note(json.loads(raw[6:]))
+                                if len(lat) >= n:
+                                    return
+                else:
+                    async with session.ws_connect(server.api.replace("http", "ws", 1) + f"/events/ws?after={after}") as ws:
+                        async for msg in ws:
+                            note(json.loads(msg.data))
+                            if len(lat) >= n:
+                                return
+
+            task = asyncio.create_task(reader())
+            await asyncio.sleep(0.1)
+            await _publish_series(server, n, gap)
+            await asyncio.wait_for(task, 30)
+            return lat
+
+        for kind in ("long_poll", "sse", "websocket"):
+            s = summary(await collect(kind))
+            s["ratio_median_vs_bus"] = round(s["median_ms"] / max(results["baseline_bus"]["median_ms"], 1e-6), 1)
+            results[kind] = s
+    return results
+
+
+async def _mjpeg_reader(api: str, seconds: float) -> list[float]:
+    """Arrival times of the frames one client reads in ``seconds`` (parsing the multipart stream)."""
+    arrivals: list[float] = []
+    async with aiohttp.ClientSession(headers=AUTH) as session:
+        async with session.get(api + "/video/front.mjpeg") as resp:
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < seconds:
+                line = await resp.content.readline()
+                if line == f"--{BOUNDARY}\r\n".encode():
+                    length = 0
+                    while (h := await resp.content.readline()) != b"\r\n":
+                        if h.lower().startswith(b"content-length:"):
+                            length = int(h.split(b":")[1])
+                    await resp.content.readexactly(length + 2)
+                    arrivals.append(time.perf_counter())
+    return arrivals
+
+
+def _reader_stats(arrivals: list[float]) -> dict[str, float]:
+    """Frames per second over the reading, and the median/p95 gap between frames."""
+    gaps = summary(list(np.diff(arrivals))) if len(arrivals) > 2 else {"median_ms": float("nan"), "p95_ms": float("nan")}
+    span = arrivals[-1] - arrivals[0] if len(arrivals) > 1 else float("nan")
+    return {
+        "fps": round((len(arrivals) - 1) / span, 2) if len(arrivals) > 1 else 0.0,
+        "gap_median_ms": gaps["median_ms"],
+        "gap_p95_ms": gaps["p95_ms"],
+    }
+
+
+def _phase(readers: list[list[float]]) -> dict[str, Any]:
+    stats = [_reader_stats(a) for a in readers]
+    return {
+        "readers": stats,
+        "fps_median": round(float(np.median([s["fps"] for s in stats])), 2),
+        "gap_p95_ms_worst": max(s["gap_p95_ms"] for s in stats),
+    }
+
+
+def synthetic_frame(k: int, base: np.ndarray) -> np.ndarray:
+    """Frame ``k`` of a moving, camera-like (smooth, ~25 kB as JPEG) 640x480 test video."""
+    return np.roll(base, k * 4, axis=1)
+
+
+async def bench_mjpeg(server: ServerThread, seconds: float, fps: float) -> dict[str, Any]:
+    """Three readers alone (baseline), then the same three plus a fourth client that never reads."""
+    hub = server.hub
+    assert hub is not None and server.app is not None
+    link = link_of(server.app)
+    rng = np.random.default_rng(0)
+    base = cv2.GaussianBlur(rng.integers(0, 255, (480, 640, 3), dtype=np.uint8), (0, 0), 3)
+    stop = asyncio.Event()
+
+    async def publisher() -> int:
+        k = 0
+        t0 = time.perf_counter()
+        while not stop.is_set():
+            k += 1
+            server.call(hub.front_video.publish, time.perf_counter(), synthetic_frame(k, base))
+            await asyncio.sleep(max(0.0, t0 + k / fps - time.perf_counter()))
+        return k
+
+    pub = asyncio.create_task(publisher())
+    await asyncio.sleep(0.3)
+    baseline = _phase(list(await asyncio.gather(*(_mjpeg_reader(server.api, seconds) for _ in range(3)))))
+
+    dropped_before = link.counters.get("stalled_clients_dropped", 0)
+    stalled = socket.socket()
+    stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    stalled.setblocking(False)
+    await asyncio.get_running_loop().sock_connect(stalled, ("127.0.0.1", server.port))
+    stalled.send(f"GET /api/v1/video/front.mjpeg?token={TOKEN} HTTP/1.1\r\nHost: bench\r\n\r\n".encode())
+    t_stall = time.perf_counter()
+    drop_seen: list[float] = []
+
+    async def watch_drop() -> None:
+        while time.perf_counter() - t_stall < seconds + 5.0:
+            if link.counters.get("stalled_clients_dropped", 0) > dropped_before:
+                drop_seen.append(time.perf_counter() - t_stall)
+                return
+            await asyncio.sleep(0.01)
+
+    watcher = asyncio.create_task(watch_drop())
+    with_stalled = _phase(list(await asyncio.gather(*(_mjpeg_reader(server.api, seconds) for _ in range(3)))))
+    await watcher
+    stop.set()
+    published = await pub
+    stalled.close()
+    return {
+        "published_fps": fps,
+        "frames_published": published,
+        "jpeg_encodes": link.videos["front"].encoded,
+        "write_timeout_s": server.config.stream_write_timeout_s,
+        "baseline_3_readers": baseline,
+        "3_readers_plus_1_stalled": with_stalled,
+        "ratio_fps_with_stalled_vs_baseline": round(with_stalled["fps_median"] / max(baseline["fps_median"], 1e-9), 3),
+        "stalled_dropped": bool(drop_seen),
+        "stalled_dropped_after_s": round(drop_seen[0], 3) if drop_seen else None,
+    }
+
+
+async def run_bench(n: int, seconds: float, fps: float) -> dict[str, Any]:
+    config = replace(HttpConfig(), motion_rate_per_s=1000.0, motion_burst=1000, stream_write_timeout_s=0.5,
+                     event_ring_size=4096, keepalive_s=5.0)  # fmt: skip
+    with ServerThread(config) as server:
+        return {
+            "motion_round_trip": await bench_motion(server, n),
+            "touch_event_latency": await bench_events(server, n),
+            "mjpeg_4_clients_1_stalled": await bench_mjpeg(server, seconds, fps),
+        }
+
+
+def format_table(result: dict[str, Any]) -> str:
+    lines = ["| measurement | median ms | p95 ms | ratio to baseline |", "|---|---|---|---|"]
+    m = result["motion_round_trip"]
+    lines.append(f"| GET /health round trip (baseline) | {m['baseline_health']['median_ms']} | {m['baseline_health']['p95_ms']} | 1.0 |")
+    lines.append(f"| POST /motion sent -> command on the hub | {m['sent_to_hub']['median_ms']} | {m['sent_to_hub']['p95_ms']} | |")
+    lines.append(f"| POST /motion round trip | {m['motion']['median_ms']} | {m['motion']['p95_ms']} | {m['ratio_median']} |")
+    e = result["touch_event_latency"]
+    lines.append(f"| bus publish -> in-process subscriber (baseline) | {e['baseline_bus']['median_ms']} | {e['baseline_bus']['p95_ms']} | 1.0 |")
+    for kind in ("long_poll", "sse", "websocket"):
+        lines.append(f"| bus publish -> {kind} client | {e[kind]['median_ms']} | {e[kind]['p95_ms']} | {e[kind]['ratio_median_vs_bus']} |")
+    v = result["mjpeg_4_clients_1_stalled"]
+    b, w = v["baseline_3_readers"], v["3_readers_plus_1_stalled"]
+    lines += [
+        "",
+        f"MJPEG 640x480 published at {v['published_fps']} fps, write timeout {v['write_timeout_s']} s",
+        "",
+        "| MJPEG readers | fps per reader | frame gap median ms | frame gap p95 ms |",
+        "|---|---|---|---|",
+        f"| 3 readers (baseline) | {', '.join(str(r['fps']) for r in b['readers'])} "
+        f"| {', '.join(str(r['gap_median_ms']) for r in b['readers'])} | {', '.join(str(r['gap_p95_ms']) for r in b['readers'])} |",
+        f"| 3 readers + 1 stalled | {', '.join(str(r['fps']) for r in w['readers'])} "
+        f"| {', '.join(str(r['gap_median_ms']) for r in w['readers'])} | {', '.join(str(r['gap_p95_ms']) for r in w['readers'])} |",
+        "",
+        f"median fps ratio (with stalled / baseline): {v['ratio_fps_with_stalled_vs_baseline']}; "
+        f"stalled client dropped: {v['stalled_dropped']} after {v['stalled_dropped_after_s']} s; "
+        f"JPEG encodes / frames published: {v['jpeg_encodes']} / {v['frames_published']}",
+    ]
+    return "\n".join(lines)
+
+
+def bench_http_command(args: Any) -> int:
+    if args.requests < 10 or args.seconds <= 0 or args.fps <= 0:
+        print("feelium bench http: --requests >= 10, --seconds > 0 and --fps > 0 please", file=sys.stderr)
+        return 2
+    result = asyncio.run(run_bench(args.requests, args.seconds, args.fps))
+    print(format_table(result))
+    text = json.dumps(result, indent=1)
+    if args.json:
+        Path(args.json).write_text(text + "\n", encoding="utf-8")
+    else:
+        print(text)
+    return 0
