@@ -32,3 +32,6 @@ class DaemonConfig:
     status_interval_s: float = setting(
         10.0, "How often a one-line status goes to the log and to systemd (STATUS=).", min=0.5, max=3600.0
     )
+    malloc_arenas: int = setting(
+        2, "glibc malloc arenas for the whole process (fewer = less resident memory); 0 = glibc's default.", min=0, max=64
+    )
