@@ -54,3 +54,12 @@ def test_a_room_as_warm_as_skin_hides_every_body():
 def test_room_range_must_be_ordered():
     with pytest.raises(ValueError, match="room_c"):
         evaluate_presence(approach=1, empty=0, room_c=(26.0, 19.0))
+
+
+def test_through_the_driver_the_same_visits_are_seen():
+    """Raw words, ADC rounding, transport, driver and decoder between the scene and the detector."""
+    direct = evaluate_presence(approach=2, empty=0, seed=2)
+    chained = evaluate_presence(approach=2, empty=0, seed=2, through_driver=True)
+    assert chained["through_driver"] and not direct["through_driver"]
+    assert direct["detection_rate"] == chained["detection_rate"] == 1.0
+    assert chained["false_alarms_in_approach_clips"] == 0
