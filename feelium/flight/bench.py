@@ -87,7 +87,7 @@ def run_bench(config: FlightConfig, out_dir: Path, seed: int = 1) -> dict[str, A
     results["worst_latency_s"] = max(r.latency_s for r in motions.values())
     results["worst_stop_s"] = max(r.stop_s for r in motions.values())
     results["controller_step"] = step_timing(config)
-    results["plots"] = _plots(out_dir, climb, base_climb, turn, drafts)
+    results["plots"] = _plots(out_dir, climb, base_climb, turn, drafts, motions)
     (out_dir / "flight-bench.json").write_text(json.dumps(results, indent=2, default=_json_default))
     return results
 
@@ -98,7 +98,14 @@ def _json_default(value: Any) -> Any:
     raise TypeError(repr(value))
 
 
-def _plots(out_dir: Path, climb: sc.StepResult, base: sc.StepResult, turn: sc.StepResult, drafts: sc.HoldResult) -> list[str]:
+def _plots(
+    out_dir: Path,
+    climb: sc.StepResult,
+    base: sc.StepResult,
+    turn: sc.StepResult,
+    drafts: sc.HoldResult,
+    motions: dict[str, sc.MotionResult],
+) -> list[str]:
     from feelium.plot import Series, line_plot
 
     paths = [
@@ -108,7 +115,7 @@ def _plots(out_dir: Path, climb: sc.StepResult, base: sc.StepResult, turn: sc.St
             title="30 cm climb (still air, true altitude)",
             xlabel="time since step (s)",
             ylabel="altitude (cm)",
-            hlines=((climb.target * 100, "target"), (climb.target * 100 + 3, "+10 %")),
+            hlines=((climb.target * 100, "target"), (climb.target * 100 + 3, "+10 %"), (climb.target * 100 - 1.5, "-5 % (settled above)")),
         ),
         line_plot(
             out_dir / "flight-heading-step.png",
@@ -125,6 +132,14 @@ def _plots(out_dir: Path, climb: sc.StepResult, base: sc.StepResult, turn: sc.St
             xlabel="time (s)",
             ylabel="error (cm)",
             hlines=((0.0, "target"),),
+        ),
+        line_plot(
+            out_dir / "flight-commands.png",
+            [Series(r.t[r.t >= -0.5], r.fraction[r.t >= -0.5], name) for name, r in motions.items()],
+            title=f"The six commands through the dead man (held 3 s, expired at {next(iter(motions.values())).expired_s:.1f} s)",
+            xlabel="time since the command was issued (s)",
+            ylabel="motion / commanded rate",
+            hlines=((1.0, "commanded"), (0.1, "10 %: stopped below")),
         ),
     ]
     return [str(p) for p in paths]

@@ -36,6 +36,7 @@ class FlightConfig:
     net_buoyancy_n: float = setting(0.356, "Upward force with motors off: (360 g lift - 323.7 g body) x g.", min=0.0, max=5.0)
     mass_kg: float = setting(0.59, "Inertial mass: body, helium and added air mass.", min=0.05, max=10.0)
     yaw_inertia_kg_m2: float = setting(0.055, "Yaw moment of inertia.", min=0.001, max=10.0)
+    yaw_drag: float = setting(0.02, "Quadratic yaw drag, N m per (rad/s)^2, for feed-forward and rate prediction.", min=0.0, max=10.0)
     arm_m: float = setting(0.25, "Lateral distance of each horizontal motor from the centre line.", min=0.02, max=2.0)
     horizontal_thrust_n: float = setting(0.25, "Full-command thrust of one horizontal motor.", min=0.01, max=10.0)
     vertical_thrust_n: float = setting(0.5, "Full-command thrust of one vertical motor.", min=0.01, max=10.0)

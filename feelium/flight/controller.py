@@ -31,6 +31,8 @@ SETTLE_S = 0.6  # damping-only phase after a braking ramp
 RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an outage
 SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 THRUST_LAG_S = 0.08
+RESIDUAL_GATE_M = 0.06  # about 4 sigma of the rangefinder's noise at 2 m
+RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and is learned
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,7 @@ class FlightController:
         self._settle_z_until: float | None = None
         self.disturbance = 0.0  # observed unmodelled vertical acceleration: the altitude loop's integral
         self._freeze_disturbance = False
+        self._gated_since: float | None = None
         self._vertical_thrust = -config.net_buoyancy_n  # modelled upward motor force after the motor lag
         self._up_n = -config.net_buoyancy_n
         self._altitude_failsafe = False
@@ -121,6 +124,7 @@ class FlightController:
         self.speed_hat = 0.0
         self._speed_ref = 0.0
         self._surge_thrust = 0.0
+        self._yaw_torque = 0.0  # modelled yaw torque of the horizontal pair after the motor lag
         # other
         self._was_soft = False
         self._telemetry_failsafe = False
@@ -171,10 +175,9 @@ class FlightController:
         commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt)
         vertical = -sum(thrust_for_command(c, self.c.vertical_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[2:])
         self._vertical_thrust += (vertical - self._vertical_thrust) * min(1.0, dt / THRUST_LAG_S)
-        self._surge_thrust += (
-            sum(thrust_for_command(c, self.c.horizontal_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[:2])
-            - self._surge_thrust
-        ) * min(1.0, dt / THRUST_LAG_S)
+        left, right = (thrust_for_command(c, self.c.horizontal_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[:2])
+        self._surge_thrust += (left + right - self._surge_thrust) * min(1.0, dt / THRUST_LAG_S)
+        self._yaw_torque += ((left - right) * self.c.arm_m - self._yaw_torque) * min(1.0, dt / THRUST_LAG_S)
         return self._output(t, commands, "soft" if soft and mode == "flying" else mode, setpoint)
 
     def safe_commands(self) -> tuple[float, float, float, float]:
@@ -233,7 +236,14 @@ class FlightController:
         q = 2.0 * math.pi * self.c.disturbance_observer_hz
         self.z_hat += (2.0 * p + q) * dt * residual
         self.vz_hat += (p * p + 2.0 * p * q) * dt * residual
-        if not self._freeze_disturbance:
+        # A sudden large innovation is the body being moved or something passing under the
+        # rangefinder, not a buoyancy error: do not learn from it, unless it persists.
+        if abs(residual) <= RESIDUAL_GATE_M:
+            self._gated_since = None
+        elif self._gated_since is None:
+            self._gated_since = t
+        gated = self._gated_since is not None and t - self._gated_since < RESIDUAL_GATE_S
+        if not self._freeze_disturbance and not gated:
             limit = self.c.altitude_integral_limit
             self.disturbance = min(max(self.disturbance + p * p * q * dt * residual, -limit), limit)
 
@@ -261,7 +271,9 @@ class FlightController:
             self._climbing = False
             ref.reset(z, self.vz_hat)
             self._braking_z = True
-        p_gain = 1.0
+        # While a rate is commanded only the rate is controlled: a position term would chase the
+        # lag built up while spinning up and overshoot the commanded rate.
+        p_gain = 0.0 if climb else 1.0
         if not climb and self._braking_z:
             ref.rate, ref.accel = _ramp_to_zero(ref.rate, c.brake_climb_m_s2, dt)
             ref.value += ref.rate * dt
@@ -281,7 +293,7 @@ class FlightController:
                 self.z_target = min(max(sp.altitude_m, c.altitude_min_m), c.altitude_max_m)
             ref.advance(self.z_target - ref.value, dt)
         error = min(max(ref.value - z, -c.altitude_error_limit_m), c.altitude_error_limit_m)
-        accel = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (ref.rate - self.vz_hat)) + ref.accel - self.disturbance
+        accel = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (ref.rate - self._predicted_climb())) + ref.accel - self.disturbance
         drag_ff = c.quadratic_drag * ref.rate * abs(ref.rate)
         up_n = c.mass_kg * accel - c.net_buoyancy_n + drag_ff
         lo, hi = self.mixer.limits_up_n()
@@ -289,7 +301,8 @@ class FlightController:
         # Anti-windup: the disturbance estimate (our integral) learns only while the loop is in
         # charge: not saturated, not softened by a touch, and near its target (a partner holding
         # the body away from it must not wind it up).
-        self._freeze_disturbance = soft or saturated or abs(ref.value - z) > c.altitude_integral_band_m
+        far = max(abs(ref.value - z), abs(self.z_target - z)) > c.altitude_integral_band_m
+        self._freeze_disturbance = soft or saturated or far
         self._up_n = min(max(up_n, lo), hi)
         return self._up_n, "flying"
 
@@ -309,7 +322,7 @@ class FlightController:
             self._turning = False
             ref.reset(self.heading, self.yaw_rate)
             self._braking_yaw = True
-        p_gain = 1.0
+        p_gain = 0.0 if turn else 1.0
         if not turn and self._braking_yaw:
             ref.rate, ref.accel = _ramp_to_zero(ref.rate, c.brake_yaw_dps2, dt)
             ref.value = (ref.value + ref.rate * dt) % 360.0
@@ -328,10 +341,25 @@ class FlightController:
             ref.advance(wrap_deg(self.heading_target - ref.value), dt)
             ref.value %= 360.0
         error = math.radians(min(max(wrap_deg(ref.value - self.heading), -45.0), 45.0))
-        rate_error = math.radians(ref.rate - self.yaw_rate)
+        rate_error = math.radians(ref.rate) - self._predicted_yaw_rate()
         alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
         r_ref = math.radians(ref.rate)
-        return c.yaw_inertia_kg_m2 * alpha + 0.02 * r_ref * abs(r_ref)
+        return c.yaw_inertia_kg_m2 * alpha + c.yaw_drag * r_ref * abs(r_ref)
+
+    def _predicted_climb(self) -> float:
+        """The climb rate when a new command takes effect (after the motor lag), from the modelled forces."""
+        c = self.c
+        drag = c.quadratic_drag * self.vz_hat * abs(self.vz_hat) + 0.02 * self.vz_hat
+        accel = (self._vertical_thrust + c.net_buoyancy_n - drag) / c.mass_kg + self.disturbance
+        return self.vz_hat + accel * THRUST_LAG_S
+
+    def _predicted_yaw_rate(self) -> float:
+        """The yaw rate (rad/s) when a new command takes effect: the filtered gyro is about
+        ``YAW_RATE_TAU_S`` old and the motors answer after ``THRUST_LAG_S``, so damping on the
+        gyro alone brakes too late and overshoots; the modelled torque bridges both lags."""
+        r = math.radians(self.yaw_rate)
+        alpha = (self._yaw_torque - self.c.yaw_drag * r * abs(r)) / self.c.yaw_inertia_kg_m2
+        return r + alpha * (YAW_RATE_TAU_S + THRUST_LAG_S)
 
     def _surge(self, dt: float, speed_sp: float, gain: float) -> float:
         c = self.c
@@ -343,7 +371,10 @@ class FlightController:
             self._speed_ref, accel = _ramp_to_zero(min(self._speed_ref, self.speed_hat, key=abs), c.brake_m_s2, dt)
         v = self._speed_ref
         feed_forward = c.mass_kg * accel + c.quadratic_drag * v * abs(v) + 0.02 * v
-        return feed_forward + gain * c.mass_kg * c.speed_kp * (v - self.speed_hat)
+        # Damp the speed the body will have when a new command takes effect (motor lag), not
+        # today's: otherwise braking carries on past zero and it creeps back the other way.
+        predicted = self.speed_hat + (self._surge_thrust - drag) / c.mass_kg * THRUST_LAG_S
+        return feed_forward + gain * c.mass_kg * c.speed_kp * (v - predicted)
 
     # ---------------------------------------------------------------- output
     def _battery(self) -> str:

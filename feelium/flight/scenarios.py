@@ -115,6 +115,9 @@ class MotionResult:
     command: str
     latency_s: float  # command issued -> body measurably moving
     stop_s: float  # dead man expired -> body below 10 % of its commanded speed
+    t: np.ndarray  # seconds since the command was issued
+    fraction: np.ndarray  # motion in the commanded direction as a fraction of the commanded rate
+    expired_s: float  # when the dead man expired, on the same time axis
 
 
 def _motion_signal(flight: SimFlight, name: str) -> np.ndarray:
@@ -124,6 +127,19 @@ def _motion_signal(flight: SimFlight, name: str) -> np.ndarray:
     if name in ("up", "down"):
         return log["w"] * (1 if name == "up" else -1)
     return log["r_dps"] * (1 if name == "turn_right" else -1)
+
+
+def _first_crossing(t: np.ndarray, signal: np.ndarray, threshold: float, after: float) -> float:
+    """When ``signal`` first rises through ``threshold`` after ``after``, interpolated between the
+    control-rate samples (the log is 50 Hz; rounding up to the next sample would add up to 20 ms)."""
+    above = np.nonzero((t > after) & (signal > threshold))[0]
+    if not above.size:
+        return float("inf")
+    k = int(above[0])
+    if k == 0 or t[k - 1] < after or signal[k - 1] >= threshold:
+        return float(t[k])
+    fraction = (threshold - signal[k - 1]) / (signal[k] - signal[k - 1])
+    return float(t[k - 1] + fraction * (t[k] - t[k - 1]))
 
 
 def motion(config: FlightConfig, name: str, hold_s: float = 3.0, seed: int = 1, drafts: bool = False) -> MotionResult:
@@ -144,8 +160,7 @@ def motion(config: FlightConfig, name: str, hold_s: float = 3.0, seed: int = 1, 
     t_expired = last_refresh + 0.5
     t = flight.log["t"]
     signal = _motion_signal(flight, name)
-    moving = np.nonzero((t > t_issue) & (signal > MOTION_THRESHOLD[name]))[0]
-    latency = float(t[moving[0]] - t_issue) if moving.size else float("inf")
+    latency = _first_crossing(t, signal, MOTION_THRESHOLD[name], t_issue) - t_issue
     cruise = {"forward": config.forward_speed_m_s, "backward": config.forward_speed_m_s, "up": config.climb_rate_m_s,
               "down": config.climb_rate_m_s}.get(name, config.yaw_rate_dps)
     after = np.nonzero(t >= t_expired)[0]
@@ -158,6 +173,6 @@ def motion(config: FlightConfig, name: str, hold_s: float = 3.0, seed: int = 1, 
         stop = float("inf")
     else:
         stop = float(t[after][still_moving[-1] + 1] - t_expired)
-    return MotionResult(name, latency, stop)
+    return MotionResult(name, latency, stop, t - t_issue, signal / cruise, t_expired - t_issue)
 
 
