@@ -128,6 +128,21 @@ def run_calibrate(args: argparse.Namespace) -> int:
 # -- eval --------------------------------------------------------------------------------
 
 
+def scoring_input(root: Path, result: ReplayResult) -> TrialData | ClipData:
+    """What scoring needs from one replayed, labelled recording: a trial, or a continuous clip's series."""
+    labels = result.recording.labels
+    assert labels is not None
+    if labels.clip:
+        return ClipData(labels, result.t, result.anchor)
+    return TrialData(
+        name=relative_name(root, result.recording.path),
+        labels=labels,
+        events=result.events,
+        activity=bool(result.activity.any()),
+        max_area=float(result.area.max()) if result.area.size else 0.0,
+    )
+
+
 def evaluate_dataset(root: Path, config: TouchConfig, *, dataset_name: str | None = None, plain: bool = False):
     """Replay every labelled recording under ``root`` and build the report; returns (report, clips)."""
     trials: list[TrialData] = []
@@ -138,18 +153,8 @@ def evaluate_dataset(root: Path, config: TouchConfig, *, dataset_name: str | Non
             continue
         result = replay_recording(recording, config, plain=plain)
         timings.append(result.seconds_per_frame)
-        if recording.labels.clip:
-            clips.append(ClipData(recording.labels, result.t, result.anchor))
-        else:
-            trials.append(
-                TrialData(
-                    name=relative_name(root, recording.path),
-                    labels=recording.labels,
-                    events=result.events,
-                    activity=bool(result.activity.any()),
-                    max_area=float(result.area.max()) if result.area.size else 0.0,
-                )
-            )
+        item = scoring_input(root, result)
+        (clips if isinstance(item, ClipData) else trials).append(item)  # type: ignore[arg-type]
     if not trials and not clips:
         raise RecordingError(root, "holds no labelled recording to evaluate")
     seconds = np.concatenate(timings) if timings else np.zeros(0)

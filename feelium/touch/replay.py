@@ -32,7 +32,8 @@ class ReplayResult:
     area: np.ndarray = field(default_factory=lambda: np.zeros(0))
     depth_max: np.ndarray = field(default_factory=lambda: np.zeros(0))
     core_depth: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))  # wall time
+    cpu_seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))  # this thread's CPU time
     work_size: tuple[int, int] = (0, 0)
 
 
@@ -48,10 +49,11 @@ def replay_recording(
     meta = recording.meta
     pipeline = TouchPipeline(config, (meta.camera.width, meta.camera.height), meta.roi, plain=plain)
     out = ReplayResult(recording=recording)
-    ts, act, anc, area, dmax, core, spf = [], [], [], [], [], [], []
+    ts, act, anc, area, dmax, core, spf, cpu = [], [], [], [], [], [], [], []
     for t, frame in frames if frames is not None else recording.frames(gray=True):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.thread_time()
         result = pipeline.process(t, frame)
+        cpu.append(time.thread_time() - start_cpu)
         spf.append(time.perf_counter() - start)
         out.events.extend(result.events)
         ts.append(t)
@@ -70,6 +72,7 @@ def replay_recording(
     out.depth_max = np.asarray(dmax, float)
     out.core_depth = np.asarray(core, float)
     out.seconds_per_frame = np.asarray(spf, float)
+    out.cpu_seconds_per_frame = np.asarray(cpu, float)
     out.work_size = pipeline.geometry.work_size
     return out
 
