@@ -28,6 +28,7 @@ from aiohttp import web
 from feelium.events import TouchEvent
 from feelium.http.app import create_app, link_of
 from feelium.http.config import HttpConfig
+from feelium.http.server import JsonErrorAppRunner
 from feelium.http.video import BOUNDARY
 from feelium.hub import Hub
 from feelium.motion import DEFAULT_HOLD_S, DeadManCommands, MotionCommand
@@ -76,7 +77,7 @@ class ServerThread:
     async def _serve(self) -> None:
         self.hub = Hub(clock=time.perf_counter, motion=self.motion)
         self.app = create_app(self.config, self.hub, TOKEN)
-        runner = web.AppRunner(self.app, access_log=None, shutdown_timeout=0.1)
+        runner = JsonErrorAppRunner(self.app, access_log=None, shutdown_timeout=0.1)
         await runner.setup()
         with socket.socket() as s:
             s.bind(("127.0.0.1", 0))

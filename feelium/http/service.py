@@ -13,6 +13,7 @@ from feelium.config import Config
 from feelium.http.app import create_app, link_of
 from feelium.http.auth import load_or_create_token
 from feelium.http.config import HttpConfig
+from feelium.http.server import JsonErrorAppRunner
 from feelium.hub import Hub
 from feelium.service import Service
 
@@ -54,7 +55,7 @@ class HttpService:
 
     async def run(self) -> None:
         self._stopped = asyncio.Event()
-        runner = web.AppRunner(self.app, access_log=None, shutdown_timeout=0.2)
+        runner = JsonErrorAppRunner(self.app, access_log=None, shutdown_timeout=0.2)
         await runner.setup()
         self._runner = runner
         try:

@@ -1,0 +1,124 @@
+"""The headset link as a daemon service on a real loopback socket: parser-level errors in JSON, TLS from files."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import shutil
+import ssl
+import subprocess
+from dataclasses import replace
+from pathlib import Path
+
+import aiohttp
+import pytest
+
+from feelium.config import Config
+from feelium.http.config import HttpConfig
+from feelium.http.service import HttpService, build_services, client_url, tls_context
+from feelium.hub import Hub
+
+from tests.http.http_support import AUTH, TOKEN
+
+
+async def _started(config: HttpConfig) -> tuple[HttpService, asyncio.Task[None]]:
+    (service,) = build_services(replace(Config(), http=config), Hub())
+    assert isinstance(service, HttpService)
+    task = asyncio.create_task(service.run())
+    for _ in range(200):
+        if service.port:
+            return service, task
+        await asyncio.sleep(0.01)
+    raise AssertionError("the service did not start listening")
+
+
+async def _stopped(service: HttpService, task: asyncio.Task[None]) -> None:
+    await service.stop()
+    await asyncio.wait_for(task, 5)
+
+
+def _loopback(**changes: object) -> HttpConfig:
+    return replace(HttpConfig(), host="127.0.0.1", port=0, token=TOKEN, **changes)
+
+
+async def _raw(port: int, request: bytes) -> bytes:
+    reader, writer = await asyncio.open_connection("127.0.0.1", port)
+    writer.write(request)
+    await writer.drain()
+    data = await asyncio.wait_for(reader.read(), 5)
+    writer.close()
+    return data
+
+
+@pytest.mark.parametrize(
+    "request_bytes",
+    [
+        b"GARBAGE\r\n\r\n",
+        b"GET /api/v1/state HTTP/1.1\r\nHost: x\r\nContent-Length: abc\r\n\r\n",
+        b"GET /api/v1/state HTTP/1.1\r\nHost: x\r\nX-Long: " + b"a" * 20000 + b"\r\n\r\n",
+        b"POST /api/v1/motion HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\nContent-Length: 3\r\n\r\n",
+    ],
+    ids=["request-line", "content-length", "header-too-long", "length-and-chunked"],
+)
+async def test_requests_the_http_parser_rejects_get_a_json_400(request_bytes: bytes) -> None:
+    service, task = await _started(_loopback())
+    try:
+        answer = await _raw(service.port, request_bytes)  # type: ignore[arg-type]
+    finally:
+        await _stopped(service, task)
+    head, _, body = answer.partition(b"\r\n\r\n")
+    assert head.startswith(b"HTTP/1.") and b" 400 " in head.split(b"\r\n")[0]
+    assert b"application/json" in head
+    error = json.loads(body)
+    assert error["error"] == "bad_request" and error["message"].startswith("malformed HTTP request")
+
+
+def _self_signed(tmp: Path) -> tuple[Path, Path]:
+    cert, key = tmp / "cert.pem", tmp / "key.pem"
+    subprocess.run(
+        ["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
+         "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out", str(cert)],
+        check=True, capture_output=True, timeout=60,
+    )  # fmt: skip
+    return cert, key
+
+
+@pytest.mark.skipif(shutil.which("openssl") is None, reason="needs the openssl command to make a test certificate")
+async def test_tls_from_configured_files_serves_https_only(tmp_path: Path) -> None:
+    cert, key = _self_signed(tmp_path)
+    config = _loopback(tls_cert=str(cert), tls_key=str(key))
+    service, task = await _started(config)
+    trust = ssl.create_default_context(cafile=str(cert))
+    try:
+        base = f"https://127.0.0.1:{service.port}/api/v1"
+        async with aiohttp.ClientSession() as session:
+            async with session.get(f"{base}/health", ssl=trust) as resp:
+                assert resp.status == 200
+            async with session.get(f"{base}/state", ssl=trust) as resp:
+                assert resp.status == 401
+            async with session.get(f"{base}/state", ssl=trust, headers=AUTH) as resp:
+                assert resp.status == 200 and "services" in await resp.json()
+            with pytest.raises(aiohttp.ClientError):  # plain HTTP is not spoken on the TLS port
+                async with session.get(f"http://127.0.0.1:{service.port}/api/v1/health") as resp:
+                    await resp.read()
+    finally:
+        await _stopped(service, task)
+    assert client_url(config, TOKEN, 8443) == f"https://127.0.0.1:8443/#token={TOKEN}"
+
+
+def test_tls_needs_both_files_and_a_bad_pair_fails_at_build_time(tmp_path: Path) -> None:
+    assert tls_context(_loopback()) is None
+    with pytest.raises(ValueError, match="together"):
+        tls_context(_loopback(tls_cert=str(tmp_path / "cert.pem")))
+    (tmp_path / "cert.pem").write_text("not a certificate")
+    (tmp_path / "key.pem").write_text("not a key")
+    with pytest.raises(ssl.SSLError):
+        build_services(replace(Config(), http=_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem"))), Hub())
+
+
+def test_disabled_link_builds_no_service_and_a_generated_token_is_private(tmp_path: Path) -> None:
+    assert build_services(replace(Config(), http=replace(HttpConfig(), enabled=False)), Hub()) == []
+    token_file = tmp_path / "sub" / "token"
+    (service,) = build_services(replace(Config(), http=replace(HttpConfig(), token_file=str(token_file))), Hub())
+    assert token_file.stat().st_mode & 0o777 == 0o600
+    assert service.token == token_file.read_text().strip() and len(service.token) >= 16  # type: ignore[attr-defined]
