@@ -21,6 +21,12 @@ def register(registry: CommandRegistry) -> None:
     bench.add_argument("--seconds", type=float, default=60.0, help="how long the daemon runs (default 60)")
     bench.add_argument("--config", help="TOML config file (the sim backends are forced)")
     bench.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
+    bench.add_argument(
+        "--per-service-seconds",
+        type=float,
+        default=10.0,
+        help="then run each service alone this long in a fresh process, for its memory (0 = skip; default 10)",
+    )
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -35,3 +35,10 @@ class DaemonConfig:
     malloc_arenas: int = setting(
         2, "glibc malloc arenas for the whole process (fewer = less resident memory); 0 = glibc's default.", min=0, max=64
     )
+    malloc_mmap_threshold_kb: int = setting(
+        128,
+        "Allocations from this size (KB) are mmap'd and returned to the system when freed, so frame buffers do not "
+        "fragment the heap; 0 = glibc's self-raising default.",
+        min=0,
+        max=32768,
+    )

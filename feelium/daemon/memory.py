@@ -1,10 +1,16 @@
 """Keeping the daemon's resident memory within a 512 MB board's budget.
 
-glibc gives each thread that allocates its own malloc arena and keeps freed
-memory there, so a process whose worker threads churn numpy frames grows by
-tens of MB for nothing (measured with `feelium bench daemon`: 181 MB with
-the default, 140 MB with two arenas). Capping the arenas before the worker
-threads start is the standard cure (the same as ``MALLOC_ARENA_MAX``).
+Two glibc malloc habits cost a frame-churning process tens of MB for nothing:
+
+- each thread that allocates gets its own arena and keeps freed memory there;
+  capping the arenas (``M_ARENA_MAX``, as ``MALLOC_ARENA_MAX`` does) stops that;
+- blocks above the mmap threshold are mmap'd and handed back to the kernel on
+  free, but glibc raises that threshold each time such a block is freed (up to
+  32 MB), after which frame-sized arrays land on the heap and fragment it.
+  Fixing the threshold (``M_MMAP_THRESHOLD``) keeps frames mmap'd.
+
+Measured with ``feelium bench daemon`` (see docs/daemon.md for the numbers).
+Both must be set before the worker threads start.
 """
 
 from __future__ import annotations
@@ -15,24 +21,40 @@ import logging
 
 log = logging.getLogger(__name__)
 
-M_ARENA_MAX = -8  # from glibc's malloc.h
+M_MMAP_THRESHOLD = -3  # from glibc's malloc.h
+M_ARENA_MAX = -8
 
 
-def limit_malloc_arenas(arenas: int) -> bool:
-    """Cap glibc's malloc arenas (0 leaves the default); False where there is no glibc (musl, macOS)."""
-    if arenas <= 0:
-        return False
+def _mallopt() -> ctypes._CFuncPtr | None:
     name = ctypes.util.find_library("c")
     if not name:
-        return False
+        return None
     try:
-        libc = ctypes.CDLL(name)
-        mallopt = libc.mallopt
+        mallopt = ctypes.CDLL(name).mallopt
     except (OSError, AttributeError):
-        return False
+        return None
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
     mallopt.restype = ctypes.c_int
-    ok = mallopt(M_ARENA_MAX, arenas) == 1
-    if not ok:
-        log.debug("mallopt(M_ARENA_MAX, %d) refused", arenas)
-    return ok
+    return mallopt
+
+
+def tune_malloc(arenas: int, mmap_threshold_kb: int) -> dict[str, int]:
+    """Cap glibc's arenas and fix its mmap threshold (0 leaves either at glibc's default).
+
+    Returns what was applied; empty where there is no glibc (musl, macOS).
+    """
+    mallopt = _mallopt()
+    applied: dict[str, int] = {}
+    if mallopt is None:
+        return applied
+    for key, option, value in (
+        ("malloc_arenas", M_ARENA_MAX, arenas),
+        ("malloc_mmap_threshold_kb", M_MMAP_THRESHOLD, mmap_threshold_kb * 1024),
+    ):
+        if value <= 0:
+            continue
+        if mallopt(option, value) == 1:
+            applied[key] = value if option == M_ARENA_MAX else value // 1024
+        else:
+            log.debug("mallopt(%d, %d) refused", option, value)
+    return applied

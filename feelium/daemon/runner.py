@@ -15,7 +15,7 @@ from typing import Any, get_args, get_type_hints
 
 from feelium.config import Config
 from feelium.daemon.discovery import build_all
-from feelium.daemon.memory import limit_malloc_arenas
+from feelium.daemon.memory import tune_malloc
 from feelium.daemon.sdnotify import Notifier
 from feelium.daemon.supervisor import Supervisor
 from feelium.hub import Hub
@@ -128,7 +128,7 @@ def _install_signals(loop: asyncio.AbstractEventLoop, stop: asyncio.Event) -> No
 
 def run_process(config: Config) -> int:
     """The whole process lifetime; exits within ``shutdown_budget_s`` (+ a little) of SIGTERM/SIGINT."""
-    limit_malloc_arenas(config.daemon.malloc_arenas)  # before any worker thread exists
+    tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)  # before any worker thread exists
     loop = asyncio.new_event_loop()
     executor = ThreadPoolExecutor(max_workers=WORKER_THREADS, thread_name_prefix="feelium-worker")
     loop.set_default_executor(executor)

@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import logging
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,7 @@ from feelium.cameras.base import Frame
 from feelium.cameras.reader import FrameSlot, RateMeter, Worker, close_camera, pump
 from feelium.cameras.select import CameraSource, rear_camera_source
 from feelium.config import Config
+from feelium.events import TouchEvent
 from feelium.hub import Hub
 from feelium.service import Service
 from feelium.touch.config import TouchConfig
@@ -43,6 +45,62 @@ def _default_overlay(frame: np.ndarray, result: Any, roi: tuple[int, int, int, i
     from feelium.touch.overlay import draw_overlay
 
     return draw_overlay(frame, result, roi)
+
+
+class ProjectorAnnotation:
+    """Adds projector coordinates (``px``, ``py``) and the envelope region to touch events.
+
+    Done here, once, so every consumer (projector, interactions, HTTP clients)
+    sees the same answer. The calibration map is in its own camera pixels;
+    events in frames of another size are scaled onto it (the events' own
+    ``x``/``y`` stay in camera pixels).
+    """
+
+    def __init__(self, calibration: Any, regions: Any) -> None:
+        from feelium.interactions.annotate import annotate
+
+        self.calibration = calibration
+        self.regions = regions
+        self._annotate = annotate
+        self.errors = 0
+        self.last_error: str | None = None
+
+    def __call__(self, event: TouchEvent, frame_size: tuple[int, int]) -> TouchEvent:
+        cw, ch = self.calibration.camera_size
+        fw, fh = frame_size
+        scaled = event if (cw, ch) == (fw, fh) else dataclasses.replace(event, x=event.x * cw / fw, y=event.y * ch / fh)
+        try:
+            extra = self._annotate(scaled, self.calibration, self.regions).extra
+        except Exception as exc:  # an odd event must not stop touches reaching the bus: publish it unannotated
+            self.errors += 1
+            self.last_error = f"{type(exc).__name__}: {exc}"
+            return event
+        return dataclasses.replace(event, extra=extra)
+
+
+def load_projector_annotation(config: Config, path: Path | None = None) -> ProjectorAnnotation | None:
+    """The annotation when a projector calibration file exists (``[projector.calibration] file``), else ``None``.
+
+    Without ``feelium calibrate projector`` having run there is nothing to
+    map through, and events pass unchanged. A file that exists but cannot be
+    used is logged and ignored: touch sensing must not depend on it.
+    """
+    from feelium.projector.service import calibration_path
+
+    path = path if path is not None else calibration_path(config)
+    if not path.exists():
+        log.info("touch: no projector calibration at %s; touch events carry camera coordinates only", path)
+        return None
+    try:
+        from feelium.interactions.regions import Regions
+        from feelium.projector.calibration import load_calibration
+
+        annotation = ProjectorAnnotation(load_calibration(path), Regions.from_config(config.interactions))
+    except Exception as exc:
+        log.error("touch: projector calibration %s unusable (%s); touch events are not annotated", path, exc)
+        return None
+    log.info("touch: annotating touch events with projector coordinates from %s", path)
+    return annotation
 
 
 def _contact_state(contact: Any) -> dict[str, Any]:
@@ -82,6 +140,7 @@ class TouchService:
         debug_video_fps: float = 5.0,
         pipeline_factory: PipelineFactory = _default_pipeline,
         overlay: Overlay = _default_overlay,
+        annotation: ProjectorAnnotation | None = None,
     ) -> None:
         self.source = source
         self.hub = hub
@@ -89,6 +148,8 @@ class TouchService:
         self.debug_period = 1.0 / debug_video_fps if debug_video_fps > 0 else None
         self.pipeline_factory = pipeline_factory
         self.overlay = overlay
+        self.annotation = annotation
+        self._frame_size: tuple[int, int] | None = None
         self.frames = 0
         self.events = 0
         self.bad_frames = 0
@@ -177,6 +238,7 @@ class TouchService:
             self._flush()
             self._pipeline = self.pipeline_factory(self.touch_config, size, frame.roi)
             self._pipeline_key = key
+            self._frame_size = size
             self._last_debug = None
         return self._pipeline
 
@@ -186,14 +248,12 @@ class TouchService:
         if finish is None:
             return
         for event in finish():
-            self.hub.bus.publish(event)
-            self.events += 1
+            self._publish_event(event)
 
     def _publish(self, frame: Frame, result: Any, debug: np.ndarray | None) -> None:
         now = self.hub.clock()
         for event in result.events:
-            self.hub.bus.publish(event)
-            self.events += 1
+            self._publish_event(event)
         self.frames += 1
         self.last_frame_at = now
         self._rate.tick(now)
@@ -209,6 +269,12 @@ class TouchService:
             contacts=[_contact_state(c) for c in result.contacts],
             backend=self.source.backend,
         )
+
+    def _publish_event(self, event: TouchEvent) -> None:
+        if self.annotation is not None and self._frame_size is not None:
+            event = self.annotation(event, self._frame_size)
+        self.hub.bus.publish(event)
+        self.events += 1
 
     def _reject(self, reason: str) -> None:
         self.bad_frames += 1
@@ -236,6 +302,9 @@ class TouchService:
             "last_overlay_error": self.last_overlay_error,
             "ms_per_frame": round(1000.0 * self.cpu_s / self.frames, 2) if self.frames else None,
             "last_frame_at": self.last_frame_at,
+            "projector_annotation": None
+            if self.annotation is None
+            else {"errors": self.annotation.errors, "last_error": self.annotation.last_error},
         }
 
 
@@ -250,5 +319,6 @@ def build_services(config: Config, hub: Hub) -> list[Service]:
             hub,
             config.touch,
             debug_video_fps=config.rear_camera.debug_video_fps,
+            annotation=load_projector_annotation(config),
         )
     ]

@@ -49,3 +49,24 @@ class StubbornService(TickingService):
     async def stop(self) -> None:
         self.log.append(self.name)
         await asyncio.sleep(3600)
+
+
+class FrameClockService(TickingService):
+    """A critical (camera-pipeline-like) service whose frames stop while ``frozen`` is set."""
+
+    critical = True
+
+    def __init__(self, clock: Any, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.clock = clock
+        self.frozen = False
+        self.last_frame_at: float | None = None
+
+    async def run(self) -> None:
+        while not self._stopping.is_set():
+            if not self.frozen:
+                self.last_frame_at = self.clock()
+            await asyncio.sleep(0.005)
+
+    def health(self) -> dict[str, Any]:
+        return {"last_frame_at": self.last_frame_at}

@@ -1,4 +1,4 @@
-"""The daemon benchmark's numbers are produced and consistent; the malloc arena cap applies on glibc."""
+"""The daemon benchmark's numbers are produced and consistent; malloc tuning applies on glibc."""
 
 from __future__ import annotations
 
@@ -7,22 +7,39 @@ import platform
 import pytest
 
 from feelium.config import Config
-from feelium.daemon.bench import bench_daemon, format_table
-from feelium.daemon.memory import limit_malloc_arenas
+from feelium.daemon.bench import bench_daemon, cpu_by_group, format_table, thread_group
+from feelium.daemon.memory import tune_malloc
 
 
-def test_arena_cap_is_a_no_op_at_zero_and_applies_on_glibc():
-    assert limit_malloc_arenas(0) is False
+def test_malloc_tuning_is_a_no_op_at_zero_and_applies_on_glibc():
+    assert tune_malloc(0, 0) == {}
     if platform.libc_ver()[0] == "glibc":
-        assert limit_malloc_arenas(2) is True
+        assert tune_malloc(2, 128) == {"malloc_arenas": 2, "malloc_mmap_threshold_kb": 128}
+
+
+def test_thread_cpu_is_summed_per_service_group_and_counts_threads_born_meanwhile():
+    names = {1: "MainThread", 2: "rear-camera_0", 3: "touch-pipeline_0", 4: "asyncio_0", 5: ""}
+    before = {1: 1.0, 2: 0.5, 3: 2.0}
+    after = {1: 1.5, 2: 0.75, 3: 3.0, 4: 0.25, 5: 0.1}
+    groups = cpu_by_group(before, after, names)
+    assert groups[thread_group("rear-camera_0")] == pytest.approx(1.25)
+    assert groups[thread_group("MainThread")] == pytest.approx(0.5)
+    assert groups[thread_group("asyncio_0")] == pytest.approx(0.25)
+    assert groups[thread_group("")] == pytest.approx(0.1)
 
 
 @pytest.mark.slow
 def test_bench_daemon_measures_memory_cpu_and_frames():
     result = bench_daemon(Config(), 2.0)
     assert result["rear_frames"] > 5
-    assert 0 < result["rss_mb_median"] <= result["rss_mb_max"]
+    assert 0 < result["rss_mb_steady"] <= result["rss_mb_peak"]
+    assert result["rss_anon_mb_steady"] + result["rss_file_mb_steady"] == pytest.approx(result["rss_mb_steady"], abs=2)
     assert result["process_cpu_ms_per_rear_frame"] > result["baseline"]["pipeline_ms_median"] > 0
-    assert result["dropped_rear_frames"] >= 0 and result["services"]["touch"] == "running"  # measured while running
+    touch = result["services"]["touch"]
+    assert touch["state"] == "running" and touch["unit"] == "frames" and touch["count"] > 5  # measured while running
+    assert touch["drops"] == result["dropped_rear_frames"] >= 0
+    groups = result["cpu_ms_per_rear_frame_by_thread_group"]
+    assert groups[thread_group("touch-pipeline_0")] > 0
+    assert sum(groups.values()) <= result["process_cpu_ms_per_rear_frame"] * 1.2 + 1
     table = format_table(result)
-    assert "resident memory" in table and "pipeline alone" in table
+    assert "resident memory" in table and "pipeline alone" in table and "touch" in table

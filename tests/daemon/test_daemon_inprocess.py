@@ -18,7 +18,7 @@ from feelium.daemon.sdnotify import Notifier
 from feelium.events import TouchEvent
 from feelium.hub import Hub
 
-from .fakes import CrashingService
+from .fakes import CrashingService, FrameClockService
 from .synthetic import PRESS_OFF, PRESS_ON, PRESS_XY, write_press_recording
 
 REAR_ONLY = ["feelium.touch.service"]
@@ -130,6 +130,56 @@ async def test_ready_status_and_watchdog_reach_systemd_while_frames_flow(tmp_pat
     await _run_until(_replay_config(recording, realtime=True, loop=True), condition, notifier=notifier)
     listener.close()
     assert messages[0].startswith(b"READY=1\nSTATUS=starting: touch")
+
+
+async def test_the_watchdog_is_fed_only_while_the_camera_pipeline_delivers_frames(monkeypatch, caplog):
+    """A stalled pipeline stops the WATCHDOG=1 pings (systemd then restarts us); fresh frames resume them."""
+    base = Config()
+    config = dataclasses.replace(
+        base,
+        rear_camera=dataclasses.replace(base.rear_camera, stale_after_s=0.15),
+        daemon=dataclasses.replace(base.daemon, status_interval_s=60.0),
+    )
+    hub = Hub()
+    camera = FrameClockService(hub.clock, name="camera")
+    module = types.ModuleType("feelium_test_camera")
+    module.build_services = lambda config, hub: [camera]
+    monkeypatch.setitem(sys.modules, "feelium_test_camera", module)
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    listener.bind("\0feelium-test-watchdog-%d" % id(camera))
+    listener.setblocking(False)
+    notifier = Notifier({"NOTIFY_SOCKET": "@" + listener.getsockname()[1:].decode(), "WATCHDOG_USEC": "100000"})
+    pings: list[tuple[str, float]] = []  # (phase, time) of each WATCHDOG=1
+    phase = {"name": "alive", "since": time.monotonic()}
+
+    def drain():
+        while True:
+            try:
+                message = listener.recv(4096)
+            except BlockingIOError:
+                return
+            if b"WATCHDOG=1" in message:
+                pings.append((phase["name"], time.monotonic()))
+
+    def condition(hub, supervisor):
+        drain()
+        elapsed = time.monotonic() - phase["since"]
+        if phase["name"] == "alive" and len(pings) >= 3:
+            camera.frozen = True
+            phase.update(name="frozen", since=time.monotonic(), frozen_at=time.monotonic())
+        elif phase["name"] == "frozen" and elapsed > 0.6:
+            camera.frozen = False
+            phase.update(name="resumed", since=time.monotonic())
+        return phase["name"] == "resumed" and any(p == "resumed" for p, _ in pings)
+
+    with caplog.at_level("ERROR", logger="feelium.daemon.runner"):
+        await _run_until(config, condition, hub=hub, modules=["feelium_test_camera"], notifier=notifier, timeout=10)
+    listener.close()
+    frozen = [t for p, t in pings if p == "frozen"]
+    phase_frozen_at = phase["frozen_at"]
+    # at most the pings within stale_after_s (+ one tick) of the freeze; none in the rest of the frozen phase
+    assert len(frozen) <= 4 and all(t - phase_frozen_at < 0.3 for t in frozen)
+    assert "touch pipeline stalled" in caplog.text
 
 
 @pytest.mark.slow

@@ -202,3 +202,80 @@ async def test_a_failing_overlay_costs_only_the_debug_view():
     health = service.health()
     assert health["frames"] == 4 and health["overlay_errors"] >= 1
     assert "no overlay yet" in health["last_overlay_error"] and hub.rear_video.published == 0
+
+
+def _calibration(camera_size=(32, 24), roi=(4, 4, 24, 16), projector_size=(64, 48)):
+    from feelium.projector.calibration import default_calibration
+
+    return default_calibration(camera_size, roi, projector_size)
+
+
+def _config_with_calibration_file(path):
+    import dataclasses
+
+    from feelium.config import Config
+
+    base = Config()
+    calibration = dataclasses.replace(base.projector.calibration, file=str(path))
+    return dataclasses.replace(base, projector=dataclasses.replace(base.projector, calibration=calibration))
+
+
+async def test_with_a_projector_calibration_events_gain_projector_coordinates_and_region():
+    from feelium.interactions.config import InteractionsConfig
+    from feelium.interactions.regions import Regions
+    from feelium.touch.service import ProjectorAnnotation
+
+    calibration = _calibration()  # at twice the frames' resolution: events are scaled onto it
+    annotation = ProjectorAnnotation(calibration, Regions.from_config(InteractionsConfig()))
+    hub = Hub()
+    sub = hub.bus.subscribe([TouchEvent])
+    frames = [_frame(0.1 * i, size=(16, 12), roi=(2, 2, 12, 8)) for i in range(1, 4)]
+    service, _ = _service(frames, hub, annotation=annotation)
+    await service.run()
+    events = sub.drain()
+    assert [e.phase for e in events] == ["down", "up"]
+    px, py = calibration.to_projector(10.0, 12.0)  # the event's (5, 6) in the calibration's camera pixels
+    for event in events:
+        assert (event.x, event.y) == (5.0, 6.0)  # camera coordinates are left as they were
+        assert event.extra["px"] == pytest.approx(px, abs=0.05) and event.extra["py"] == pytest.approx(py, abs=0.05)
+        assert event.extra["region"] == "cheek_left"  # u = 0.25, v = 0.5 on the calibrated patch
+        assert event.to_json()["region"] == "cheek_left"
+    assert service.health()["projector_annotation"] == {"errors": 0, "last_error": None}
+
+
+async def test_without_a_calibration_file_events_pass_unchanged(tmp_path):
+    from feelium.touch.service import load_projector_annotation
+
+    assert load_projector_annotation(_config_with_calibration_file(tmp_path / "none.npz")) is None
+    hub = Hub()
+    sub = hub.bus.subscribe([TouchEvent])
+    service, _ = _service([_frame(0.1 * i) for i in range(1, 4)], hub, annotation=None)
+    await service.run()
+    events = sub.drain()
+    assert len(events) == 2 and all(e.extra == {} for e in events)
+    assert service.health()["projector_annotation"] is None
+
+
+def test_a_saved_calibration_is_loaded_and_an_unusable_one_ignored(tmp_path, caplog):
+    from feelium.touch.service import load_projector_annotation
+
+    path = _calibration().save(tmp_path / "projector_calibration.npz")
+    annotation = load_projector_annotation(_config_with_calibration_file(path))
+    assert annotation is not None and annotation.calibration.camera_size == (32, 24)
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"not a calibration")
+    assert load_projector_annotation(_config_with_calibration_file(broken)) is None
+    assert "unusable" in caplog.text and "broken.npz" in caplog.text
+
+
+def test_an_event_the_annotation_cannot_handle_is_published_unannotated():
+    from feelium.touch.service import ProjectorAnnotation
+
+    class Exploding:
+        def region_at(self, u, v):
+            raise RuntimeError("bad regions")
+
+    annotation = ProjectorAnnotation(_calibration(), Exploding())
+    event = _event(0.1, "down")
+    assert annotation(event, (32, 24)) is event
+    assert annotation.errors == 1 and "bad regions" in annotation.last_error
