@@ -109,9 +109,17 @@ class AlsaMicrophone:
         self._proc = None
 
 
-async def _end(proc: asyncio.subprocess.Process | None) -> None:
+async def _end(proc: asyncio.subprocess.Process | None, grace_s: float = 0.3) -> None:
+    """Stop an ALSA tool: end of input first (``aplay`` plays out what it has), then SIGTERM, then SIGKILL."""
     if proc is None or proc.returncode is not None:
         return
+    if proc.stdin is not None:
+        proc.stdin.close()
+        try:
+            await asyncio.wait_for(proc.wait(), grace_s)
+            return
+        except asyncio.TimeoutError:
+            pass
     proc.terminate()
     try:
         await asyncio.wait_for(proc.wait(), 0.3)

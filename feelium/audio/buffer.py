@@ -33,18 +33,16 @@ class PlaybackBuffer:
         return 1000.0 * self._size / (2 * self.rate)
 
     def push(self, pcm: bytes) -> None:
-        """Queue ``pcm`` (whole samples), dropping the oldest audio beyond ``max_ms``."""
+        """Queue ``pcm`` (whole samples), dropping the oldest audio beyond ``max(max_ms, len(pcm))``."""
         pcm = pcm[: len(pcm) - len(pcm) % 2]
         if not pcm:
             return
-        if len(pcm) > self.max_bytes:
-            self.dropped_bytes += len(pcm) - self.max_bytes
-            pcm = pcm[-self.max_bytes :]
         self._chunks.append(pcm)
         self._size += len(pcm)
         self.queued_bytes += len(pcm)
-        while self._size > self.max_bytes:
-            excess = self._size - self.max_bytes
+        limit = max(self.max_bytes, len(pcm))
+        while self._size > limit:
+            excess = self._size - limit
             head = self._chunks[0]
             if len(head) <= excess:
                 self._chunks.popleft()

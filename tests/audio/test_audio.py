@@ -59,7 +59,7 @@ def test_playback_buffer_is_bounded_and_loses_only_counted_bytes(chunks: list[in
     for i, n in enumerate(chunks):
         buf.push(bytes(n))
         pushed += n - n % 2
-        assert len(buf) <= buf.max_bytes
+        assert len(buf) <= max(buf.max_bytes, n - n % 2)  # the backlog: max_ms, or the one newest chunk
         if i < len(pops):
             popped += len(buf.pop(pops[i]))
     assert pushed == popped + len(buf) + buf.dropped_bytes
@@ -72,6 +72,14 @@ def test_playback_buffer_keeps_the_newest_audio() -> None:
     buf.push(b"ccddee")
     assert buf.pop(100) == b"bbccddee"
     assert buf.dropped_bytes == 2
+
+
+def test_a_chunk_longer_than_the_bound_is_played_whole_and_replaces_the_backlog() -> None:
+    buf = PlaybackBuffer(rate=1000, max_ms=4)  # 8 bytes
+    buf.push(b"aabb")
+    buf.push(b"0123456789")  # longer than the bound: kept whole, the older audio goes
+    assert buf.pop(100) == b"0123456789"
+    assert buf.dropped_bytes == 4
 
 
 class ManualClock:
