@@ -131,7 +131,7 @@ async def put_face(request: web.Request) -> web.Response:
 
 
 async def post_speech(request: web.Request) -> web.Response:
-    """One chunk of the wearer's speech as a PCM16 WAV; played in the room after at most max_playback_ms."""
+    """One chunk of the wearer's speech as a PCM16 WAV, queued for the speaker (backlog bounded by [audio] max_playback_ms)."""
     link = ctx(request)
     if request.content_type not in ("audio/wav", "audio/x-wav", "audio/wave", "application/octet-stream"):
         raise ApiError(415, f"expected audio/wav (PCM16), got {request.content_type}")
