@@ -34,7 +34,8 @@ def _errors(*codes: int) -> dict[str, Any]:
         415: "Wrong Content-Type.",
         429: "Rate limit or stream limit reached; see Retry-After.",
     }
-    return {str(c): _json(_ref("Error"), text[c]) for c in codes}
+    # a browser page from a foreign origin is refused on every endpoint, before the token is looked at
+    return {str(c): _json(_ref("Error"), text[c]) for c in sorted({*codes, 403})}
 
 
 def _query(name: str, schema: dict[str, Any], description: str) -> dict[str, Any]:
@@ -134,7 +135,7 @@ def openapi_document() -> dict[str, Any]:
     paths: dict[str, Any] = {
         "/health": {"get": {
             "operationId": "health", "summary": "Per-service health (no token needed).", "security": [],
-            "responses": {"200": _json(_ref("Health"), "The supervisor's report.")},
+            "responses": {"200": _json(_ref("Health"), "The supervisor's report.")} | _errors(),
         }},
         "/state": {"get": {
             "operationId": "state", "summary": "Live state as the services provide it.",

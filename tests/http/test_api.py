@@ -455,6 +455,8 @@ async def test_openapi_is_public_and_valid(client):
     routes = {r.resource.canonical for r in client.app.router.routes() if r.resource is not None}
     api = {r[len("/api/v1"):] for r in routes if r.startswith("/api/v1/") and r != "/api/v1/openapi.json"}
     assert api == set(doc["paths"]) - {"/actions/guess"}  # documented apart: its body differs from /actions/{action}
+    operations = [op for item in doc["paths"].values() for op in item.values()]
+    assert all("403" in op["responses"] for op in operations)  # a foreign Origin is refused everywhere
 
 
 async def test_static_client_pages_are_served(client):
