@@ -254,13 +254,26 @@ def per_service_memory(seconds: float, config_file: str | None) -> dict[str, Any
     return out
 
 
-def bench_daemon(config: Config, seconds: float, *, per_service_seconds: float = 0.0, config_file: str | None = None) -> dict[str, Any]:
+def _load() -> float | None:
+    return round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None
+
+
+def bench_daemon(
+    config: Config,
+    seconds: float,
+    *,
+    per_service_seconds: float = 0.0,
+    config_file: str | None = None,
+    baseline_frames: int = BASELINE_FRAMES,
+) -> dict[str, Any]:
     """The daemon for ``seconds``, then the baseline; every number in one dict."""
     config = _bench_config(config)
     malloc = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)  # as `feelium run` does
     before = memory_mb()
+    load_before = _load()
     measured = asyncio.run(_measure(config, seconds))
-    base = baseline(config)
+    load_after = _load()
+    base = baseline(config, baseline_frames)
     samples = measured["samples"]
     first, last = samples[0], samples[-1]
     frames = last["frames"] - first["frames"]
@@ -280,6 +293,7 @@ def bench_daemon(config: Config, seconds: float, *, per_service_seconds: float =
     result: dict[str, Any] = {
         "seconds": round(wall, 2),
         "cpus": os.cpu_count(),
+        "load_average_1min_before_after": [load_before, load_after],  # other processes on the machine skew CPU numbers
         "rss_mb_before_start": round(before["rss"], 1),
         "rss_mb_steady": round(statistics.median(rss[len(rss) // 2 :]), 1),
         "rss_mb_peak": round(max(rss), 1),
@@ -332,7 +346,10 @@ def format_table(result: dict[str, Any]) -> str:
         ("ratio: daemon CPU per frame / (render + pipeline)", f"{result['ratio_cpu_per_frame_vs_render_plus_pipeline']}"),
     ]
     width = max(len(r[0]) for r in rows)
-    lines = [f"feelium bench daemon: {result['seconds']} s in sim mode on {result['cpus']} CPUs"]
+    lines = [
+        f"feelium bench daemon: {result['seconds']} s in sim mode on {result['cpus']} CPUs "
+        f"(1 min load average before / after: {result['load_average_1min_before_after']})"
+    ]
     lines += [f"  {name.ljust(width)}  {value}" for name, value in rows]
     lines.append("  CPU ms per rear frame by thread group:")
     for group, ms in result["cpu_ms_per_rear_frame_by_thread_group"].items():

@@ -61,4 +61,5 @@ def build_all(config: Config, hub: Hub, modules: list[str] | None = None) -> Dis
                 break
         else:
             found.services.extend(services)
+            log.debug("%s: %s", module_name, ", ".join(s.name for s in services) or "nothing to run (off in the config)")
     return found

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
+import json
 import logging
 import os
 import signal
@@ -110,8 +111,10 @@ async def run_daemon(
                 log.error("touch pipeline stalled: not feeding the systemd watchdog")
             fed = alive
         if now >= next_status:
-            line = status_line(supervisor.report())
+            report = supervisor.report()
+            line = status_line(report)
             log.info("%s", line)
+            log.debug("health: %s", json.dumps(report, default=str, separators=(",", ":")))
             notifier.status(line)
             next_status = now + config.daemon.status_interval_s
     log.info("shutting down")
@@ -128,7 +131,8 @@ def _install_signals(loop: asyncio.AbstractEventLoop, stop: asyncio.Event) -> No
 
 def run_process(config: Config) -> int:
     """The whole process lifetime; exits within ``shutdown_budget_s`` (+ a little) of SIGTERM/SIGINT."""
-    tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)  # before any worker thread exists
+    applied = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)  # before any thread starts
+    log.debug("malloc tuning: %s", applied or "glibc defaults")
     loop = asyncio.new_event_loop()
     executor = ThreadPoolExecutor(max_workers=WORKER_THREADS, thread_name_prefix="feelium-worker")
     loop.set_default_executor(executor)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import select
 import signal
 import subprocess
@@ -14,8 +15,8 @@ import pytest
 from .synthetic import write_press_recording
 
 
-def _start(args, tmp_path):
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
+def _start(args, tmp_path, extra_env=None):
+    env = dict(os.environ, PYTHONUNBUFFERED="1", **(extra_env or {}))
     env.pop("NOTIFY_SOCKET", None)
     return subprocess.Popen(
         [sys.executable, "-m", "feelium", "run", *args],
@@ -44,8 +45,7 @@ def _wait_for_line(proc, fragment, timeout=30.0):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
-def test_a_signal_stops_the_daemon_within_two_seconds(tmp_path, sig):
+def test_sigint_stops_the_daemon_within_two_seconds(tmp_path):
     recording = write_press_recording(tmp_path / "press", seconds=1.0)
     config = tmp_path / "feelium.toml"
     config.write_text("[http]\nport = 0\n[daemon]\nstatus_interval_s = 0.5\n")
@@ -54,7 +54,7 @@ def test_a_signal_stops_the_daemon_within_two_seconds(tmp_path, sig):
         _wait_for_line(proc, "feelium running")
         _wait_for_line(proc, "touch 1")  # a status line with the touch pipeline at 1x fps: frames flow
         sent = time.monotonic()
-        proc.send_signal(sig)
+        proc.send_signal(signal.SIGINT)
         rest, _ = proc.communicate(timeout=10)
         elapsed = time.monotonic() - sent
     finally:
@@ -66,6 +66,33 @@ def test_a_signal_stops_the_daemon_within_two_seconds(tmp_path, sig):
 
 
 @pytest.mark.slow
+def test_under_systemd_verbose_journald_lines_and_sigterm_within_two_seconds(tmp_path):
+    """`<N>` priority prefixes, no timestamps; `-v` gives debug lines though the config says warning; SIGTERM < 2 s."""
+    recording = write_press_recording(tmp_path / "press", seconds=1.0)
+    config = tmp_path / "feelium.toml"
+    config.write_text('[http]\nport = 0\n[daemon]\nlog_level = "warning"\nstatus_interval_s = 0.5\n')
+    proc = _start(["--config", str(config), "--replay", str(recording), "-v"], tmp_path, {"INVOCATION_ID": "test"})
+    try:
+        seen = _wait_for_line(proc, "<6>feelium.daemon.runner: feelium running: ")
+        seen += _wait_for_line(proc, "touch 1")  # frames flow
+        seen += _wait_for_line(proc, "<7>feelium.daemon.runner: health: ")
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        rest, _ = proc.communicate(timeout=10)
+        elapsed = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, rest
+    assert elapsed < 2.0, f"took {elapsed:.2f} s to stop\n{rest}"
+    lines = [line for line in "".join(seen).splitlines() + rest.splitlines() if line.strip()]
+    assert any(line.startswith("<7>feelium.daemon.discovery: feelium.touch.service: touch") for line in lines)
+    assert any(line.startswith("<6>feelium.daemon.runner: shutting down") for line in lines)
+    assert all(re.match(r"<[0-7]>[\w.]+: ", line) for line in lines), lines  # every line is a journald line
+    assert not any(re.search(r"\d\d:\d\d:\d\d", line[:20]) for line in lines)  # journald adds the time
+
+
+@pytest.mark.slow
 def test_a_config_error_names_the_key_and_exits_1(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('[rear_camera]\nbackend = "webcam"\n')
@@ -74,3 +101,4 @@ def test_a_config_error_names_the_key_and_exits_1(tmp_path):
     )
     assert proc.returncode == 1
     assert "rear_camera.backend" in proc.stderr and "bad.toml" in proc.stderr
+
