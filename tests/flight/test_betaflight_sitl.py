@@ -17,7 +17,7 @@ from feelium.flight.client import MspClient, MspErrorReply
 from feelium.flight.msp import MspParser, encode_v1, encode_v2
 from feelium.flight.transport import open_serial
 
-from .sitl import MSP_PORT, SitlProcess, find_or_build_binary, port_in_use, unavailable
+from .sitl import MSP_PORT, SitlProcess, find_or_build_binary, port_in_use, start_sitl, unavailable
 
 pytestmark = pytest.mark.slow
 HEADING_DEG = 90.0
@@ -25,10 +25,10 @@ HEADING_DEG = 90.0
 
 @pytest.fixture(scope="module")
 def sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SitlProcess]:
-    binary = find_or_build_binary()
+    binary = find_or_build_binary(tmp_path_factory.mktemp("betaflight-build"))
     if port_in_use(MSP_PORT):
         unavailable("TCP port 5761 is already in use (another Betaflight SITL running?)")
-    process = SitlProcess(binary, Path(tmp_path_factory.mktemp("betaflight-sitl")), heading_deg=HEADING_DEG)
+    process = start_sitl(binary, Path(tmp_path_factory.mktemp("betaflight-sitl")), heading_deg=HEADING_DEG)
     yield process
     process.stop()
 

@@ -144,3 +144,32 @@ def test_low_battery_is_reported() -> None:
     flight = SimFlight(CONFIG, params)
     flight.run(30.0)
     assert flight.last is not None and flight.last.battery in ("low", "critical")
+
+
+def test_stale_telemetry_holds_the_last_output_briefly_then_fails_safe_upward() -> None:
+    """The port stays open and motor commands still reach the board, but no telemetry arrives."""
+    flight = sc.new_flight(CONFIG, drafts=False)
+    flight.run(5.0)
+    assert flight.last is not None
+    hover = flight.last.commands[2]
+
+    def blind_step() -> str:
+        flight.clock.t = round(flight.clock.t + flight.period, 9)
+        flight.board.advance_to(flight.clock.t)
+        out = flight.controller.step(flight.clock.t, None, HOLD)
+        flight.client.send_motors(out.motors_us)
+        flight.last = out
+        return out.mode
+
+    held = [blind_step() for _ in range(int(0.25 * CONFIG.rate_hz))]
+    assert set(held) == {"range_hold"}
+    assert flight.last.commands[2] == pytest.approx(hover, abs=0.02)  # the last safe output, held
+    failsafe = [blind_step() for _ in range(int(2.0 * CONFIG.rate_hz))]
+    assert failsafe[-1] == "telemetry_failsafe"
+    assert flight.last.commands[2] < hover - 0.005  # less down-thrust (90 % of the buoyancy cancelled): it rises...
+    assert 0.0 < flight.board.state.w < 0.6  # ...slowly, never down onto people
+    flight.run(6.0)  # telemetry is back
+    assert flight.last.mode == "flying"
+    z = flight.board.state.z
+    flight.run(3.0)
+    assert abs(flight.board.state.z - z) < 0.03  # and it holds where it came to rest

@@ -1,0 +1,148 @@
+"""The flight service in the daemon: state on the hub, dead-man commands, softening, link loss and reconnect, stop.
+
+These run the real asyncio shell on the wall clock against the emulated board (a
+second or two each); conditions are awaited with a generous deadline, nothing is timed.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+from dataclasses import replace
+
+import pytest
+
+from feelium.config import Config
+from feelium.events import InteractionEvent, TouchEvent
+from feelium.flight.config import FlightSimConfig
+from feelium.flight.emulated_board import EmulatedSerial
+from feelium.flight.service import FlightService, SerialOpener, SimOpener, build_services
+from feelium.hub import Hub
+
+pytestmark = pytest.mark.slow
+CONFIG = replace(Config().flight, reconnect_min_s=0.05, reconnect_max_s=0.2, sim=FlightSimConfig(drafts=False))
+
+
+class RecordingSimOpener(SimOpener):
+    """The sim backend, remembering the last link it opened so a test can unplug it."""
+
+    def __init__(self, *args: object) -> None:
+        super().__init__(*args)  # type: ignore[arg-type]
+        self.links: list[EmulatedSerial] = []
+
+    def open(self) -> EmulatedSerial:
+        link = super().open()
+        assert isinstance(link, EmulatedSerial)
+        self.links.append(link)
+        return link
+
+
+async def wait_for(condition: Callable[[], bool], timeout_s: float = 5.0) -> None:
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout_s
+    while not condition():
+        if loop.time() > deadline:
+            raise AssertionError("condition not reached")
+        await asyncio.sleep(0.02)
+
+
+async def started(config=CONFIG) -> tuple[Hub, FlightService, RecordingSimOpener, asyncio.Task]:
+    hub = Hub()
+    opener = RecordingSimOpener(config, 1, hub.clock)
+    service = FlightService(config, hub, opener)
+    task = asyncio.create_task(service.run())
+    await wait_for(lambda: service.cycles > 10)
+    return hub, service, opener, task
+
+
+async def stopped(service: FlightService, task: asyncio.Task) -> None:
+    await service.stop()
+    await asyncio.wait_for(task, 2.0)
+
+
+async def test_publishes_altitude_heading_battery_and_link_state() -> None:
+    hub, service, opener, task = await started()
+    try:
+        await wait_for(lambda: hub.state.snapshot().get("flight", {}).get("mode") == "flying")
+        state = hub.state.snapshot()["flight"]
+        assert state["link"] == "up"
+        assert state["altitude_m"] == pytest.approx(1.2, abs=0.1)
+        assert state["heading_deg"] is not None
+        await wait_for(lambda: hub.state.snapshot()["flight"]["battery"] == "ok")
+        assert len(state["motors_us"]) == 4
+        health = service.health()
+        assert health["link"] == "up" and health["msp"]["timeouts"] == 0
+    finally:
+        await stopped(service, task)
+
+
+async def test_a_refreshed_dead_man_command_moves_it_and_a_lapsed_one_stops_it() -> None:
+    hub, service, opener, task = await started()
+    board = opener.board
+    try:
+        for _ in range(15):  # the headset refreshes "up" every 0.1 s for 1.5 s
+            hub.motion.command("up", hub.clock(), hold_s=0.3)
+            await asyncio.sleep(0.1)
+        assert board.state.w > 0.1
+        await wait_for(lambda: hub.motion.active(hub.clock()) is None)
+        await wait_for(lambda: abs(board.state.w) < 0.03, timeout_s=3.0)
+    finally:
+        await stopped(service, task)
+
+
+async def test_a_firm_touch_softens_and_its_release_ends_it() -> None:
+    hub, service, opener, task = await started()
+    try:
+        await wait_for(lambda: service.last is not None and service.last.mode == "flying")
+        now = hub.clock()
+        hub.bus.publish(TouchEvent(1, "down", "hold", now, 100.0, 100.0, 0.5, 0.5, 0.8, 400, 0.5))
+        await wait_for(lambda: service.last is not None and service.last.mode == "soft")
+        hub.bus.publish(TouchEvent(1, "up", "hold", hub.clock(), 100.0, 100.0, 0.5, 0.5, 0.0, 0, 0.5))
+        await wait_for(lambda: service.last is not None and service.last.mode == "flying", timeout_s=3.0)
+        hub.bus.publish(InteractionEvent("hug", "start", hub.clock()))
+        await wait_for(lambda: service.last is not None and service.last.mode == "soft")
+    finally:
+        await stopped(service, task)
+
+
+async def test_link_loss_is_reported_and_the_link_reopens() -> None:
+    hub, service, opener, task = await started()
+    try:
+        opener.links[-1].connected = False  # the USB adapter is pulled
+        await wait_for(lambda: service.link_losses == 1)
+        assert service.link_state in ("down", "connecting", "up")
+        await wait_for(lambda: service.reconnects >= 1 and service.link_state == "up")
+        await wait_for(lambda: hub.state.snapshot()["flight"]["link"] == "up")
+        assert len(opener.links) >= 2
+    finally:
+        await stopped(service, task)
+
+
+async def test_stop_puts_the_motors_to_neutral_at_once() -> None:
+    hub, service, opener, task = await started()
+    await wait_for(lambda: opener.board.motors_us != (1500,) * 4)  # vertical motors cancel the buoyancy
+    await service.stop()
+    assert opener.board.motors_us == (1500,) * 4
+    assert opener.links[-1].closed
+    await asyncio.wait_for(task, 2.0)
+
+
+async def test_a_missing_serial_port_is_retried_without_crashing() -> None:
+    hub = Hub()
+    config = replace(CONFIG, backend="serial", port="/dev/does-not-exist-feelium")
+    service = FlightService(config, hub, SerialOpener(config.port, config.baudrate, config.reply_timeout_s))
+    task = asyncio.create_task(service.run())
+    try:
+        await wait_for(lambda: service.open_failures >= 2)
+        assert service.link_state == "down"
+        assert "does-not-exist" in (service.health()["last_error"] or "")
+        assert service.last is not None and service.last.mode == "waiting"
+    finally:
+        await stopped(service, task)
+
+
+def test_build_services_follows_the_backend_setting() -> None:
+    config = Config()
+    assert build_services(replace(config, flight=replace(config.flight, backend="off")), Hub()) == []
+    (service,) = build_services(replace(config, flight=replace(config.flight, backend="sim")), Hub())
+    assert service.name == "flight" and service.stop_order == 0
