@@ -24,6 +24,17 @@ def register(registry: CommandRegistry) -> None:
     bench.add_argument("--config", help="TOML config file")
     bench.add_argument("--frames", type=int, default=90, help="frames per measurement")
     bench.add_argument("--json", help="also write the report to this JSON file")
+    face = registry.subcommand(
+        "bench", "projector-facevideo",
+        "Does a moving projected face fool the touch sensor? Touch pipeline on simulated trials: flat projection, "
+        "face video, face video with back-light prediction.",
+        _bench_facevideo,
+    )
+    face.add_argument("--config", help="TOML config file (its [projector] and [touch] sections are used)")
+    face.add_argument("--scale", type=float, default=0.1, help="share of the protocol's 228 trials (0 < scale <= 1)")
+    face.add_argument("--seed", type=int, default=1, help="simulator seed")
+    face.add_argument("--jobs", type=int, default=1, help="worker processes")
+    face.add_argument("--json", help="also write the report to this JSON file")
 
 
 def _calibrate(args: argparse.Namespace) -> int:
@@ -151,3 +162,28 @@ def _bench(args: argparse.Namespace) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
     return 0
+
+
+def _bench_facevideo(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from feelium.config import load_config
+    from feelium.projector.facevideo import format_table, run_experiment
+
+    if not 0.0 < args.scale <= 1.0:
+        print(f"feelium: --scale must be in (0, 1], got {args.scale}", file=sys.stderr)
+        return 2
+    config = load_config(args.config)
+
+    def progress(n: int, total: int, name: str) -> None:
+        print(f"\r{n}/{total} {name:<40}", end="", file=sys.stderr, flush=True)
+
+    report = run_experiment(
+        scale=args.scale, seed=args.seed, projector=config.projector, touch=config.touch, jobs=max(1, args.jobs), progress=progress
+    )
+    print(file=sys.stderr)
+    print(format_table(report))
+    if args.json:
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+    verdict = report["verdict"]
+    return 0 if verdict["fp_trials_not_above_flat"] and verdict["recall_within_2_points"] else 1

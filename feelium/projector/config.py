@@ -37,8 +37,9 @@ class CalibrationConfig:
 class ProjectorConfig:
     """Inner projector output and what it renders."""
 
-    backend: Literal["auto", "fbdev", "null"] = setting(
-        "auto", "Display output; auto uses the framebuffer when /dev/fb0 exists and null elsewhere."
+    backend: Literal["auto", "fbdev", "window", "null"] = setting(
+        "auto",
+        "Display output; auto uses the framebuffer when /dev/fb0 exists and null elsewhere; window needs a GUI build of OpenCV.",
     )
     width: int = setting(1280, "Projector native width (Ultimems HD309: 1280).", min=16, max=7680)
     height: int = setting(720, "Projector native height (Ultimems HD309: 720).", min=16, max=4320)
@@ -56,6 +57,13 @@ class ProjectorConfig:
         0.85,
         "Grey level (0..1) of the flat projection the touch reference corresponds to; back-light gain 1.0 means this.",
         min=0.05,
+        max=1.0,
+    )
+    sensing_floor: float = setting(
+        0.45,
+        "Darkest grey (0..1) projected on the sensitive patch: the projector is the touch sensor's back-light, "
+        "and a skin projected near black is blind (the camera sees too little light to find a shadow).",
+        min=0.0,
         max=1.0,
     )
     diffusion_px: float = setting(

@@ -4,7 +4,10 @@ The blimp has no desktop: the projector is an HDMI display, so its frames are
 written straight into ``/dev/fb0`` in the framebuffer's own pixel format,
 which the kernel describes in sysfs (``virtual_size``, ``bits_per_pixel``,
 ``stride``). The null backend keeps the newest frame, which is also what the
-HTTP preview stream shows.
+HTTP preview stream shows. A development window (OpenCV's ``imshow``) exists
+only where OpenCV was built with a GUI: the headless wheel the project
+depends on has none, so there the window backend refuses to start with a
+clear message.
 """
 
 from __future__ import annotations
@@ -120,8 +123,42 @@ class FbdevDisplay:
             self._fd = -1
 
 
+class WindowDisplay:
+    """A desktop window for development (OpenCV highgui), scaled down to fit a laptop screen."""
+
+    name = "window"
+
+    def __init__(self, title: str = "feelium projector", max_width: int = 960) -> None:
+        self.title = title
+        self.max_width = max_width
+        try:
+            cv2.namedWindow(title, cv2.WINDOW_AUTOSIZE)
+        except cv2.error as exc:
+            raise DisplayUnavailable(
+                "this OpenCV has no GUI (opencv-python-headless); use the null backend and watch "
+                "/video/projector.mjpeg, or install a GUI build of OpenCV for a window"
+            ) from exc
+        self.frames = 0
+
+    def show(self, frame: np.ndarray) -> None:
+        h, w = frame.shape[:2]
+        if w > self.max_width:
+            frame = cv2.resize(frame, (self.max_width, int(h * self.max_width / w)), interpolation=cv2.INTER_AREA)
+        cv2.imshow(self.title, frame)
+        cv2.waitKey(1)  # lets highgui paint; the daemon never reads keys
+        self.frames += 1
+
+    def close(self) -> None:
+        try:
+            cv2.destroyWindow(self.title)
+        except cv2.error:
+            pass
+
+
 def open_display(backend: str, device: str) -> Display:
     """The configured backend; ``auto`` is the framebuffer when ``device`` exists, else null."""
     if backend == "null" or (backend == "auto" and not Path(device).exists()):
         return NullDisplay()
+    if backend == "window":
+        return WindowDisplay()
     return FbdevDisplay(device)

@@ -58,6 +58,8 @@ class Renderer:
         self.avatar = Avatar(cw, ch)
         self.skipped: dict[str, int] = {}
         self._face_size: tuple[int, int] | None = None
+        floor = 255.0 * config.sensing_floor
+        self._floor_lut = np.clip(np.round(floor + np.arange(256) * (1.0 - config.sensing_floor)), 0, 255).astype(np.uint8)
 
     def fit_face(self, face: np.ndarray) -> np.ndarray:
         """The wearer's face image scaled to cover the canvas (centre crop), BGR uint8."""
@@ -86,6 +88,8 @@ class Renderer:
                 self.skipped[answer.kind] = self.skipped.get(answer.kind, 0) + 1
                 continue
             drawer(img, answer, now)
+        if self.config.sensing_floor > 0:
+            cv2.LUT(img, self._floor_lut, dst=img)  # keep the skin lit enough to sense touch
         return img
 
     def warp(self, canvas: np.ndarray) -> np.ndarray:

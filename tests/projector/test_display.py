@@ -3,6 +3,8 @@
 import numpy as np
 import pytest
 
+import cv2
+
 from feelium.projector.display import DisplayUnavailable, FbdevDisplay, NullDisplay, open_display, to_bgr565, to_xrgb8888
 
 
@@ -61,3 +63,15 @@ def test_auto_falls_back_to_null_without_a_framebuffer(tmp_path):
     assert isinstance(display, NullDisplay)
     display.show(np.zeros((2, 2, 3), np.uint8))
     assert display.frames == 1 and display.last is not None
+
+
+def _opencv_has_gui() -> bool:
+    info = cv2.getBuildInformation()
+    gui = next((line for line in info.splitlines() if line.strip().startswith("GUI:")), "GUI: NONE")
+    return "NONE" not in gui
+
+
+@pytest.mark.skipif(_opencv_has_gui(), reason="this OpenCV has a GUI; the window would open")
+def test_window_backend_explains_a_headless_opencv():
+    with pytest.raises(DisplayUnavailable, match="no GUI"):
+        open_display("window", "/dev/fb0")

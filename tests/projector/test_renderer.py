@@ -70,9 +70,19 @@ def test_face_replaces_the_avatar_and_must_be_canvas_sized(renderer):
     fitted = renderer.fit_face(face)
     assert fitted.shape == (384, 512, 3)
     frame = renderer.render(0.0, fitted, [])
-    assert tuple(frame[360, 640]) == pytest.approx((10, 200, 30), abs=2)
+    floor = 255 * renderer.config.sensing_floor
+    lifted = tuple(floor + c * (1 - renderer.config.sensing_floor) for c in (10, 200, 30))
+    assert tuple(int(c) for c in frame[360, 640]) == pytest.approx(lifted, abs=2)
     with pytest.raises(ValueError, match="fit_face"):
         renderer.canvas(0.0, face, [])
+
+
+def test_sensing_floor_keeps_the_patch_lit_and_zero_turns_it_off():
+    black = np.zeros((384, 512, 3), np.uint8)
+    lit = Renderer(ProjectorConfig(sensing_floor=0.45), truth_calibration()).render(0.0, black, [])
+    off = Renderer(ProjectorConfig(sensing_floor=0.0), truth_calibration()).render(0.0, black, [])
+    assert lit[360, 640].min() == pytest.approx(115, abs=1)  # 0.45 of full scale: the camera still sees the skin
+    assert off[360, 640].max() == 0
 
 
 def test_calibration_for_another_projector_is_refused():
