@@ -18,13 +18,13 @@ CONFIG = Config().flight
 
 
 def test_hold_in_still_air_meets_the_targets() -> None:
-    result = sc.hold(CONFIG, drafts=False, seconds=20.0)
+    result = sc.hold(CONFIG, drafts=False, seconds=15.0)
     assert result.altitude_rms_m <= 0.03
     assert result.heading_rms_deg <= 3.0
 
 
 def test_hold_in_drafts_meets_the_targets() -> None:
-    result = sc.hold(CONFIG, drafts=True, seconds=20.0)
+    result = sc.hold(CONFIG, drafts=True, seconds=15.0)
     assert result.altitude_rms_m <= 0.08
     assert result.heading_rms_deg <= 3.0
 
@@ -32,8 +32,8 @@ def test_hold_in_drafts_meets_the_targets() -> None:
 def test_controller_is_much_quieter_than_an_untuned_pid() -> None:
     from feelium.flight.baseline import BaselinePid
 
-    ours = sc.hold(CONFIG, drafts=True, seconds=10.0)
-    baseline = sc.hold(CONFIG, drafts=True, seconds=10.0, controller=BaselinePid(CONFIG))
+    ours = sc.hold(CONFIG, drafts=True, seconds=6.0)
+    baseline = sc.hold(CONFIG, drafts=True, seconds=6.0, controller=BaselinePid(CONFIG))
     assert ours.roughness * 10 < baseline.roughness
 
 
@@ -50,7 +50,7 @@ def test_heading_step_settles_without_overshoot() -> None:
 
 @pytest.mark.parametrize("name", ["forward", "backward", "up", "down", "turn_left", "turn_right"])
 def test_each_command_moves_the_right_way_and_stops_when_the_dead_man_lapses(name: str) -> None:
-    result = sc.motion(CONFIG, name, hold_s=2.0)
+    result = sc.motion(CONFIG, name, hold_s=1.5)
     # Measured numbers are reported by `feelium bench flight`; here: it moves at once and it stops.
     assert result.latency_s < 0.3
     assert result.stop_s < 1.0
@@ -140,9 +140,11 @@ def test_soft_mode_ignores_wearer_motion() -> None:
 
 
 def test_low_battery_is_reported() -> None:
-    params = board_with(BoardParams(sensors=SensorParams(battery_capacity_mah=5.0)), z=1.2)
+    params = board_with(BoardParams(sensors=SensorParams(battery_capacity_mah=1.5)), z=1.2)
     flight = SimFlight(CONFIG, params)
-    flight.run(30.0)
+    flight.run(3.0)
+    assert flight.last is not None and flight.last.battery == "ok"
+    flight.run(9.0)
     assert flight.last is not None and flight.last.battery in ("low", "critical")
 
 
