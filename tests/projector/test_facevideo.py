@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from feelium.events import TouchEvent
 from feelium.projector.facevideo import false_touches, format_table, run_experiment
 from feelium.recording import Contact, Labels
@@ -21,6 +23,7 @@ def test_false_touches_are_those_outside_the_widened_contacts():
     assert false_touches(TrialData("e", empty, _touch(1, 1.0, 1.1), True, 0.0)) == 1
 
 
+@pytest.mark.slow
 def test_predicted_backlight_keeps_the_pipeline_quiet_under_a_moving_face():
     report = run_experiment(scale=0.01, seed=1, labels=("tap", "empty"))
     c = report["conditions"]
