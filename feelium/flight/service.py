@@ -18,7 +18,7 @@ import asyncio
 import logging
 import os
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from feelium.config import Config
 from feelium.events import InteractionEvent, TouchEvent
@@ -31,6 +31,9 @@ from feelium.flight.soften import SoftenTracker
 from feelium.flight.transport import ByteLink, open_serial
 from feelium.hub import Hub
 from feelium.service import Service
+
+if TYPE_CHECKING:
+    from feelium.flight.emulated_board import EmulatedMotorBoard
 
 log = logging.getLogger(__name__)
 NEUTRAL_US = (MOTOR_NEUTRAL_US,) * 4
@@ -55,26 +58,34 @@ class SerialOpener:
 
 
 class SimOpener:
-    """The emulated board on the hub's clock; one board for the daemon's life, reconnects reuse it."""
+    """The emulated board on the hub's clock; one board for the daemon's life, reconnects reuse it.
+
+    The board is powered up when the link first opens, not when the daemon is assembled: a real
+    blimp is held at its start altitude until its controller runs, and a slow daemon start must
+    not let the simulated one float to the ceiling first.
+    """
 
     def __init__(self, config: FlightConfig, seed: int, clock: Callable[[], float]) -> None:
         from feelium.flight.blimp_model import DraftParams
-        from feelium.flight.emulated_board import BoardParams, EmulatedMotorBoard, SensorParams, board_with
+        from feelium.flight.emulated_board import BoardParams, SensorParams, board_with
 
-        params = board_with(
+        self.params = board_with(
             BoardParams(
                 drafts=DraftParams() if config.sim.drafts else None,
                 sensors=SensorParams(range_dropout_probability=config.sim.rangefinder_dropout),
             ),
             z=config.sim.start_altitude_m,
         )
+        self.seed = seed
         self.clock = clock
-        self.board = EmulatedMotorBoard(params, seed=seed, start_t=clock())
+        self.board: EmulatedMotorBoard | None = None
         self.description = "emulated motor board (blimp simulator)"
 
     def open(self) -> ByteLink:
-        from feelium.flight.emulated_board import EmulatedSerial
+        from feelium.flight.emulated_board import EmulatedMotorBoard, EmulatedSerial
 
+        if self.board is None:
+            self.board = EmulatedMotorBoard(self.params, seed=self.seed, start_t=self.clock())
         return EmulatedSerial(self.board, self.clock)
 
 
