@@ -12,9 +12,12 @@ not cover get 1.0 (no correction).
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 
+from feelium.hub import Latest
 from feelium.projector.calibration import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 
@@ -71,3 +74,30 @@ class BacklightPredictor:
             seen = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px) / self._coverage_blur
         seen[self._uncovered] = 1.0
         return seen
+
+
+class ProjectedBacklight:
+    """The back-light gain of what the projector shows now, for the touch service's ``backlight_gain``.
+
+    Reads the projector service's newest frame from ``hub.projector_video``
+    (newest wins, so at most one projector frame late) and predicts each new
+    frame once; ``None`` until the projector has shown anything (the pipeline
+    then compares against its reference unchanged).
+    """
+
+    def __init__(self, predictor: BacklightPredictor, frames: Latest[Any]) -> None:
+        self.predictor = predictor
+        self._frames = frames
+        self._seq = -1
+        self._gain: np.ndarray | None = None
+        self.predicted = 0
+
+    def gain(self) -> np.ndarray | None:
+        item = self._frames.get()
+        if item is None:
+            return None
+        if item.seq != self._seq:
+            self._seq = item.seq
+            self._gain = self.predictor.gain(item.value)
+            self.predicted += 1
+        return self._gain
