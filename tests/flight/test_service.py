@@ -146,3 +146,14 @@ def test_build_services_follows_the_backend_setting() -> None:
     assert build_services(replace(config, flight=replace(config.flight, backend="off")), Hub()) == []
     (service,) = build_services(replace(config, flight=replace(config.flight, backend="sim")), Hub())
     assert service.name == "flight" and service.stop_order == 0
+
+
+def test_the_simulated_board_powers_up_when_the_link_opens_not_before() -> None:
+    now = [100.0]
+    opener = SimOpener(CONFIG, 1, lambda: now[0])
+    now[0] += 30.0  # a slow daemon start: the blimp is still held at its start altitude
+    link = opener.open()
+    assert opener.board is not None and opener.board.t == 130.0
+    now[0] += 0.1
+    link.write(b"")  # any traffic advances the physics to the clock
+    assert opener.board.state.z == pytest.approx(CONFIG.sim.start_altitude_m, abs=0.01)
