@@ -301,6 +301,7 @@ def bench_daemon(
         "rss_anon_mb_steady": round(statistics.median(s["memory"]["anon"] for s in steady), 1),
         "rss_file_mb_steady": round(statistics.median(s["memory"]["file"] for s in steady), 1),
         "rss_goal_mb": RSS_GOAL_MB,
+        "rss_mb_each_second": [round(value, 1) for value in rss],
         "malloc": malloc or "glibc defaults",
         "rear_frames": int(frames),
         "rear_fps": round(frames / wall, 2) if wall > 0 else 0.0,
