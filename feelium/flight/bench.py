@@ -115,7 +115,7 @@ def _plots(
             title="30 cm climb (still air, true altitude)",
             xlabel="time since step (s)",
             ylabel="altitude (cm)",
-            hlines=((climb.target * 100, "target"), (climb.target * 100 + 3, "+10 %"), (climb.target * 100 - 1.5, "-5 % (settled above)")),
+            hlines=((climb.target * 100, "target"), (climb.target * 100 + 3, "+10 %"), (climb.target * 100 - 1.5, "-5 %")),
         ),
         line_plot(
             out_dir / "flight-heading-step.png",
