@@ -229,32 +229,51 @@ async def bench_events(server: ServerThread, n: int, gap: float = 0.02) -> dict[
     return results
 
 
-async def _mjpeg_reader(api: str, seconds: float) -> list[float]:
-    """Arrival times of the frames one client reads in ``seconds`` (parsing the multipart stream)."""
-    arrivals: list[float] = []
-    async with aiohttp.ClientSession(headers=AUTH) as session:
+def _small_receive_buffer(addr_info: Any) -> socket.socket:
+    """A client socket with a receive buffer like a phone's on Wi-Fi, not the megabytes Linux gives loopback."""
+    family, type_, proto, _, _ = addr_info
+    sock = socket.socket(family, type_, proto)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, READER_RCVBUF_BYTES)
+    return sock
+
+
+async def _mjpeg_reader(api: str, seconds: float, pause_s: float = 0.0) -> list[tuple[float, float]]:
+    """(arrival time, capture time) of each frame one client reads in ``seconds``, pausing ``pause_s`` after each."""
+    frames: list[tuple[float, float]] = []
+    connector = aiohttp.TCPConnector(socket_factory=_small_receive_buffer)
+    async with aiohttp.ClientSession(headers=AUTH, connector=connector) as session:
         async with session.get(api + "/video/front.mjpeg") as resp:
             t0 = time.perf_counter()
             while time.perf_counter() - t0 < seconds:
                 line = await resp.content.readline()
                 if line == f"--{BOUNDARY}\r\n".encode():
-                    length = 0
+                    length, stamp = 0, float("nan")
                     while (h := await resp.content.readline()) != b"\r\n":
-                        if h.lower().startswith(b"content-length:"):
-                            length = int(h.split(b":")[1])
+                        name, _, value = h.partition(b":")
+                        if name.lower() == b"content-length":
+                            length = int(value)
+                        elif name.lower() == b"x-timestamp":
+                            stamp = float(value)
                     await resp.content.readexactly(length + 2)
-                    arrivals.append(time.perf_counter())
-    return arrivals
+                    frames.append((time.perf_counter(), stamp))
+                    if pause_s:
+                        await asyncio.sleep(pause_s)
+    return frames
 
 
-def _reader_stats(arrivals: list[float]) -> dict[str, float]:
-    """Frames per second over the reading, and the median/p95 gap between frames."""
-    gaps = summary(list(np.diff(arrivals))) if len(arrivals) > 2 else {"median_ms": float("nan"), "p95_ms": float("nan")}
+def _reader_stats(frames: list[tuple[float, float]]) -> dict[str, float]:
+    """Frames per second over the reading, the median/p95 gap between frames and the frames' age on arrival."""
+    arrivals = [a for a, _ in frames]
+    nan = {"median_ms": float("nan"), "p95_ms": float("nan")}
+    gaps = summary(list(np.diff(arrivals))) if len(arrivals) > 2 else nan
+    ages = summary([a - t for a, t in frames]) if frames else nan
     span = arrivals[-1] - arrivals[0] if len(arrivals) > 1 else float("nan")
     return {
         "fps": round((len(arrivals) - 1) / span, 2) if len(arrivals) > 1 else 0.0,
         "gap_median_ms": gaps["median_ms"],
         "gap_p95_ms": gaps["p95_ms"],
+        "age_median_ms": ages["median_ms"],
+        "age_p95_ms": ages["p95_ms"],
     }
 
 
@@ -265,6 +284,10 @@ def _phase(readers: list[list[float]]) -> dict[str, Any]:
         "fps_median": round(float(np.median([s["fps"] for s in stats])), 2),
         "gap_p95_ms_worst": max(s["gap_p95_ms"] for s in stats),
     }
+
+
+SLOW_READER_PAUSE_S = 0.1  # a headset that decodes at most ~10 frames/s
+READER_RCVBUF_BYTES = 64 * 1024
 
 
 def synthetic_frame(k: int, base: np.ndarray) -> np.ndarray:
@@ -313,6 +336,7 @@ async def bench_mjpeg(server: ServerThread, seconds: float, fps: float) -> dict[
     watcher = asyncio.create_task(watch_drop())
     with_stalled = _phase(list(await asyncio.gather(*(_mjpeg_reader(server.api, seconds) for _ in range(3)))))
     await watcher
+    slow = _reader_stats(await _mjpeg_reader(server.api, seconds, pause_s=SLOW_READER_PAUSE_S))
     stop.set()
     published = await pub
     stalled.close()
@@ -324,6 +348,7 @@ async def bench_mjpeg(server: ServerThread, seconds: float, fps: float) -> dict[
         "baseline_3_readers": baseline,
         "3_readers_plus_1_stalled": with_stalled,
         "ratio_fps_with_stalled_vs_baseline": round(with_stalled["fps_median"] / max(baseline["fps_median"], 1e-9), 3),
+        "slow_reader": {"pause_per_frame_ms": 1000 * SLOW_READER_PAUSE_S, **slow},
         "stalled_dropped": bool(drop_seen),
         "stalled_dropped_after_s": round(drop_seen[0], 3) if drop_seen else None,
     }

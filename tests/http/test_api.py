@@ -330,19 +330,20 @@ async def test_face_avatar_loops_frames(client, hub):
     import aiohttp
 
     frames = [jpeg_bytes(v) for v in (10, 100, 200)]
+    shown: list[int] = []  # every frame handed to the projector, in order (a reader of the slot may skip some)
+    publish = hub.face.publish
+    hub.face.publish = lambda t, value: (shown.append(frames.index(value)), publish(t, value))[1]
     form = aiohttp.FormData()
     for i, f in enumerate(frames):
         form.add_field("frame", f, filename=f"{i}.jpg", content_type="image/jpeg")
     resp = await client.put("/api/v1/face?fps=50", data=form, headers=AUTH)
     assert resp.status == 200, await resp.text()
     assert (await resp.json())["frames"] == 3
-    seen = []
-    seq = 0
-    while len(seen) < 4:
-        item = await asyncio.wait_for(hub.face.next_after(seq, 2), 3)
-        seq = item.seq
-        seen.append(frames.index(item.value))
-    assert seen == [0, 1, 2, 0][: len(seen)] or seen[1:] == [1, 2, 0]
+    for _ in range(500):
+        if len(shown) >= 5:
+            break
+        await asyncio.sleep(0.01)
+    assert shown[:5] == [0, 1, 2, 0, 1]
     assert client.link.face.looping
 
 
