@@ -388,6 +388,11 @@ def format_table(result: dict[str, Any]) -> str:
         f"| 3 readers + 1 stalled | {', '.join(str(r['fps']) for r in w['readers'])} "
         f"| {', '.join(str(r['gap_median_ms']) for r in w['readers'])} | {', '.join(str(r['gap_p95_ms']) for r in w['readers'])} |",
         "",
+        "| slow reader (pauses 100 ms per frame) | fps | frame age on arrival median ms | p95 ms |",
+        "|---|---|---|---|",
+        f"| alone, 64 kB receive buffer | {v['slow_reader']['fps']} | {v['slow_reader']['age_median_ms']} "
+        f"| {v['slow_reader']['age_p95_ms']} |",
+        "",
         f"median fps ratio (with stalled / baseline): {v['ratio_fps_with_stalled_vs_baseline']}; "
         f"stalled client dropped: {v['stalled_dropped']} after {v['stalled_dropped_after_s']} s; "
         f"JPEG encodes / frames published: {v['jpeg_encodes']} / {v['frames_published']}",
