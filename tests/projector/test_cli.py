@@ -35,3 +35,28 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     report = json.loads(report_path.read_text())
     assert set(report["rows"]) == {"baseline_resize", "render_avatar", "render_typical", "render_everything", "backlight_gain"}
     assert report["rows"]["baseline_resize"]["ratio_to_baseline"] == 1.0
+
+
+def _fake_report(pred_fp: int, pred_recall: float) -> dict:
+    def cond(recall: float, fp: int) -> dict:
+        return {"recall": recall, "precision": 0.9, "tp": 9, "fn": 1, "fp": fp, "tn": 5, "false_touches": fp, "touches": 10, "by_label": {}}
+
+    points = round(100 * (pred_recall - 0.9), 2)
+    return {
+        "scale": 0.1, "seed": 1, "trials": 16, "calibration": {"coverage": 1.0},
+        "conditions": {"flat": cond(0.9, 1), "face": cond(1.0, 6), "face_predicted": cond(pred_recall, pred_fp)},
+        "verdict": {"fp_trials_not_above_flat": pred_fp <= 1, "false_touches_not_above_flat": pred_fp <= 1,
+                    "recall_points_vs_flat": points, "recall_within_2_points": points >= -2.0},
+    }
+
+
+@pytest.mark.parametrize("pred_fp, pred_recall, code", [(1, 0.9, 0), (2, 0.9, 1), (1, 0.8, 1)])
+def test_facevideo_bench_prints_the_table_and_fails_when_the_face_fools_the_sensor(tmp_path, capsys, monkeypatch, pred_fp, pred_recall, code):
+    import feelium.projector.facevideo as facevideo
+
+    monkeypatch.setattr(facevideo, "run_experiment", lambda **kw: _fake_report(pred_fp, pred_recall))
+    report_path = tmp_path / "fv.json"
+    assert main(["bench", "projector-facevideo", "--json", str(report_path)]) == code
+    out = capsys.readouterr().out
+    assert "face_predicted" in out and "false touches" in out
+    assert json.loads(report_path.read_text())["conditions"]["face_predicted"]["fp"] == pred_fp
