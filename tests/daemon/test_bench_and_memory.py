@@ -43,3 +43,12 @@ def test_bench_daemon_measures_memory_cpu_and_frames():
     assert sum(groups.values()) <= result["process_cpu_ms_per_rear_frame"] * 1.2 + 1
     table = format_table(result)
     assert "resident memory" in table and "pipeline alone" in table and "touch" in table
+
+
+@pytest.mark.slow
+def test_a_daemon_alone_in_a_fresh_process_reports_its_memory():
+    from feelium.daemon.bench import service_alone
+
+    empty = service_alone("none", 1.0)
+    assert "error" not in empty, empty
+    assert 0 < empty["rss_mb_steady"] <= empty["rss_mb_max"]
