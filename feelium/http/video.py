@@ -21,36 +21,9 @@ from feelium.http.params import query_number
 log = logging.getLogger(__name__)
 
 BOUNDARY = "feeliumframe"
-# Send-side queues of a stream: a few frames in flight over Wi-Fi, not megabytes of stale video (Linux autotunes
-# loopback and LAN buffers to MBs, which both delays frames and hides a stalled client). 64 kB (the kernel doubles
-# it) still carries ~6 MB/s at a 20 ms round trip, eight times a 30 fps stream.
-STREAM_SNDBUF_BYTES = 64 * 1024
-STREAM_NOTSENT_BYTES = 16 * 1024
-STREAM_TRANSPORT_HIGH_BYTES = 16 * 1024
-
-
-def limit_send_queue(transport: asyncio.Transport | None) -> None:
-    """Keep only a few frames queued on the blimp's side of a stream.
-
-    A frame waiting in a send buffer is a frame the headset sees late. The
-    kernel buffer is capped (``SO_SNDBUF``), unsent bytes in it are capped
-    further where the kernel allows (``TCP_NOTSENT_LOWAT``: the socket only
-    reports writable below it), and asyncio's own buffer pauses the writer
-    early; then ``write`` blocks and the next frame sent is the newest.
-    """
-    if transport is None:
-        return
-    transport.set_write_buffer_limits(high=STREAM_TRANSPORT_HIGH_BYTES)
-    sock = transport.get_extra_info("socket")
-    if sock is None:
-        return
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, STREAM_SNDBUF_BYTES)
-    notsent = getattr(socket, "TCP_NOTSENT_LOWAT", None)
-    if notsent is not None and sock.family in (socket.AF_INET, socket.AF_INET6):
-        try:
-            sock.setsockopt(socket.IPPROTO_TCP, notsent, STREAM_NOTSENT_BYTES)
-        except OSError:
-            pass
+# The kernel send buffer of a stream socket: a few frames in flight over Wi-Fi, not megabytes of stale video
+# (Linux autotunes loopback and LAN buffers to MBs, which both delays frames and hides a stalled client).
+STREAM_SNDBUF_BYTES = 256 * 1024
 
 
 def _feed(request: web.Request):  # type: ignore[no-untyped-def]
@@ -100,7 +73,9 @@ async def mjpeg(request: web.Request) -> web.StreamResponse:
     feed.clients += 1
     link.count("video_streams")
     try:
-        limit_send_queue(request.transport)
+        sock = request.transport.get_extra_info("socket") if request.transport is not None else None
+        if sock is not None:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, STREAM_SNDBUF_BYTES)
         await response.prepare(request)
         seq = 0
         loop = asyncio.get_running_loop()
