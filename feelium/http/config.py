@@ -46,6 +46,11 @@ class HttpConfig:
     stream_write_timeout_s: float = setting(
         2.0, "A video, SSE or WebSocket client that accepts nothing for this long is dropped.", min=0.05, max=60.0
     )
+    stream_inflight_bytes: int = setting(
+        32768, "Video bytes a stream may have unacknowledged before its next frame (about one frame), so a slow "
+        "or congested headset gets the newest frame instead of seconds-old queued ones; 0 = no limit.",
+        min=0, max=16_000_000,
+    )
     max_stream_clients: int = setting(
         16, "Concurrent MJPEG streams per camera; more get 429.", min=1, max=1000
     )

@@ -9,8 +9,11 @@ stalled headset cannot pin memory or a coroutine forever.
 from __future__ import annotations
 
 import asyncio
+import fcntl
 import logging
 import socket
+import struct
+import termios
 
 from aiohttp import web
 
@@ -24,6 +27,40 @@ BOUNDARY = "feeliumframe"
 # The kernel send buffer of a stream socket: a few frames in flight over Wi-Fi, not megabytes of stale video
 # (Linux autotunes loopback and LAN buffers to MBs, which both delays frames and hides a stalled client).
 STREAM_SNDBUF_BYTES = 256 * 1024
+# Video in flight (sent, not yet acknowledged by the client's kernel) is capped by [http] stream_inflight_bytes
+# before the next frame goes out: a slow or congested client then gets the newest frame when it catches up instead
+# of the ~20 frames the send buffer could hold. Polled with SIOCOUTQ (Linux); elsewhere only the write timeout applies.
+INFLIGHT_POLL_S = 0.005
+
+
+def unacked_bytes(sock: socket.socket | None) -> int | None:
+    """Bytes in the kernel's send queue of ``sock`` (unsent or unacknowledged), or ``None`` where unknown."""
+    if sock is None:
+        return None
+    try:
+        return struct.unpack("i", fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, b"\0\0\0\0"))[0]
+    except (OSError, ValueError):
+        return None
+
+
+async def wait_until_acknowledged(sock: socket.socket | None, limit: int, timeout: float) -> bool:
+    """Wait until at most ``limit`` bytes are in flight; ``False`` when the queue did not shrink for ``timeout``."""
+    queued = unacked_bytes(sock)
+    if queued is None:
+        return True
+    loop = asyncio.get_running_loop()
+    last_progress = loop.time()
+    while queued > limit:
+        await asyncio.sleep(INFLIGHT_POLL_S)
+        now_queued = unacked_bytes(sock)
+        if now_queued is None:
+            return True
+        if now_queued < queued:
+            last_progress = loop.time()
+        elif loop.time() - last_progress > timeout:
+            return False
+        queued = now_queued
+    return True
 
 
 def _feed(request: web.Request):  # type: ignore[no-untyped-def]
@@ -72,8 +109,8 @@ async def mjpeg(request: web.Request) -> web.StreamResponse:
     timeout = link.config.stream_write_timeout_s
     feed.clients += 1
     link.count("video_streams")
+    sock = request.transport.get_extra_info("socket") if request.transport is not None else None
     try:
-        sock = request.transport.get_extra_info("socket") if request.transport is not None else None
         if sock is not None:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, STREAM_SNDBUF_BYTES)
         await response.prepare(request)
@@ -88,7 +125,11 @@ async def mjpeg(request: web.Request) -> web.StreamResponse:
             part = part_header(len(item.value), item.t, item.seq) + item.value + b"\r\n"
             try:
                 await asyncio.wait_for(response.write(part), timeout)
+                inflight = link.config.stream_inflight_bytes
+                delivered = inflight == 0 or await wait_until_acknowledged(sock, inflight, timeout)
             except asyncio.TimeoutError:
+                delivered = False
+            if not delivered:
                 link.count("stalled_clients_dropped")
                 log.info("dropping stalled %s stream client %s", feed.name, request.remote)
                 if request.transport is not None:

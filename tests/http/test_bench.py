@@ -28,7 +28,9 @@ def test_bench_http_runs_small_and_reports_every_key(tmp_path, capsys) -> None: 
     assert len(video["3_readers_plus_1_stalled"]["readers"]) == 3
     assert all(r["fps"] > 0 for r in video["3_readers_plus_1_stalled"]["readers"])
     assert video["stalled_dropped"] is True
-    assert video["slow_reader"]["fps"] > 0 and video["slow_reader"]["age_median_ms"] > 0
+    for run in ("no_inflight_limit", "inflight_limit"):
+        assert video["slow_reader"][run]["fps"] > 0 and video["slow_reader"][run]["age_median_ms"] > 0
+    assert "slow_reader_age_ratio" in video
     assert "ratio_fps_with_stalled_vs_baseline" in video
     table = capsys.readouterr().out
     assert "POST /motion round trip" in table and "3 readers + 1 stalled" in table and "slow reader" in table
