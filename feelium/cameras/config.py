@@ -45,6 +45,12 @@ class RearCameraConfig:
         2.0, "The touch pipeline counts as dead (watchdog not fed) when no frame was processed for this long.",
         min=0.1, max=60.0,
     )
+    projection_compensation: Literal["auto", "on", "off"] = setting(
+        "auto",
+        "Divide the predicted back-light of what the projector shows out of each frame, so a moving face is not a"
+        " touch; auto = on with the real camera (picamera2) when a projector calibration exists. Simulated and"
+        " replayed frames do not contain the projector's light.",
+    )
 
     def __post_init__(self) -> None:
         if self.roi and (len(self.roi) != 4 or self.roi[2] <= 0 or self.roi[3] <= 0 or min(self.roi) < 0):

@@ -32,6 +32,7 @@ from feelium.touch.config import TouchConfig
 log = logging.getLogger(__name__)
 
 PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, int] | None"], Any]
+BacklightFactory = Callable[[tuple[int, int]], Callable[[], "np.ndarray | None"]]
 Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
 
 
@@ -103,6 +104,40 @@ def load_projector_annotation(config: Config, path: Path | None = None) -> Proje
     return annotation
 
 
+def load_projected_backlight(config: Config, hub: Hub, backend: str, path: Path | None = None) -> BacklightFactory | None:
+    """How to predict the projector's back-light per frame size, or ``None`` when it must not be used.
+
+    The projector is the rear camera's back-light, so the face it shows dims the membrane like a shadow
+    would; the touch pipeline divides the prediction out. Only frames that contain the projector's light
+    may be compensated: the real camera's. Compensating simulated or replayed frames would invent changes
+    that are not in them, so ``auto`` keeps it for picamera2 with a calibration file.
+    """
+    mode = config.rear_camera.projection_compensation
+    if mode == "off" or (mode == "auto" and backend != "picamera2"):
+        return None
+    from feelium.projector.service import calibration_path
+
+    path = path if path is not None else calibration_path(config)
+    if not path.exists():
+        if mode == "on":
+            log.warning("touch: projection_compensation is on but there is no projector calibration at %s", path)
+        return None
+    try:
+        from feelium.projector.backlight import BacklightPredictor, ProjectedBacklight
+        from feelium.projector.calibration import load_calibration
+
+        calibration = load_calibration(path)
+    except Exception as exc:
+        log.error("touch: projector calibration %s unusable (%s); no projection compensation", path, exc)
+        return None
+    log.info("touch: dividing the projected back-light out of rear frames (calibration %s)", path)
+
+    def for_frame_size(size: tuple[int, int]) -> Callable[[], np.ndarray | None]:
+        return ProjectedBacklight(BacklightPredictor(config.projector, calibration, size), hub.projector_video).gain
+
+    return for_frame_size
+
+
 def _contact_state(contact: Any) -> dict[str, Any]:
     """A contact as plain JSON-able values for the state board."""
     values = dataclasses.asdict(contact) if dataclasses.is_dataclass(contact) else dict(vars(contact))
@@ -141,6 +176,7 @@ class TouchService:
         pipeline_factory: PipelineFactory = _default_pipeline,
         overlay: Overlay = _default_overlay,
         annotation: ProjectorAnnotation | None = None,
+        backlight: BacklightFactory | None = None,
     ) -> None:
         self.source = source
         self.hub = hub
@@ -149,6 +185,10 @@ class TouchService:
         self.pipeline_factory = pipeline_factory
         self.overlay = overlay
         self.annotation = annotation
+        self.backlight = backlight
+        self._backlight_gain: Callable[[], np.ndarray | None] | None = None
+        self.backlight_errors = 0
+        self.last_backlight_error: str | None = None
         self._frame_size: tuple[int, int] | None = None
         self.frames = 0
         self.events = 0
@@ -221,7 +261,11 @@ class TouchService:
 
     def _step(self, pipeline: Any, frame: Frame, want_debug: bool) -> tuple[Any, np.ndarray | None]:
         """Worker-thread part: the pipeline and, at the debug rate, the overlay."""
-        result = pipeline.process(frame.t, frame.image)
+        gain = self._predicted_backlight()
+        if gain is None:
+            result = pipeline.process(frame.t, frame.image)
+        else:
+            result = pipeline.process(frame.t, frame.image, backlight_gain=gain)
         debug = None
         if want_debug:
             try:
@@ -231,6 +275,17 @@ class TouchService:
                 self.last_overlay_error = f"{type(exc).__name__}: {exc}"
         return result, debug
 
+    def _predicted_backlight(self) -> np.ndarray | None:
+        """The projector's predicted back-light, or ``None``; a failing prediction costs only the compensation."""
+        if self._backlight_gain is None:
+            return None
+        try:
+            return self._backlight_gain()
+        except Exception as exc:
+            self.backlight_errors += 1
+            self.last_backlight_error = f"{type(exc).__name__}: {exc}"
+            return None
+
     def _pipeline_for(self, frame: Frame) -> Any:
         size = (int(frame.image.shape[1]), int(frame.image.shape[0]))
         key = (frame.segment, size, frame.roi)
@@ -239,6 +294,7 @@ class TouchService:
             self._pipeline = self.pipeline_factory(self.touch_config, size, frame.roi)
             self._pipeline_key = key
             self._frame_size = size
+            self._backlight_gain = self.backlight(size) if self.backlight is not None else None
             self._last_debug = None
         return self._pipeline
 
@@ -302,6 +358,9 @@ class TouchService:
             "last_overlay_error": self.last_overlay_error,
             "ms_per_frame": round(1000.0 * self.cpu_s / self.frames, 2) if self.frames else None,
             "last_frame_at": self.last_frame_at,
+            "projection_compensation": self.backlight is not None,
+            "backlight_errors": self.backlight_errors,
+            "last_backlight_error": self.last_backlight_error,
             "projector_annotation": None
             if self.annotation is None
             else {"errors": self.annotation.errors, "last_error": self.annotation.last_error},
@@ -320,5 +379,6 @@ def build_services(config: Config, hub: Hub) -> list[Service]:
             config.touch,
             debug_video_fps=config.rear_camera.debug_video_fps,
             annotation=load_projector_annotation(config),
+            backlight=load_projected_backlight(config, hub, source.backend),
         )
     ]

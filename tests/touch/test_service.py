@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -279,3 +280,77 @@ def test_an_event_the_annotation_cannot_handle_is_published_unannotated():
     event = _event(0.1, "down")
     assert annotation(event, (32, 24)) is event
     assert annotation.errors == 1 and "bad regions" in annotation.last_error
+
+
+class GainRecordingPipeline(FakePipeline):
+    """Records the back-light gain the service hands over with each frame."""
+
+    def process(self, t, frame, backlight_gain=None):
+        self.gains = getattr(self, "gains", []) + [backlight_gain]
+        return super().process(t, frame)
+
+
+async def test_the_predicted_backlight_goes_with_each_frame_at_the_frame_size():
+    sizes = []
+
+    def backlight(size):
+        sizes.append(size)
+        return lambda: np.full((size[1], size[0]), 0.8, np.float32)
+
+    hub = Hub()
+    camera = ScriptedCamera([_frame(0.1 * i, size=(16, 12)) for i in range(1, 4)])
+    service = TouchService(
+        CameraSource("scripted", lambda: camera), hub, TouchConfig(),
+        pipeline_factory=GainRecordingPipeline, overlay=_overlay, backlight=backlight,
+    )
+    await service.run()
+    (pipeline,) = FakePipeline.created
+    assert sizes == [(16, 12)]
+    assert len(pipeline.gains) == 3 and all(g.shape == (12, 16) and float(g[0, 0]) == pytest.approx(0.8) for g in pipeline.gains)
+    assert service.health()["projection_compensation"] is True
+
+
+def test_projection_compensation_only_for_frames_that_contain_the_projectors_light(tmp_path):
+    from feelium.touch.service import load_projected_backlight
+
+    path = _calibration(projector_size=(1280, 720)).save(tmp_path / "projector_calibration.npz")
+    config = _config_with_calibration_file(path)
+    assert (config.projector.width, config.projector.height) == (1280, 720)
+    hub = Hub()
+    assert load_projected_backlight(config, hub, "sim") is None  # auto: simulated frames hold no projection
+    assert load_projected_backlight(config, hub, "replay") is None
+    factory = load_projected_backlight(config, hub, "picamera2")
+    assert factory is not None
+    gain = factory((32, 24))
+    assert gain() is None  # nothing projected yet: the pipeline compares against its reference unchanged
+    hub.projector_video.publish(0.0, np.full((720, 1280, 3), 30, np.uint8))  # a dark frame at the projector's size
+    predicted = gain()
+    assert predicted is not None and predicted.shape == (24, 32) and np.all(np.isfinite(predicted))
+    assert float(np.median(predicted[8:16, 8:24])) < 0.9  # a dark projection dims the covered patch
+    off = dataclasses.replace(config, rear_camera=dataclasses.replace(config.rear_camera, projection_compensation="off"))
+    assert load_projected_backlight(off, hub, "picamera2") is None
+    on = dataclasses.replace(config, rear_camera=dataclasses.replace(config.rear_camera, projection_compensation="on"))
+    assert load_projected_backlight(on, hub, "sim") is not None
+    missing = _config_with_calibration_file(tmp_path / "none.npz")
+    assert load_projected_backlight(missing, hub, "picamera2") is None
+
+
+async def test_a_failing_backlight_prediction_costs_only_the_compensation():
+    def backlight(size):
+        def gain():
+            raise ValueError("projector frame is 64x48, expected 1280x720")
+
+        return gain
+
+    hub = Hub()
+    sub = hub.bus.subscribe([TouchEvent])
+    camera = ScriptedCamera([_frame(0.1 * i) for i in range(1, 4)])
+    service = TouchService(
+        CameraSource("scripted", lambda: camera), hub, TouchConfig(),
+        pipeline_factory=GainRecordingPipeline, overlay=_overlay, backlight=backlight,
+    )
+    await service.run()
+    (pipeline,) = FakePipeline.created
+    assert pipeline.gains == [None, None, None] and [e.phase for e in sub.drain()] == ["down", "up"]
+    health = service.health()
+    assert health["backlight_errors"] == 3 and "1280x720" in health["last_backlight_error"]
