@@ -1,0 +1,97 @@
+"""End to end: simulate a small paper-protocol dataset, then replay, calibrate, evaluate and bench it.
+
+The dataset is tiny (scale 0.05: 13 trials and three 6 s clips) so the whole
+module stays within a few tens of seconds; scores are asserted at levels a
+broken stage would miss by far, not tuned to this seed.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import pytest
+
+from feelium.cli import main
+from feelium.config import load_config
+from feelium.sim.protocol import simulate_protocol
+from feelium.touch.bench import build_variants, run_variants, summarise
+
+pytestmark = pytest.mark.slow
+
+REPORT_KEYS = {"version", "dataset", "trials", "activity", "area_baseline", "sustained", "localisation", "latency_ms", "speed"}
+TRIAL_KEYS = {
+    "n", "tp", "fp", "fn", "tn", "precision", "recall", "f1", "by_label", "kind_accuracy", "kind_confusion",
+    "single_event_rate",
+}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("touch-e2e")
+    simulate_protocol(root, seed=7, scale=0.05, jobs=2, thermal=False)
+    return root
+
+
+def test_eval_report_follows_the_spec_and_scores_well(dataset, tmp_path, capsys):
+    report_path = tmp_path / "report.json"
+    figure = tmp_path / "anchoring.png"
+    assert main(["eval", str(dataset), "--json", str(report_path), "--figure", str(figure)]) == 0
+    report = json.loads(report_path.read_text())
+    assert set(report) >= REPORT_KEYS and report["version"] == 1
+    assert set(report["trials"]) >= TRIAL_KEYS
+    trials = report["trials"]
+    assert trials["n"] == 13
+    assert trials["recall"] >= 0.85
+    assert trials["precision"] >= 0.85
+    assert report["trials"]["by_label"]["empty"]["fired"] == 0
+    assert report["activity"]["empty_fired"] == 0
+    assert trials["kind_accuracy"] >= 0.85
+    assert report["localisation"]["error_px"]["median"] <= 3.0
+    assert report["latency_ms"]["median"] <= 250.0
+    # 6 s clips: the first second of each press (the window still holds the approach) weighs far more than
+    # in the 75 s clips, so the AUC here is well above chance but below the full protocol's.
+    assert report["sustained"]["auc"] is not None and report["sustained"]["auc"] >= 0.75
+    assert report["sustained"]["balanced_accuracy_holdout"] >= 0.9
+    assert figure.stat().st_size > 1000
+    out = capsys.readouterr().out
+    assert "precision / recall / F1" in out
+
+
+def test_calibrate_writes_a_fragment_that_eval_accepts(dataset, tmp_path, capsys):
+    fragment = tmp_path / "touch.toml"
+    assert main(["calibrate", "touch", str(dataset), "--out", str(fragment)]) == 0
+    config = load_config(str(fragment)).touch
+    assert 0.0 < config.anchor_threshold < 1.0
+    assert config.anchor_threshold <= config.instant_depth <= 0.99
+    assert main(["eval", str(dataset), "--fit-on-clips", "--json", str(tmp_path / "fit.json")]) == 0
+    fit_report = json.loads((tmp_path / "fit.json").read_text())
+    assert fit_report["trials"]["recall"] >= 0.85
+    fitted = fit_report["touch_config"]
+    assert fitted["fitted_on_clips"] is True
+    assert fitted["anchor_threshold"] == pytest.approx(config.anchor_threshold, abs=1e-4)
+
+
+def test_replay_prints_events_with_the_recording_name(dataset, capsys):
+    assert main(["replay", str(dataset / "s1")]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert lines, "a dataset with taps must replay into events"
+    assert {"id", "phase", "kind", "t", "x", "y", "u", "v", "depth", "area", "anchor", "recording"} <= set(lines[0])
+    assert all(line["recording"].startswith("s1-") for line in lines)
+    assert {line["phase"] for line in lines} >= {"down", "up"}
+
+
+def test_bench_compares_every_resolution_with_the_plain_baseline(dataset):
+    config = replace(load_config(None).touch)
+    variants = build_variants(config)
+    run_variants(dataset / "s1", variants)
+    report = summarise(dataset / "s1", variants, (640, 480))
+    rows = report["variants"]
+    assert [r["plain"] for r in rows] == [True, False, False, False]
+    assert [(r["width"], r["height"]) for r in rows] == [(640, 480), (640, 480), (320, 240), (160, 120)]
+    assert rows[0]["speedup_vs_plain"] == pytest.approx(1.0)
+    assert all(r["frames"] == rows[0]["frames"] > 0 for r in rows)
+    assert all(r["cpu_ms_per_frame"]["median"] > 0 for r in rows)
+    # The plain baseline is the same algorithm: at full resolution it must score like the fast path.
+    assert rows[0]["f1"] == pytest.approx(rows[1]["f1"], abs=0.15)
+    json.dumps(report)  # the report is plain JSON
