@@ -116,7 +116,11 @@ class Tracker:
             track.anchor = anchoring_score(cfg, window_min, t - track.first_t)
             if track.seen:
                 out.anchor = max(out.anchor, track.anchor)
-            touching = is_touching(cfg, down=track.down, seen=track.seen, core_depth=depth, anchor=track.anchor)
+            # Once a gate has passed, the next frames only need the release hysteresis to confirm the onset:
+            # the shortest taps are lifting again by their second frame at 15 fps, and a one-frame flicker
+            # (nothing the frame after) is still debounced.
+            held = track.down or track.streak > 0
+            touching = is_touching(cfg, down=held, seen=track.seen, core_depth=depth, anchor=track.anchor)
             self._advance(track, t, touching, out.events)
             if track.down or t - track.last_seen_t <= cfg.release_s:
                 survivors.append(track)

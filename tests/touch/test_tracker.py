@@ -93,3 +93,16 @@ def test_finish_releases_open_contacts():
     events = tracker.finish(1.0)
     assert [e.phase for e in events] == ["up"]
     assert tracker.contacts() == []
+
+
+def test_a_one_frame_press_lifting_on_the_next_frame_is_still_a_tap():
+    # At 15 fps the shortest taps are deep for one frame and already lifting (shallower) on the next.
+    tracker = Tracker(CFG)
+    events = run(tracker, [[obs(100, 100, depth=0.8)], [obs(100, 100, depth=0.35)]] + [[]] * 6)
+    assert [e.phase for e in events] == ["down", "up"]
+    assert events[1].kind == "tap"
+
+
+def test_a_shallow_shadow_after_no_gate_is_not_confirmed_by_hysteresis():
+    tracker = Tracker(CFG)
+    assert run(tracker, [[obs(100, 100, depth=0.35)]] * 3 + [[]] * 6) == []
