@@ -9,18 +9,16 @@ camera frame is measured too.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
 from typing import Any
 
 import cv2
-import numpy as np
 
 from feelium.interactions.answers import Answer
 from feelium.projector.backlight import BacklightPredictor
 from feelium.projector.calibration import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
+from feelium.timing import time_calls
 
 _STROKE = ((0.2, 0.3), (0.3, 0.35), (0.4, 0.33), (0.5, 0.45), (0.55, 0.6))
 
@@ -43,23 +41,6 @@ def _scenes() -> dict[str, list[Answer]]:
     return {"avatar": [], "typical": typical, "everything": everything}
 
 
-def _time(fn: Callable[[int], Any], frames: int) -> dict[str, float]:
-    """CPU time of this thread per call (what one core spends; robust on a busy machine) and wall time."""
-    cpu, wall = [], []
-    for i in range(frames):
-        start_wall, start_cpu = time.perf_counter(), time.thread_time()
-        fn(i)
-        cpu.append((time.thread_time() - start_cpu) * 1000.0)
-        wall.append((time.perf_counter() - start_wall) * 1000.0)
-    c, w = np.asarray(cpu), np.asarray(wall)
-    return {
-        "median_ms": round(float(np.median(c)), 3),
-        "p95_ms": round(float(np.percentile(c, 95)), 3),
-        "wall_median_ms": round(float(np.median(w)), 3),
-        "wall_p95_ms": round(float(np.percentile(w, 95)), 3),
-    }
-
-
 def run_bench(config: ProjectorConfig, calibration: CalibrationMap, frames: int = 90) -> dict[str, Any]:
     """Timings (one OpenCV thread, CPU time per frame) and ratios against the resize baseline."""
     threads = cv2.getNumThreads()
@@ -68,13 +49,13 @@ def run_bench(config: ProjectorConfig, calibration: CalibrationMap, frames: int 
         renderer = Renderer(config, calibration)
         canvas = renderer.canvas(0.0, None, [])
         size = (config.width, config.height)
-        baseline = _time(lambda i: cv2.resize(canvas, size, interpolation=cv2.INTER_LINEAR), frames)
+        baseline = time_calls(lambda i: cv2.resize(canvas, size, interpolation=cv2.INTER_LINEAR), frames)
         rows: dict[str, Any] = {"baseline_resize": baseline}
         for name, answers in _scenes().items():
-            rows[f"render_{name}"] = _time(lambda i, a=answers: renderer.render(0.5 + i / config.fps, None, a), frames)
+            rows[f"render_{name}"] = time_calls(lambda i, a=answers: renderer.render(0.5 + i / config.fps, None, a), frames)
         predictor = BacklightPredictor(config, calibration)
         frame = renderer.render(0.5, None, _scenes()["typical"])
-        rows["backlight_gain"] = _time(lambda i: predictor.gain(frame), frames)
+        rows["backlight_gain"] = time_calls(lambda i: predictor.gain(frame), frames)
     finally:
         cv2.setNumThreads(threads)
     base = baseline["median_ms"]
