@@ -8,13 +8,12 @@ estimator error count against it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from feelium.flight.blimp_model import DraftParams
 from feelium.flight.config import FlightConfig
-from feelium.flight.controller import wrap_deg
 from feelium.flight.emulated_board import BoardParams, board_with
 from feelium.flight.setpoint import Setpoint, setpoint_for_motion
 from feelium.flight.simulation import Controller, FlightLog, SimFlight

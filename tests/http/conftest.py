@@ -10,7 +10,7 @@ from feelium.http.app import create_app, link_of
 from feelium.http.config import HttpConfig
 from feelium.hub import Hub
 
-from tests.http.http_support import TOKEN, FakeClock, FakeScene
+from tests.http.http_support import TOKEN, FakeClock
 
 
 @pytest.fixture

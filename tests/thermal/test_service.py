@@ -5,7 +5,7 @@ import asyncio
 import numpy as np
 import pytest
 
-from feelium.config import Config, parse_config
+from feelium.config import parse_config
 from feelium.events import PresenceEvent
 from feelium.hub import Hub
 from feelium.service import Service
