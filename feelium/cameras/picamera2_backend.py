@@ -117,12 +117,7 @@ class Picamera2RearCamera:
             if self._guard.closed:
                 return None
             while True:
-                request = self._camera.capture_request()
-                try:
-                    metadata = request.get_metadata()
-                    yuv = request.make_array("lores")
-                finally:
-                    request.release()
+                metadata, yuv = _capture(self._camera, "lores")
                 stamp = int(metadata["SensorTimestamp"])
                 if self._first_ns is None:
                     self._first_ns = stamp
@@ -147,6 +142,15 @@ class Picamera2RearCamera:
         self._guard.close(release)
 
 
+def _capture(camera: Any, stream: str) -> tuple[dict[str, Any], np.ndarray]:
+    """One request's metadata and the named stream's pixels; the buffer goes back to the camera at once."""
+    request = camera.capture_request()
+    try:
+        return request.get_metadata(), request.make_array(stream)
+    finally:
+        request.release()
+
+
 class Picamera2FrontCamera:
     """BGR frames of the fisheye camera (picamera2's "RGB888" is BGR in memory, as OpenCV wants)."""
 
@@ -168,12 +172,7 @@ class Picamera2FrontCamera:
         with self._guard:
             if self._guard.closed:
                 return None
-            request = self._camera.capture_request()
-            try:
-                metadata = request.get_metadata()
-                image = request.make_array("main")
-            finally:
-                request.release()
+            metadata, image = _capture(self._camera, "main")
             stamp = int(metadata["SensorTimestamp"])
             if self._first_ns is None:
                 self._first_ns = stamp
