@@ -55,19 +55,34 @@ def _pcm_args(rate: int) -> list[str]:
     return ["-q", "-t", "raw", "-f", "S16_LE", "-c", "1", "-r", str(rate)]
 
 
-class AlsaSpeaker:
-    """``aplay`` reading raw PCM from a pipe."""
+class _AlsaTool:
+    """One ``aplay``/``arecord`` process on a raw PCM pipe: what the speaker and the microphone share."""
+
+    program = ""
 
     def __init__(self, rate: int, device: str) -> None:
         self.rate = rate
         self.device = device
         self._proc: asyncio.subprocess.Process | None = None
 
-    async def start(self) -> None:
+    async def _spawn(self, *, stdin: int, stdout: int) -> None:
         self._proc = await asyncio.create_subprocess_exec(
-            "aplay", "-D", self.device, *_pcm_args(self.rate),
-            stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.PIPE,
+            self.program, "-D", self.device, *_pcm_args(self.rate), stdin=stdin, stdout=stdout,
+            stderr=asyncio.subprocess.PIPE,
         )  # fmt: skip
+
+    async def close(self) -> None:
+        await _end(self._proc)
+        self._proc = None
+
+
+class AlsaSpeaker(_AlsaTool):
+    """``aplay`` reading raw PCM from a pipe."""
+
+    program = "aplay"
+
+    async def start(self) -> None:
+        await self._spawn(stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.DEVNULL)
 
     async def write(self, pcm: bytes) -> None:
         proc = self._proc
@@ -76,24 +91,14 @@ class AlsaSpeaker:
         proc.stdin.write(pcm)
         await proc.stdin.drain()
 
-    async def close(self) -> None:
-        await _end(self._proc)
-        self._proc = None
 
-
-class AlsaMicrophone:
+class AlsaMicrophone(_AlsaTool):
     """``arecord`` writing raw PCM to a pipe."""
 
-    def __init__(self, rate: int, device: str) -> None:
-        self.rate = rate
-        self.device = device
-        self._proc: asyncio.subprocess.Process | None = None
+    program = "arecord"
 
     async def start(self) -> None:
-        self._proc = await asyncio.create_subprocess_exec(
-            "arecord", "-D", self.device, *_pcm_args(self.rate),
-            stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
-        )  # fmt: skip
+        await self._spawn(stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE)
 
     async def read(self, n_bytes: int) -> bytes:
         proc = self._proc
@@ -103,10 +108,6 @@ class AlsaMicrophone:
             return await proc.stdout.readexactly(n_bytes)
         except asyncio.IncompleteReadError as exc:
             return exc.partial
-
-    async def close(self) -> None:
-        await _end(self._proc)
-        self._proc = None
 
 
 async def _end(proc: asyncio.subprocess.Process | None, grace_s: float = 0.3) -> None:
