@@ -31,6 +31,7 @@ SETTLE_S = 0.6  # damping-only phase after a braking ramp
 RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an outage
 SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 THRUST_LAG_S = 0.08
+HANDOVER_S = 0.15  # time constant of the last part of a rate onset, where full thrust hands over to the rate loop
 RESIDUAL_GATE_M = 0.06  # about 4 sigma of the rangefinder's noise at 2 m
 RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and is learned
 
@@ -78,6 +79,47 @@ class _Reference:
         self.value += self.rate * dt
 
 
+class _RateOnset:
+    """The reference a rate command (forward, up, turn...) follows from its first cycle.
+
+    A step in the reference rate asked for only gain x rate error at onset, well
+    short of what the motors can give, so the body got going late. This
+    reference instead models the body as the controller's feed-forward will
+    move it: its acceleration follows the commanded one through the motor lag
+    (``THRUST_LAG_S``). The command is the largest acceleration the actuators
+    allow (``limits``: mixer limits, reverse thrust, drag) until the
+    reference's *lag-aware predicted* rate (``rate + accel x lag``: where it
+    ends up if the command went to zero now) comes within ``HANDOVER_S`` of
+    the commanded rate, then tapers exponentially. The predicted rate moves
+    exactly at the commanded acceleration, so it never passes the commanded
+    rate, and the rate itself, which trails it by the lag, does not either;
+    the damping compares the body's predicted rate with this one, the same
+    instant, so when the body follows the model it adds nothing.
+    """
+
+    def __init__(self) -> None:
+        self.rate = 0.0
+        self.accel = 0.0  # after the motor lag
+
+    def start(self, rate: float, accel: float) -> None:
+        """Begin from the body's present rate and (modelled) acceleration, so nothing jumps."""
+        self.rate, self.accel = rate, accel
+
+    @property
+    def predicted(self) -> float:
+        return self.rate + self.accel * THRUST_LAG_S
+
+    def step(self, target: float, limits: tuple[float, float], dt: float) -> tuple[float, float, float]:
+        """This cycle's reference (rate, predicted rate, acceleration command); then advance over ``dt``."""
+        rate, predicted = self.rate, self.predicted
+        lo, hi = min(limits[0], 0.0), max(limits[1], 0.0)
+        command = min(max((target - predicted) / max(HANDOVER_S, dt), lo), hi)
+        decay = math.exp(-dt / THRUST_LAG_S)  # the command held over dt through the lag, exactly
+        self.rate += command * dt + (self.accel - command) * THRUST_LAG_S * (1.0 - decay)
+        self.accel = command + (self.accel - command) * decay
+        return rate, predicted, command
+
+
 class FlightController:
     """Altitude, heading and speed control with failsafes; no clock, no I/O."""
 
@@ -103,12 +145,14 @@ class FlightController:
         self.z_target: float | None = None
         self._z_ref = _Reference(omega)
         self._climbing = False
+        self._climb_onset = _RateOnset()
         self._braking_z = False
         self._settle_z_until: float | None = None
         self.disturbance = 0.0  # observed unmodelled vertical acceleration: the altitude loop's integral
         self._freeze_disturbance = False
         self._gated_since: float | None = None
         self._vertical_thrust = -config.net_buoyancy_n  # modelled upward motor force after the motor lag
+        self._vertical_mean = self._vertical_thrust  # its mean over the last period
         self._up_n = -config.net_buoyancy_n
         self._altitude_failsafe = False
         # heading
@@ -118,13 +162,19 @@ class FlightController:
         self.heading_target: float | None = None
         self._psi_ref = _Reference(omega)
         self._turning = False
+        self._turn_onset = _RateOnset()
         self._braking_yaw = False
         self._settle_yaw_until: float | None = None
         # surge
         self.speed_hat = 0.0
         self._speed_ref = 0.0
+        self._surging = False
+        self._surge_onset = _RateOnset()
         self._surge_thrust = 0.0
+        self._surge_mean = 0.0
         self._yaw_torque = 0.0  # modelled yaw torque of the horizontal pair after the motor lag
+        # What the last motor commands make once the lag has passed: vertical N (up), surge N, yaw N m.
+        self._thrust_targets: tuple[float, float, float] | None = None
         # other
         self._was_soft = False
         self._telemetry_failsafe = False
@@ -136,6 +186,7 @@ class FlightController:
         """One control cycle at time ``t``: fold in the telemetry, return the motor commands."""
         dt = 1.0 / self.c.rate_hz if self._last_t is None else min(max(t - self._last_t, 0.0), 0.2)
         self._last_t = t
+        self._advance_thrust_model(dt)
         if telemetry is not None:
             self._absorb(t, telemetry, dt)
         else:
@@ -174,10 +225,8 @@ class FlightController:
         surge_n = self._surge(dt, 0.0 if soft else setpoint.forward_m_s, gain)
         commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt)
         vertical = -sum(thrust_for_command(c, self.c.vertical_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[2:])
-        self._vertical_thrust += (vertical - self._vertical_thrust) * min(1.0, dt / THRUST_LAG_S)
         left, right = (thrust_for_command(c, self.c.horizontal_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[:2])
-        self._surge_thrust += (left + right - self._surge_thrust) * min(1.0, dt / THRUST_LAG_S)
-        self._yaw_torque += ((left - right) * self.c.arm_m - self._yaw_torque) * min(1.0, dt / THRUST_LAG_S)
+        self._thrust_targets = (vertical, left + right, (left - right) * self.c.arm_m)
         return self._output(t, commands, "soft" if soft and mode == "flying" else mode, setpoint)
 
     def safe_commands(self) -> tuple[float, float, float, float]:
@@ -186,6 +235,29 @@ class FlightController:
         return (0.0, 0.0, 0.0, 0.0)
 
     # ---------------------------------------------------------------- sensing
+    def _advance_thrust_model(self, dt: float) -> None:
+        """The modelled motor forces over the period just ended.
+
+        The commands sent at its start held through it (the board applies them at once) and the
+        motors followed them through their first-order lag: the *mean* force over the period
+        drives the observers, the force at its end is the force now. Using the end value for
+        the whole period led the body's real response by about half a period, which during a
+        fast onset made the climb-rate estimate trail the real climb and the loop overshoot.
+        After a failsafe cycle there is no target and the model holds (it is reset on recovery).
+        """
+        targets, self._thrust_targets = self._thrust_targets, None
+        if targets is None or dt <= 0.0:
+            self._vertical_mean, self._surge_mean = self._vertical_thrust, self._surge_thrust
+            return
+        decay = math.exp(-dt / THRUST_LAG_S)
+        mean = 1.0 - THRUST_LAG_S / dt * (1.0 - decay)
+        vertical, surge, yaw = targets
+        self._vertical_mean = self._vertical_thrust + (vertical - self._vertical_thrust) * mean
+        self._surge_mean = self._surge_thrust + (surge - self._surge_thrust) * mean
+        self._vertical_thrust += (vertical - self._vertical_thrust) * (1.0 - decay)
+        self._surge_thrust += (surge - self._surge_thrust) * (1.0 - decay)
+        self._yaw_torque += (yaw - self._yaw_torque) * (1.0 - decay)
+
     def _absorb(self, t: float, tel: Telemetry, dt: float) -> None:
         if tel.battery_v is not None:
             self.battery_v = tel.battery_v
@@ -211,7 +283,7 @@ class FlightController:
             return
         c = self.c
         drag = c.quadratic_drag * self.vz_hat * abs(self.vz_hat) + 0.02 * self.vz_hat
-        accel = (self._vertical_thrust + c.net_buoyancy_n - drag) / c.mass_kg + self.disturbance
+        accel = (self._vertical_mean + c.net_buoyancy_n - drag) / c.mass_kg + self.disturbance
         self.z_hat += self.vz_hat * dt
         self.vz_hat += accel * dt
 
@@ -261,9 +333,12 @@ class FlightController:
         ref = self._z_ref
         climb = 0.0 if soft else sp.climb_m_s
         if climb:
+            onset = self._climb_onset
+            if not self._climbing:
+                onset.start(self.vz_hat, self._climb_accel())
             self._climbing = True
-            ref.rate, ref.accel = climb, 0.0
-            ref.value = min(max(ref.value + climb * dt, z - 0.25, c.altitude_min_m), z + 0.25, c.altitude_max_m)
+            ref.rate, rate_ahead, ref.accel = onset.step(climb, self._climb_accel_limits(onset.rate), dt)
+            ref.value = min(max(ref.value + ref.rate * dt, z - 0.25, c.altitude_min_m), z + 0.25, c.altitude_max_m)
             self.z_target = ref.value
         elif self._climbing:
             # Just released: decelerate along a planned ramp from the present climb rate, then hold
@@ -293,7 +368,10 @@ class FlightController:
                 self.z_target = min(max(sp.altitude_m, c.altitude_min_m), c.altitude_max_m)
             ref.advance(self.z_target - ref.value, dt)
         error = min(max(ref.value - z, -c.altitude_error_limit_m), c.altitude_error_limit_m)
-        accel = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (ref.rate - self._predicted_climb())) + ref.accel - self.disturbance
+        # The damping compares rates at the moment a new command takes effect: the body's predicted
+        # climb rate with, during a command, the onset reference's predicted rate (the same instant).
+        rate_ref = rate_ahead if climb else ref.rate
+        accel = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - self._predicted_climb())) + ref.accel - self.disturbance
         drag_ff = c.quadratic_drag * ref.rate * abs(ref.rate)
         up_n = c.mass_kg * accel - c.net_buoyancy_n + drag_ff
         lo, hi = self.mixer.limits_up_n()
@@ -313,9 +391,12 @@ class FlightController:
         ref = self._psi_ref
         turn = 0.0 if sp.soften else sp.yaw_rate_dps
         if turn:
+            onset = self._turn_onset
+            if not self._turning:
+                onset.start(math.degrees(self._yaw_rate_now()), math.degrees(self._yaw_accel()))
             self._turning = True
-            ref.rate, ref.accel = turn, 0.0
-            ahead = wrap_deg(ref.value + turn * dt - self.heading)
+            ref.rate, rate_ahead, ref.accel = onset.step(turn, self._yaw_accel_limits_dps2(onset.rate), dt)
+            ahead = wrap_deg(ref.value + ref.rate * dt - self.heading)
             ref.value = (self.heading + min(max(ahead, -20.0), 20.0)) % 360.0
             self.heading_target = ref.value
         elif self._turning:
@@ -341,40 +422,76 @@ class FlightController:
             ref.advance(wrap_deg(self.heading_target - ref.value), dt)
             ref.value %= 360.0
         error = math.radians(min(max(wrap_deg(ref.value - self.heading), -45.0), 45.0))
-        rate_error = math.radians(ref.rate) - self._predicted_yaw_rate()
+        rate_error = math.radians(rate_ahead if turn else ref.rate) - self._predicted_yaw_rate()
         alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
         r_ref = math.radians(ref.rate)
         return c.yaw_inertia_kg_m2 * alpha + c.yaw_drag * r_ref * abs(r_ref)
 
-    def _predicted_climb(self) -> float:
-        """The climb rate when a new command takes effect (after the motor lag), from the modelled forces."""
+    def _climb_accel(self) -> float:
+        """The vertical acceleration now, from the modelled forces."""
         c = self.c
         drag = c.quadratic_drag * self.vz_hat * abs(self.vz_hat) + 0.02 * self.vz_hat
-        accel = (self._vertical_thrust + c.net_buoyancy_n - drag) / c.mass_kg + self.disturbance
-        return self.vz_hat + accel * THRUST_LAG_S
+        return (self._vertical_thrust + c.net_buoyancy_n - drag) / c.mass_kg + self.disturbance
+
+    def _predicted_climb(self) -> float:
+        """The climb rate when a new command takes effect (after the motor lag), from the modelled forces."""
+        return self.vz_hat + self._climb_accel() * THRUST_LAG_S
+
+    def _yaw_accel(self) -> float:
+        """The yaw acceleration (rad/s^2) now, from the modelled torque and drag."""
+        r = math.radians(self.yaw_rate)
+        return (self._yaw_torque - self.c.yaw_drag * r * abs(r)) / self.c.yaw_inertia_kg_m2
 
     def _predicted_yaw_rate(self) -> float:
         """The yaw rate (rad/s) when a new command takes effect: the filtered gyro is about
         ``YAW_RATE_TAU_S`` old and the motors answer after ``THRUST_LAG_S``, so damping on the
         gyro alone brakes too late and overshoots; the modelled torque bridges both lags."""
-        r = math.radians(self.yaw_rate)
-        alpha = (self._yaw_torque - self.c.yaw_drag * r * abs(r)) / self.c.yaw_inertia_kg_m2
-        return r + alpha * (YAW_RATE_TAU_S + THRUST_LAG_S)
+        return math.radians(self.yaw_rate) + self._yaw_accel() * (YAW_RATE_TAU_S + THRUST_LAG_S)
+
+    def _yaw_rate_now(self) -> float:
+        """The yaw rate (rad/s) now: the filtered gyro brought forward over its filter lag."""
+        return math.radians(self.yaw_rate) + self._yaw_accel() * YAW_RATE_TAU_S
+
+    # The largest accelerations the actuators allow, each way, at a given rate: what a rate
+    # command's onset asks for (the mixer's limits, reverse thrust, drag, buoyancy).
+    def _climb_accel_limits(self, rate: float) -> tuple[float, float]:
+        c = self.c
+        lo, hi = self.mixer.limits_up_n()
+        drag = c.quadratic_drag * rate * abs(rate) + 0.02 * rate
+        return ((lo + c.net_buoyancy_n - drag) / c.mass_kg + self.disturbance,
+                (hi + c.net_buoyancy_n - drag) / c.mass_kg + self.disturbance)
+
+    def _yaw_accel_limits_dps2(self, rate_dps: float) -> tuple[float, float]:
+        c = self.c
+        r = math.radians(rate_dps)
+        torque, drag = self.mixer.limit_yaw_nm(), c.yaw_drag * r * abs(r)
+        return math.degrees((-torque - drag) / c.yaw_inertia_kg_m2), math.degrees((torque - drag) / c.yaw_inertia_kg_m2)
+
+    def _surge_accel_limits(self, speed: float) -> tuple[float, float]:
+        c = self.c
+        lo, hi = self.mixer.limits_surge_n()
+        drag = c.quadratic_drag * speed * abs(speed) + 0.02 * speed
+        return (lo - drag) / c.mass_kg, (hi - drag) / c.mass_kg
 
     def _surge(self, dt: float, speed_sp: float, gain: float) -> float:
         c = self.c
         drag = c.quadratic_drag * self.speed_hat * abs(self.speed_hat) + 0.02 * self.speed_hat
-        self.speed_hat += (self._surge_thrust - drag) / c.mass_kg * dt
+        self.speed_hat += (self._surge_mean - drag) / c.mass_kg * dt
         if speed_sp:
-            self._speed_ref, accel = speed_sp, 0.0
+            onset = self._surge_onset
+            if not self._surging:
+                onset.start(self.speed_hat, (self._surge_thrust - drag) / c.mass_kg)
+            self._surging = True
+            self._speed_ref, v_ahead, accel = onset.step(speed_sp, self._surge_accel_limits(onset.rate), dt)
         else:  # released: brake along a ramp the reverse thrust can follow
+            self._surging = False
             self._speed_ref, accel = _ramp_to_zero(min(self._speed_ref, self.speed_hat, key=abs), c.brake_m_s2, dt)
         v = self._speed_ref
         feed_forward = c.mass_kg * accel + c.quadratic_drag * v * abs(v) + 0.02 * v
         # Damp the speed the body will have when a new command takes effect (motor lag), not
         # today's: otherwise braking carries on past zero and it creeps back the other way.
         predicted = self.speed_hat + (self._surge_thrust - drag) / c.mass_kg * THRUST_LAG_S
-        return feed_forward + gain * c.mass_kg * c.speed_kp * (v - predicted)
+        return feed_forward + gain * c.mass_kg * c.speed_kp * ((v_ahead if speed_sp else v) - predicted)
 
     # ---------------------------------------------------------------- output
     def _battery(self) -> str:

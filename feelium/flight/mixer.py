@@ -90,6 +90,16 @@ class Mixer:
             self.saturated_vertical += 1
         return half_surge + half_diff, half_surge - half_diff, clipped, clipped
 
+    def limits_surge_n(self) -> tuple[float, float]:
+        """The smallest (full reverse) and largest total surge force of the horizontal pair, without yaw."""
+        g = self.g
+        return -2 * g.horizontal_thrust_n * g.reverse_ratio * g.max_output**2, 2 * g.horizontal_thrust_n * g.max_output**2
+
+    def limit_yaw_nm(self) -> float:
+        """The largest yaw torque either way: one horizontal motor full forward, the other full reverse."""
+        g = self.g
+        return g.horizontal_thrust_n * (1.0 + g.reverse_ratio) * g.max_output**2 * g.arm_m
+
     def limits_up_n(self) -> tuple[float, float]:
         """The smallest and largest total upward motor force (before buoyancy)."""
         g = self.g

@@ -117,6 +117,8 @@ class MotionResult:
     t: np.ndarray  # seconds since the command was issued
     fraction: np.ndarray  # motion in the commanded direction as a fraction of the commanded rate
     expired_s: float  # when the dead man expired, on the same time axis
+    peak_fraction: float  # the fastest motion while the command was held, as a fraction of the commanded rate
+    roughness: float  # motor-command roughness from the command's issue to the end of the run
 
 
 def _motion_signal(flight: SimFlight, name: str) -> np.ndarray:
@@ -172,6 +174,12 @@ def motion(config: FlightConfig, name: str, hold_s: float = 3.0, seed: int = 1, 
         stop = float("inf")
     else:
         stop = float(t[after][still_moving[-1] + 1] - t_expired)
-    return MotionResult(name, latency, stop, t - t_issue, signal / cruise, t_expired - t_issue)
+    held = (t >= t_issue) & (t <= t_expired)
+    issued = int(np.nonzero(t >= t_issue)[0][0])
+    fraction = signal / cruise
+    return MotionResult(
+        name, latency, stop, t - t_issue, fraction, t_expired - t_issue,
+        peak_fraction=float(np.max(fraction[held])), roughness=roughness(flight.log, max(issued - 1, 0)),
+    )
 
 
