@@ -17,6 +17,7 @@ import numpy as np
 from feelium.flight import scenarios as sc
 from feelium.flight.baseline import BaselinePid
 from feelium.flight.config import FlightConfig
+from feelium.flight.latency_floor import latency_floor, symmetric_propellers
 from feelium.flight.setpoint import Setpoint
 
 MOTIONS = ("forward", "backward", "up", "down", "turn_left", "turn_right")
@@ -83,13 +84,33 @@ def run_bench(config: FlightConfig, out_dir: Path, seed: int = 1) -> dict[str, A
     results["climb_30cm_baseline"] = {"settling_s": base_climb.settling_s, "overshoot": base_climb.overshoot_fraction}
     results["heading_step_45deg"] = {"settling_s": turn.settling_s, "overshoot": turn.overshoot_fraction}
     motions = {name: sc.motion(config, name, seed=seed) for name in MOTIONS}
-    results["motion"] = {name: {"latency_s": r.latency_s, "stop_s": r.stop_s} for name, r in motions.items()}
+    results["motion"] = {name: _motion_row(config, None, r) for name, r in motions.items()}
     results["worst_latency_s"] = max(r.latency_s for r in motions.values())
     results["worst_stop_s"] = max(r.stop_s for r in motions.values())
+    # What-if, defaults untouched: reversible (3D) propellers, as strong backward as forward.
+    sym_config, sym_blimp = symmetric_propellers(config)
+    symmetric = {name: sc.motion(sym_config, name, seed=seed, blimp=sym_blimp) for name in MOTIONS}
+    results["what_if_symmetric_propellers"] = {
+        "motion": {name: _motion_row(sym_config, sym_blimp, r) for name, r in symmetric.items()},
+        "worst_latency_s": max(r.latency_s for r in symmetric.values()),
+        "worst_stop_s": max(r.stop_s for r in symmetric.values()),
+    }
     results["controller_step"] = step_timing(config)
     results["plots"] = _plots(out_dir, climb, base_climb, turn, drafts, motions)
     (out_dir / "flight-bench.json").write_text(json.dumps(results, indent=2, default=_json_default))
     return results
+
+
+def _motion_row(config: FlightConfig, blimp: Any, result: sc.MotionResult) -> dict[str, float]:
+    floor = latency_floor(result.command, config, blimp)
+    return {
+        "latency_s": result.latency_s,
+        "stop_s": result.stop_s,
+        "peak_fraction": result.peak_fraction,
+        "roughness": result.roughness,
+        "floor_closed_form_s": floor.closed_form_s,
+        "floor_slew_limited_s": floor.slew_limited_s,
+    }
 
 
 def _json_default(value: Any) -> Any:
@@ -165,4 +186,16 @@ def format_table(results: dict[str, Any]) -> str:
     lines.append("per command (latency ms / stop s): " + ", ".join(
         f"{k} {v['latency_s'] * 1000:.0f}/{v['stop_s']:.2f}" for k, v in results["motion"].items()
     ))
+    symmetric = results["what_if_symmetric_propellers"]["motion"]
+    lines.append("")
+    lines.append(f"{'command':<11} {'latency':>8} {'floor':>6} {'closed':>7} {'peak':>6} {'rough':>6} {'stop':>5}   "
+                 f"{'3D props':>8} {'floor':>6}")
+    for name, v in results["motion"].items():
+        w = symmetric[name]
+        lines.append(
+            f"{name:<11} {v['latency_s'] * 1000:6.1f}ms {v['floor_slew_limited_s'] * 1000:6.1f} {v['floor_closed_form_s'] * 1000:7.1f}"
+            f" {v['peak_fraction'] * 100:5.1f}% {v['roughness']:6.3f} {v['stop_s']:5.2f}   {w['latency_s'] * 1000:6.1f}ms {w['floor_slew_limited_s'] * 1000:6.1f}"
+        )
+    lines.append("floor: best possible with the mixer and slew limits (ms); closed: full force at once through the 80 ms lag;"
+                 " peak: fastest motion while held / commanded; rough: motor roughness of the run; 3D props: reverse = forward thrust (what-if)")
     return "\n".join(lines)

@@ -31,6 +31,9 @@ SETTLE_S = 0.6  # damping-only phase after a braking ramp
 RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an outage
 SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 THRUST_LAG_S = 0.08
+# Age of a rangefinder reading when the controller gets it: a VL53L1X-class sensor ranging at 50 Hz
+# reports the middle of its 20 ms window, plus the transfer (the emulated board: 15 ms).
+RANGE_LATENCY_S = 0.015
 HANDOVER_S = 0.15  # time constant of the last part of a rate onset, where full thrust hands over to the rate loop
 RESIDUAL_GATE_M = 0.06  # about 4 sigma of the rangefinder's noise at 2 m
 RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and is learned
@@ -301,7 +304,9 @@ class FlightController:
             self._altitude_failsafe = False
             return
         self._predict_altitude(dt)
-        residual = range_m - self.z_hat
+        # The reading is RANGE_LATENCY_S old: compare it with where the body was then, or every
+        # vertical acceleration (a climb's onset) leaves the climb-rate estimate trailing the body.
+        residual = range_m - (self.z_hat - self.vz_hat * RANGE_LATENCY_S)
         # Observer poles: a double pole at p for altitude and speed, a slow one at q for the
         # disturbance, so the learned buoyancy error does not pick up rangefinder noise.
         p = 2.0 * math.pi * self.c.altitude_observer_hz

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feelium.flight.blimp_model import DraftParams
+from feelium.flight.blimp_model import BlimpParams, DraftParams
 from feelium.flight.config import FlightConfig
 from feelium.flight.emulated_board import BoardParams, board_with
 from feelium.flight.setpoint import Setpoint, setpoint_for_motion
@@ -26,8 +26,14 @@ MOTION_THRESHOLD = {"forward": 0.02, "backward": 0.02, "up": 0.02, "down": 0.02,
 STOPPED_FRACTION = 0.1
 
 
-def new_flight(config: FlightConfig, drafts: bool, seed: int = 1, controller: Controller | None = None) -> SimFlight:
-    params = board_with(BoardParams(drafts=DraftParams() if drafts else None), z=START_ALTITUDE_M)
+def new_flight(
+    config: FlightConfig, drafts: bool, seed: int = 1, controller: Controller | None = None, blimp: BlimpParams | None = None
+) -> SimFlight:
+    """A simulated flight at the start altitude; ``blimp`` replaces the body (what-ifs), default the paper's."""
+    board = BoardParams(drafts=DraftParams() if drafts else None)
+    if blimp is not None:
+        board = BoardParams(blimp=blimp, drafts=board.drafts)
+    params = board_with(board, z=START_ALTITUDE_M)
     return SimFlight(config, params, seed=seed, controller=controller)
 
 
@@ -143,9 +149,11 @@ def _first_crossing(t: np.ndarray, signal: np.ndarray, threshold: float, after: 
     return float(t[k - 1] + fraction * (t[k] - t[k - 1]))
 
 
-def motion(config: FlightConfig, name: str, hold_s: float = 3.0, seed: int = 1, drafts: bool = False) -> MotionResult:
+def motion(
+    config: FlightConfig, name: str, hold_s: float = 3.0, seed: int = 1, drafts: bool = False, blimp: BlimpParams | None = None
+) -> MotionResult:
     """Drive one command through the dead-man path, refreshed every 0.1 s, then let it lapse."""
-    flight = new_flight(config, drafts, seed)
+    flight = new_flight(config, drafts, seed, blimp=blimp)
     flight.run(SETTLE_S)
     dead_man = DeadManCommands()
     t_issue = flight.t + flight.period

@@ -1,0 +1,182 @@
+"""Rate-command onsets: minimum-time (the actuators' full acceleration through the motor lag) and quiet.
+
+Unit and property tests of the onset reference and of the physical latency
+floor, then the controller flying the simulator: each command's latency
+against the floor the physics allows, how far the body may exceed the
+commanded rate, switching straight from one command to its opposite, and
+the symmetric-propeller what-if behind the hardware requirement.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.config import Config
+from feelium.flight import scenarios as sc
+from feelium.flight.blimp_model import BlimpParams
+from feelium.flight.controller import HANDOVER_S, THRUST_LAG_S, FlightController, _RateOnset
+from feelium.flight.latency_floor import available_accel, lag_response_time, latency_floor, symmetric_propellers
+from feelium.flight.setpoint import setpoint_for_motion
+
+CONFIG = Config().flight
+COMMANDS = ("forward", "backward", "up", "down", "turn_left", "turn_right")
+
+
+# ------------------------------------------------------------------ the onset reference
+def test_onset_asks_for_the_full_acceleration_first() -> None:
+    onset = _RateOnset()
+    onset.start(0.0, 0.0)
+    rate, predicted, command = onset.step(0.25, (-0.75, 1.4), 0.02)
+    assert (rate, predicted, command) == (0.0, 0.0, 1.4)
+    _, _, command = onset.step(-0.25, (-0.75, 1.4), 0.02)  # reversed: the other limit
+    assert command == -0.75
+
+
+def test_onset_hands_over_smoothly_and_settles_on_the_commanded_rate() -> None:
+    onset = _RateOnset()
+    onset.start(0.0, 0.0)
+    commands = [onset.step(0.15, (-0.4, 0.68), 0.02)[2] for _ in range(150)]
+    assert commands[0] == 0.68
+    tail = commands[commands.index(next(c for c in commands if c < 0.68)) :]
+    assert all(b <= a + 1e-12 for a, b in zip(tail, tail[1:]))  # tapers monotonically, never bangs back
+    assert math.isclose(onset.rate, 0.15, rel_tol=1e-3) and abs(onset.accel) < 1e-3
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    target=st.floats(-2.0, 2.0),
+    rate=st.floats(-2.0, 2.0),
+    accel=st.floats(-3.0, 3.0),
+    lo=st.floats(-3.0, 0.0),
+    hi=st.floats(0.0, 3.0),
+    dt=st.floats(0.005, 0.05),
+)
+def test_onset_predicted_rate_never_passes_the_commanded_rate(
+    target: float, rate: float, accel: float, lo: float, hi: float, dt: float
+) -> None:
+    onset = _RateOnset()
+    onset.start(rate, accel)
+    side = math.copysign(1.0, target - onset.predicted)
+    for _ in range(100):
+        _, predicted, command = onset.step(target, (lo, hi), dt)
+        assert lo - 1e-12 <= command <= hi + 1e-12
+        assert (target - predicted) * side >= -1e-9
+    assert (target - onset.predicted) * side >= -1e-9
+
+
+@settings(max_examples=300, deadline=None)
+@given(target=st.floats(-2.0, 2.0), lo=st.floats(-3.0, -0.05), hi=st.floats(0.05, 3.0), dt=st.floats(0.005, 0.05))
+def test_onset_from_rest_never_overshoots_and_arrives(target: float, lo: float, hi: float, dt: float) -> None:
+    onset = _RateOnset()
+    onset.start(0.0, 0.0)
+    limit = hi if target > 0 else -lo
+    steps = int((abs(target) / limit + 12 * HANDOVER_S + 12 * THRUST_LAG_S) / dt) + 1
+    for _ in range(steps):
+        rate, _, _ = onset.step(target, (lo, hi), dt)
+        assert abs(rate) <= abs(target) + 1e-9 and rate * target >= -1e-12
+    assert abs(onset.rate - target) <= 1e-3 * max(abs(target), 1.0)
+
+
+# ------------------------------------------------------------------ the mixer's limits and the physical floor
+def test_mixer_limits_are_what_split_delivers() -> None:
+    mixer = FlightController(CONFIG).mixer
+    lo, hi = mixer.limits_surge_n()
+    assert math.isclose(sum(mixer.split(10.0, 0.0, 0.0)[:2]), hi)
+    assert math.isclose(sum(mixer.split(-10.0, 0.0, 0.0)[:2]), lo)
+    assert math.isclose(-lo / hi, CONFIG.reverse_ratio)
+    left, right, _, _ = mixer.split(0.0, 0.0, 10.0)
+    assert math.isclose((left - right) * CONFIG.arm_m, mixer.limit_yaw_nm())
+
+
+@settings(max_examples=100, deadline=None)
+@given(accel=st.floats(0.05, 5.0), threshold=st.floats(0.001, 0.5), tau=st.floats(0.0, 0.3))
+def test_lag_response_time_solves_the_closed_form(accel: float, threshold: float, tau: float) -> None:
+    t = lag_response_time(accel, threshold, tau)
+    speed = accel * (t - tau * (1.0 - math.exp(-t / tau))) if tau > 0 else accel * t
+    assert math.isclose(speed, threshold, rel_tol=1e-6)
+    assert t >= threshold / accel * (1 - 1e-6)  # the lag only ever delays
+
+
+def test_backward_cannot_reach_100_ms_with_60_percent_reverse_thrust() -> None:
+    """The physics claim in docs/flight.md: the floor itself is above the target; 3D propellers fix it."""
+    floor = latency_floor("backward", CONFIG)
+    assert floor.closed_form_s > 0.100 and floor.slew_limited_s > 0.100
+    sym_config, sym_blimp = symmetric_propellers(CONFIG)
+    assert latency_floor("backward", sym_config, sym_blimp).slew_limited_s < 0.100
+    assert available_accel("backward", sym_config, sym_blimp) == pytest.approx(available_accel("forward", CONFIG, BlimpParams()))
+    assert CONFIG.reverse_ratio == 0.6 and BlimpParams().horizontal_motor.reverse_ratio == 0.6  # defaults untouched
+
+
+# ------------------------------------------------------------------ the controller on the simulator
+@lru_cache(maxsize=None)
+def _motion(name: str, seed: int, symmetric: bool = False) -> sc.MotionResult:
+    if symmetric:
+        config, blimp = symmetric_propellers(CONFIG)
+        return sc.motion(config, name, hold_s=1.5, seed=seed, blimp=blimp)
+    return sc.motion(CONFIG, name, hold_s=1.5, seed=seed)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", COMMANDS)
+def test_latency_is_at_the_physical_floor(name: str) -> None:
+    result = _motion(name, 1)
+    floor = latency_floor(name, CONFIG)
+    # Within 5 ms of the best the mixer and slew limits allow from rest (the body is never quite at rest).
+    assert result.latency_s <= floor.slew_limited_s + 0.005
+    if floor.slew_limited_s < 0.095:  # forward, up, down: the issue's 100 ms is met
+        assert result.latency_s <= 0.100
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", COMMANDS)
+def test_onset_drives_the_motors_as_fast_as_the_slew_limit_allows(name: str) -> None:
+    flight = sc.new_flight(CONFIG, drafts=False)
+    flight.run(sc.SETTLE_S)
+    before = flight.last.commands if flight.last else (0.0,) * 4
+    after = [flight.step(setpoint_for_motion(name, CONFIG)).commands for _ in range(2)]
+    driven = {"forward": (0, 1), "backward": (0, 1), "turn_left": (0, 1), "turn_right": (0, 1), "up": (2, 3), "down": (2, 3)}[name]
+    step = CONFIG.slew_per_s / CONFIG.rate_hz
+    for motor in driven:
+        sequence = [before[motor]] + [c[motor] for c in after]
+        for a, b in zip(sequence, sequence[1:]):
+            # each cycle either a full slew step or already at full output
+            assert abs(b - a) >= step - 1e-9 or abs(b) >= CONFIG.max_output - 1e-9
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", COMMANDS)
+def test_no_overshoot_of_the_commanded_rate_and_no_buzzing(name: str) -> None:
+    for seed in (1, 2, 3):
+        result = _motion(name, seed)
+        assert result.peak_fraction <= 1.025, (seed, result.peak_fraction)  # the untouched step reached 1.029
+        assert result.roughness < 1.0, (seed, result.roughness)  # a buzzing motor scores tens
+        assert result.stop_s <= 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("first,second,key", [("forward", "backward", "u"), ("turn_right", "turn_left", "r_dps"), ("up", "down", "w")])
+def test_switching_straight_to_the_opposite_command(first: str, second: str, key: str) -> None:
+    flight = sc.new_flight(CONFIG, drafts=False)
+    flight.run(sc.SETTLE_S)
+    flight.run(2.0, setpoint_for_motion(first, CONFIG))
+    start, t0 = len(flight.log["t"]), flight.t
+    flight.run(2.0, setpoint_for_motion(second, CONFIG))
+    t = flight.log["t"][start:] - t0
+    motion = -flight.log[key][start:]  # the second command's direction
+    cruise = {"u": CONFIG.forward_speed_m_s, "w": CONFIG.climb_rate_m_s, "r_dps": CONFIG.yaw_rate_dps}[key]
+    assert motion.max() <= 1.02 * cruise  # no overshoot from the reversal
+    assert motion[t <= 1.5][-1] >= 0.95 * cruise  # at the new rate within 1.5 s
+    assert np.all(np.isfinite(motion))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", COMMANDS)
+def test_symmetric_propellers_would_meet_100_ms_for_every_command(name: str) -> None:
+    """The what-if behind the hardware requirement: reverse thrust equal to forward."""
+    assert _motion(name, 1, symmetric=True).latency_s <= 0.100
