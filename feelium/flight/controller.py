@@ -342,7 +342,8 @@ class FlightController:
             if not self._climbing:
                 onset.start(self.vz_hat, self._climb_accel())
             self._climbing = True
-            ref.rate, rate_ahead, ref.accel = onset.step(climb, self._climb_accel_limits(onset.rate), dt)
+            target = self._climb_within_limits(z, climb)
+            ref.rate, rate_ahead, ref.accel = onset.step(target, self._climb_accel_limits(onset.rate), dt)
             ref.value = min(max(ref.value + ref.rate * dt, z - 0.25, c.altitude_min_m), z + 0.25, c.altitude_max_m)
             self.z_target = ref.value
         elif self._climbing:
@@ -456,6 +457,17 @@ class FlightController:
     def _yaw_rate_now(self) -> float:
         """The yaw rate (rad/s) now: the filtered gyro brought forward over its filter lag."""
         return math.radians(self.yaw_rate) + self._yaw_accel() * YAW_RATE_TAU_S
+
+    def _climb_within_limits(self, z: float, climb: float) -> float:
+        """The commanded climb rate, slowed near ``altitude_min_m``/``altitude_max_m`` so that a held
+        up or down stops there (at a quarter of the release deceleration, gentle enough for the
+        onset reference and the motor lag to follow) instead of at the floor or the ceiling. The room
+        left is counted from where the body will be once a slower command has taken effect."""
+        c = self.c
+        z_ahead = z + self.vz_hat * (HANDOVER_S + THRUST_LAG_S)
+        room = c.altitude_max_m - z_ahead if climb > 0 else z_ahead - c.altitude_min_m
+        allowed = math.sqrt(2.0 * 0.25 * c.brake_climb_m_s2 * max(room, 0.0))
+        return math.copysign(min(abs(climb), allowed), climb)
 
     # The largest accelerations the actuators allow, each way, at a given rate: what a rate
     # command's onset asks for (the mixer's limits, reverse thrust, drag, buoyancy).

@@ -70,6 +70,22 @@ def test_release_holds_the_new_altitude_and_heading() -> None:
     assert abs(flight.board.state.heading_deg - heading_after) < 3.0
 
 
+@pytest.mark.parametrize("name,start", [("up", 2.2), ("down", 0.8)])
+def test_a_held_climb_or_descent_stops_at_the_altitude_limits(name: str, start: float) -> None:
+    """Not at the ceiling or on the floor: `altitude_max_m`/`altitude_min_m` bound what up/down reach."""
+    flight = sc.new_flight(CONFIG, drafts=False)
+    flight.board.state = replace(flight.board.state, z=start)
+    flight.run(4.0)
+    first = len(flight.log["t"])
+    flight.run(6.0, setpoint_for_motion(name, CONFIG))
+    z = flight.log["z"][first:]
+    if name == "up":
+        assert CONFIG.altitude_max_m - 0.05 < z[-1] and z.max() < CONFIG.altitude_max_m + 0.03
+    else:
+        assert z[-1] < CONFIG.altitude_min_m + 0.05 and z.min() > CONFIG.altitude_min_m - 0.03
+    assert abs(flight.board.state.w) < 0.05  # stopped there, still holding the command
+
+
 def _held_then_released(config, hold_s: float) -> tuple[float, float]:
     flight = sc.new_flight(config, drafts=False)
     flight.run(5.0)
