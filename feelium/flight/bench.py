@@ -96,7 +96,7 @@ def run_bench(config: FlightConfig, out_dir: Path, seed: int = 1) -> dict[str, A
         "worst_stop_s": max(r.stop_s for r in symmetric.values()),
     }
     results["controller_step"] = step_timing(config)
-    results["plots"] = _plots(out_dir, climb, base_climb, turn, drafts, motions)
+    results["plots"] = _plots(out_dir, climb, base_climb, turn, drafts, motions, symmetric["backward"])
     (out_dir / "flight-bench.json").write_text(json.dumps(results, indent=2, default=_json_default))
     return results
 
@@ -126,6 +126,7 @@ def _plots(
     turn: sc.StepResult,
     drafts: sc.HoldResult,
     motions: dict[str, sc.MotionResult],
+    backward_3d: sc.MotionResult,
 ) -> list[str]:
     from feelium.plot import Series, line_plot
 
@@ -162,8 +163,25 @@ def _plots(
             ylabel="motion / commanded rate",
             hlines=((1.0, "commanded"), (0.1, "10 %: stopped below")),
         ),
+        line_plot(
+            out_dir / "flight-onsets.png",
+            [_onset_series(r, name) for name, r in motions.items()] + [_onset_series(backward_3d, "backward, 3D props (what-if)")],
+            title="Onsets: motion in units of the latency threshold (crossing 1 = moving); target 100 ms",
+            xlabel="time since the command was issued (ms)",
+            ylabel="motion / (2 cm/s or 3 deg/s)",
+            hlines=((1.0, "moving"),),
+        ),
     ]
     return [str(p) for p in paths]
+
+
+def _onset_series(result: sc.MotionResult, label: str) -> Any:
+    """The first 200 ms of a command in units of its latency threshold (crossing 1 is "moving")."""
+    from feelium.plot import Series
+
+    window = (result.t >= -0.04) & (result.t <= 0.2)
+    in_thresholds = result.fraction[window] * result.commanded / sc.MOTION_THRESHOLD[result.command]
+    return Series(result.t[window] * 1000.0, in_thresholds, f"{label} {result.latency_s * 1000:.0f} ms")
 
 
 def format_table(results: dict[str, Any]) -> str:

@@ -123,6 +123,7 @@ class MotionResult:
     t: np.ndarray  # seconds since the command was issued
     fraction: np.ndarray  # motion in the commanded direction as a fraction of the commanded rate
     expired_s: float  # when the dead man expired, on the same time axis
+    commanded: float  # the commanded rate (m/s, deg/s for turns)
     peak_fraction: float  # the fastest motion while the command was held, as a fraction of the commanded rate
     roughness: float  # motor-command roughness from the command's issue to the end of the run
 
@@ -186,7 +187,7 @@ def motion(
     issued = int(np.nonzero(t >= t_issue)[0][0])
     fraction = signal / cruise
     return MotionResult(
-        name, latency, stop, t - t_issue, fraction, t_expired - t_issue,
+        name, latency, stop, t - t_issue, fraction, t_expired - t_issue, commanded=cruise,
         peak_fraction=float(np.max(fraction[held])), roughness=roughness(flight.log, max(issued - 1, 0)),
     )
 
