@@ -14,7 +14,7 @@ import numpy as np
 from feelium.config import load_config
 from feelium.plot import Series, line_plot
 from feelium.recording import Recording, RecordingError, find_recordings
-from feelium.touch.calibrate import ClipSeries, Fit, fit_gates
+from feelium.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
 from feelium.touch.config import TouchConfig
 from feelium.touch.evaluate import ClipData, TrialData, build_report
 from feelium.touch.replay import ReplayResult, relative_name, replay_recording
@@ -98,14 +98,17 @@ def _clip_series(result: ReplayResult) -> ClipSeries:
     contact = np.zeros(result.t.size, bool)
     for c in labels.contacts:
         contact |= (result.t >= c.t_on) & (result.t < c.t_off)
-    return ClipSeries(labels.label, result.t, result.anchor, result.core_depth, contact)
+    return ClipSeries(labels.label, result.t, result.anchor, result.core_depth, result.edge, contact)
 
 
 def fit_on_clips(recordings: list[Recording], config: TouchConfig) -> Fit:
+    """Fit the contact edge first, then replay the clips with it and fit the depth thresholds."""
     clips = [r for r in recordings if r.labels is not None and r.labels.clip and r.labels.label in ("contact", "hover")]
     if not clips:
         raise ValueError("no continuous contact/hover clips in this dataset (labels with \"clip\": true)")
-    return fit_gates([_clip_series(replay_recording(r, config)) for r in clips])
+    edge = fit_edge([_clip_series(replay_recording(r, config)) for r in clips])
+    with_edge = replace(config, contact_edge=edge)
+    return fit_gates([_clip_series(replay_recording(r, with_edge)) for r in clips], edge)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
@@ -178,6 +181,7 @@ def run_eval(args: argparse.Namespace) -> int:
     report, clips = evaluate_dataset(root, config, dataset_name=args.dataset)
     report["touch_config"] = {
         "fitted_on_clips": fitted is not None,
+        "contact_edge": config.contact_edge,
         "instant_depth": config.instant_depth,
         "anchor_threshold": config.anchor_threshold,
         "anchor_window_s": config.anchor_window_s,
@@ -278,7 +282,8 @@ def format_report(report: dict[str, Any]) -> str:
         rows.append(
             (
                 "gates used" + (" (fitted on clips)" if cfg["fitted_on_clips"] else ""),
-                f"instant_depth {cfg['instant_depth']:.3f}, anchor_threshold {cfg['anchor_threshold']:.3f}",
+                f"contact_edge {cfg['contact_edge']:.4f}, instant_depth {cfg['instant_depth']:.3f}, "
+                f"anchor_threshold {cfg['anchor_threshold']:.3f}",
             )
         )
     width = max(len(r[0]) for r in rows)

@@ -95,18 +95,37 @@ class TouchConfig:
         0.75, "The darkening core is where depth >= this fraction of the candidate's peak depth.", min=0.05, max=0.99
     )
 
+    contact_edge_radius_px: float = setting(
+        20.0,
+        "Search radius (camera px) around the fingertip for its shadow's steepest edge: about the contact patch's size.",
+        min=1.0,
+        max=500.0,
+    )
+
     # Gates.
+    contact_edge: float = setting(
+        0.046,
+        "Steepest depth gradient near the fingertip (depth per camera px) from which its shadow has a contact edge: "
+        "skin on the membrane casts a shadow as sharp as the membrane's scatter, a hover's is blurred by its height. "
+        "Both gates need it; 0 turns the test off (the paper's gates alone).",
+        min=0.0,
+        max=1.0,
+    )
     instant_depth: float = setting(
         0.55, "Instant gate: a core at least this deep is a firm press.", min=0.0, max=1.0
     )
     anchor_window_s: float = setting(
-        1.0, "Sustained-anchoring window: rolling minimum of core depth over this much camera time.", min=0.05, max=30.0
+        1.0,
+        "Sustained-anchoring window: rolling minimum of core depth over this much camera time, counted from when the "
+        "shadow landed (showed a contact edge).",
+        min=0.05,
+        max=30.0,
     )
     anchor_threshold: float = setting(
         0.30, "Sustained gate: rolling minimum core depth at or above this is an anchored touch.", min=0.0, max=1.0
     )
     anchor_min_age_s: float = setting(
-        0.5, "The sustained gate needs a candidate seen at least this long.", min=0.0, max=30.0
+        0.5, "The sustained gate needs a shadow landed (with a contact edge) at least this long.", min=0.0, max=30.0
     )
     release_depth: float = setting(
         0.25, "While down, a contact stays down as long as its core is at least this deep (hysteresis).", min=0.0, max=1.0

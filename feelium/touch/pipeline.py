@@ -39,6 +39,7 @@ class FrameResult:
     area: int  # darkened area (camera px) above the activity floor
     contacts: tuple[Contact, ...]  # contacts currently down
     core_depth: float = 0.0  # deepest candidate core this frame (what the instant gate sees)
+    edge: float = 0.0  # that candidate's contact edge (steepest depth gradient, per camera px)
 
 
 class TouchPipeline:
@@ -86,6 +87,8 @@ class TouchPipeline:
         self._deep: np.ndarray | None = None
         g = self.geometry
         self._sigma = g.px(config.blur_sigma_px)
+        self._edge_radius = g.px(config.contact_edge_radius_px)
+        self._per_camera_px = g.px(1.0)  # a gradient per working px times this is per camera px
         self._min_area = max(1, int(math.ceil(config.candidate_min_area_px / g.area_scale)))
         self._activity_area = config.activity_min_area_px
         margin = int(math.ceil(g.px(config.reference_margin_px)))
@@ -159,6 +162,7 @@ class TouchPipeline:
             min_area=self._min_area,
             core_fraction=cfg.core_fraction,
             max_candidates=cfg.max_candidates,
+            edge_radius=self._edge_radius,
         )
         observations = []
         kept = []
@@ -168,7 +172,8 @@ class TouchPipeline:
                 continue
             u, v = _uv(self._roi, cx, cy)
             area_px = int(round(cand.area * self.geometry.area_scale))
-            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px))
+            edge = cand.edge * self._per_camera_px
+            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge))
             kept.append(cand)
         step = self.tracker.step(t, observations)
         if self._margin_kernel is not None and darkened:
@@ -179,6 +184,7 @@ class TouchPipeline:
         ref.update(t, work, frozen, anchored)
         self._shadow = frozen
         self._deep = (smooth > cfg.candidate_depth) if candidates else None
+        deepest = max(observations, key=lambda o: o.depth, default=None)
         return FrameResult(
             t=t,
             events=tuple(step.events),
@@ -187,7 +193,8 @@ class TouchPipeline:
             depth_max=depth_max,
             area=area,
             contacts=tuple(self.tracker.contacts()),
-            core_depth=max((o.depth for o in observations), default=0.0),
+            core_depth=deepest.depth if deepest else 0.0,
+            edge=deepest.edge if deepest else 0.0,
         )
 
     def _prepare(self, frame: np.ndarray, backlight_gain: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:

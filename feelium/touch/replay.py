@@ -32,6 +32,7 @@ class ReplayResult:
     area: np.ndarray = field(default_factory=lambda: np.zeros(0))
     depth_max: np.ndarray = field(default_factory=lambda: np.zeros(0))
     core_depth: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    edge: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the deepest shadow's contact edge
     seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))  # wall time
     cpu_seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))  # this thread's CPU time
     work_size: tuple[int, int] = (0, 0)
@@ -49,7 +50,7 @@ def replay_recording(
     meta = recording.meta
     pipeline = TouchPipeline(config, (meta.camera.width, meta.camera.height), meta.roi, plain=plain)
     out = ReplayResult(recording=recording)
-    ts, act, anc, area, dmax, core, spf, cpu = [], [], [], [], [], [], [], []
+    ts, act, anc, area, dmax, core, edge, spf, cpu = [], [], [], [], [], [], [], [], []
     for t, frame in frames if frames is not None else recording.frames(gray=True):
         start, start_cpu = time.perf_counter(), time.thread_time()
         result = pipeline.process(t, frame)
@@ -62,6 +63,7 @@ def replay_recording(
         area.append(result.area)
         dmax.append(result.depth_max)
         core.append(result.core_depth)
+        edge.append(result.edge)
         if on_frame is not None:
             on_frame(t, frame, result)
     out.events.extend(pipeline.finish())
@@ -71,6 +73,7 @@ def replay_recording(
     out.area = np.asarray(area, float)
     out.depth_max = np.asarray(dmax, float)
     out.core_depth = np.asarray(core, float)
+    out.edge = np.asarray(edge, float)
     out.seconds_per_frame = np.asarray(spf, float)
     out.cpu_seconds_per_frame = np.asarray(cpu, float)
     out.work_size = pipeline.geometry.work_size

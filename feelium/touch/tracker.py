@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from feelium.events import TouchEvent, TouchKind
 from feelium.touch.config import TouchConfig
-from feelium.touch.gates import anchoring_score, is_touching
+from feelium.touch.gates import has_contact_edge, is_touching
 from feelium.touch.rolling import RollingMin
 
 
@@ -30,17 +30,18 @@ class Observation:
     v: float
     depth: float  # core depth
     area: int  # camera pixels
+    edge: float  # steepest depth gradient near the fingertip, per camera px (contact edge)
 
 
 @dataclass
 class Track:
     """One shadow followed over frames; a contact while ``event_id`` is set."""
 
-    first_t: float
     last_seen_t: float
     obs: Observation
     rolling: RollingMin
     anchor: float = 0.0
+    landed_t: float | None = None  # start of the current run of frames with a contact edge
     seen: bool = True
     streak: int = 0
     event_id: int | None = None
@@ -102,7 +103,7 @@ class Tracker:
         for index, obs in enumerate(observations):
             track = matched.get(index)
             if track is None:
-                track = Track(first_t=t, last_seen_t=t, obs=obs, rolling=RollingMin(cfg.anchor_window_s))
+                track = Track(last_seen_t=t, obs=obs, rolling=RollingMin(cfg.anchor_window_s))
                 new_tracks.append(track)
             track.obs = obs
             track.seen = True
@@ -112,15 +113,16 @@ class Tracker:
         survivors = []
         for track in self.tracks:
             depth = track.obs.depth if track.seen else 0.0
-            window_min = track.rolling.push(t, depth)
-            track.anchor = anchoring_score(cfg, window_min, t - track.first_t)
+            landed_s = self._land(track, t, depth)
             if track.seen:
                 out.anchor = max(out.anchor, track.anchor)
             # Once a gate has passed, the next frames only need the release hysteresis to confirm the onset:
             # the shortest taps are lifting again by their second frame at 15 fps, and a one-frame flicker
             # (nothing the frame after) is still debounced.
             held = track.down or track.streak > 0
-            touching = is_touching(cfg, down=held, seen=track.seen, core_depth=depth, anchor=track.anchor)
+            touching = is_touching(
+                cfg, down=held, seen=track.seen, landed_s=landed_s, core_depth=depth, anchor=track.anchor
+            )
             self._advance(track, t, touching, out.events)
             if track.down or t - track.last_seen_t <= cfg.release_s:
                 survivors.append(track)
@@ -152,6 +154,22 @@ class Tracker:
         return out
 
     # -- internals -------------------------------------------------------------------------
+
+    def _land(self, track: Track, t: float, depth: float) -> float | None:
+        """Update the track's landing and anchoring score; seconds since it landed, None when not landed.
+
+        The rolling minimum restarts at each landing, so the score measures how
+        the shadow held since it reached the membrane, not the approach before.
+        """
+        if not (track.seen and has_contact_edge(self.config, track.obs.edge)):
+            track.landed_t = None
+            track.anchor = 0.0
+            return None
+        if track.landed_t is None:
+            track.landed_t = t
+            track.rolling = RollingMin(self.config.anchor_window_s)
+        track.anchor = track.rolling.push(t, depth)
+        return t - track.landed_t
 
     def _associate(self, observations: list[Observation]) -> dict[int, Track]:
         """Greedy nearest-centre matching of this frame's shadows to existing tracks."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 W, H = 160, 120
@@ -32,9 +33,25 @@ class Blob:
     sigma: float = 4.0
 
 
+@dataclass(frozen=True)
+class Patch:
+    """Skin pressed on the membrane: a disc of ``depth`` with an edge blurred only by ``edge_sigma`` px."""
+
+    x: float
+    y: float
+    depth: float
+    radius: float
+    edge_sigma: float = 1.0
+
+    def loss(self, width: int, height: int) -> np.ndarray:
+        ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
+        inside = (((xs - self.x) ** 2 + (ys - self.y) ** 2) <= self.radius**2).astype(np.float32)
+        return self.depth * cv2.GaussianBlur(inside, (0, 0), self.edge_sigma)
+
+
 def render(
     light: np.ndarray,
-    blobs: list[Blob] = (),  # type: ignore[assignment]
+    blobs: list[Blob | Patch] = (),  # type: ignore[assignment]
     *,
     gain: float = 1.0,
     noise: float = 2.0,
@@ -45,7 +62,10 @@ def render(
     ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
     img = light * np.float32(gain)
     for b in blobs:
-        img = img * (1.0 - b.depth * np.exp(-((xs - b.x) ** 2 + (ys - b.y) ** 2) / (2 * b.sigma**2)))
+        if isinstance(b, Patch):
+            img = img * (1.0 - b.loss(width, height))
+        else:
+            img = img * (1.0 - b.depth * np.exp(-((xs - b.x) ** 2 + (ys - b.y) ** 2) / (2 * b.sigma**2)))
     if noise > 0:
         rng = rng or np.random.default_rng(0)
         img = img + rng.normal(0.0, noise, img.shape).astype(np.float32)

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
-from tests.touch.synth import H, ROI, W, Blob, backlight, render
+from tests.touch.synth import H, ROI, W, Blob, Patch, backlight, render
 
 CFG = TouchConfig(width=W, height=H)
 DT = 1 / 15
@@ -61,13 +61,29 @@ def test_thirty_second_palm_press_stays_detected(light):
     rng = np.random.default_rng(4)
     pipe = TouchPipeline(CFG, (W, H), ROI)
     feed(pipe, [render(light, rng=rng) for _ in range(10)])
-    palm = [Blob(80, 60, 0.8, 12.0)]
+    palm = [Patch(80, 60, 0.8, radius=14.0)]  # a palm pressed flat: a sharp-edged contact
     t0 = 10 * DT
     results = feed(pipe, [render(light, palm, rng=rng) for _ in range(450)], t0=t0)
     downs = [e for e in events_of(results) if e.phase == "down"]
     assert len(downs) == 1 and not any(e.phase == "up" for e in events_of(results))
     assert all(r.contacts for r in results[5:])  # still down after 30 s
     assert results[-1].area > 0.8 * results[10].area  # the reference has not eaten the shadow
+
+
+def test_a_close_hover_as_deep_as_a_press_fires_nothing_while_the_press_does(light):
+    # Same peak depth; the hover's shadow is blurred by its height, the press's edge is sharp.
+    def run(shadow):
+        rng = np.random.default_rng(5)
+        pipe = TouchPipeline(CFG, (W, H), ROI)
+        frames = [render(light, rng=rng) for _ in range(10)] + [render(light, [shadow], rng=rng) for _ in range(40)]
+        return feed(pipe, frames)
+
+    hover = run(Blob(80, 60, 0.8, sigma=14.0))
+    press = run(Patch(80, 60, 0.7, radius=6.0))
+    assert max(r.core_depth for r in hover) > CFG.instant_depth  # deep enough for the instant gate on depth alone
+    assert events_of(hover) == [] and max(r.anchor for r in hover) == 0.0
+    assert [e.phase for e in events_of(press)] == ["down"]
+    assert max(r.edge for r in press) > 2 * CFG.contact_edge > 2 * max(r.edge for r in hover)
 
 
 def test_exposure_drift_is_not_a_shadow(light):

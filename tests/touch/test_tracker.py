@@ -2,6 +2,8 @@
 
 from dataclasses import replace
 
+import pytest
+
 from feelium.touch.config import TouchConfig
 from feelium.touch.tracker import Observation, Tracker
 
@@ -9,8 +11,12 @@ CFG = TouchConfig()
 DT = 1 / 15
 
 
-def obs(x, y, depth=0.8, area=150):
-    return Observation(x, y, x / 640, y / 480, depth, area)
+SHARP = 0.1  # a contact edge (depth per camera px) well above the default contact_edge
+BLURRED = 0.02  # a hover's soft edge
+
+
+def obs(x, y, depth=0.8, area=150, edge=SHARP):
+    return Observation(x, y, x / 640, y / 480, depth, area, edge)
 
 
 def run(tracker, frames, t0=0.0):
@@ -106,3 +112,35 @@ def test_a_one_frame_press_lifting_on_the_next_frame_is_still_a_tap():
 def test_a_shallow_shadow_after_no_gate_is_not_confirmed_by_hysteresis():
     tracker = Tracker(CFG)
     assert run(tracker, [[obs(100, 100, depth=0.35)]] * 3 + [[]] * 6) == []
+
+
+def test_a_deep_blurred_shadow_is_a_hover_not_a_touch():
+    # A close hover darkens like a press but its shadow has no contact edge: neither gate may pass.
+    tracker = Tracker(replace(CFG, instant_depth=0.55, anchor_threshold=0.3))
+    assert run(tracker, [[obs(100, 100, depth=0.7, edge=BLURRED)]] * 40) == []
+
+
+def test_the_anchoring_window_starts_at_landing_not_at_the_approach():
+    # A shallow approach (no edge) then a steady landed press: the score is the press's depth at once,
+    # not the approach's, while the gate still waits anchor_min_age_s after landing.
+    cfg = replace(CFG, instant_depth=0.9, anchor_threshold=0.4, anchor_min_age_s=0.5)
+    tracker = Tracker(cfg)
+    approach = [[obs(100, 100, depth=0.2, edge=BLURRED)]] * 6
+    press = [[obs(100, 100, depth=0.6)]] * 14
+    scores = []
+    events = []
+    for k, frame in enumerate(approach + press):
+        step = tracker.step(k / 15, frame)
+        scores.append(step.anchor)
+        events.extend(step.events)
+    assert scores[5] == 0.0 and scores[6] == pytest.approx(0.6)
+    downs = [e for e in events if e.phase == "down"]
+    assert len(downs) == 1 and downs[0].t >= 6 / 15 + 0.5
+
+
+def test_losing_the_edge_restarts_the_anchoring_clock():
+    cfg = replace(CFG, instant_depth=0.9, anchor_threshold=0.4, anchor_min_age_s=0.5)
+    tracker = Tracker(cfg)
+    # Sharp for 0.4 s, one blurred frame, sharp for 0.4 s: never landed for 0.5 s at a stretch.
+    frames = [[obs(100, 100, depth=0.6)]] * 6 + [[obs(100, 100, depth=0.6, edge=BLURRED)]] + [[obs(100, 100, depth=0.6)]] * 6
+    assert run(tracker, frames) == []
