@@ -10,8 +10,11 @@ Three loops share one mixer:
 - surge: a model-based speed observer (there is no airspeed sensor) so that
   releasing ``forward`` brakes actively instead of coasting.
 
-Releasing a rate command first brakes (damping only) and then holds the
-altitude or heading where the body came to rest, so nothing springs back.
+A rate command (forward, up, turn...) starts at the largest acceleration
+the actuators allow, through an onset reference that models the motor lag
+(``_RateOnset``), so the body moves as soon as physics permits; releasing it
+first brakes (damping only) and then holds the altitude or heading where the
+body came to rest, so nothing springs back.
 Failsafes (``docs/flight.md``) are decided here from telemetry age; time is
 an input, so all of it runs faster than real time in tests.
 """
