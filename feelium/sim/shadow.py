@@ -120,13 +120,17 @@ def blurred_footprint(
     x1, y1 = min(width, int(math.ceil(ex1 + margin))), min(height, int(math.ceil(ey1 + margin)))
     if x1 <= x0 or y1 <= y0:
         return None
-    # Wide blurs lose nothing at reduced resolution: draw and blur small, then upsample.
+    # Wide blurs lose nothing at reduced resolution: blur small, then upsample. The part is drawn at
+    # full resolution and area-averaged down, so its mass (and the blurred peak) does not jump when
+    # the reduction factor changes with the height.
     factor = int(min(8, max(1, sigma // 3)))
     cw, ch = x1 - x0, y1 - y0
     sw, sh = max(1, -(-cw // factor)), max(1, -(-ch // factor))
-    canvas = np.zeros((sh, sw), np.uint8)
-    _draw(canvas, part, x0, y0, 1.0 / factor)
+    canvas = np.zeros((sh * factor, sw * factor), np.uint8)
+    _draw(canvas, part, x0, y0, 1.0)
     small = canvas.astype(np.float32) * (1.0 / 255.0)
+    if factor > 1:
+        small = cv2.resize(small, (sw, sh), interpolation=cv2.INTER_AREA)
     small_sigma = sigma / factor
     if small_sigma > 0.3:
         small = cv2.GaussianBlur(small, (0, 0), small_sigma, borderType=cv2.BORDER_CONSTANT)

@@ -7,7 +7,8 @@ rise above that level, so the arm or the soft penumbra trailing behind a
 fingertip does not pull the point off the pad.
 
 Each candidate also carries its *edge*: the steepest depth gradient within
-``edge_radius`` of the fingertip. Skin pressed on the membrane casts a shadow
+``edge_radius`` of its core (a fingertip's pad, or a whole palm pressed flat,
+whose edge is far from its centre). Skin pressed on the membrane casts a shadow
 as sharp as the membrane's own scatter (and frustrates its reflection, a
 sharp extra loss), while a hand even 2 mm above it is blurred by its height,
 so the edge tells contact from a close hover where depth alone cannot.
@@ -31,7 +32,7 @@ class Candidate:
     peak: float  # largest smoothed depth in the shadow
     core_depth: float  # mean smoothed depth over the core
     area: int  # working pixels above candidate_depth
-    edge: float  # steepest depth gradient near the fingertip, depth per working pixel
+    edge: float  # steepest depth gradient near the core, depth per working pixel
     label: int  # component label in this frame's Segmentation
     bbox: tuple[int, int, int, int]  # x, y, w, h in working pixels
 
@@ -100,26 +101,28 @@ def find_candidates(
         cx = bx + x0 + float(np.dot(xs, w_core)) / total
         cy = by + y0 + float(np.dot(ys, w_core)) / total
         core_depth = float(values[core].mean())
-        edge = steepest_gradient(full_depth, cx, cy, edge_radius)
+        edge = steepest_gradient(
+            full_depth, (bx + x0 + int(xs.min()), by + y0 + int(ys.min()), bx + x0 + int(xs.max()), by + y0 + int(ys.max())),
+            edge_radius,
+        )
         found.append(Candidate(cx, cy, peak, core_depth, area, edge, label, (bx + x0, by + y0, w, h)))
     return found, Segmentation(labels, (bx, by))
 
 
-def steepest_gradient(depth: np.ndarray, x: float, y: float, radius: float) -> float:
-    """Largest gradient magnitude (depth per pixel) of ``depth`` in the square of ``radius`` around (x, y).
+def steepest_gradient(depth: np.ndarray, box: tuple[int, int, int, int], radius: float) -> float:
+    """Largest gradient magnitude (depth per pixel) of ``depth`` within ``radius`` of ``box`` (x0, y0, x1, y1 inclusive).
 
     Central differences (Sobel, normalised): the map is already smoothed, so
     one more derivative filter adds little noise. Non-finite values count as 0.
     """
     h, w = depth.shape
     r = max(1, int(math.ceil(radius)))
-    ix, iy = int(round(x)), int(round(y))
-    x0, y0, x1, y1 = max(ix - r, 0), max(iy - r, 0), min(ix + r + 1, w), min(iy + r + 1, h)
+    x0, y0 = max(box[0] - r, 0), max(box[1] - r, 0)
+    x1, y1 = min(box[2] + r + 1, w), min(box[3] + r + 1, h)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return 0.0
     patch = np.ascontiguousarray(depth[y0:y1, x0:x1], dtype=np.float32)
     gx = cv2.Sobel(patch, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
     gy = cv2.Sobel(patch, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
-    magnitude = cv2.magnitude(gx, gy)
-    steepest = float(magnitude.max())
+    steepest = float(cv2.magnitude(gx, gy).max())
     return steepest if math.isfinite(steepest) else 0.0

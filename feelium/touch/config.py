@@ -97,7 +97,7 @@ class TouchConfig:
 
     contact_edge_radius_px: float = setting(
         20.0,
-        "Search radius (camera px) around the fingertip for its shadow's steepest edge: about the contact patch's size.",
+        "Search radius (camera px) around a shadow's core (a fingertip's pad, a pressed palm) for its steepest edge.",
         min=1.0,
         max=500.0,
     )
