@@ -15,6 +15,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from feelium.flight.propellers import ONE_DIRECTION_REVERSE_RATIO, REVERSIBLE_3D_REVERSE_RATIO
+
 G = 9.81
 AIR_DENSITY = 1.204  # kg/m^3 at 20 degC, sea level
 HELIUM_DENSITY = 0.166
@@ -22,12 +24,16 @@ HELIUM_DENSITY = 0.166
 
 @dataclass(frozen=True)
 class MotorParams:
-    """One motor with its propeller: thrust in newtons at full command, lag, deadband, reverse efficiency."""
+    """One motor with its propeller: thrust in newtons at full command, reverse efficiency, lag, deadband.
+
+    ``reverse_ratio`` (reverse thrust / forward thrust) has no default: it is the
+    propeller choice (``propellers.py``), and each pair states its own.
+    """
 
     max_thrust_n: float
+    reverse_ratio: float
     time_constant_s: float = 0.08
     deadband: float = 0.06
-    reverse_ratio: float = 0.6
 
     def static_thrust(self, command: float) -> float:
         """Steady thrust for a command in [-1, 1]: zero inside the deadband, quadratic above it."""
@@ -53,8 +59,14 @@ class BlimpParams:
     yaw_linear_drag: float = 0.004  # N m per rad/s
     yaw_quadratic_drag: float = 0.02  # N m per (rad/s)^2
     arm_m: float = 0.25  # lateral offset of each horizontal motor from the centre line
-    horizontal_motor: MotorParams = field(default_factory=lambda: MotorParams(max_thrust_n=0.25))
-    vertical_motor: MotorParams = field(default_factory=lambda: MotorParams(max_thrust_n=0.50))
+    # Reversible 3D propellers on the horizontal pair (the latency target needs them backward),
+    # one-direction propellers on the vertical pair (they mostly push down).
+    horizontal_motor: MotorParams = field(
+        default_factory=lambda: MotorParams(max_thrust_n=0.25, reverse_ratio=REVERSIBLE_3D_REVERSE_RATIO)
+    )
+    vertical_motor: MotorParams = field(
+        default_factory=lambda: MotorParams(max_thrust_n=0.50, reverse_ratio=ONE_DIRECTION_REVERSE_RATIO)
+    )
     floor_m: float = 0.0
     ceiling_m: float = 3.0
 

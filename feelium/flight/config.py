@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from feelium.flight.propellers import ONE_DIRECTION_REVERSE_RATIO, REVERSIBLE_3D_REVERSE_RATIO
 from feelium.settings import section, setting
 
 
@@ -40,7 +41,20 @@ class FlightConfig:
     arm_m: float = setting(0.25, "Lateral distance of each horizontal motor from the centre line.", min=0.02, max=2.0)
     horizontal_thrust_n: float = setting(0.25, "Full-command thrust of one horizontal motor.", min=0.01, max=10.0)
     vertical_thrust_n: float = setting(0.5, "Full-command thrust of one vertical motor.", min=0.01, max=10.0)
-    reverse_ratio: float = setting(0.6, "Reverse thrust as a fraction of forward thrust.", min=0.0, max=1.0)
+    horizontal_reverse_ratio: float = setting(
+        REVERSIBLE_3D_REVERSE_RATIO,
+        "Reverse thrust of a horizontal motor as a fraction of its forward thrust. The spec is reversible 3D"
+        " (symmetric-pitch) propellers: one-direction ones (0.6) cannot meet the 100 ms latency backward.",
+        min=0.0,
+        max=1.0,
+    )
+    vertical_reverse_ratio: float = setting(
+        ONE_DIRECTION_REVERSE_RATIO,
+        "Reverse (upward) thrust of a vertical motor as a fraction of its forward (downward) thrust:"
+        " one-direction propellers, since their steady job is pushing down against the buoyancy.",
+        min=0.0,
+        max=1.0,
+    )
     motor_deadband: float = setting(0.06, "Command below which a motor makes no thrust.", min=0.0, max=0.5)
     quadratic_drag: float = setting(0.197, "Air drag coefficient 0.5 rho Cd A in N/(m/s)^2, for the speed observer.", min=0.0, max=10.0)
 

@@ -136,7 +136,8 @@ class FlightController:
                 arm_m=config.arm_m,
                 horizontal_thrust_n=config.horizontal_thrust_n,
                 vertical_thrust_n=config.vertical_thrust_n,
-                reverse_ratio=config.reverse_ratio,
+                horizontal_reverse_ratio=config.horizontal_reverse_ratio,
+                vertical_reverse_ratio=config.vertical_reverse_ratio,
                 deadband=config.motor_deadband,
                 max_output=config.max_output,
                 slew_per_s=config.slew_per_s,
@@ -230,8 +231,8 @@ class FlightController:
         yaw_nm = self._heading(t, dt, setpoint, heading_age, gain) if heading_age <= self.c.telemetry_stale_s else 0.0
         surge_n = self._surge(dt, 0.0 if soft else setpoint.forward_m_s, gain)
         commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt)
-        vertical = -sum(thrust_for_command(c, self.c.vertical_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[2:])
-        left, right = (thrust_for_command(c, self.c.horizontal_thrust_n, self.c.reverse_ratio, self.c.motor_deadband) for c in commands[:2])
+        vertical = -sum(thrust_for_command(c, self.c.vertical_thrust_n, self.c.vertical_reverse_ratio, self.c.motor_deadband) for c in commands[2:])
+        left, right = (thrust_for_command(c, self.c.horizontal_thrust_n, self.c.horizontal_reverse_ratio, self.c.motor_deadband) for c in commands[:2])
         self._thrust_targets = (vertical, left + right, (left - right) * self.c.arm_m)
         return self._output(t, commands, "soft" if soft and mode == "flying" else mode, setpoint)
 

@@ -1,7 +1,7 @@
 """How soon the body *can* be moving after a command: the physical floor under command-to-motion latency.
 
 Whatever the controller does, the motors answer through a first-order lag
-and reverse thrust is weaker than forward thrust. Two floors per command,
+and reverse thrust may be weaker than forward thrust. Two floors per command,
 both from rest in a hover and measured with the scenarios' thresholds
 (2 cm/s, 3 deg/s):
 
@@ -14,7 +14,8 @@ both from rest in a hover and measured with the scenarios' thresholds
   controller with these quietness limits can do.
 
 The bench reports both next to the measured latency, and the same numbers
-with symmetric (reversible, 3D) propellers as a hardware what-if.
+for the hardware the spec rules out, one-direction propellers on the
+horizontal pair, as a what-if: that is the reason for the spec.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from feelium.flight import blimp_model as bm
 from feelium.flight.config import FlightConfig
 from feelium.flight.emulated_board import PHYSICS_DT
 from feelium.flight.mixer import command_for_thrust
+from feelium.flight.propellers import ONE_DIRECTION_REVERSE_RATIO
 from feelium.flight.scenarios import MOTION_THRESHOLD as THRESHOLD
 
 
@@ -57,17 +59,16 @@ def lag_response_time(accel: float, threshold: float, tau: float) -> float:
     return hi
 
 
-def symmetric_propellers(config: FlightConfig, blimp: bm.BlimpParams | None = None) -> tuple[FlightConfig, bm.BlimpParams]:
-    """The what-if: every motor gives as much thrust in reverse as forward (3D propellers), in the
-    controller's knowledge and in the simulated body alike. Nothing else changes."""
+def one_direction_horizontal_propellers(
+    config: FlightConfig, blimp: bm.BlimpParams | None = None, reverse_ratio: float = ONE_DIRECTION_REVERSE_RATIO
+) -> tuple[FlightConfig, bm.BlimpParams]:
+    """The what-if the hardware spec rules out: the horizontal pair on one-direction propellers
+    (60 % reverse thrust), in the controller's knowledge and in the simulated body alike.
+    Nothing else changes (the vertical pair has one-direction propellers either way)."""
     blimp = blimp or bm.BlimpParams()
     return (
-        replace(config, reverse_ratio=1.0),
-        replace(
-            blimp,
-            horizontal_motor=replace(blimp.horizontal_motor, reverse_ratio=1.0),
-            vertical_motor=replace(blimp.vertical_motor, reverse_ratio=1.0),
-        ),
+        replace(config, horizontal_reverse_ratio=reverse_ratio),
+        replace(blimp, horizontal_motor=replace(blimp.horizontal_motor, reverse_ratio=reverse_ratio)),
     )
 
 

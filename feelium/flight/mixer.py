@@ -5,7 +5,10 @@ of the centre line at ``arm_m``, pushing forward for positive commands;
 their sum drives surge, their difference yaw. Motors 3 and 4 are vertical
 (front and rear) and push the body *down* for positive commands, since their
 steady job is to cancel the net buoyancy. Commands are in [-1, 1];
-the board maps them to 1000..2000 us with 1500 as no thrust.
+the board maps them to 1000..2000 us with 1500 as no thrust. Each pair has
+its own reverse thrust: the horizontal pair runs reversible 3D propellers
+(nearly as strong backward as forward), the vertical pair one-direction ones
+(``propellers.py``).
 
 Quiet flight is the point: thrust grows with the square of the command, so
 the mixer inverts that curve (linear force response, no jerks near zero),
@@ -28,7 +31,8 @@ class MixerGeometry:
     arm_m: float
     horizontal_thrust_n: float
     vertical_thrust_n: float
-    reverse_ratio: float
+    horizontal_reverse_ratio: float  # reverse thrust / forward thrust, per pair (propellers.py)
+    vertical_reverse_ratio: float
     deadband: float
     max_output: float
     slew_per_s: float
@@ -74,7 +78,7 @@ class Mixer:
         blimp that cannot turn is worse than one that cannot hurry.
         """
         g = self.g
-        fwd, rev = g.horizontal_thrust_n * g.max_output**2, g.horizontal_thrust_n * g.reverse_ratio * g.max_output**2
+        fwd, rev = g.horizontal_thrust_n * g.max_output**2, g.horizontal_thrust_n * g.horizontal_reverse_ratio * g.max_output**2
         half_diff = yaw_nm / (2.0 * g.arm_m)
         max_diff = (fwd + rev) / 2.0
         if abs(half_diff) > max_diff:
@@ -83,7 +87,7 @@ class Mixer:
         half_surge = min(max(surge_n / 2.0, lo), hi)
         if half_surge != surge_n / 2.0 or abs(half_diff) == max_diff:
             self.saturated_horizontal += 1
-        v_fwd, v_rev = g.vertical_thrust_n * g.max_output**2, g.vertical_thrust_n * g.reverse_ratio * g.max_output**2
+        v_fwd, v_rev = g.vertical_thrust_n * g.max_output**2, g.vertical_thrust_n * g.vertical_reverse_ratio * g.max_output**2
         down_each = -up_n / 2.0
         clipped = min(max(down_each, -v_rev), v_fwd)
         if clipped != down_each:
@@ -93,27 +97,27 @@ class Mixer:
     def limits_surge_n(self) -> tuple[float, float]:
         """The smallest (full reverse) and largest total surge force of the horizontal pair, without yaw."""
         g = self.g
-        return -2 * g.horizontal_thrust_n * g.reverse_ratio * g.max_output**2, 2 * g.horizontal_thrust_n * g.max_output**2
+        return -2 * g.horizontal_thrust_n * g.horizontal_reverse_ratio * g.max_output**2, 2 * g.horizontal_thrust_n * g.max_output**2
 
     def limit_yaw_nm(self) -> float:
         """The largest yaw torque either way: one horizontal motor full forward, the other full reverse."""
         g = self.g
-        return g.horizontal_thrust_n * (1.0 + g.reverse_ratio) * g.max_output**2 * g.arm_m
+        return g.horizontal_thrust_n * (1.0 + g.horizontal_reverse_ratio) * g.max_output**2 * g.arm_m
 
     def limits_up_n(self) -> tuple[float, float]:
         """The smallest and largest total upward motor force (before buoyancy)."""
         g = self.g
-        return -2 * g.vertical_thrust_n * g.max_output**2, 2 * g.vertical_thrust_n * g.reverse_ratio * g.max_output**2
+        return -2 * g.vertical_thrust_n * g.max_output**2, 2 * g.vertical_thrust_n * g.vertical_reverse_ratio * g.max_output**2
 
     def mix(self, surge_n: float, up_n: float, yaw_nm: float, dt: float) -> tuple[float, float, float, float]:
         """Commands in [-max_output, max_output], each changed by at most ``slew_per_s * dt``."""
         forces = self.split(surge_n, up_n, yaw_nm)
         g = self.g
         wanted = (
-            command_for_thrust(forces[0], g.horizontal_thrust_n, g.reverse_ratio, g.deadband),
-            command_for_thrust(forces[1], g.horizontal_thrust_n, g.reverse_ratio, g.deadband),
-            command_for_thrust(forces[2], g.vertical_thrust_n, g.reverse_ratio, g.deadband),
-            command_for_thrust(forces[3], g.vertical_thrust_n, g.reverse_ratio, g.deadband),
+            command_for_thrust(forces[0], g.horizontal_thrust_n, g.horizontal_reverse_ratio, g.deadband),
+            command_for_thrust(forces[1], g.horizontal_thrust_n, g.horizontal_reverse_ratio, g.deadband),
+            command_for_thrust(forces[2], g.vertical_thrust_n, g.vertical_reverse_ratio, g.deadband),
+            command_for_thrust(forces[3], g.vertical_thrust_n, g.vertical_reverse_ratio, g.deadband),
         )
         return self.limit(wanted, dt)
 

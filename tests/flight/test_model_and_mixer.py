@@ -53,7 +53,7 @@ def test_differential_thrust_turns_clockwise_when_left_pushes_harder() -> None:
 
 
 def test_deadband_makes_no_thrust() -> None:
-    motor = bm.MotorParams(max_thrust_n=0.3, deadband=0.06)
+    motor = bm.MotorParams(max_thrust_n=0.3, reverse_ratio=0.6, deadband=0.06)
     assert motor.static_thrust(0.05) == 0.0 and motor.static_thrust(-0.05) == 0.0
     assert motor.static_thrust(1.0) == 0.3 and math.isclose(motor.static_thrust(-1.0), -0.3 * motor.reverse_ratio)
 
@@ -68,7 +68,7 @@ def test_mixer_inverts_the_thrust_curve(force: float) -> None:
 
 @given(surge=st.floats(-2, 2), up=st.floats(-2, 2), yaw=st.floats(-1, 1), previous=st.floats(-1, 1))
 def test_mixer_outputs_respect_limits_and_slew(surge: float, up: float, yaw: float, previous: float) -> None:
-    mixer = Mixer(MixerGeometry(0.25, 0.25, 0.5, 0.6, 0.06, max_output=0.9, slew_per_s=5.0))
+    mixer = Mixer(_geometry(max_output=0.9, slew_per_s=5.0))
     mixer.reset((previous * 0.9,) * 4)  # type: ignore[arg-type]
     out = mixer.mix(surge, up, yaw, 0.02)
     for before, after in zip((previous * 0.9,) * 4, out):
@@ -77,9 +77,38 @@ def test_mixer_outputs_respect_limits_and_slew(surge: float, up: float, yaw: flo
 
 
 def test_mixer_keeps_yaw_when_surge_saturates() -> None:
-    mixer = Mixer(MixerGeometry(0.25, 0.25, 0.5, 0.6, 0.06, max_output=1.0, slew_per_s=100.0))
+    mixer = Mixer(_geometry(max_output=1.0, slew_per_s=100.0))
     left, right, _, _ = mixer.split(surge_n=10.0, up_n=0.0, yaw_nm=0.02)
     assert math.isclose((left - right) * 0.25, 0.02, rel_tol=1e-9)
+
+
+def _geometry(max_output: float, slew_per_s: float) -> MixerGeometry:
+    return MixerGeometry(
+        arm_m=0.25, horizontal_thrust_n=0.25, vertical_thrust_n=0.5, horizontal_reverse_ratio=0.95, vertical_reverse_ratio=0.6,
+        deadband=0.06, max_output=max_output, slew_per_s=slew_per_s,
+    )
+
+
+def test_each_motor_pair_reverses_with_its_own_propellers() -> None:
+    """Horizontal pair: reversible 3D propellers (95 %); vertical pair: one-direction ones (60 %)."""
+    mixer = Mixer(_geometry(max_output=1.0, slew_per_s=100.0))
+    left, right, front, rear = mixer.split(surge_n=-10.0, up_n=10.0, yaw_nm=0.0)  # full reverse on all four
+    assert math.isclose(left, -0.25 * 0.95) and math.isclose(right, -0.25 * 0.95)
+    assert math.isclose(front, -0.5 * 0.6) and math.isclose(rear, -0.5 * 0.6)
+    assert mixer.mix(-10.0, 10.0, 0.0, 1.0) == (-1.0, -1.0, -1.0, -1.0)  # each at full reverse command
+    assert math.isclose(mixer.limit_yaw_nm(), 0.25 * (1.0 + 0.95) * 0.25)
+    params = bm.BlimpParams()
+    assert math.isclose(params.horizontal_motor.static_thrust(-1.0), -0.25 * 0.95)
+    assert math.isclose(params.vertical_motor.static_thrust(-1.0), -0.5 * 0.6)
+
+
+def test_controller_defaults_match_the_simulated_propellers() -> None:
+    """The controller's knowledge of the propellers ([flight]) and the simulated body agree by default."""
+    from feelium.flight.config import FlightConfig
+
+    config, params = FlightConfig(), bm.BlimpParams()
+    assert config.horizontal_reverse_ratio == params.horizontal_motor.reverse_ratio == 0.95
+    assert config.vertical_reverse_ratio == params.vertical_motor.reverse_ratio == 0.6
 
 
 def test_microseconds_centre_on_neutral() -> None:
