@@ -33,6 +33,7 @@ TARGETS = {
     "latency_s": 0.100,
     "stop_s": 0.5,
 }
+WHAT_IF_GREY = (128, 128, 128)  # BGR: the ruled-out hardware, apart from the six spec lines
 
 
 def step_timing(config: FlightConfig, steps: int = 2000) -> dict[str, float]:
@@ -172,7 +173,7 @@ def _plots(
         line_plot(
             out_dir / "flight-onsets.png",
             [_onset_series(r, name) for name, r in motions.items()]
-            + [_onset_series(backward_one_direction, "backward, one-direction props (what-if)")],
+            + [_onset_series(backward_one_direction, "backward, one-direction props (what-if)", color=WHAT_IF_GREY)],
             title="Onsets: motion in units of the latency threshold (crossing 1 = moving); target 100 ms",
             xlabel="time since the command was issued (ms)",
             ylabel="motion / (2 cm/s or 3 deg/s)",
@@ -182,13 +183,13 @@ def _plots(
     return [str(p) for p in paths]
 
 
-def _onset_series(result: sc.MotionResult, label: str) -> Any:
+def _onset_series(result: sc.MotionResult, label: str, color: tuple[int, int, int] | None = None) -> Any:
     """The first 200 ms of a command in units of its latency threshold (crossing 1 is "moving")."""
     from feelium.plot import Series
 
     window = (result.t >= -0.04) & (result.t <= 0.2)
     in_thresholds = result.fraction[window] * result.commanded / sc.MOTION_THRESHOLD[result.command]
-    return Series(result.t[window] * 1000.0, in_thresholds, f"{label} {result.latency_s * 1000:.0f} ms")
+    return Series(result.t[window] * 1000.0, in_thresholds, f"{label} {result.latency_s * 1000:.0f} ms", color)
 
 
 def format_table(results: dict[str, Any]) -> str:
