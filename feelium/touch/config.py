@@ -130,6 +130,13 @@ class TouchConfig:
     release_depth: float = setting(
         0.25, "While down, a contact stays down as long as its core is at least this deep (hysteresis).", min=0.0, max=1.0
     )
+    release_edge_fraction: float = setting(
+        0.75,
+        "While down, a contact also needs an edge of at least this fraction of contact_edge (hysteresis): a finger "
+        "lifted to hover just above the skin releases, so two pats with a brief lift between stay two.",
+        min=0.0,
+        max=1.0,
+    )
 
     # Tracker.
     match_distance_px: float = setting(

@@ -13,7 +13,9 @@
   appeared: the approach is not wobble. The gate also needs the shadow landed
   for ``anchor_min_age_s``, so one frame is never evidence of sustain.
 - While a contact is down it stays down as long as its core stays above
-  ``release_depth`` (hysteresis, so a swipe's motion blur does not split it).
+  ``release_depth`` and its edge above ``release_edge_fraction`` of the contact
+  edge (hysteresis, so a swipe's motion blur does not split it, while a finger
+  lifted to hover a few millimetres up, as between two pats, releases).
 
 With ``contact_edge = 0`` every seen shadow counts as landed: the paper's two
 gates alone.
@@ -37,14 +39,26 @@ def sustained_gate(config: TouchConfig, anchor: float, landed_s: float) -> bool:
     return landed_s >= config.anchor_min_age_s and anchor > 0.0 and anchor >= config.anchor_threshold
 
 
+def stays_down(config: TouchConfig, core_depth: float, edge: float) -> bool:
+    """The release hysteresis of a contact that is down."""
+    return core_depth >= config.release_depth and edge >= config.release_edge_fraction * config.contact_edge
+
+
 def is_touching(
-    config: TouchConfig, *, down: bool, seen: bool, landed_s: float | None, core_depth: float, anchor: float
+    config: TouchConfig,
+    *,
+    down: bool,
+    seen: bool,
+    landed_s: float | None,
+    core_depth: float,
+    edge: float,
+    anchor: float,
 ) -> bool:
     """This frame's decision for one tracked shadow; ``landed_s`` is None when it has no contact edge now."""
     if not seen:
         return False
     if down:
-        return core_depth >= config.release_depth
+        return stays_down(config, core_depth, edge)
     if landed_s is None:
         return False
     return instant_gate(config, core_depth) or sustained_gate(config, anchor, landed_s)

@@ -39,9 +39,9 @@ class Track:
 
     last_seen_t: float
     obs: Observation
-    rolling: RollingMin
     anchor: float = 0.0
     landed_t: float | None = None  # start of the current run of frames with a contact edge
+    landed_depths: RollingMin | None = None  # core depth since landing (None while not landed)
     seen: bool = True
     streak: int = 0
     event_id: int | None = None
@@ -103,7 +103,7 @@ class Tracker:
         for index, obs in enumerate(observations):
             track = matched.get(index)
             if track is None:
-                track = Track(last_seen_t=t, obs=obs, rolling=RollingMin(cfg.anchor_window_s))
+                track = Track(last_seen_t=t, obs=obs)
                 new_tracks.append(track)
             track.obs = obs
             track.seen = True
@@ -121,7 +121,13 @@ class Tracker:
             # (nothing the frame after) is still debounced.
             held = track.down or track.streak > 0
             touching = is_touching(
-                cfg, down=held, seen=track.seen, landed_s=landed_s, core_depth=depth, anchor=track.anchor
+                cfg,
+                down=held,
+                seen=track.seen,
+                landed_s=landed_s,
+                core_depth=depth,
+                edge=track.obs.edge,
+                anchor=track.anchor,
             )
             self._advance(track, t, touching, out.events)
             if track.down or t - track.last_seen_t <= cfg.release_s:
@@ -162,13 +168,11 @@ class Tracker:
         the shadow held since it reached the membrane, not the approach before.
         """
         if not (track.seen and has_contact_edge(self.config, track.obs.edge)):
-            track.landed_t = None
-            track.anchor = 0.0
+            track.landed_t, track.landed_depths, track.anchor = None, None, 0.0
             return None
-        if track.landed_t is None:
-            track.landed_t = t
-            track.rolling = RollingMin(self.config.anchor_window_s)
-        track.anchor = track.rolling.push(t, depth)
+        if track.landed_t is None or track.landed_depths is None:
+            track.landed_t, track.landed_depths = t, RollingMin(self.config.anchor_window_s)
+        track.anchor = track.landed_depths.push(t, depth)
         return t - track.landed_t
 
     def _associate(self, observations: list[Observation]) -> dict[int, Track]:

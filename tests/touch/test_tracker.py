@@ -144,3 +144,21 @@ def test_losing_the_edge_restarts_the_anchoring_clock():
     # Sharp for 0.4 s, one blurred frame, sharp for 0.4 s: never landed for 0.5 s at a stretch.
     frames = [[obs(100, 100, depth=0.6)]] * 6 + [[obs(100, 100, depth=0.6, edge=BLURRED)]] + [[obs(100, 100, depth=0.6)]] * 6
     assert run(tracker, frames) == []
+
+
+def test_a_finger_lifted_to_hover_between_two_pats_gives_two_taps():
+    # Pressed, lifted a few millimetres (still deep, but blurred: no contact edge), pressed again.
+    tracker = Tracker(CFG)
+    press = [[obs(100, 100, depth=0.7)]] * 3
+    lifted = [[obs(100, 100, depth=0.45, edge=BLURRED)]] * 4
+    events = run(tracker, press + lifted + press + lifted + [[]] * 4)
+    assert [(e.phase, e.kind) for e in events if e.phase != "move"] == [("down", None), ("up", "tap")] * 2
+
+
+def test_a_swipe_whose_edge_softens_a_little_stays_one_contact():
+    tracker = Tracker(CFG)
+    soft = 0.8 * CFG.contact_edge  # motion blur: below the landing edge, above the release hysteresis
+    frames = [[obs(100 + 6 * k, 100, depth=0.6, edge=SHARP if k < 2 else soft)] for k in range(15)] + [[]] * 4
+    events = run(tracker, frames)
+    assert [e.phase for e in events if e.phase != "move"] == ["down", "up"]
+    assert events[-1].kind == "swipe"
