@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feelium.touch.evaluate import fit_threshold, split_clip
+from feelium.touch.evaluate import balanced_accuracy_curve, fit_threshold, split_clip
 
 INSTANT_MARGIN = 0.04
 
@@ -94,10 +94,7 @@ def fit_centred_threshold(positives: np.ndarray, negatives: np.ndarray) -> float
     """
     values = np.unique(np.concatenate([positives, negatives]))
     candidates = np.append(values, values[-1] + 1e-6)  # the last: above everything
-    pos_sorted, neg_sorted = np.sort(positives), np.sort(negatives)
-    tpr = 1.0 - np.searchsorted(pos_sorted, candidates, side="left") / positives.size
-    tnr = np.searchsorted(neg_sorted, candidates, side="left") / negatives.size
-    ba = tpr + tnr
+    ba = balanced_accuracy_curve(positives, negatives, candidates)
     best = ba >= ba.max() - 1e-12
     widest, centre = -1.0, float(candidates[int(np.argmax(best))])
     k = 0

@@ -140,11 +140,15 @@ def fit_threshold(positives: np.ndarray, negatives: np.ndarray) -> float | None:
         return None
     values = np.unique(np.concatenate([pos, neg]))
     candidates = np.concatenate([[values[0]], 0.5 * (values[1:] + values[:-1]), [values[-1] + 1e-6]])
-    pos_sorted, neg_sorted = np.sort(pos), np.sort(neg)
-    tpr = 1.0 - np.searchsorted(pos_sorted, candidates, side="left") / pos.size
-    tnr = np.searchsorted(neg_sorted, candidates, side="left") / neg.size
-    ba = 0.5 * (tpr + tnr)
+    ba = balanced_accuracy_curve(pos, neg, candidates)
     return float(candidates[int(np.argmax(ba))])
+
+
+def balanced_accuracy_curve(positives: np.ndarray, negatives: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
+    """Balanced accuracy at each threshold (values >= threshold count as positive), by binary search."""
+    tpr = 1.0 - np.searchsorted(np.sort(positives), thresholds, side="left") / positives.size
+    tnr = np.searchsorted(np.sort(negatives), thresholds, side="left") / negatives.size
+    return 0.5 * (tpr + tnr)
 
 
 def split_clip(t: np.ndarray, share: float = FIT_SHARE) -> np.ndarray:
