@@ -40,6 +40,6 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from feelium.daemon.bench import bench_daemon_command
+    from feelium.lab.daemon.bench import bench_daemon_command
 
     return bench_daemon_command(args)

@@ -44,7 +44,7 @@ def _bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from feelium.config import load_config
-    from feelium.flight.bench import format_table, run_bench
+    from feelium.lab.flight.bench import format_table, run_bench
 
     config = load_config(args.config).flight
     results = run_bench(config, Path(args.out), seed=args.seed)

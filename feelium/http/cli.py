@@ -30,6 +30,6 @@ def _url(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from feelium.http.bench import bench_http_command
+    from feelium.lab.http.bench import bench_http_command
 
     return bench_http_command(args)

@@ -43,7 +43,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from feelium.config import load_config
-    from feelium.projector.calibrate import run_calibration, truth_error
+    from feelium.lab.projector.calibrate import run_calibration, truth_error
     from feelium.projector.service import calibration_path
 
     config = load_config(args.config)
@@ -144,7 +144,7 @@ def _bench(args: argparse.Namespace) -> int:
     import numpy as np
 
     from feelium.config import load_config
-    from feelium.projector.bench import format_table, run_bench
+    from feelium.lab.projector.bench import format_table, run_bench
     from feelium.projector.calibration import CalibrationMap
     from feelium.sim.projection import FisheyeWarp
 
@@ -168,7 +168,7 @@ def _bench_facevideo(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from feelium.config import load_config
-    from feelium.projector.facevideo import format_table, run_experiment
+    from feelium.lab.projector.facevideo import format_table, run_experiment
 
     if not 0.0 < args.scale <= 1.0:
         print(f"feelium: --scale must be in (0, 1], got {args.scale}", file=sys.stderr)

@@ -37,7 +37,7 @@ def _bench(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from feelium.sim.bench import format_table, run_bench
+    from feelium.lab.sim.bench import format_table, run_bench
 
     report = run_bench(frames=max(5, args.frames))
     print(format_table(report))
@@ -47,7 +47,7 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _paper_protocol(args: argparse.Namespace) -> int:
-    from feelium.sim.protocol import simulate_protocol
+    from feelium.lab.sim.protocol import simulate_protocol
 
     if not (0.0 < args.scale <= 1.0):
         print(f"feelium simulate paper-protocol: --scale must be in (0, 1], got {args.scale}", file=sys.stderr)

@@ -20,7 +20,7 @@ import numpy as np
 from feelium.sim.config import SimConfig
 from feelium.sim.hand import HandPose
 from feelium.sim.motion import HOVER_FLOOR_MM, Tremor, min_jerk
-from feelium.sim.protocol import session_presets
+from feelium.sim.sessions import session_presets
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, Session
 from feelium.sim.shadow import ShadowParams
 

@@ -121,7 +121,7 @@ def projected_hook(light: ProjectedLight, source: FrameSource) -> Callable[[floa
 class SimPatternCapture:
     """Shows patterns on a simulated projector and captures the rear camera through the scene simulator.
 
-    Implements the capture seam of :mod:`feelium.projector.calibrate`: ``show``
+    Implements the capture seam of :mod:`feelium.lab.projector.calibrate`: ``show``
     puts a pattern on the projector, each ``capture`` advances the camera clock
     by one frame period and renders an empty scene lit by it.
     """

@@ -199,7 +199,7 @@ def _decode(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from feelium.thermal.bench import format_table, run_bench
+    from feelium.lab.thermal.bench import format_table, run_bench
 
     result = run_bench(args.repeats, args.baseline_repeats)
     print(format_table(result))
@@ -209,7 +209,7 @@ def _bench(args: argparse.Namespace) -> int:
 
 def _bench_presence(args: argparse.Namespace) -> int:
     from feelium.config import load_config
-    from feelium.thermal.evaluation import evaluate_presence
+    from feelium.lab.thermal.evaluation import evaluate_presence
 
     cfg = load_config(args.config).thermal
     report = evaluate_presence(

@@ -47,24 +47,24 @@ def register(registry: CommandRegistry) -> None:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from feelium.touch.commands import run_replay
+    from feelium.lab.touch.commands import run_replay
 
     return run_replay(args)
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from feelium.touch.commands import run_eval
+    from feelium.lab.touch.commands import run_eval
 
     return run_eval(args)
 
 
 def _calibrate(args: argparse.Namespace) -> int:
-    from feelium.touch.commands import run_calibrate
+    from feelium.lab.touch.commands import run_calibrate
 
     return run_calibrate(args)
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from feelium.touch.bench import run_bench
+    from feelium.lab.touch.bench import run_bench
 
     return run_bench(args)

@@ -7,7 +7,7 @@ import platform
 import pytest
 
 from feelium.config import Config
-from feelium.daemon.bench import bench_daemon, cpu_by_group, format_table, thread_group
+from feelium.lab.daemon.bench import bench_daemon, cpu_by_group, format_table, thread_group
 from feelium.daemon.memory import tune_malloc
 
 
@@ -47,7 +47,7 @@ def test_bench_daemon_measures_memory_cpu_and_frames():
 
 @pytest.mark.slow
 def test_a_daemon_alone_in_a_fresh_process_reports_its_memory():
-    from feelium.daemon.bench import service_alone
+    from feelium.lab.daemon.bench import service_alone
 
     empty = service_alone("none", 1.0)
     assert "error" not in empty, empty

@@ -8,7 +8,7 @@ from feelium.flight import messages as m
 from feelium.flight.client import MspClient, MspErrorReply, MspTimeout
 from feelium.flight.emulated_board import BoardParams, EmulatedMotorBoard, EmulatedSerial
 from feelium.flight.msp import MspParser, encode_v1, encode_v2
-from feelium.flight.simulation import ManualClock
+from feelium.lab.flight.simulation import ManualClock
 
 
 def make() -> tuple[EmulatedMotorBoard, MspClient, ManualClock]:

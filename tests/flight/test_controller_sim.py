@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from feelium.config import Config
-from feelium.flight import scenarios as sc
+from feelium.lab.flight import scenarios as sc
 from feelium.flight.emulated_board import BoardParams, SensorParams, board_with
 from feelium.flight.setpoint import HOLD, Setpoint, setpoint_for_motion
-from feelium.flight.simulation import SimFlight
+from feelium.lab.flight.simulation import SimFlight
 
 pytestmark = pytest.mark.slow
 CONFIG = Config().flight
@@ -30,7 +30,7 @@ def test_hold_in_drafts_meets_the_targets() -> None:
 
 
 def test_controller_is_much_quieter_than_an_untuned_pid() -> None:
-    from feelium.flight.baseline import BaselinePid
+    from feelium.lab.flight.baseline import BaselinePid
 
     ours = sc.hold(CONFIG, drafts=True, seconds=6.0)
     baseline = sc.hold(CONFIG, drafts=True, seconds=6.0, controller=BaselinePid(CONFIG))

@@ -19,10 +19,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from feelium.config import Config
-from feelium.flight import scenarios as sc
+from feelium.lab.flight import scenarios as sc
 from feelium.flight.blimp_model import BlimpParams
 from feelium.flight.controller import HANDOVER_S, THRUST_LAG_S, FlightController, _RateOnset
-from feelium.flight.latency_floor import available_accel, lag_response_time, latency_floor, one_direction_horizontal_propellers
+from feelium.lab.flight.latency_floor import available_accel, lag_response_time, latency_floor, one_direction_horizontal_propellers
 from feelium.flight.setpoint import setpoint_for_motion
 
 CONFIG = Config().flight

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from feelium.http.bench import bench_http_command
+from feelium.lab.http.bench import bench_http_command
 
 
 @pytest.mark.slow

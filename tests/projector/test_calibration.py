@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from feelium.projector.calibrate import run_calibration, truth_error
+from feelium.lab.projector.calibrate import run_calibration, truth_error
 from feelium.projector.calibration import CalibrationError, default_calibration, load_calibration, sample
 from feelium.projector.config import CalibrationConfig
-from feelium.projector.graycode import PatternPlan, decode, make_patterns, smooth_map
+from feelium.lab.projector.graycode import PatternPlan, decode, make_patterns, smooth_map
 from feelium.sim.projection import FisheyeWarp, ProjectedLight, SimPatternCapture
 from feelium.sim.scene import Session
 from tests.projector.helpers import CAMERA, PROJECTOR, ROI, truth_calibration

@@ -52,7 +52,7 @@ def _fake_report(pred_fp: int, pred_recall: float) -> dict:
 
 @pytest.mark.parametrize("pred_fp, pred_recall, code", [(1, 0.9, 0), (2, 0.9, 1), (1, 0.8, 1)])
 def test_facevideo_bench_prints_the_table_and_fails_when_the_face_fools_the_sensor(tmp_path, capsys, monkeypatch, pred_fp, pred_recall, code):
-    import feelium.projector.facevideo as facevideo
+    import feelium.lab.projector.facevideo as facevideo
 
     monkeypatch.setattr(facevideo, "run_experiment", lambda **kw: _fake_report(pred_fp, pred_recall))
     report_path = tmp_path / "fv.json"

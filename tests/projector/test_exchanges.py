@@ -23,7 +23,8 @@ from feelium.interactions.annotate import annotate
 from feelium.interactions.regions import Regions
 from feelium.projector.display import NullDisplay
 from feelium.projector.service import ProjectorService
-from feelium.sim import protocol, scripts
+from feelium.lab.sim import protocol, scripts
+from feelium.sim.sessions import session_presets
 from feelium.sim.hand import Blob
 from feelium.sim.projection import FisheyeWarp
 from feelium.sim.scene import HEIGHT, ROI, WIDTH
@@ -64,7 +65,7 @@ class SimSkin:
         self.inputs = self.hub.bus.subscribe((TouchEvent, WearerAction), maxsize=4096)
         self.wearer = self.hub.bus.subscribe([InteractionEvent], maxsize=4096)
         self.pipeline = TouchPipeline(TouchConfig(), (WIDTH, HEIGHT), ROI)
-        self.session = protocol.session_presets(1)["s1"]
+        self.session = session_presets(1)["s1"]
         self.offset = 0.0
         self.now = 0.0
         self.seen: list[InteractionEvent] = []

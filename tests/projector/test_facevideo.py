@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from feelium.events import TouchEvent
-from feelium.projector.facevideo import false_touches, format_table, run_experiment
+from feelium.lab.projector.facevideo import false_touches, format_table, run_experiment
 from feelium.recording import Contact, Labels
-from feelium.touch.evaluate import TrialData
+from feelium.lab.touch.evaluate import TrialData
 
 
 def _touch(id: int, t_on: float, t_off: float) -> list[TouchEvent]:

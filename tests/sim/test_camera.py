@@ -54,7 +54,7 @@ def test_gain_drifts_slowly_within_its_amplitude() -> None:
 
 
 def test_bench_reports_every_scene_against_the_baseline() -> None:
-    from feelium.sim.bench import format_table, run_bench
+    from feelium.lab.sim.bench import format_table, run_bench
 
     report = run_bench(frames=5)
     scenes = report["scenes"]

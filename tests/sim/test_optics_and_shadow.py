@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from feelium.sim.hand import HandPose, hand_parts
 from feelium.sim.optics import OpticsParams, backlight, laser_banding, membrane_transmission, roi_ratio
-from feelium.sim.protocol import session_presets
+from feelium.sim.sessions import session_presets
 from feelium.sim.scene import ROI, SceneRenderer, SceneState
 from feelium.sim.shadow import Capsule, Ellipse, ShadowParams, render_shadow
 

@@ -12,7 +12,7 @@ import pytest
 
 from feelium.cli import main
 from feelium.recording import TOUCH_LABELS, Recording, find_recordings
-from feelium.sim.protocol import TRIAL_COUNTS, class_counts, plan
+from feelium.lab.sim.protocol import TRIAL_COUNTS, class_counts, plan
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from feelium.sim import scripts
+from feelium.lab.sim import scripts
 from feelium.sim.motion import HOVER_FLOOR_MM, HandTrack, Keyframe, Tremor, min_jerk
-from feelium.sim.protocol import Item, build_script, plan, recording_rng, render_frames, session_presets
+from feelium.lab.sim.protocol import Item, build_script, plan, recording_rng, render_frames
+from feelium.sim.sessions import session_presets
 from feelium.sim.scene import ROI
 
 TARGET = (320.0, 240.0)

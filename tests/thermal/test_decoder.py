@@ -11,7 +11,7 @@ from hypothesis.extra.numpy import arrays
 from feelium.thermal import registers as reg
 from feelium.thermal.calibration import extract_calibration
 from feelium.thermal.decoder import Decoder, FrameAssembler, FrameRejected, object_temperatures, subpage_mask
-from feelium.thermal.reference import reference_temperatures
+from feelium.lab.thermal.reference import reference_temperatures
 
 
 def test_subpage_masks_split_the_sensor_in_two():

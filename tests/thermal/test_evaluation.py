@@ -5,7 +5,7 @@ import pytest
 
 from feelium.sim.thermal import Visit
 from feelium.thermal.config import PresenceConfig
-from feelium.thermal.evaluation import Clip, approach_clip, evaluate_presence, run_clip
+from feelium.lab.thermal.evaluation import Clip, approach_clip, evaluate_presence, run_clip
 
 
 def test_visit_near_interval_matches_its_distance():

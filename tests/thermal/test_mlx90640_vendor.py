@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from feelium.thermal.decoder import FrameAssembler, object_temperatures
-from feelium.thermal.reference import reference_temperatures
+from feelium.lab.thermal.reference import reference_temperatures
 from feelium.thermal.vendor_eeprom import vendor_eeprom
 
 

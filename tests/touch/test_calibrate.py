@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from feelium.touch.calibrate import ClipSeries, fit_centred_threshold, fit_edge, fit_gates
+from feelium.lab.touch.calibrate import ClipSeries, fit_centred_threshold, fit_edge, fit_gates
 
 
 def test_a_clean_gap_is_split_in_the_middle():

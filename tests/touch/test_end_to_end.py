@@ -14,8 +14,8 @@ import pytest
 
 from feelium.cli import main
 from feelium.config import load_config
-from feelium.sim.protocol import simulate_protocol
-from feelium.touch.bench import build_variants, run_variants, summarise
+from feelium.lab.sim.protocol import simulate_protocol
+from feelium.lab.touch.bench import build_variants, run_variants, summarise
 
 pytestmark = pytest.mark.slow
 

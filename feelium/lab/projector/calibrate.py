@@ -16,7 +16,7 @@ import numpy as np
 
 from feelium.projector.calibration import CalibrationMap, sample
 from feelium.projector.config import CalibrationConfig
-from feelium.projector.graycode import PatternPlan, decode, make_patterns, photometric, smooth_map
+from feelium.lab.projector.graycode import PatternPlan, decode, make_patterns, photometric, smooth_map
 
 
 class PatternCapture(Protocol):

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feelium.touch.evaluate import balanced_accuracy_curve, fit_threshold, split_clip
+from feelium.lab.touch.evaluate import balanced_accuracy_curve, fit_threshold, split_clip
 
 INSTANT_MARGIN = 0.04
 

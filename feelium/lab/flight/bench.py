@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from feelium.flight import scenarios as sc
-from feelium.flight.baseline import BaselinePid
+from feelium.lab.flight import scenarios as sc
+from feelium.lab.flight.baseline import BaselinePid
 from feelium.flight.config import FlightConfig
-from feelium.flight.latency_floor import latency_floor, one_direction_horizontal_propellers
+from feelium.lab.flight.latency_floor import latency_floor, one_direction_horizontal_propellers
 from feelium.flight.setpoint import Setpoint
 
 MOTIONS = ("forward", "backward", "up", "down", "turn_left", "turn_right")
@@ -135,7 +135,7 @@ def _plots(
     motions: dict[str, sc.MotionResult],
     backward_one_direction: sc.MotionResult,
 ) -> list[str]:
-    from feelium.plot import Series, line_plot
+    from feelium.lab.plot import Series, line_plot
 
     paths = [
         line_plot(
@@ -185,7 +185,7 @@ def _plots(
 
 def _onset_series(result: sc.MotionResult, label: str, color: tuple[int, int, int] | None = None) -> Any:
     """The first 200 ms of a command in units of its latency threshold (crossing 1 is "moving")."""
-    from feelium.plot import Series
+    from feelium.lab.plot import Series
 
     window = (result.t >= -0.04) & (result.t <= 0.2)
     in_thresholds = result.fraction[window] * result.commanded / sc.MOTION_THRESHOLD[result.command]

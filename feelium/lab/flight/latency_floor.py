@@ -28,7 +28,7 @@ from feelium.flight.config import FlightConfig
 from feelium.flight.emulated_board import PHYSICS_DT
 from feelium.flight.mixer import command_for_thrust
 from feelium.flight.propellers import ONE_DIRECTION_REVERSE_RATIO
-from feelium.flight.scenarios import MOTION_THRESHOLD as THRESHOLD
+from feelium.lab.flight.scenarios import MOTION_THRESHOLD as THRESHOLD
 
 
 @dataclass(frozen=True)

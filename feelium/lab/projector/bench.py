@@ -18,7 +18,7 @@ from feelium.projector.backlight import BacklightPredictor
 from feelium.projector.calibration import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
-from feelium.timing import time_calls
+from feelium.lab.timing import time_calls
 
 _STROKE = ((0.2, 0.3), (0.3, 0.35), (0.4, 0.33), (0.5, 0.45), (0.55, 0.6))
 

@@ -13,7 +13,7 @@ protocol) three times, with the same hands, noise and sessions:
   recovered by the Gray-code procedure (not the simulator's true warp).
 
 Trials are scored by the touch pipeline's own evaluation
-(`feelium.touch.evaluate.score_trials`, the evaluation spec's rules: a touch
+(`feelium.lab.touch.evaluate.score_trials`, the evaluation spec's rules: a touch
 trial is detected when an event overlaps a labelled contact widened to
 [t_on - 0.2 s, t_off + 0.5 s]; any event in a negative trial is a false
 positive). Trial-level counts hide a second contact in a trial that already
@@ -34,15 +34,16 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.projector.backlight import BacklightPredictor
-from feelium.projector.calibrate import run_calibration
+from feelium.lab.projector.calibrate import run_calibration
 from feelium.projector.calibration import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
-from feelium.sim import protocol
+from feelium.lab.sim import protocol
+from feelium.sim.sessions import session_presets
 from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics, SimPatternCapture, projected_hook
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, Session
 from feelium.touch.config import TouchConfig
-from feelium.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_trials
+from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_trials
 from feelium.touch.pipeline import TouchPipeline
 
 CONDITIONS = ("flat", "face", "face_predicted")
@@ -107,7 +108,7 @@ class _Experiment:
         """One protocol trial under the three conditions, with the same hands, noise and timing."""
         seed = self.setup.seed
         script = protocol.build_script(item, seed)
-        session = protocol.session_presets(seed)[item.session]
+        session = session_presets(seed)[item.session]
         labels = script.labels()
         flat = protocol.render_frames(script, session, protocol.recording_rng(seed, item.name, 1))
         hook = projected_hook(self.light, self.video.at)

@@ -27,10 +27,10 @@ import numpy as np
 
 from feelium.config import load_config
 from feelium.recording import Recording, find_recordings
-from feelium.touch.commands import scoring_input
+from feelium.lab.touch.commands import scoring_input
 from feelium.touch.config import TouchConfig
-from feelium.touch.evaluate import ClipData, TrialData, build_report
-from feelium.touch.replay import replay_recording
+from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
+from feelium.lab.touch.replay import replay_recording
 
 RESOLUTIONS = ((640, 480), (320, 240), (160, 120))
 
@@ -149,7 +149,7 @@ def run_bench(args: argparse.Namespace) -> int:
     try:
         if args.dataset:
             return _bench_on(Path(args.dataset), config, args)
-        from feelium.sim.protocol import simulate_protocol
+        from feelium.lab.sim.protocol import simulate_protocol
 
         with tempfile.TemporaryDirectory(prefix="feelium-bench-touch-") as tmp:
             print(f"simulating the paper protocol (seed {args.seed}, scale {args.scale}) into {tmp} ...", file=sys.stderr)

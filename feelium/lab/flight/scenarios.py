@@ -16,7 +16,7 @@ from feelium.flight.blimp_model import BlimpParams, DraftParams
 from feelium.flight.config import FlightConfig
 from feelium.flight.emulated_board import BoardParams, board_with
 from feelium.flight.setpoint import Setpoint, setpoint_for_motion
-from feelium.flight.simulation import Controller, FlightLog, SimFlight
+from feelium.lab.flight.simulation import Controller, FlightLog, SimFlight
 from feelium.motion import DeadManCommands
 
 START_ALTITUDE_M = 1.2

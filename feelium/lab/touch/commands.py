@@ -12,12 +12,12 @@ from typing import Any
 import numpy as np
 
 from feelium.config import load_config
-from feelium.plot import Series, line_plot
+from feelium.lab.plot import Series, line_plot
 from feelium.recording import Recording, RecordingError, find_recordings
-from feelium.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
+from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
 from feelium.touch.config import TouchConfig
-from feelium.touch.evaluate import ClipData, TrialData, build_report
-from feelium.touch.replay import ReplayResult, relative_name, replay_recording
+from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
+from feelium.lab.touch.replay import ReplayResult, relative_name, replay_recording
 
 
 def _touch_config(path: str | None) -> TouchConfig:

@@ -21,9 +21,9 @@ import numpy as np
 from feelium.recording import RecordingWriter
 from feelium.sim.hand import Blob, HandPose
 from feelium.sim.motion import HandTrack, Keyframe, Tremor
-from feelium.sim.protocol import session_presets
+from feelium.sim.sessions import session_presets
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, exposure_samples
-from feelium.timing import time_calls
+from feelium.lab.timing import time_calls
 
 
 def _scenes() -> dict[str, Callable[[float], SceneState]]:

@@ -205,7 +205,7 @@ def _bench_config(config: Config) -> Config:
 def service_alone(module: str, seconds: float, config_file: str | None = None) -> dict[str, Any]:
     """Resident memory of a fresh daemon process running only ``module`` (or none) in sim mode."""
     code = (
-        "import json, sys; from feelium.daemon.bench import _alone_main; "
+        "import json, sys; from feelium.lab.daemon.bench import _alone_main; "
         "print(json.dumps(_alone_main(sys.argv[1], float(sys.argv[2]), sys.argv[3] or None)))"
     )
     done = subprocess.run(

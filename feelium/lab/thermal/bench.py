@@ -15,9 +15,9 @@ import numpy as np
 from feelium.thermal.calibration import extract_calibration
 from feelium.thermal.decoder import Decoder
 from feelium.thermal.emulator import Mlx90640Emulator, VirtualClock
-from feelium.thermal.reference import reference_temperatures
+from feelium.lab.thermal.reference import reference_temperatures
 from feelium.thermal.vendor_eeprom import vendor_eeprom
-from feelium.timing import time_calls
+from feelium.lab.timing import time_calls
 
 
 def _frames(count: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -43,7 +43,7 @@ def run_bench(repeats: int = 100, baseline_repeats: int = 15) -> dict[str, Any]:
     """Time both implementations on the same frames; a JSON-ready result.
 
     Per frame: CPU time of this thread (the headline: it stays meaningful on a
-    loaded machine) and wall time beside it, via :func:`feelium.timing.time_calls`.
+    loaded machine) and wall time beside it, via :func:`feelium.lab.timing.time_calls`.
     """
     pairs = _frames(max(repeats, baseline_repeats))
     cal = extract_calibration(vendor_eeprom())

@@ -1,0 +1,1 @@
+"""feelium.lab.daemon."""
