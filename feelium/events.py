@@ -156,3 +156,24 @@ def event_type_name(event: object) -> str:
     """The ``type`` tag an event carries on the wire (``touch``, ``presence``, ...)."""
     name = type(event).__name__
     return name[: -len("Event")].lower() if name.endswith("Event") else name.lower()
+
+# Speech on the bus: audio travels as bounded bus items like every other event, so the HTTP link and the
+# audio device never call each other and a slow side only loses audio.
+
+
+@dataclass(frozen=True)
+class SpeechIn:
+    """Wearer speech to play in the room: PCM16 mono little-endian at ``rate``."""
+
+    pcm: bytes
+    rate: int
+    t: float
+
+
+@dataclass(frozen=True)
+class SpeechOut:
+    """Room sound captured on the blimp for the wearer: PCM16 mono little-endian at ``rate``."""
+
+    pcm: bytes
+    rate: int
+    t: float

@@ -3,7 +3,7 @@
 Each service declares its section as a frozen dataclass next to the code that
 uses it, with every field made by :func:`setting` so that its default, its
 allowed range and its one-line documentation live in one place. The loader in
-:mod:`feelium.config` walks those dataclasses generically; nothing here knows
+:mod:`feelium.daemon.config` walks those dataclasses generically; nothing here knows
 about any particular service.
 """
 

@@ -8,22 +8,12 @@ from typing import Any
 
 import numpy as np
 
-from feelium.audio.backends import (
-    AlsaMicrophone,
-    AlsaSpeaker,
-    FakeMicrophone,
-    FakeSpeaker,
-    Microphone,
-    Speaker,
-    alsa_available,
-)
+from feelium.audio.backends import Microphone, Speaker
 from feelium.audio.buffer import PlaybackBuffer
-from feelium.audio.chunks import SpeechIn, SpeechOut
+from feelium.events import SpeechIn, SpeechOut
 from feelium.audio.config import AudioConfig
-from feelium.audio.wav import resample
-from feelium.config import Config
+from feelium.wav import resample
 from feelium.hub import Hub
-from feelium.service import Service
 
 log = logging.getLogger(__name__)
 
@@ -106,18 +96,3 @@ class AudioService:
             "playback_buffered_ms": round(self.buffer.buffered_ms, 1),
             "playback_dropped_ms": round(1000.0 * self.buffer.dropped_bytes / (2 * self.config.sample_rate), 1),
         }
-
-
-def build_services(config: Config, hub: Hub) -> list[Service]:
-    """The audio service with ALSA when there is a sound card (or when forced), else the fakes."""
-    cfg = config.audio
-    if cfg.backend == "off":
-        return []
-    use_alsa = cfg.backend == "alsa" or (cfg.backend == "auto" and alsa_available())
-    if use_alsa:
-        speaker: Speaker = AlsaSpeaker(cfg.sample_rate, cfg.playback_device)
-        microphone: Microphone = AlsaMicrophone(cfg.sample_rate, cfg.capture_device)
-    else:
-        speaker = FakeSpeaker(cfg.sample_rate, hub.clock)
-        microphone = FakeMicrophone(cfg.sample_rate, cfg.fake_tone_hz, hub.clock)
-    return [AudioService(cfg, hub, speaker, microphone, "alsa" if use_alsa else "fake")]

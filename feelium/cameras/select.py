@@ -11,8 +11,9 @@ from feelium.cameras.base import Camera, CameraUnavailable
 from feelium.cameras.picamera2_backend import camera_count
 
 if TYPE_CHECKING:
+    from feelium.cameras.config import FrontCameraConfig, RearCameraConfig
     from feelium.cameras.sim import SharedScene
-    from feelium.config import Config
+    from feelium.sim.config import SimConfig
 
 
 @dataclass(frozen=True)
@@ -24,18 +25,16 @@ class CameraSource:
     scene: "SharedScene | None" = None
 
 
-def resolve_rear_backend(config: "Config") -> str:
-    backend = config.rear_camera.backend
-    if backend == "auto":
-        return "picamera2" if camera_count() > config.rear_camera.camera_index else "sim"
-    return backend
+def resolve_rear_backend(cfg: "RearCameraConfig") -> str:
+    if cfg.backend == "auto":
+        return "picamera2" if camera_count() > cfg.camera_index else "sim"
+    return cfg.backend
 
 
-def resolve_front_backend(config: "Config") -> tuple[str, str]:
+def resolve_front_backend(cfg: "FrontCameraConfig") -> tuple[str, str]:
     """The front backend and, for v4l2, the device to open."""
     from feelium.cameras.v4l2 import usb_camera_devices
 
-    cfg = config.front_camera
     if cfg.backend != "auto":
         return cfg.backend, cfg.device
     if camera_count() > cfg.camera_index:
@@ -46,7 +45,7 @@ def resolve_front_backend(config: "Config") -> tuple[str, str]:
     return "sim", cfg.device
 
 
-def live_rear_scene(config: "Config", clock: Callable[[], float]) -> "SharedScene":
+def live_rear_scene(sim: "SimConfig", work_size: tuple[int, int], clock: Callable[[], float]) -> "SharedScene":
     """The scene simulator's live scene at the touch pipeline's working resolution."""
     from feelium.cameras.sim import SharedScene
 
@@ -54,20 +53,25 @@ def live_rear_scene(config: "Config", clock: Callable[[], float]) -> "SharedScen
         live = importlib.import_module("feelium.sim.live")
     except ImportError as exc:
         raise CameraUnavailable(f"the scene simulator is not available ({exc}); use rear_camera.backend = 'replay'") from exc
-    scene = live.LiveRearScene(config.sim, width=config.touch.width, height=config.touch.height)
+    scene = live.LiveRearScene(sim, width=work_size[0], height=work_size[1])
     return SharedScene(scene, clock)
 
 
-def rear_camera_source(config: "Config", clock: Callable[[], float]) -> CameraSource | None:
-    """How to open the rear (touch) camera, or ``None`` when it is off."""
-    cfg = config.rear_camera
-    backend = resolve_rear_backend(config)
+def rear_camera_source(
+    cfg: "RearCameraConfig", work_size: tuple[int, int], sim: "SimConfig", clock: Callable[[], float]
+) -> CameraSource | None:
+    """How to open the rear (touch) camera, or ``None`` when it is off.
+
+    ``work_size`` is the touch pipeline's working frame size (``[touch] width x height``):
+    the camera delivers frames at that size, so the pipeline never resizes whole frames.
+    """
+    backend = resolve_rear_backend(cfg)
     if backend == "off":
         return None
     if backend == "sim":
         from feelium.cameras.sim import SimRearCamera
 
-        scene = live_rear_scene(config, clock)
+        scene = live_rear_scene(sim, work_size, clock)
         return CameraSource("sim", lambda: SimRearCamera(scene, cfg.fps), scene)
     if backend == "replay":
         from feelium.cameras.replay import ReplayCamera
@@ -79,7 +83,7 @@ def rear_camera_source(config: "Config", clock: Callable[[], float]) -> CameraSo
     from feelium.cameras.config import check_roi
     from feelium.cameras.picamera2_backend import Picamera2RearCamera
 
-    width, height = config.touch.width, config.touch.height
+    width, height = work_size
     check_roi(cfg.roi, width, height, "rear_camera.roi")
     roi: Roi | None = tuple(cfg.roi) if cfg.roi else None  # type: ignore[assignment]
     return CameraSource(
@@ -90,16 +94,15 @@ def rear_camera_source(config: "Config", clock: Callable[[], float]) -> CameraSo
     )
 
 
-def front_camera_source(config: "Config") -> CameraSource | None:
+def front_camera_source(cfg: "FrontCameraConfig", sim_seed: int) -> CameraSource | None:
     """How to open the front (fisheye) camera, or ``None`` when it is off."""
-    cfg = config.front_camera
-    backend, device = resolve_front_backend(config)
+    backend, device = resolve_front_backend(cfg)
     if backend == "off":
         return None
     if backend == "sim":
         from feelium.cameras.sim import SimFrontCamera
 
-        return CameraSource("sim", lambda: SimFrontCamera(cfg.width, cfg.height, cfg.fps, seed=config.sim.seed))
+        return CameraSource("sim", lambda: SimFrontCamera(cfg.width, cfg.height, cfg.fps, seed=sim_seed))
     if backend == "v4l2":
         from feelium.cameras.v4l2 import V4l2Camera
 

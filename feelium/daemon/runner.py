@@ -14,8 +14,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, get_args, get_type_hints
 
-from feelium.config import Config
-from feelium.daemon.discovery import build_all
+from feelium.daemon.config import Config
+from feelium.daemon.assembly import SERVICES, ServiceBuilder, build_services
 from feelium.daemon.memory import tune_malloc
 from feelium.daemon.sdnotify import Notifier
 from feelium.daemon.supervisor import Supervisor
@@ -72,19 +72,19 @@ async def run_daemon(
     stop: asyncio.Event | None = None,
     hub: Hub | None = None,
     notifier: Notifier | None = None,
-    modules: list[str] | None = None,
+    builders: tuple[tuple[str, ServiceBuilder], ...] = SERVICES,
     on_started: Any = None,
 ) -> Supervisor:
     """Run every service until ``stop`` is set, then shut down within the configured budget."""
     hub = hub if hub is not None else Hub()
     stop = stop if stop is not None else asyncio.Event()
     notifier = notifier if notifier is not None else Notifier()
-    discovered = build_all(config, hub, modules)
+    built = build_services(config, hub, builders)
     supervisor = Supervisor(
-        discovered.services,
+        built.services,
         config.daemon,
         clock=hub.clock,
-        build_failures=discovered.failures,
+        build_failures=built.failures,
         extra_health=lambda: {"bus": hub.bus.health(), "systemd": {"notify": notifier.enabled, "sent": notifier.sent}},
     )
     hub.health = supervisor.report

@@ -20,7 +20,6 @@ import os
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
-from feelium.config import Config
 from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.client import MspClient
 from feelium.flight.config import FlightConfig
@@ -30,7 +29,6 @@ from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
 from feelium.flight.transport import ByteLink, open_serial
 from feelium.hub import Hub
-from feelium.service import Service
 
 if TYPE_CHECKING:
     from feelium.flight.emulated_board import EmulatedMotorBoard
@@ -262,15 +260,3 @@ class FlightService:
             mode=out.mode,
             motors_us=list(out.motors_us),
         )
-
-
-def build_services(config: Config, hub: Hub) -> list[Service]:
-    flight = config.flight
-    backend = resolve_backend(flight)
-    if backend == "off":
-        return []
-    if backend == "sim":
-        opener: LinkOpener = SimOpener(flight, config.sim.seed, hub.clock)
-    else:
-        opener = SerialOpener(flight.port, flight.baudrate, flight.reply_timeout_s)
-    return [FlightService(flight, hub, opener)]

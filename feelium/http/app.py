@@ -8,10 +8,9 @@ from pathlib import Path
 
 from aiohttp import web
 
-from feelium.audio.config import AudioConfig
 from feelium.http import control, events_api, video
 from feelium.http.config import HttpConfig
-from feelium.http.context import CONTEXT, LinkContext, ctx
+from feelium.http.context import CONTEXT, LinkContext, SpeechSettings, ctx
 from feelium.http.errors import ERROR_STATS, json_errors
 from feelium.http.face import FacePlayer
 from feelium.http.feed import EventFeed
@@ -26,8 +25,8 @@ STATIC_DIR = Path(__file__).with_name("static")
 _PUMPS: web.AppKey[list[asyncio.Task[None]]] = web.AppKey("feelium_pumps", list)
 
 
-def build_context(config: HttpConfig, hub: Hub, token: str, audio: AudioConfig | None = None) -> LinkContext:
-    audio = audio or AudioConfig()
+def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings | None = None) -> LinkContext:
+    speech = speech or SpeechSettings()
     videos = {
         "front": JpegFeed("front", hub.front_video, config.jpeg_quality),
         "rear": JpegFeed("rear", hub.rear_video, config.jpeg_quality),
@@ -35,11 +34,11 @@ def build_context(config: HttpConfig, hub: Hub, token: str, audio: AudioConfig |
     }
     return LinkContext(
         config=config,
-        audio=audio,
+        speech_settings=speech,
         hub=hub,
         token=token,
         events=EventFeed(hub.bus, config.event_ring_size),
-        speech=SpeechFeed(hub.bus, audio.capture_keep_ms),
+        speech=SpeechFeed(hub.bus, speech.capture_keep_ms),
         videos=videos,
         motion_bucket=TokenBucket(config.motion_rate_per_s, config.motion_burst, hub.clock()),
         face=FacePlayer(hub),
@@ -76,11 +75,11 @@ async def partner(request: web.Request) -> web.FileResponse:
     return web.FileResponse(STATIC_DIR / "partner.html", headers={"Cache-Control": "no-cache"})
 
 
-def create_app(config: HttpConfig, hub: Hub, token: str, audio: AudioConfig | None = None) -> web.Application:
+def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings | None = None) -> web.Application:
     """The aiohttp application of the headset link (the caller runs it)."""
     if len(token) < 16:
         raise ValueError("the API token must be at least 16 characters")
-    link = build_context(config, hub, token, audio)
+    link = build_context(config, hub, token, speech)
     limit = max(config.max_json_bytes, config.max_face_bytes, config.max_speech_bytes) + 65536
     app = web.Application(
         client_max_size=limit,
@@ -120,4 +119,4 @@ def link_of(app: web.Application) -> LinkContext:
     return app[CONTEXT]
 
 
-__all__ = ["create_app", "link_of", "ctx"]
+__all__ = ["SpeechSettings", "create_app", "link_of", "ctx"]

@@ -7,7 +7,6 @@ from typing import Any
 
 from aiohttp import web
 
-from feelium.audio.config import AudioConfig
 from feelium.http.config import HttpConfig
 from feelium.http.face import FacePlayer
 from feelium.http.feed import EventFeed
@@ -17,10 +16,27 @@ from feelium.http.speech import SpeechFeed
 from feelium.hub import Hub
 
 
+@dataclass(frozen=True)
+class SpeechSettings:
+    """What the link needs of ``[audio]``: the PCM rate both ways and how much room sound to keep for a late poll.
+
+    Passed in by the daemon's assembly (``SpeechSettings.from_audio(config.audio)``) so the link does not
+    import the audio service's package; the defaults are ``[audio]``'s.
+    """
+
+    sample_rate: int = 16000
+    capture_keep_ms: int = 2000
+
+    @classmethod
+    def from_audio(cls, audio: Any) -> "SpeechSettings":
+        """From an ``[audio]`` section (anything with ``sample_rate`` and ``capture_keep_ms``)."""
+        return cls(sample_rate=int(audio.sample_rate), capture_keep_ms=int(audio.capture_keep_ms))
+
+
 @dataclass
 class LinkContext:
     config: HttpConfig
-    audio: AudioConfig
+    speech_settings: SpeechSettings
     hub: Hub
     token: str
     events: EventFeed

@@ -8,8 +8,8 @@ import math
 import numpy as np
 from aiohttp import web
 
-from feelium.audio.chunks import SpeechIn
-from feelium.audio.wav import WavError, decode_wav, encode_wav, resample
+from feelium.events import SpeechIn
+from feelium.wav import WavError, decode_wav, encode_wav, resample
 from feelium.events import WearerAction
 from feelium.http.context import ctx
 from feelium.http.errors import ApiError
@@ -140,7 +140,7 @@ async def post_speech(request: web.Request) -> web.Response:
         samples, rate = decode_wav(data)
     except WavError as exc:
         raise ApiError(400, str(exc)) from exc
-    target = link.audio.sample_rate
+    target = link.speech_settings.sample_rate
     pcm = resample(samples, rate, target).astype("<i2").tobytes()
     link.hub.bus.publish(SpeechIn(pcm, target, link.hub.clock()))
     link.count("speech_chunks_in")

@@ -9,13 +9,10 @@ from typing import Any
 
 from aiohttp import web
 
-from feelium.config import Config
-from feelium.http.app import create_app, link_of
-from feelium.http.auth import load_or_create_token
+from feelium.http.app import link_of
 from feelium.http.config import HttpConfig
 from feelium.http.server import JsonErrorAppRunner
 from feelium.hub import Hub
-from feelium.service import Service
 
 log = logging.getLogger(__name__)
 
@@ -83,13 +80,3 @@ class HttpService:
             **link.counters,
             **{f"events_{k}": v for k, v in link.events.health().items()},
         }
-
-
-def build_services(config: Config, hub: Hub) -> list[Service]:
-    """The HTTP service, or nothing when ``[http] enabled = false``."""
-    if not config.http.enabled:
-        return []
-    token = load_or_create_token(config.http.token, config.http.token_file)
-    tls_context(config.http)  # fail at build time, with the daemon's report, on a bad certificate pair
-    app = create_app(config.http, hub, token, config.audio)
-    return [HttpService(config.http, hub, token, app)]

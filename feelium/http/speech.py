@@ -10,7 +10,7 @@ import asyncio
 from collections import deque
 from typing import Any
 
-from feelium.audio.chunks import SpeechOut
+from feelium.events import SpeechOut
 from feelium.bus import EventBus, Subscription
 
 

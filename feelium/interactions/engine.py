@@ -35,7 +35,7 @@ from typing import Any
 from feelium.events import InteractionEvent, TouchEvent, WearerAction
 from feelium.interactions.answers import Answer
 from feelium.interactions.config import InteractionsConfig
-from feelium.interactions.regions import Regions
+from feelium.skin.regions import Regions
 from feelium.interactions.wordgame import choose_word, display_word, is_correct
 
 RIPPLE_S = 1.2

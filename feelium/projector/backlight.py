@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from feelium.hub import Latest
-from feelium.projector.calibration import CalibrationMap
+from feelium.skin.projector_map import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from feelium.interactions.answers import Answer
 from feelium.projector.avatar import BACKGROUND_BGR, Avatar
-from feelium.projector.calibration import CalibrationMap
+from feelium.skin.projector_map import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.layers import DRAWERS
 

@@ -15,48 +15,22 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
-from feelium.config import Config
 from feelium.events import TouchEvent, WearerAction
 from feelium.hub import Hub
+from feelium.interactions.config import InteractionsConfig
 from feelium.interactions.engine import InteractionEngine, MotionReply
-from feelium.interactions.regions import Regions
-from feelium.projector.calibration import CalibrationError, CalibrationMap, default_calibration, load_calibration
-from feelium.projector.display import Display, open_display
+from feelium.projector.config import ProjectorConfig
+from feelium.projector.display import Display
 from feelium.projector.renderer import Renderer
-from feelium.service import Service
+from feelium.skin.projector_map import CalibrationMap
+from feelium.skin.regions import Regions
 
 log = logging.getLogger(__name__)
-
-DEFAULT_CAMERA_SIZE = (640, 480)
-DEFAULT_ROI = (64, 48, 512, 384)
-
-
-def calibration_path(config: Config, config_file: str | Path | None = None) -> Path:
-    """The calibration file: absolute as configured, else beside ``config_file`` (or the working directory)."""
-    path = Path(config.projector.calibration.file)
-    if path.is_absolute():
-        return path
-    base = Path(config_file).resolve().parent if config_file else Path.cwd()
-    return base / path
-
-
-def load_or_default(config: Config, config_file: str | Path | None = None) -> CalibrationMap:
-    """The saved calibration, or the uncalibrated stand-in (ROI mapped affinely) when there is none."""
-    path = calibration_path(config, config_file)
-    if path.exists():
-        calibration = load_calibration(path)
-        if calibration.projector_size == (config.projector.width, config.projector.height):
-            return calibration
-        log.warning("%s is for a %s projector; using the uncalibrated map", path, calibration.projector_size)
-    roi = tuple(config.rear_camera.roi) if config.rear_camera.roi else DEFAULT_ROI
-    return default_calibration(DEFAULT_CAMERA_SIZE, roi, (config.projector.width, config.projector.height))  # type: ignore[arg-type]
-
 
 class ProjectorService:
     """Renders the skin at a fixed rate and runs the six exchanges."""
@@ -64,13 +38,20 @@ class ProjectorService:
     name = "projector"
     stop_order = 40
 
-    def __init__(self, config: Config, hub: Hub, display: Display, calibration: CalibrationMap) -> None:
+    def __init__(
+        self,
+        config: ProjectorConfig,
+        interactions: InteractionsConfig,
+        hub: Hub,
+        display: Display,
+        calibration: CalibrationMap,
+    ) -> None:
         self.config = config
         self.hub = hub
         self.display = display
         self.calibration = calibration
-        self.renderer = Renderer(config.projector, calibration)
-        self.engine = InteractionEngine(config.interactions, Regions.from_config(config.interactions)) if config.interactions.enabled else None
+        self.renderer = Renderer(config, calibration)
+        self.engine = InteractionEngine(interactions, Regions.from_config(interactions)) if interactions.enabled else None
         self._face: np.ndarray | None = None
         self._face_seq = 0
         self._face_t = -float("inf")
@@ -133,7 +114,7 @@ class ProjectorService:
             else:
                 self._face, self._face_t = face, now
                 self.counters["faces"] += 1
-        if self._face is not None and now - self._face_t > self.config.projector.face_timeout_s:
+        if self._face is not None and now - self._face_t > self.config.face_timeout_s:
             self._face = None  # the headset stopped sending: back to the avatar
 
     def _render_and_show(self, now: float, face: np.ndarray | None, answers: tuple) -> np.ndarray:
@@ -144,7 +125,7 @@ class ProjectorService:
         return frame
 
     async def run(self) -> None:
-        period = 1.0 / self.config.projector.fps
+        period = 1.0 / self.config.fps
         with self.hub.bus.subscribe((TouchEvent, WearerAction), maxsize=512) as subscription:
             try:
                 await self._loop(subscription, period)
@@ -172,14 +153,3 @@ class ProjectorService:
         if self.engine is not None:
             report["engine"] = dict(self.engine.counts)
         return report
-
-
-def build_services(config: Config, hub: Hub) -> list[Service]:
-    try:
-        calibration = load_or_default(config)
-    except CalibrationError as exc:
-        log.error("projector calibration unusable (%s); using the uncalibrated map", exc)
-        roi = tuple(config.rear_camera.roi) if config.rear_camera.roi else DEFAULT_ROI
-        calibration = default_calibration(DEFAULT_CAMERA_SIZE, roi, (config.projector.width, config.projector.height))  # type: ignore[arg-type]
-    display = open_display(config.projector.backend, config.projector.fb_device)
-    return [ProjectorService(config, hub, display, calibration)]

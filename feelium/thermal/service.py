@@ -23,9 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from feelium.config import Config
 from feelium.hub import Hub
-from feelium.service import Service
 from feelium.thermal import registers as reg
 from feelium.thermal.calibration import CalibrationError
 from feelium.thermal.config import ThermalConfig
@@ -198,15 +196,4 @@ def choose_backend(config: ThermalConfig) -> str:
     return "smbus2" if os.path.exists(f"/dev/i2c-{config.i2c_bus}") else "emulator"
 
 
-def build_services(config: Config, hub: Hub) -> list[Service]:
-    cfg = config.thermal
-    if cfg.backend == "off":
-        return []
-    backend = choose_backend(cfg)
-    if backend == "smbus2":
-        return [ThermalService(cfg, hub, lambda: smbus2_driver(cfg), "smbus2")]
-    seed = config.sim.seed
-    return [ThermalService(cfg, hub, lambda: emulated_driver(cfg, hub, seed), "emulator")]
-
-
-__all__ = ["ThermalService", "build_services", "choose_backend", "emulated_driver", "smbus2_driver"]
+__all__ = ["ThermalService", "choose_backend", "emulated_driver", "smbus2_driver"]

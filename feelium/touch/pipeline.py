@@ -23,6 +23,7 @@ from feelium.touch.depth import MaskCounts, relative_depth
 from feelium.touch.geometry import WorkingGeometry
 from feelium.touch.reference import AdaptiveReference
 from feelium.touch.tracker import Contact, Observation, Tracker
+from feelium.skin.coords import inside_roi, skin_uv
 
 BACKLIGHT_MIN = 0.05  # predicted back-light scale below which a pixel carries no signal
 
@@ -168,9 +169,9 @@ class TouchPipeline:
         kept = []
         for cand in candidates:
             cx, cy = self.geometry.to_camera(cand.x, cand.y)
-            if self.plain and not _inside(self._roi, cx, cy):
+            if self.plain and not inside_roi(self._roi, cx, cy):
                 continue
-            u, v = _uv(self._roi, cx, cy)
+            u, v = skin_uv(self._roi, cx, cy)
             area_px = int(round(cand.area * self.geometry.area_scale))
             edge = cand.edge * self._per_camera_px
             observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge))
@@ -273,13 +274,3 @@ def _regions_containing(mask: np.ndarray, seeds: list[tuple[float, float]]) -> n
     for label in wanted:
         box |= labels == label
     return out
-
-
-def _inside(roi: tuple[int, int, int, int], x: float, y: float) -> bool:
-    rx, ry, rw, rh = roi
-    return rx - 0.5 <= x < rx + rw - 0.5 and ry - 0.5 <= y < ry + rh - 0.5
-
-
-def _uv(roi: tuple[int, int, int, int], x: float, y: float) -> tuple[float, float]:
-    rx, ry, rw, rh = roi
-    return (x - rx + 0.5) / rw, (y - ry + 0.5) / rh

@@ -15,18 +15,16 @@ import contextlib
 import dataclasses
 import logging
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from feelium.cameras.base import Frame
 from feelium.cameras.reader import FrameSlot, RateMeter, Worker, close_camera, pump
-from feelium.cameras.select import CameraSource, rear_camera_source
-from feelium.config import Config
+from feelium.cameras.select import CameraSource
 from feelium.events import TouchEvent
 from feelium.hub import Hub
-from feelium.service import Service
+from feelium.skin.annotation import ProjectorAnnotation
 from feelium.touch.config import TouchConfig
 
 log = logging.getLogger(__name__)
@@ -46,96 +44,6 @@ def _default_overlay(frame: np.ndarray, result: Any, roi: tuple[int, int, int, i
     from feelium.touch.overlay import draw_overlay
 
     return draw_overlay(frame, result, roi)
-
-
-class ProjectorAnnotation:
-    """Adds projector coordinates (``px``, ``py``) and the envelope region to touch events.
-
-    Done here, once, so every consumer (projector, interactions, HTTP clients)
-    sees the same answer. The calibration map is in its own camera pixels;
-    events in frames of another size are scaled onto it (the events' own
-    ``x``/``y`` stay in camera pixels).
-    """
-
-    def __init__(self, calibration: Any, regions: Any) -> None:
-        from feelium.interactions.annotate import annotate
-
-        self.calibration = calibration
-        self.regions = regions
-        self._annotate = annotate
-        self.errors = 0
-        self.last_error: str | None = None
-
-    def __call__(self, event: TouchEvent, frame_size: tuple[int, int]) -> TouchEvent:
-        cw, ch = self.calibration.camera_size
-        fw, fh = frame_size
-        scaled = event if (cw, ch) == (fw, fh) else dataclasses.replace(event, x=event.x * cw / fw, y=event.y * ch / fh)
-        try:
-            extra = self._annotate(scaled, self.calibration, self.regions).extra
-        except Exception as exc:  # an odd event must not stop touches reaching the bus: publish it unannotated
-            self.errors += 1
-            self.last_error = f"{type(exc).__name__}: {exc}"
-            return event
-        return dataclasses.replace(event, extra=extra)
-
-
-def load_projector_annotation(config: Config, path: Path | None = None) -> ProjectorAnnotation | None:
-    """The annotation when a projector calibration file exists (``[projector.calibration] file``), else ``None``.
-
-    Without ``feelium calibrate projector`` having run there is nothing to
-    map through, and events pass unchanged. A file that exists but cannot be
-    used is logged and ignored: touch sensing must not depend on it.
-    """
-    from feelium.projector.service import calibration_path
-
-    path = path if path is not None else calibration_path(config)
-    if not path.exists():
-        log.info("touch: no projector calibration at %s; touch events carry camera coordinates only", path)
-        return None
-    try:
-        from feelium.interactions.regions import Regions
-        from feelium.projector.calibration import load_calibration
-
-        annotation = ProjectorAnnotation(load_calibration(path), Regions.from_config(config.interactions))
-    except Exception as exc:
-        log.error("touch: projector calibration %s unusable (%s); touch events are not annotated", path, exc)
-        return None
-    log.info("touch: annotating touch events with projector coordinates from %s", path)
-    return annotation
-
-
-def load_projected_backlight(config: Config, hub: Hub, backend: str, path: Path | None = None) -> BacklightFactory | None:
-    """How to predict the projector's back-light per frame size, or ``None`` when it must not be used.
-
-    The projector is the rear camera's back-light, so the face it shows dims the membrane like a shadow
-    would; the touch pipeline divides the prediction out. Only frames that contain the projector's light
-    may be compensated: the real camera's. Compensating simulated or replayed frames would invent changes
-    that are not in them, so ``auto`` keeps it for picamera2 with a calibration file.
-    """
-    mode = config.rear_camera.projection_compensation
-    if mode == "off" or (mode == "auto" and backend != "picamera2"):
-        return None
-    from feelium.projector.service import calibration_path
-
-    path = path if path is not None else calibration_path(config)
-    if not path.exists():
-        if mode == "on":
-            log.warning("touch: projection_compensation is on but there is no projector calibration at %s", path)
-        return None
-    try:
-        from feelium.projector.backlight import BacklightPredictor, ProjectedBacklight
-        from feelium.projector.calibration import load_calibration
-
-        calibration = load_calibration(path)
-    except Exception as exc:
-        log.error("touch: projector calibration %s unusable (%s); no projection compensation", path, exc)
-        return None
-    log.info("touch: dividing the projected back-light out of rear frames (calibration %s)", path)
-
-    def for_frame_size(size: tuple[int, int]) -> Callable[[], np.ndarray | None]:
-        return ProjectedBacklight(BacklightPredictor(config.projector, calibration, size), hub.projector_video).gain
-
-    return for_frame_size
 
 
 def _contact_state(contact: Any) -> dict[str, Any]:
@@ -365,20 +273,3 @@ class TouchService:
             if self.annotation is None
             else {"errors": self.annotation.errors, "last_error": self.annotation.last_error},
         }
-
-
-def build_services(config: Config, hub: Hub) -> list[Service]:
-    source = rear_camera_source(config, hub.clock)
-    if source is None:
-        return []
-    hub.rear_scene = source.scene
-    return [
-        TouchService(
-            source,
-            hub,
-            config.touch,
-            debug_video_fps=config.rear_camera.debug_video_fps,
-            annotation=load_projector_annotation(config),
-            backlight=load_projected_backlight(config, hub, source.backend),
-        )
-    ]

@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 
 from feelium.audio.backends import AlsaMicrophone, AlsaSpeaker
-from feelium.audio.chunks import SpeechOut
+from feelium.events import SpeechOut
 from feelium.audio.config import AudioConfig
-from feelium.audio.service import AudioService, build_services
-from feelium.config import Config
+from feelium.audio.service import AudioService
+from feelium.daemon.assembly import build_audio
+from feelium.daemon.config import Config
 from feelium.hub import Hub
 
 CAPTURED_BYTES = 3200  # what the stand-in arecord delivers before its stream ends
@@ -72,7 +73,7 @@ async def test_microphone_reads_exact_chunks_then_reports_the_end(alsa_tools: Pa
 async def test_service_on_alsa_publishes_captured_chunks_and_fails_loudly_when_capture_ends(alsa_tools: Path) -> None:
     hub = Hub()
     cfg = replace(AudioConfig(), backend="alsa", sample_rate=8000, chunk_ms=50)  # 800-byte chunks
-    (service,) = build_services(replace(Config(), audio=cfg), hub)
+    service = build_audio(replace(Config(), audio=cfg), hub)
     assert isinstance(service, AudioService) and service.health()["backend"] == "alsa"
     captured = hub.bus.subscribe([SpeechOut], maxsize=16)
     task = asyncio.create_task(service.run())

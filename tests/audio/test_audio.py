@@ -14,11 +14,12 @@ from hypothesis import strategies as st
 
 from feelium.audio.backends import FakeMicrophone, FakeSpeaker
 from feelium.audio.buffer import PlaybackBuffer
-from feelium.audio.chunks import SpeechIn, SpeechOut
+from feelium.events import SpeechIn, SpeechOut
 from feelium.audio.config import AudioConfig
-from feelium.audio.service import AudioService, build_services
-from feelium.audio.wav import WavError, decode_wav, encode_wav, resample
-from feelium.config import Config
+from feelium.audio.service import AudioService
+from feelium.daemon.assembly import build_audio
+from feelium.wav import WavError, decode_wav, encode_wav, resample
+from feelium.daemon.config import Config
 from feelium.hub import Hub
 
 
@@ -134,7 +135,7 @@ def test_accept_resamples_to_the_device_rate() -> None:
     assert len(service.buffer) == 400
 
 
-def test_build_services_respects_off_and_falls_back_to_the_fake() -> None:
-    assert build_services(replace(Config(), audio=replace(AudioConfig(), backend="off")), Hub()) == []
-    (service,) = build_services(replace(Config(), audio=replace(AudioConfig(), backend="fake")), Hub())
+def test_build_audio_respects_off_and_falls_back_to_the_fake() -> None:
+    assert build_audio(replace(Config(), audio=replace(AudioConfig(), backend="off")), Hub()) is None
+    service = build_audio(replace(Config(), audio=replace(AudioConfig(), backend="fake")), Hub())
     assert service.health()["backend"] == "fake"

@@ -7,7 +7,7 @@ import pytest
 
 from feelium.cameras.base import Frame
 from feelium.cameras.select import CameraSource
-from feelium.cameras.service import FrontCameraService
+from feelium.front_camera.service import FrontCameraService
 from feelium.hub import Hub
 
 

@@ -6,7 +6,7 @@ import platform
 
 import pytest
 
-from feelium.config import Config
+from feelium.daemon.config import Config
 from feelium.lab.daemon.bench import bench_daemon, cpu_by_group, format_table, thread_group
 from feelium.daemon.memory import tune_malloc
 

@@ -6,13 +6,12 @@ import asyncio
 import dataclasses
 import importlib.util
 import socket
-import sys
 import time
-import types
 
 import pytest
 
-from feelium.config import Config
+from feelium.daemon.config import Config
+from feelium.daemon.assembly import build_touch
 from feelium.daemon.runner import run_daemon
 from feelium.daemon.sdnotify import Notifier
 from feelium.events import TouchEvent
@@ -21,7 +20,7 @@ from feelium.hub import Hub
 from .fakes import CrashingService, FrameClockService
 from .synthetic import PRESS_OFF, PRESS_ON, PRESS_XY, write_press_recording
 
-REAR_ONLY = ["feelium.touch.service"]
+REAR_ONLY = (("touch", build_touch),)
 
 
 def _replay_config(path, *, realtime=False, loop=False) -> Config:
@@ -35,7 +34,7 @@ def _replay_config(path, *, realtime=False, loop=False) -> Config:
     )
 
 
-async def _run_until(config, condition, *, hub=None, modules=REAR_ONLY, notifier=None, timeout=20.0):
+async def _run_until(config, condition, *, hub=None, builders=REAR_ONLY, notifier=None, timeout=20.0):
     hub = hub if hub is not None else Hub()
     stop = asyncio.Event()
     holder = {}
@@ -52,7 +51,7 @@ async def _run_until(config, condition, *, hub=None, modules=REAR_ONLY, notifier
         config,
         stop=stop,
         hub=hub,
-        modules=modules,
+        builders=builders,
         notifier=notifier or Notifier({}),
         on_started=lambda h, s: holder.setdefault("supervisor", s),
     )
@@ -89,9 +88,6 @@ async def test_touches_of_a_replayed_recording_reach_the_bus(tmp_path):
 async def test_a_crashing_service_is_restarted_while_the_touch_pipeline_keeps_working(tmp_path, monkeypatch):
     recording = write_press_recording(tmp_path / "press", seconds=1.0)
     crashy = CrashingService(3, name="crashy")
-    module = types.ModuleType("feelium_test_crashy")
-    module.build_services = lambda config, hub: [crashy]
-    monkeypatch.setitem(sys.modules, "feelium_test_crashy", module)
     frames_at_first_crash = {}
 
     def condition(hub, supervisor):
@@ -103,7 +99,7 @@ async def test_a_crashing_service_is_restarted_while_the_touch_pipeline_keeps_wo
     hub, supervisor = await _run_until(
         _replay_config(recording, realtime=True, loop=True),
         condition,
-        modules=["feelium.touch.service", "feelium_test_crashy"],
+        builders=(*REAR_ONLY, ("crashy", lambda config, hub: crashy)),
     )
     assert supervisor.records["crashy"].crashes == 3
     assert supervisor.records["touch"].crashes == 0
@@ -142,9 +138,6 @@ async def test_the_watchdog_is_fed_only_while_the_camera_pipeline_delivers_frame
     )
     hub = Hub()
     camera = FrameClockService(hub.clock, name="camera")
-    module = types.ModuleType("feelium_test_camera")
-    module.build_services = lambda config, hub: [camera]
-    monkeypatch.setitem(sys.modules, "feelium_test_camera", module)
     listener = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     listener.bind("\0feelium-test-watchdog-%d" % id(camera))
     listener.setblocking(False)
@@ -173,7 +166,7 @@ async def test_the_watchdog_is_fed_only_while_the_camera_pipeline_delivers_frame
         return phase["name"] == "resumed" and any(p == "resumed" for p, _ in pings)
 
     with caplog.at_level("ERROR", logger="feelium.daemon.runner"):
-        await _run_until(config, condition, hub=hub, modules=["feelium_test_camera"], notifier=notifier, timeout=10)
+        await _run_until(config, condition, hub=hub, builders=(("camera", lambda config, hub: camera),), notifier=notifier, timeout=10)
     listener.close()
     frozen = [t for p, t in pings if p == "frozen"]
     phase_frozen_at = phase["frozen_at"]

@@ -86,7 +86,7 @@ def test_under_systemd_verbose_journald_lines_and_sigterm_within_two_seconds(tmp
     assert proc.returncode == 0, rest
     assert elapsed < 2.0, f"took {elapsed:.2f} s to stop\n{rest}"
     lines = [line for line in "".join(seen).splitlines() + rest.splitlines() if line.strip()]
-    assert any(line.startswith("<7>feelium.daemon.discovery: feelium.touch.service: touch") for line in lines)
+    assert any(line.startswith("<7>feelium.daemon.assembly: touch: touch") for line in lines)
     assert any(line.startswith("<6>feelium.daemon.runner: shutting down") for line in lines)
     assert all(re.match(r"<[0-7]>[\w.]+: ", line) for line in lines), lines  # every line is a journald line
     assert not any(re.search(r"\d\d:\d\d:\d\d", line[:20]) for line in lines)  # journald adds the time

@@ -1,12 +1,9 @@
-"""Overrides for --sim/--replay, discovery of service modules, the status line."""
+"""Overrides for --sim/--replay, the assembly of services, the status line."""
 
 from __future__ import annotations
 
-import sys
-import types
-
-from feelium.config import Config, parse_config
-from feelium.daemon.discovery import build_all, service_modules
+from feelium.daemon.config import Config, parse_config
+from feelium.daemon.assembly import SERVICES, build_services
 from feelium.daemon.runner import status_line, with_overrides
 from feelium.hub import Hub
 
@@ -27,29 +24,39 @@ def test_replay_sets_the_rear_camera_and_simulates_the_rest():
     assert with_overrides(Config()) == Config()
 
 
-def test_discovery_finds_the_camera_and_touch_services():
-    modules = service_modules()
-    assert "feelium.cameras.service" in modules and "feelium.touch.service" in modules
+def test_the_assembly_lists_every_part_once_in_data_flow_order():
+    parts = [part for part, _ in SERVICES]
+    assert parts == ["touch", "front_camera", "thermal", "audio", "projector", "flight", "http"]
 
 
-def test_a_module_that_fails_is_reported_and_the_rest_still_build(monkeypatch):
-    good = types.ModuleType("feelium_test_good")
-    good.build_services = lambda config, hub: [TickingService("good")]
-    bad = types.ModuleType("feelium_test_bad")
+def test_the_simulated_blimp_builds_every_part(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no projector calibration here: the uncalibrated map
+    config = with_overrides(parse_config(f'[http]\ntoken_file = "{tmp_path / "token"}"\n'), sim=True)
+    built = build_services(config, Hub())
+    assert built.failures == {}
+    assert sorted(s.name for s in built.services) == sorted(["touch", "front_camera", "thermal", "audio", "projector", "flight", "http"])
 
+
+def test_a_part_that_fails_is_reported_and_the_rest_still_build():
     def explode(config, hub):
         raise OSError("no such bus")
 
-    bad.build_services = explode
-    notservice = types.ModuleType("feelium_test_notservice")
-    notservice.build_services = lambda config, hub: [object()]
-    for module in (good, bad, notservice):
-        monkeypatch.setitem(sys.modules, module.__name__, module)
-    found = build_all(Config(), Hub(), ["feelium_test_good", "feelium_test_bad", "feelium_test_notservice", "feelium_test_absent"])
-    assert [s.name for s in found.services] == ["good"]
-    assert found.failures["feelium_test_bad"] == "OSError: no such bus"
-    assert "not a Service" in found.failures["feelium_test_notservice"]
-    assert "ModuleNotFoundError" in found.failures["feelium_test_absent"]
+    built = build_services(
+        Config(),
+        Hub(),
+        (
+            ("good", lambda config, hub: TickingService("good")),
+            ("bad", explode),
+            ("notservice", lambda config, hub: object()),
+            ("off", lambda config, hub: None),
+            ("twin", lambda config, hub: TickingService("good")),
+        ),
+    )
+    assert [s.name for s in built.services] == ["good"]
+    assert built.failures["bad"] == "OSError: no such bus"
+    assert "not a Service" in built.failures["notservice"]
+    assert "off" not in built.failures
+    assert "duplicate service name" in built.failures["twin"]
 
 
 def test_status_line_names_rates_and_trouble():

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from feelium.config import Config
+from feelium.daemon.config import Config
 
 UNIT = Path(__file__).resolve().parents[2] / "config" / "feelium.service"
 

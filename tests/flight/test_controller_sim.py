@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from feelium.config import Config
+from feelium.daemon.config import Config
 from feelium.lab.flight import scenarios as sc
 from feelium.flight.emulated_board import BoardParams, SensorParams, board_with
 from feelium.flight.setpoint import HOLD, Setpoint, setpoint_for_motion

@@ -18,7 +18,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from feelium.config import Config
+from feelium.daemon.config import Config
 from feelium.lab.flight import scenarios as sc
 from feelium.flight.blimp_model import BlimpParams
 from feelium.flight.controller import HANDOVER_S, THRUST_LAG_S, FlightController, _RateOnset

@@ -12,11 +12,12 @@ from dataclasses import replace
 
 import pytest
 
-from feelium.config import Config
+from feelium.daemon.config import Config
 from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.config import FlightSimConfig
 from feelium.flight.emulated_board import EmulatedSerial
-from feelium.flight.service import FlightService, SerialOpener, SimOpener, build_services
+from feelium.daemon.assembly import build_flight
+from feelium.flight.service import FlightService, SerialOpener, SimOpener
 from feelium.hub import Hub
 
 pytestmark = pytest.mark.slow
@@ -141,10 +142,10 @@ async def test_a_missing_serial_port_is_retried_without_crashing() -> None:
         await stopped(service, task)
 
 
-def test_build_services_follows_the_backend_setting() -> None:
+def test_build_flight_follows_the_backend_setting() -> None:
     config = Config()
-    assert build_services(replace(config, flight=replace(config.flight, backend="off")), Hub()) == []
-    (service,) = build_services(replace(config, flight=replace(config.flight, backend="sim")), Hub())
+    assert build_flight(replace(config, flight=replace(config.flight, backend="off")), Hub()) is None
+    service = build_flight(replace(config, flight=replace(config.flight, backend="sim")), Hub())
     assert service.name == "flight" and service.stop_order == 0
 
 

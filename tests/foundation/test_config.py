@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from feelium.cli import main
-from feelium.config import Config, load_config, parse_config, render_config
+from feelium.daemon.config import Config, load_config, parse_config, render_config
 from feelium.settings import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]

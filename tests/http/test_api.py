@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from feelium.audio.chunks import SpeechIn, SpeechOut
+from feelium.events import SpeechIn, SpeechOut
 from feelium.events import InteractionEvent, PresenceEvent, TouchEvent, WearerAction
 from tests.http.http_support import AUTH, TOKEN, FakeScene
 

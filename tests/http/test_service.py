@@ -13,16 +13,17 @@ from pathlib import Path
 import aiohttp
 import pytest
 
-from feelium.config import Config
+from feelium.daemon.config import Config
 from feelium.http.config import HttpConfig
-from feelium.http.service import HttpService, build_services, client_url, tls_context
+from feelium.daemon.assembly import build_http
+from feelium.http.service import HttpService, client_url, tls_context
 from feelium.hub import Hub
 
 from tests.http.http_support import AUTH, TOKEN
 
 
 async def _started(config: HttpConfig) -> tuple[HttpService, asyncio.Task[None]]:
-    (service,) = build_services(replace(Config(), http=config), Hub())
+    service = build_http(replace(Config(), http=config), Hub())
     assert isinstance(service, HttpService)
     task = asyncio.create_task(service.run())
     for _ in range(200):
@@ -113,12 +114,12 @@ def test_tls_needs_both_files_and_a_bad_pair_fails_at_build_time(tmp_path: Path)
     (tmp_path / "cert.pem").write_text("not a certificate")
     (tmp_path / "key.pem").write_text("not a key")
     with pytest.raises(ssl.SSLError):
-        build_services(replace(Config(), http=_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem"))), Hub())
+        build_http(replace(Config(), http=_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem"))), Hub())
 
 
 def test_disabled_link_builds_no_service_and_a_generated_token_is_private(tmp_path: Path) -> None:
-    assert build_services(replace(Config(), http=replace(HttpConfig(), enabled=False)), Hub()) == []
+    assert build_http(replace(Config(), http=replace(HttpConfig(), enabled=False)), Hub()) is None
     token_file = tmp_path / "sub" / "token"
-    (service,) = build_services(replace(Config(), http=replace(HttpConfig(), token_file=str(token_file))), Hub())
+    service = build_http(replace(Config(), http=replace(HttpConfig(), token_file=str(token_file))), Hub())
     assert token_file.stat().st_mode & 0o777 == 0o600
     assert service.token == token_file.read_text().strip() and len(service.token) >= 16  # type: ignore[attr-defined]

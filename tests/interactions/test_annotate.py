@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from feelium.interactions.annotate import annotate
+from feelium.skin.annotation import annotate
 from feelium.interactions.config import InteractionsConfig
-from feelium.interactions.regions import Regions
-from feelium.projector.calibration import default_calibration
+from feelium.skin.regions import Regions
+from feelium.skin.projector_map import default_calibration
 from tests.interactions.touches import ROI, at_uv, event
 
 CAL = default_calibration((640, 480), ROI, (1280, 720))

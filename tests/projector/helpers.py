@@ -6,7 +6,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from feelium.projector.calibration import CalibrationMap
+from feelium.skin.projector_map import CalibrationMap
 from feelium.sim.projection import FisheyeWarp
 
 CAMERA = (640, 480)

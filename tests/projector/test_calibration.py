@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from feelium.lab.projector.calibrate import run_calibration, truth_error
-from feelium.projector.calibration import CalibrationError, default_calibration, load_calibration, sample
+from feelium.skin.projector_map import CalibrationError, default_calibration, load_calibration, sample
 from feelium.projector.config import CalibrationConfig
 from feelium.lab.projector.graycode import PatternPlan, decode, make_patterns, smooth_map
 from feelium.sim.projection import FisheyeWarp, ProjectedLight, SimPatternCapture

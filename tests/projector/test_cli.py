@@ -5,7 +5,7 @@ import json
 import pytest
 
 from feelium.cli import main
-from feelium.projector.calibration import load_calibration
+from feelium.skin.projector_map import load_calibration
 
 
 @pytest.mark.slow

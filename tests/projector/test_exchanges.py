@@ -16,11 +16,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from feelium.config import Config
+from feelium.daemon.config import Config
 from feelium.events import InteractionEvent, TouchEvent, WearerAction
 from feelium.hub import Hub
-from feelium.interactions.annotate import annotate
-from feelium.interactions.regions import Regions
+from feelium.skin.annotation import annotate
+from feelium.skin.regions import Regions
 from feelium.projector.display import NullDisplay
 from feelium.projector.service import ProjectorService
 from feelium.lab.sim import protocol, scripts
@@ -60,7 +60,7 @@ class SimSkin:
         self.warp = FisheyeWarp()
         self.hub = Hub()
         config = Config()
-        self.service = ProjectorService(config, self.hub, NullDisplay(), self.calibration)
+        self.service = ProjectorService(config.projector, config.interactions, self.hub, NullDisplay(), self.calibration)
         self.regions = Regions.from_config(config.interactions)
         self.inputs = self.hub.bus.subscribe((TouchEvent, WearerAction), maxsize=4096)
         self.wearer = self.hub.bus.subscribe([InteractionEvent], maxsize=4096)

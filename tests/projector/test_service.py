@@ -9,11 +9,13 @@ import cv2
 import numpy as np
 import pytest
 
-from feelium.config import Config
+from feelium.daemon.config import Config
 from feelium.events import InteractionEvent, WearerAction
 from feelium.hub import Hub
 from feelium.projector.display import NullDisplay
-from feelium.projector.service import ProjectorService, build_services, load_or_default
+from feelium.daemon.assembly import build_projector
+from feelium.projector.service import ProjectorService
+from feelium.skin.projector_map import calibration_path, load_or_default
 from tests.interactions.touches import at_uv, tap
 from tests.projector.helpers import centroid, truth_calibration
 
@@ -29,7 +31,7 @@ async def _until(predicate, timeout=10.0):
 @pytest.fixture
 async def running():
     hub = Hub()
-    service = ProjectorService(Config(), hub, NullDisplay(), truth_calibration())
+    service = ProjectorService(Config().projector, Config().interactions, hub, NullDisplay(), truth_calibration())
     task = asyncio.create_task(service.run())
     yield hub, service
     await service.stop()
@@ -87,11 +89,12 @@ async def test_face_jpeg_is_shown_and_a_broken_one_is_counted(running):
     assert service.health()["frames"] > 0 and service.health()["display"] == "null"
 
 
-def test_build_services_without_calibration_uses_the_default_map(tmp_path, monkeypatch):
+def test_build_projector_without_calibration_uses_the_default_map(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     config = Config()
     config = dataclasses.replace(config, projector=dataclasses.replace(config.projector, backend="null"))
-    [service] = build_services(config, Hub())
+    service = build_projector(config, Hub())
     assert service.name == "projector" and service.calibration.source == "default"
     truth_calibration().save(tmp_path / "projector_calibration.npz")
-    assert load_or_default(config).source == "truth"
+    size = (config.projector.width, config.projector.height)
+    assert load_or_default(calibration_path(config.projector.calibration.file), size, None).source == "truth"

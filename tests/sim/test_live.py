@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from feelium.config import parse_config
+from feelium.daemon.config import parse_config
 from feelium.sim.config import SimConfig
 from feelium.sim.live import LiveRearScene
 

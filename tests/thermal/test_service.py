@@ -5,7 +5,7 @@ import asyncio
 import numpy as np
 import pytest
 
-from feelium.config import parse_config
+from feelium.daemon.config import parse_config
 from feelium.events import PresenceEvent
 from feelium.hub import Hub
 from feelium.service import Service
@@ -14,7 +14,8 @@ from feelium.thermal import registers as reg
 from feelium.thermal.config import ThermalConfig
 from feelium.thermal.driver import Mlx90640Driver
 from feelium.thermal.emulator import Faults, Mlx90640Emulator
-from feelium.thermal.service import ThermalService, build_services
+from feelium.daemon.assembly import build_thermal
+from feelium.thermal.service import ThermalService
 from feelium.thermal.transport import SMBus2Transport
 
 
@@ -63,11 +64,11 @@ async def run_until(service, clock, t_end):
         pass
 
 
-def test_build_services_honours_backend():
+def test_build_thermal_honours_backend():
     hub = Hub()
-    assert build_services(parse_config('[thermal]\nbackend = "off"\n'), hub) == []
-    services = build_services(parse_config('[thermal]\nbackend = "emulator"\n'), hub)
-    assert len(services) == 1 and isinstance(services[0], Service) and services[0].name == "thermal"
+    assert build_thermal(parse_config('[thermal]\nbackend = "off"\n'), hub) is None
+    service = build_thermal(parse_config('[thermal]\nbackend = "emulator"\n'), hub)
+    assert isinstance(service, Service) and service.name == "thermal"
 
 
 def test_bad_refresh_rate_is_a_config_error():

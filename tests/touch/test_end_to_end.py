@@ -13,7 +13,7 @@ from dataclasses import replace
 import pytest
 
 from feelium.cli import main
-from feelium.config import load_config
+from feelium.daemon.config import load_config
 from feelium.lab.sim.protocol import simulate_protocol
 from feelium.lab.touch.bench import build_variants, run_variants, summarise
 

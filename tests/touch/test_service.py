@@ -206,7 +206,7 @@ async def test_a_failing_overlay_costs_only_the_debug_view():
 
 
 def _calibration(camera_size=(32, 24), roi=(4, 4, 24, 16), projector_size=(64, 48)):
-    from feelium.projector.calibration import default_calibration
+    from feelium.skin.projector_map import default_calibration
 
     return default_calibration(camera_size, roi, projector_size)
 
@@ -214,7 +214,7 @@ def _calibration(camera_size=(32, 24), roi=(4, 4, 24, 16), projector_size=(64, 4
 def _config_with_calibration_file(path):
     import dataclasses
 
-    from feelium.config import Config
+    from feelium.daemon.config import Config
 
     base = Config()
     calibration = dataclasses.replace(base.projector.calibration, file=str(path))
@@ -223,8 +223,8 @@ def _config_with_calibration_file(path):
 
 async def test_with_a_projector_calibration_events_gain_projector_coordinates_and_region():
     from feelium.interactions.config import InteractionsConfig
-    from feelium.interactions.regions import Regions
-    from feelium.touch.service import ProjectorAnnotation
+    from feelium.skin.regions import Regions
+    from feelium.skin.annotation import ProjectorAnnotation
 
     calibration = _calibration()  # at twice the frames' resolution: events are scaled onto it
     annotation = ProjectorAnnotation(calibration, Regions.from_config(InteractionsConfig()))
@@ -245,7 +245,7 @@ async def test_with_a_projector_calibration_events_gain_projector_coordinates_an
 
 
 async def test_without_a_calibration_file_events_pass_unchanged(tmp_path):
-    from feelium.touch.service import load_projector_annotation
+    from feelium.daemon.assembly import load_projector_annotation
 
     assert load_projector_annotation(_config_with_calibration_file(tmp_path / "none.npz")) is None
     hub = Hub()
@@ -258,7 +258,7 @@ async def test_without_a_calibration_file_events_pass_unchanged(tmp_path):
 
 
 def test_a_saved_calibration_is_loaded_and_an_unusable_one_ignored(tmp_path, caplog):
-    from feelium.touch.service import load_projector_annotation
+    from feelium.daemon.assembly import load_projector_annotation
 
     path = _calibration().save(tmp_path / "projector_calibration.npz")
     annotation = load_projector_annotation(_config_with_calibration_file(path))
@@ -270,7 +270,7 @@ def test_a_saved_calibration_is_loaded_and_an_unusable_one_ignored(tmp_path, cap
 
 
 def test_an_event_the_annotation_cannot_handle_is_published_unannotated():
-    from feelium.touch.service import ProjectorAnnotation
+    from feelium.skin.annotation import ProjectorAnnotation
 
     class Exploding:
         def region_at(self, u, v):
@@ -311,7 +311,7 @@ async def test_the_predicted_backlight_goes_with_each_frame_at_the_frame_size():
 
 
 def test_projection_compensation_only_for_frames_that_contain_the_projectors_light(tmp_path):
-    from feelium.touch.service import load_projected_backlight
+    from feelium.daemon.assembly import load_projected_backlight
 
     path = _calibration(projector_size=(1280, 720)).save(tmp_path / "projector_calibration.npz")
     config = _config_with_calibration_file(path)

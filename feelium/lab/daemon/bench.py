@@ -27,7 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from feelium.config import Config, load_config
+from feelium.daemon.config import Config, load_config
+from feelium.daemon.assembly import SERVICES
 from feelium.daemon.memory import tune_malloc
 from feelium.daemon.runner import run_daemon, with_overrides
 from feelium.daemon.sdnotify import Notifier
@@ -202,14 +203,14 @@ def _bench_config(config: Config) -> Config:
     return dataclasses.replace(config, http=dataclasses.replace(config.http, port=0))  # never clash with a running daemon
 
 
-def service_alone(module: str, seconds: float, config_file: str | None = None) -> dict[str, Any]:
-    """Resident memory of a fresh daemon process running only ``module`` (or none) in sim mode."""
+def service_alone(part: str, seconds: float, config_file: str | None = None) -> dict[str, Any]:
+    """Resident memory of a fresh daemon process running only ``part`` of the assembly (or ``none``) in sim mode."""
     code = (
         "import json, sys; from feelium.lab.daemon.bench import _alone_main; "
         "print(json.dumps(_alone_main(sys.argv[1], float(sys.argv[2]), sys.argv[3] or None)))"
     )
     done = subprocess.run(
-        [sys.executable, "-c", code, module, str(seconds), config_file or ""],
+        [sys.executable, "-c", code, part, str(seconds), config_file or ""],
         capture_output=True, text=True, timeout=seconds + 120, check=False,
     )
     if done.returncode != 0:
@@ -217,7 +218,7 @@ def service_alone(module: str, seconds: float, config_file: str | None = None) -
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def _alone_main(module: str, seconds: float, config_file: str | None) -> dict[str, Any]:
+def _alone_main(part: str, seconds: float, config_file: str | None) -> dict[str, Any]:
     config = _bench_config(load_config(config_file))
     tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
     rss: list[float] = []
@@ -233,7 +234,8 @@ def _alone_main(module: str, seconds: float, config_file: str | None) -> dict[st
             stop.set()
 
         task = asyncio.create_task(sampler())
-        await run_daemon(config, stop=stop, notifier=Notifier({}), modules=[module] if module != "none" else [])
+        builders = tuple((name, build) for name, build in SERVICES if name == part)
+        await run_daemon(config, stop=stop, notifier=Notifier({}), builders=builders)
         await task
 
     asyncio.run(main())
@@ -241,16 +243,14 @@ def _alone_main(module: str, seconds: float, config_file: str | None) -> dict[st
 
 
 def per_service_memory(seconds: float, config_file: str | None) -> dict[str, Any]:
-    """Each service module alone in its own process, and what it adds over an empty daemon."""
-    from feelium.daemon.discovery import service_modules
-
+    """Each part of the assembly alone in its own process, and what it adds over an empty daemon."""
     empty = service_alone("none", seconds, config_file)
     out: dict[str, Any] = {"(no service)": empty}
-    for module in service_modules():
-        alone = service_alone(module, seconds, config_file)
+    for part, _ in SERVICES:
+        alone = service_alone(part, seconds, config_file)
         if "rss_mb_steady" in alone and "rss_mb_steady" in empty:
             alone["adds_mb"] = round(alone["rss_mb_steady"] - empty["rss_mb_steady"], 1)
-        out[module.split(".")[1]] = alone
+        out[part] = alone
     return out
 
 

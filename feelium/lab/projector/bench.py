@@ -15,7 +15,7 @@ import cv2
 
 from feelium.interactions.answers import Answer
 from feelium.projector.backlight import BacklightPredictor
-from feelium.projector.calibration import CalibrationMap
+from feelium.skin.projector_map import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
 from feelium.lab.timing import time_calls

@@ -14,7 +14,7 @@ from typing import Any, Protocol
 import cv2
 import numpy as np
 
-from feelium.projector.calibration import CalibrationMap, sample
+from feelium.skin.projector_map import CalibrationMap, sample
 from feelium.projector.config import CalibrationConfig
 from feelium.lab.projector.graycode import PatternPlan, decode, make_patterns, photometric, smooth_map
 

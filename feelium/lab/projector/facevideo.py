@@ -35,7 +35,7 @@ import numpy as np
 from feelium.events import TouchEvent
 from feelium.projector.backlight import BacklightPredictor
 from feelium.lab.projector.calibrate import run_calibration
-from feelium.projector.calibration import CalibrationMap
+from feelium.skin.projector_map import CalibrationMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
 from feelium.lab.sim import protocol

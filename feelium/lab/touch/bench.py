@@ -25,7 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from feelium.config import load_config
+from feelium.daemon.config import load_config
 from feelium.recording import Recording, find_recordings
 from feelium.lab.touch.commands import scoring_input
 from feelium.touch.config import TouchConfig

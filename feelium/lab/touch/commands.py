@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from feelium.config import load_config
+from feelium.daemon.config import load_config
 from feelium.lab.plot import Series, line_plot
 from feelium.recording import Recording, RecordingError, find_recordings
 from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates

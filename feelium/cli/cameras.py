@@ -26,8 +26,8 @@ def _record(args: argparse.Namespace) -> int:
 
     from feelium.cameras.base import CameraUnavailable
     from feelium.cameras.record import default_name, record
-    from feelium.cameras.select import rear_camera_source
-    from feelium.config import load_config
+    from feelium.daemon.assembly import rear_camera
+    from feelium.daemon.config import load_config
     from feelium.daemon.journal import setup_logging
 
     setup_logging(logging.INFO)
@@ -42,7 +42,7 @@ def _record(args: argparse.Namespace) -> int:
         print(f"feelium record: {out} already exists", file=sys.stderr)
         return 1
     try:
-        source = rear_camera_source(config, time.monotonic)
+        source = rear_camera(config, time.monotonic)
         if source is None:
             print("feelium record: the rear camera is off in the config ([rear_camera] backend)", file=sys.stderr)
             return 1

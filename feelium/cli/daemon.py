@@ -30,7 +30,7 @@ def register(registry: CommandRegistry) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.daemon.journal import effective_level, setup_logging
     from feelium.daemon.runner import run_process, with_overrides
 

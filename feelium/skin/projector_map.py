@@ -13,6 +13,7 @@ Pure: arrays in, arrays out; :func:`load_calibration`/:meth:`save` are the only 
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +23,11 @@ import numpy as np
 
 Size = tuple[int, int]  # (width, height)
 Roi = tuple[int, int, int, int]
+
+DEFAULT_CAMERA_SIZE: Size = (640, 480)  # the rear camera frame the uncalibrated stand-in is drawn for
+DEFAULT_ROI: Roi = (64, 48, 512, 384)
+
+log = logging.getLogger(__name__)
 
 _INVERSE_DEGREE = 5
 _INVERSE_STEP = 4  # evaluate the inverse on a grid this much coarser, then resize (smooth map; saves memory on a Pi)
@@ -214,3 +220,31 @@ def load_calibration(path: str | Path) -> CalibrationMap:
         )
     except CalibrationError as exc:
         raise CalibrationError(f"{path}: {exc}") from exc
+
+
+def calibration_path(file: str | Path, config_file: str | Path | None = None) -> Path:
+    """The calibration file: absolute as configured (``[projector.calibration] file``), else beside ``config_file``.
+
+    Relative to the config file rather than the working directory when one is
+    given, so ``feelium calibrate projector --config X`` writes where the
+    daemon started with ``--config X`` will look.
+    """
+    path = Path(file)
+    if path.is_absolute():
+        return path
+    base = Path(config_file).resolve().parent if config_file else Path.cwd()
+    return base / path
+
+
+def load_or_default(path: Path, projector_size: Size, rear_roi: Roi | None) -> CalibrationMap:
+    """The saved calibration, or the uncalibrated stand-in (ROI mapped affinely) when there is none.
+
+    :class:`CalibrationError` when the file exists but cannot be read; a map made for
+    another projector resolution is logged and replaced by the stand-in.
+    """
+    if path.exists():
+        calibration = load_calibration(path)
+        if calibration.projector_size == tuple(projector_size):
+            return calibration
+        log.warning("%s is for a %s projector; using the uncalibrated map", path, calibration.projector_size)
+    return default_calibration(DEFAULT_CAMERA_SIZE, rear_roi or DEFAULT_ROI, projector_size)

@@ -71,7 +71,7 @@ def _read(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.hub import Hub
     from feelium.thermal.calibration import CalibrationError
     from feelium.thermal.decoder import FrameAssembler
@@ -141,7 +141,7 @@ def _read(args: argparse.Namespace) -> int:
 def _decode(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.thermal.calibration import CalibrationError, extract_calibration
     from feelium.thermal.decoder import FrameAssembler
 
@@ -208,7 +208,7 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _bench_presence(args: argparse.Namespace) -> int:
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.lab.thermal.evaluation import evaluate_presence
 
     cfg = load_config(args.config).thermal

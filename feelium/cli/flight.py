@@ -43,7 +43,7 @@ def _probe(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.lab.flight.bench import format_table, run_bench
 
     config = load_config(args.config).flight

@@ -6,10 +6,8 @@ import logging
 from typing import Any
 
 from feelium.cameras.reader import RateMeter, Worker, close_camera
-from feelium.cameras.select import CameraSource, front_camera_source
-from feelium.config import Config
+from feelium.cameras.select import CameraSource
 from feelium.hub import Hub
-from feelium.service import Service
 
 log = logging.getLogger(__name__)
 
@@ -70,8 +68,3 @@ class FrontCameraService:
             "opens": self.opens,
             "last_frame_at": self.last_frame_at,
         }
-
-
-def build_services(config: Config, hub: Hub) -> list[Service]:
-    source = front_camera_source(config)
-    return [] if source is None else [FrontCameraService(source, hub)]

@@ -42,9 +42,9 @@ def _calibrate(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.lab.projector.calibrate import run_calibration, truth_error
-    from feelium.projector.service import calibration_path
+    from feelium.skin.projector_map import calibration_path
 
     config = load_config(args.config)
     projector = config.projector
@@ -69,7 +69,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     summary["source"] = result.calibration.source
     if truth is not None:
         summary["truth_error_px"] = truth_error(result.calibration, *truth)
-    out = Path(args.out) if args.out else calibration_path(config, args.config)
+    out = Path(args.out) if args.out else calibration_path(config.projector.calibration.file, args.config)
     summary["saved"] = str(result.calibration.save(out))
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -119,10 +119,10 @@ class _DeviceCapture:
 def _device_capture(config) -> _DeviceCapture:
     import time
 
-    from feelium.cameras.select import rear_camera_source
+    from feelium.daemon.assembly import rear_camera
     from feelium.projector.display import FbdevDisplay
 
-    source = rear_camera_source(config, time.monotonic)
+    source = rear_camera(config, time.monotonic)
     if source is None or source.backend != "picamera2":
         print(
             "feelium: calibrate projector needs the real rear camera and projector (use --sim to run against the simulator)",
@@ -143,9 +143,9 @@ def _bench(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.lab.projector.bench import format_table, run_bench
-    from feelium.projector.calibration import CalibrationMap
+    from feelium.skin.projector_map import CalibrationMap
     from feelium.sim.projection import FisheyeWarp
 
     config = load_config(args.config).projector
@@ -167,7 +167,7 @@ def _bench(args: argparse.Namespace) -> int:
 def _bench_facevideo(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.lab.projector.facevideo import format_table, run_experiment
 
     if not 0.0 < args.scale <= 1.0:

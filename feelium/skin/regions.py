@@ -8,8 +8,7 @@ so a region means the same spot for the sensor, the engine and the projector.
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-from feelium.interactions.config import InteractionsConfig
+from typing import Any
 
 SKIN = "skin"
 REGION_ORDER = ("cheek_left", "cheek_right", "head", "palm_zone")  # small regions win where they overlap
@@ -33,7 +32,8 @@ class Regions:
     areas: tuple[tuple[str, Ellipse], ...]
 
     @classmethod
-    def from_config(cls, config: InteractionsConfig) -> "Regions":
+    def from_config(cls, config: Any) -> "Regions":
+        """From ``[interactions]``: a ``[cu, cv, ru, rv]`` list per name of :data:`REGION_ORDER`."""
         areas = []
         for name in REGION_ORDER:
             values = getattr(config, name)

@@ -20,7 +20,7 @@ def register(registry: CommandRegistry) -> None:
 
 
 def _url(args: argparse.Namespace) -> int:
-    from feelium.config import load_config
+    from feelium.daemon.config import load_config
     from feelium.http.auth import load_or_create_token
     from feelium.http.service import client_url
 

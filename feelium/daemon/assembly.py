@@ -1,0 +1,258 @@
+"""The running daemon, assembled in one place, in the order data flows.
+
+Read this file to know every part that runs and what feeds what::
+
+    rear camera --frames--> touch --TouchEvent--> bus --> projector (interactions, answers on the skin)
+    front camera --frames--> hub.front_video                  --> http (events, video) --> headset
+    thermal camera --frames--> thermal (presence) --PresenceEvent--> bus
+    microphone --SpeechOut--> bus --> http;   http --SpeechIn--> bus --> audio (speaker)
+    headset --http--> hub.motion (dead man) --> flight --MSP--> motor board
+
+Each ``build_*`` function chooses a backend from the config (hardware when it
+is there, the simulated part otherwise) and returns the service, or ``None``
+when the config switches the part off. Services meet only in the
+:class:`~feelium.hub.Hub`; the wiring between parts that must share
+something (the projector calibration the touch service annotates with)
+happens here, so no service imports another. Adding a service is one line in
+:data:`SERVICES`.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from feelium.cameras.select import CameraSource, front_camera_source, rear_camera_source
+from feelium.daemon.config import Config
+from feelium.hub import Hub
+from feelium.service import Service
+from feelium.skin.annotation import ProjectorAnnotation
+from feelium.skin.projector_map import CalibrationError, calibration_path, default_calibration, load_calibration, load_or_default
+from feelium.skin.projector_map import DEFAULT_CAMERA_SIZE, DEFAULT_ROI
+from feelium.skin.regions import Regions
+
+log = logging.getLogger(__name__)
+
+ServiceBuilder = Callable[[Config, Hub], "Service | None"]
+BacklightFactory = Callable[[tuple[int, int]], Callable[[], "np.ndarray | None"]]
+
+
+# --- sensing: cameras and the thermal camera feed the bus -------------------------------------------------------
+
+
+def rear_camera(config: Config, clock: Callable[[], float]) -> CameraSource | None:
+    """The rear (touch) camera the config asks for, at the touch pipeline's working size; ``None`` when off."""
+    return rear_camera_source(config.rear_camera, (config.touch.width, config.touch.height), config.sim, clock)
+
+
+def build_touch(config: Config, hub: Hub) -> Service | None:
+    """Rear camera -> touch pipeline -> ``TouchEvent`` on the bus (annotated with the skin when calibrated)."""
+    from feelium.touch.service import TouchService
+
+    source = rear_camera(config, hub.clock)
+    if source is None:
+        return None
+    hub.rear_scene = source.scene  # the simulated scene, for the partner page's presses; None on hardware
+    return TouchService(
+        source,
+        hub,
+        config.touch,
+        debug_video_fps=config.rear_camera.debug_video_fps,
+        annotation=load_projector_annotation(config),
+        backlight=load_projected_backlight(config, hub, source.backend),
+    )
+
+
+def build_front_camera(config: Config, hub: Hub) -> Service | None:
+    """Fisheye -> ``hub.front_video`` (what the wearer sees)."""
+    from feelium.front_camera.service import FrontCameraService
+
+    source = front_camera_source(config.front_camera, config.sim.seed)
+    return None if source is None else FrontCameraService(source, hub)
+
+
+def build_thermal(config: Config, hub: Hub) -> Service | None:
+    """MLX90640 (or its I2C-level simulation) -> presence detector -> ``PresenceEvent`` on the bus."""
+    from feelium.thermal.service import ThermalService, choose_backend, emulated_driver, smbus2_driver
+
+    cfg = config.thermal
+    if cfg.backend == "off":
+        return None
+    if choose_backend(cfg) == "smbus2":
+        return ThermalService(cfg, hub, lambda: smbus2_driver(cfg), "smbus2")
+    seed = config.sim.seed
+    return ThermalService(cfg, hub, lambda: emulated_driver(cfg, hub, seed), "emulator")
+
+
+def build_audio(config: Config, hub: Hub) -> Service | None:
+    """Microphone -> ``SpeechOut`` on the bus; ``SpeechIn`` from the bus -> speaker (ALSA, else simulated)."""
+    from feelium.audio.backends import AlsaMicrophone, AlsaSpeaker, FakeMicrophone, FakeSpeaker, Microphone, Speaker
+    from feelium.audio.backends import alsa_available
+    from feelium.audio.service import AudioService
+
+    cfg = config.audio
+    if cfg.backend == "off":
+        return None
+    use_alsa = cfg.backend == "alsa" or (cfg.backend == "auto" and alsa_available())
+    if use_alsa:
+        speaker: Speaker = AlsaSpeaker(cfg.sample_rate, cfg.playback_device)
+        microphone: Microphone = AlsaMicrophone(cfg.sample_rate, cfg.capture_device)
+    else:
+        speaker = FakeSpeaker(cfg.sample_rate, hub.clock)
+        microphone = FakeMicrophone(cfg.sample_rate, cfg.fake_tone_hz, hub.clock)
+    return AudioService(cfg, hub, speaker, microphone, "alsa" if use_alsa else "fake")
+
+
+# --- answering: the skin -------------------------------------------------------------------------------------------
+
+
+def build_projector(config: Config, hub: Hub) -> Service | None:
+    """Bus (touch, wearer actions) -> interaction rules -> answers and the face on the skin; ``hub.projector_video``."""
+    from feelium.projector.display import open_display
+    from feelium.projector.service import ProjectorService
+
+    size = (config.projector.width, config.projector.height)
+    rear_roi = tuple(config.rear_camera.roi) if config.rear_camera.roi else None
+    try:
+        calibration = load_or_default(calibration_path(config.projector.calibration.file), size, rear_roi)  # type: ignore[arg-type]
+    except CalibrationError as exc:
+        log.error("projector calibration unusable (%s); using the uncalibrated map", exc)
+        calibration = default_calibration(DEFAULT_CAMERA_SIZE, rear_roi or DEFAULT_ROI, size)  # type: ignore[arg-type]
+    display = open_display(config.projector.backend, config.projector.fb_device)
+    return ProjectorService(config.projector, config.interactions, hub, display, calibration)
+
+
+# --- moving: the headset's commands reach the motors ---------------------------------------------------------------
+
+
+def build_flight(config: Config, hub: Hub) -> Service | None:
+    """``hub.motion`` (dead-man commands) and touch softening -> controller -> MSP motor board (or the simulated one)."""
+    from feelium.flight.service import FlightService, LinkOpener, SerialOpener, SimOpener, resolve_backend
+
+    flight = config.flight
+    backend = resolve_backend(flight)
+    if backend == "off":
+        return None
+    if backend == "sim":
+        opener: LinkOpener = SimOpener(flight, config.sim.seed, hub.clock)
+    else:
+        opener = SerialOpener(flight.port, flight.baudrate, flight.reply_timeout_s)
+    return FlightService(flight, hub, opener)
+
+
+# --- the link: everything above, to and from the headset -----------------------------------------------------------
+
+
+def build_http(config: Config, hub: Hub) -> Service | None:
+    """The headset's API: video, events, motion, face and speech, all through the hub."""
+    from feelium.http.app import SpeechSettings, create_app
+    from feelium.http.auth import load_or_create_token
+    from feelium.http.service import HttpService, tls_context
+
+    if not config.http.enabled:
+        return None
+    token = load_or_create_token(config.http.token, config.http.token_file)
+    tls_context(config.http)  # fail at build time, with the daemon's report, on a bad certificate pair
+    speech = SpeechSettings.from_audio(config.audio)
+    app = create_app(config.http, hub, token, speech)
+    return HttpService(config.http, hub, token, app)
+
+
+SERVICES: tuple[tuple[str, ServiceBuilder], ...] = (
+    ("touch", build_touch),
+    ("front_camera", build_front_camera),
+    ("thermal", build_thermal),
+    ("audio", build_audio),
+    ("projector", build_projector),
+    ("flight", build_flight),
+    ("http", build_http),
+)
+
+
+@dataclass
+class Built:
+    """The services that were built and, per part, why one could not be."""
+
+    services: list[Service] = field(default_factory=list)
+    failures: dict[str, str] = field(default_factory=dict)  # part -> "ErrorType: message"
+
+
+def build_services(config: Config, hub: Hub, builders: tuple[tuple[str, ServiceBuilder], ...] = SERVICES) -> Built:
+    """Build every part; a part that fails is logged with its traceback and reported, and the rest still start."""
+    built = Built()
+    for part, build in builders:
+        try:
+            service = build(config, hub)
+            if service is not None and not isinstance(service, Service):
+                raise TypeError(f"{part} built {service!r}, which is not a Service (name, stop_order, run, stop, health)")
+        except Exception as exc:
+            log.error("cannot start %s: %s", part, exc, exc_info=True)
+            built.failures[part] = f"{type(exc).__name__}: {exc}"
+            continue
+        if service is None:
+            log.debug("%s: off in the config", part)
+        elif any(s.name == service.name for s in built.services):
+            built.failures[part] = f"duplicate service name {service.name!r}"
+            log.error("cannot start %s: duplicate service name %r", part, service.name)
+        else:
+            built.services.append(service)
+            log.debug("%s: %s", part, service.name)
+    return built
+
+
+# --- wiring shared between parts -----------------------------------------------------------------------------------
+
+
+def load_projector_annotation(config: Config, path: Path | None = None) -> ProjectorAnnotation | None:
+    """The annotation when a projector calibration file exists (``[projector.calibration] file``), else ``None``.
+
+    Without ``feelium calibrate projector`` having run there is nothing to
+    map through, and events pass unchanged. A file that exists but cannot be
+    used is logged and ignored: touch sensing must not depend on it.
+    """
+    path = path if path is not None else calibration_path(config.projector.calibration.file)
+    if not path.exists():
+        log.info("touch: no projector calibration at %s; touch events carry camera coordinates only", path)
+        return None
+    try:
+        annotation = ProjectorAnnotation(load_calibration(path), Regions.from_config(config.interactions))
+    except Exception as exc:
+        log.error("touch: projector calibration %s unusable (%s); touch events are not annotated", path, exc)
+        return None
+    log.info("touch: annotating touch events with projector coordinates from %s", path)
+    return annotation
+
+
+def load_projected_backlight(config: Config, hub: Hub, backend: str, path: Path | None = None) -> BacklightFactory | None:
+    """How to predict the projector's back-light per frame size, or ``None`` when it must not be used.
+
+    The projector is the rear camera's back-light, so the face it shows dims the membrane like a shadow
+    would; the touch pipeline divides the prediction out. Only frames that contain the projector's light
+    may be compensated: the real camera's. Compensating simulated or replayed frames would invent changes
+    that are not in them, so ``auto`` keeps it for picamera2 with a calibration file.
+    """
+    mode = config.rear_camera.projection_compensation
+    if mode == "off" or (mode == "auto" and backend != "picamera2"):
+        return None
+    path = path if path is not None else calibration_path(config.projector.calibration.file)
+    if not path.exists():
+        if mode == "on":
+            log.warning("touch: projection_compensation is on but there is no projector calibration at %s", path)
+        return None
+    try:
+        from feelium.projector.backlight import BacklightPredictor, ProjectedBacklight
+
+        calibration = load_calibration(path)
+    except Exception as exc:
+        log.error("touch: projector calibration %s unusable (%s); no projection compensation", path, exc)
+        return None
+    log.info("touch: dividing the projected back-light out of rear frames (calibration %s)", path)
+
+    def for_frame_size(size: tuple[int, int]) -> Callable[[], np.ndarray | None]:
+        return ProjectedBacklight(BacklightPredictor(config.projector, calibration, size), hub.projector_video).gain
+
+    return for_frame_size

@@ -1,0 +1,1 @@
+"""The front (fisheye) camera service: the wearer's eyes."""

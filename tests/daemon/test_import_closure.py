@@ -1,0 +1,41 @@
+"""What ``feelium run`` loads: the simulated daemon, run for real in a fresh process, imports no lab or command-line code."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+RUN_AND_LIST = """
+import asyncio, dataclasses, json, sys
+from feelium.daemon.config import Config
+from feelium.daemon.runner import run_daemon, with_overrides
+
+async def main():
+    config = with_overrides(Config(), sim=True)
+    config = dataclasses.replace(config, http=dataclasses.replace(config.http, port=0, token_file=sys.argv[1]))
+    stop = asyncio.Event()
+    asyncio.get_running_loop().call_later(2.5, stop.set)
+    supervisor = await run_daemon(config, stop=stop)
+    return sorted(supervisor.records)
+
+services = asyncio.run(main())
+print(json.dumps({"services": services, "modules": sorted(m for m in sys.modules if m.startswith("feelium"))}))
+"""
+
+
+@pytest.mark.slow
+def test_the_running_daemon_loads_no_lab_or_cli_module(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-c", RUN_AND_LIST, str(tmp_path / "token")],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["services"] == sorted(["audio", "flight", "front_camera", "http", "projector", "thermal", "touch"])
+    modules = report["modules"]
+    assert "feelium.touch.pipeline" in modules and "feelium.daemon.assembly" in modules  # it really ran
+    leaked = [m for m in modules if m.startswith(("feelium.lab", "feelium.cli"))]
+    assert leaked == [], leaked
