@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 from feelium.events import TouchEvent
+from feelium.skin.coords import skin_uv
 
 ROI = (64, 48, 512, 384)
 
 
 def uv(x: float, y: float) -> tuple[float, float]:
-    return (x - ROI[0]) / ROI[2], (y - ROI[1]) / ROI[3]
+    return skin_uv(ROI, x, y)
 
 
 def at_uv(u: float, v: float) -> tuple[float, float]:
-    return ROI[0] + u * ROI[2], ROI[1] + v * ROI[3]
+    """The camera pixel at skin position ``(u, v)`` (the inverse of :func:`skin_uv`)."""
+    return ROI[0] + u * ROI[2] - 0.5, ROI[1] + v * ROI[3] - 0.5
 
 
 def event(id: int, phase: str, t: float, x: float, y: float, area: int = 300, kind: str | None = None) -> TouchEvent:
