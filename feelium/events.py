@@ -62,26 +62,6 @@ class TouchEvent:
         obj.update(self.extra)
         return obj
 
-    @classmethod
-    def from_json(cls, obj: dict[str, Any]) -> "TouchEvent":
-        known = {"id", "phase", "kind", "t", "x", "y", "u", "v", "depth", "area", "anchor"}
-        extra = {k: v for k, v in obj.items() if k not in known}
-        nan = float("nan")
-        return cls(
-            id=int(obj["id"]),
-            phase=obj["phase"],
-            kind=obj.get("kind"),
-            t=float(obj["t"]),
-            x=float(obj["x"] if obj.get("x") is not None else nan),
-            y=float(obj["y"] if obj.get("y") is not None else nan),
-            u=float(obj["u"] if obj.get("u") is not None else nan),
-            v=float(obj["v"] if obj.get("v") is not None else nan),
-            depth=float(obj["depth"] if obj.get("depth") is not None else nan),
-            area=int(obj.get("area", 0)),
-            anchor=float(obj["anchor"] if obj.get("anchor") is not None else nan),
-            extra=extra,
-        )
-
 
 @dataclass(frozen=True)
 class PresenceEvent:
@@ -152,10 +132,6 @@ class InteractionEvent:
         return obj
 
 
-def event_type_name(event: object) -> str:
-    """The ``type`` tag an event carries on the wire (``touch``, ``presence``, ...)."""
-    name = type(event).__name__
-    return name[: -len("Event")].lower() if name.endswith("Event") else name.lower()
 
 # Speech on the bus: audio travels as bounded bus items like every other event, so the HTTP link and the
 # audio device never call each other and a slow side only loses audio.

@@ -100,10 +100,6 @@ class Meta:
     thermal: dict[str, Any] | None
     raw: dict[str, Any]
 
-    def roi_or_frame(self) -> tuple[int, int, int, int]:
-        """The ROI, or the whole frame when the recording has none."""
-        return self.roi if self.roi is not None else (0, 0, self.camera.width, self.camera.height)
-
 
 @dataclass(frozen=True)
 class ThermalData:

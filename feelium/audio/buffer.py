@@ -23,7 +23,6 @@ class PlaybackBuffer:
         self._chunks: deque[bytes] = deque()
         self._size = 0
         self.dropped_bytes = 0
-        self.queued_bytes = 0
 
     def __len__(self) -> int:
         return self._size
@@ -39,7 +38,6 @@ class PlaybackBuffer:
             return
         self._chunks.append(pcm)
         self._size += len(pcm)
-        self.queued_bytes += len(pcm)
         limit = max(self.max_bytes, len(pcm))
         while self._size > limit:
             excess = self._size - limit

@@ -99,7 +99,6 @@ class Picamera2RearCamera:
         self._camera.start()
         self._first_ns: int | None = None
         self._locked_at: float | None = None
-        self.locked_controls: dict[str, Any] | None = None
         self._guard = ClosableReader()
 
     def _lock_exposure(self, metadata: dict[str, Any], t: float) -> None:
@@ -108,7 +107,6 @@ class Picamera2RearCamera:
             if key in metadata:
                 controls[key] = metadata[key]
         self._camera.set_controls(controls)
-        self.locked_controls = controls
         self._locked_at = t
         log.info("rear camera exposure locked after %.1f s: %s", t, controls)
 

@@ -31,7 +31,6 @@ class SharedScene:
         self._clock = clock
         self.origin = clock()
         self._lock = threading.Lock()
-        self.presses = 0
 
     @property
     def roi(self) -> Roi:
@@ -44,7 +43,6 @@ class SharedScene:
     def press(self, x: float, y: float, t: float, *, hover: bool = False) -> None:
         """Put or move a fingertip at camera pixel (x, y); ``t`` is a ``hub.clock()`` time."""
         with self._lock:
-            self.presses += 1
             self.scene.press(x, y, t - self.origin, hover=hover)
 
     def release(self, t: float) -> None:

@@ -31,14 +31,12 @@ class FacePlayer:
     def __init__(self, hub: Hub) -> None:
         self.hub = hub
         self._loop_task: asyncio.Task[None] | None = None
-        self.uploads = 0
 
     def show(self, frames: Sequence[bytes], fps: float) -> None:
         """Show one frame, or loop several at ``fps``; replaces what was showing."""
         if not frames:
             raise ValueError("no frames")
         self.stop()
-        self.uploads += 1
         self.hub.face.publish(self.hub.clock(), frames[0])
         if len(frames) > 1:
             self._loop_task = asyncio.get_running_loop().create_task(self._play(list(frames), fps))
@@ -51,10 +49,6 @@ class FacePlayer:
             await asyncio.sleep(max(0.0, start + k / fps - loop.time()))
             self.hub.face.publish(self.hub.clock(), frames[k % len(frames)])
             k += 1
-
-    @property
-    def looping(self) -> bool:
-        return self._loop_task is not None and not self._loop_task.done()
 
     def stop(self) -> None:
         if self._loop_task is not None:

@@ -63,9 +63,6 @@ class JpegFeed:
             self._cached = Stamped(newest.seq, newest.t, data)
             return self._cached
 
-    def latest_cached(self) -> Stamped[bytes] | None:
-        return self._cached
-
     async def newest(self) -> Stamped[bytes] | None:
         """The JPEG of the newest frame, or ``None`` when there is none (or it cannot be encoded)."""
         item = self.slot.get()

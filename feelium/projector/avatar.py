@@ -15,7 +15,6 @@ import cv2
 import numpy as np
 
 SKIN_BGR = (120, 170, 215)
-BLUSH_BGR = (135, 140, 240)
 FEATURE_BGR = (50, 45, 60)
 BACKGROUND_BGR = (70, 50, 40)
 

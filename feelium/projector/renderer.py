@@ -57,7 +57,6 @@ class Renderer:
         self._blank[...] = self._border
         self.avatar = Avatar(cw, ch)
         self.skipped: dict[str, int] = {}
-        self._face_size: tuple[int, int] | None = None
         floor = 255.0 * config.sensing_floor
         self._floor_lut = np.clip(np.round(floor + np.arange(256) * (1.0 - config.sensing_floor)), 0, 255).astype(np.uint8)
 
