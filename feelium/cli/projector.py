@@ -145,7 +145,7 @@ def _bench(args: argparse.Namespace) -> int:
 
     from feelium.daemon.config import load_config
     from feelium.lab.projector.bench import format_table, run_bench
-    from feelium.skin.projector_map import CalibrationMap
+    from feelium.skin.projector_map import ProjectorMap
     from feelium.sim.projection import FisheyeWarp
 
     config = load_config(args.config).projector
@@ -156,7 +156,7 @@ def _bench(args: argparse.Namespace) -> int:
     outside[y : y + h, x : x + w] = False
     px[outside] = np.nan
     py[outside] = np.nan
-    calibration = CalibrationMap(camera, (config.width, config.height), roi, px, py, source="sim fisheye warp")
+    calibration = ProjectorMap(camera, (config.width, config.height), roi, px, py, source="sim fisheye warp")
     report = run_bench(config, calibration, frames=args.frames)
     print(format_table(report))
     if args.json:

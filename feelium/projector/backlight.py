@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from feelium.hub import Latest
-from feelium.skin.projector_map import CalibrationMap
+from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 
 
@@ -28,7 +28,7 @@ _REDUCE = 2
 class BacklightPredictor:
     """Projector frame in, per-camera-pixel back-light gain (float32, ~1.0 = flat) out."""
 
-    def __init__(self, config: ProjectorConfig, calibration: CalibrationMap, frame_size: tuple[int, int] | None = None) -> None:
+    def __init__(self, config: ProjectorConfig, calibration: ProjectorMap, frame_size: tuple[int, int] | None = None) -> None:
         """``frame_size``: (width, height) of the frames the touch pipeline gets; default the calibration's camera size."""
         self.config = config
         cw, ch = calibration.camera_size

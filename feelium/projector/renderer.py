@@ -19,7 +19,7 @@ import numpy as np
 
 from feelium.interactions.answers import Answer
 from feelium.projector.avatar import BACKGROUND_BGR, Avatar
-from feelium.skin.projector_map import CalibrationMap
+from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.layers import DRAWERS
 
@@ -27,7 +27,7 @@ from feelium.projector.layers import DRAWERS
 class Renderer:
     """Renders projector frames for one calibration."""
 
-    def __init__(self, config: ProjectorConfig, calibration: CalibrationMap) -> None:
+    def __init__(self, config: ProjectorConfig, calibration: ProjectorMap) -> None:
         if calibration.projector_size != (config.width, config.height):
             raise ValueError(
                 f"calibration is for a {calibration.projector_size[0]}x{calibration.projector_size[1]} projector, "

@@ -27,7 +27,7 @@ from feelium.interactions.engine import InteractionEngine, MotionReply
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.display import Display
 from feelium.projector.renderer import Renderer
-from feelium.skin.projector_map import CalibrationMap
+from feelium.skin.projector_map import ProjectorMap
 from feelium.skin.regions import Regions
 
 log = logging.getLogger(__name__)
@@ -44,7 +44,7 @@ class ProjectorService:
         interactions: InteractionsConfig,
         hub: Hub,
         display: Display,
-        calibration: CalibrationMap,
+        calibration: ProjectorMap,
     ) -> None:
         self.config = config
         self.hub = hub

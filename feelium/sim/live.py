@@ -19,7 +19,7 @@ import numpy as np
 
 from feelium.sim.config import SimConfig
 from feelium.sim.hand import HandPose
-from feelium.sim.motion import HOVER_FLOOR_MM, Tremor, min_jerk
+from feelium.sim.hand_paths import HOVER_FLOOR_MM, Tremor, min_jerk
 from feelium.sim.sessions import session_presets
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, Session
 from feelium.sim.shadow import ShadowParams

@@ -12,11 +12,11 @@ import dataclasses
 
 from feelium.events import TouchEvent
 from feelium.skin.coords import skin_uv
-from feelium.skin.projector_map import CalibrationMap
+from feelium.skin.projector_map import ProjectorMap
 from feelium.skin.regions import Regions
 
 
-def annotate(event: TouchEvent, calibration: CalibrationMap, regions: Regions) -> TouchEvent:
+def annotate(event: TouchEvent, calibration: ProjectorMap, regions: Regions) -> TouchEvent:
     """A copy of ``event`` with extra keys ``px``, ``py`` (projector pixels, None off the map) and ``region``.
 
     The event's camera ``x``/``y`` must be in the calibration's camera pixels.
@@ -38,7 +38,7 @@ class ProjectorAnnotation:
     camera pixels).
     """
 
-    def __init__(self, calibration: CalibrationMap, regions: Regions) -> None:
+    def __init__(self, calibration: ProjectorMap, regions: Regions) -> None:
         self.calibration = calibration
         self.regions = regions
         self.errors = 0

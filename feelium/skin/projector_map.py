@@ -5,7 +5,7 @@ lenses (the projector through a 180 degree fisheye), so a spot on the skin has
 a camera position and a projector position related by a smooth, strongly
 non-linear map. Calibration measures it densely, camera to projector (that is
 what structured light decodes); the renderer needs the other direction
-(projector pixel to skin canvas), which :meth:`CalibrationMap.projector_to_camera`
+(projector pixel to skin canvas), which :meth:`ProjectorMap.projector_to_camera`
 derives once by a least-squares polynomial fit of the inverse.
 
 Pure: arrays in, arrays out; :func:`load_calibration`/:meth:`save` are the only I/O.
@@ -38,7 +38,7 @@ class CalibrationError(ValueError):
 
 
 @dataclass(frozen=True, eq=False)
-class CalibrationMap:
+class ProjectorMap:
     """Dense camera-to-projector map over the sensitive patch.
 
     ``proj_x``/``proj_y`` are (H, W) float32 at camera resolution: the projector
@@ -174,7 +174,7 @@ def sample(image: np.ndarray, xs: np.ndarray, ys: np.ndarray, border: float = np
     return out.ravel()[:n].reshape(xs.shape)
 
 
-def default_calibration(camera_size: Size, roi: Roi | None, projector_size: Size, margin: float = 0.08) -> CalibrationMap:
+def default_calibration(camera_size: Size, roi: Roi | None, projector_size: Size, margin: float = 0.08) -> ProjectorMap:
     """An uncalibrated stand-in: the ROI mapped affinely onto the projector frame (keeps the aspect, centred).
 
     Lets the daemon render and annotate before anyone ran `feelium calibrate projector`.
@@ -191,11 +191,11 @@ def default_calibration(camera_size: Size, roi: Roi | None, projector_size: Size
     outside = (xs < x) | (xs >= x + rw) | (ys < y) | (ys >= y + rh)
     proj_x[outside] = np.nan
     proj_y[outside] = np.nan
-    return CalibrationMap((w, h), (pw, ph), (x, y, rw, rh), proj_x, proj_y, source="default")
+    return ProjectorMap((w, h), (pw, ph), (x, y, rw, rh), proj_x, proj_y, source="default")
 
 
-def load_calibration(path: str | Path) -> CalibrationMap:
-    """Read a map written by :meth:`CalibrationMap.save`; :class:`CalibrationError` names the file if it is wrong."""
+def load_calibration(path: str | Path) -> ProjectorMap:
+    """Read a map written by :meth:`ProjectorMap.save`; :class:`CalibrationError` names the file if it is wrong."""
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as data:
@@ -215,7 +215,7 @@ def load_calibration(path: str | Path) -> CalibrationMap:
     except (OSError, KeyError, ValueError) as exc:
         raise CalibrationError(f"{path}: not a projector calibration ({exc})") from exc
     try:
-        return CalibrationMap(
+        return ProjectorMap(
             (cw, ch), (pw, ph), roi, proj_x, proj_y, source=source, black_level=black_level, gamma=gamma  # type: ignore[arg-type]
         )
     except CalibrationError as exc:
@@ -236,7 +236,7 @@ def calibration_path(file: str | Path, config_file: str | Path | None = None) ->
     return base / path
 
 
-def load_or_default(path: Path, projector_size: Size, rear_roi: Roi | None) -> CalibrationMap:
+def load_or_default(path: Path, projector_size: Size, rear_roi: Roi | None) -> ProjectorMap:
     """The saved calibration, or the uncalibrated stand-in (ROI mapped affinely) when there is none.
 
     :class:`CalibrationError` when the file exists but cannot be read; a map made for

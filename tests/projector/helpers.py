@@ -6,7 +6,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from feelium.skin.projector_map import CalibrationMap
+from feelium.skin.projector_map import ProjectorMap
 from feelium.sim.projection import FisheyeWarp
 
 CAMERA = (640, 480)
@@ -15,14 +15,14 @@ PROJECTOR = (1280, 720)
 
 
 @lru_cache(maxsize=1)
-def truth_calibration() -> CalibrationMap:
+def truth_calibration() -> ProjectorMap:
     px, py = FisheyeWarp().truth_map(*CAMERA)
     inside = np.zeros((CAMERA[1], CAMERA[0]), bool)
     x, y, w, h = ROI
     inside[y : y + h, x : x + w] = True
     px[~inside] = np.nan
     py[~inside] = np.nan
-    return CalibrationMap(CAMERA, PROJECTOR, ROI, px, py, source="truth")
+    return ProjectorMap(CAMERA, PROJECTOR, ROI, px, py, source="truth")
 
 
 def centroid(weights: np.ndarray) -> tuple[float, float]:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from feelium.lab.sim import scripts
-from feelium.sim.motion import HOVER_FLOOR_MM, HandTrack, Keyframe, Tremor, min_jerk
+from feelium.sim.hand_paths import HOVER_FLOOR_MM, HandTrack, Keyframe, Tremor, min_jerk
 from feelium.lab.sim.protocol import Item, build_script, plan, recording_rng, render_frames
 from feelium.sim.sessions import session_presets
 from feelium.sim.scene import ROI

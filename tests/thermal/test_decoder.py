@@ -11,7 +11,7 @@ from hypothesis.extra.numpy import arrays
 from feelium.thermal import registers as reg
 from feelium.thermal.calibration import extract_calibration
 from feelium.thermal.decoder import Decoder, FrameAssembler, FrameRejected, object_temperatures, subpage_mask
-from feelium.lab.thermal.reference import reference_temperatures
+from feelium.lab.thermal.per_pixel import per_pixel_temperatures
 
 
 def test_subpage_masks_split_the_sensor_in_two():
@@ -140,7 +140,7 @@ def _variant(frame: np.ndarray, pixel_noise: np.ndarray, interleaved: bool, aux:
 def test_vectorised_matches_per_pixel_reference(cal, vendor_frames, k, noise, interleaved, aux, emissivity):
     frame = _variant(vendor_frames[k], noise, interleaved, aux)
     sub = object_temperatures(cal, frame, emissivity=emissivity, reflected_offset_c=-8.0)
-    ref = np.array(reference_temperatures(cal, frame.tolist(), emissivity, -8.0))
+    ref = np.array(per_pixel_temperatures(cal, frame.tolist(), emissivity, -8.0))
     assert np.array_equal(np.isnan(sub.celsius), np.isnan(ref))
     finite = np.isfinite(ref)
     assert np.allclose(sub.celsius[finite], ref[finite], rtol=0, atol=1e-9)
@@ -153,7 +153,7 @@ def test_one_decoder_reused_across_modes_and_subpages_matches_the_reference(cal,
     for step in range(8):
         frame = _variant(vendor_frames[step % 2], rng.integers(-50, 50, 768), step // 2 % 2 == 1, (0, 0, 0))
         sub = decoder.decode(frame)
-        ref = np.array(reference_temperatures(cal, frame.tolist(), 0.95, -5.0))
+        ref = np.array(per_pixel_temperatures(cal, frame.tolist(), 0.95, -5.0))
         assert sub.mode == ("interleaved" if step // 2 % 2 else "chess") and sub.subpage == step % 2
         assert np.array_equal(np.isnan(sub.celsius), np.isnan(ref))
         assert np.allclose(sub.celsius[sub.mask], ref[sub.mask], rtol=0, atol=1e-9)

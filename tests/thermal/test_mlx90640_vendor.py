@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from feelium.thermal.decoder import FrameAssembler, object_temperatures
-from feelium.lab.thermal.reference import reference_temperatures
+from feelium.lab.thermal.per_pixel import per_pixel_temperatures
 from feelium.thermal.vendor_eeprom import vendor_eeprom
 
 
@@ -54,6 +54,6 @@ def test_every_pixel_matches_vendor_within_0_01(cal, vendor, vendor_frames):
 def test_reference_implementation_agrees_with_vendor(cal, vendor, vendor_frames):
     got = np.full(768, np.nan)
     for frame in vendor_frames:
-        t = np.array(reference_temperatures(cal, frame.tolist()))
+        t = np.array(per_pixel_temperatures(cal, frame.tolist()))
         got = np.where(np.isnan(t), got, t)
     assert np.abs(got.reshape(24, 32) - np.array(vendor["expected_to_after_frame_1"])).max() < 0.001

@@ -15,7 +15,7 @@ import cv2
 
 from feelium.interactions.answers import Answer
 from feelium.projector.backlight import BacklightPredictor
-from feelium.skin.projector_map import CalibrationMap
+from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
 from feelium.lab.timing import time_calls
@@ -41,7 +41,7 @@ def _scenes() -> dict[str, list[Answer]]:
     return {"avatar": [], "typical": typical, "everything": everything}
 
 
-def run_bench(config: ProjectorConfig, calibration: CalibrationMap, frames: int = 90) -> dict[str, Any]:
+def run_bench(config: ProjectorConfig, calibration: ProjectorMap, frames: int = 90) -> dict[str, Any]:
     """Timings (one OpenCV thread, CPU time per frame) and ratios against the resize baseline."""
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)

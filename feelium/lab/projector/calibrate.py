@@ -14,7 +14,7 @@ from typing import Any, Protocol
 import cv2
 import numpy as np
 
-from feelium.skin.projector_map import CalibrationMap, sample
+from feelium.skin.projector_map import ProjectorMap, sample
 from feelium.projector.config import CalibrationConfig
 from feelium.lab.projector.graycode import PatternPlan, decode, make_patterns, photometric, smooth_map
 
@@ -34,7 +34,7 @@ class PatternCapture(Protocol):
 
 @dataclass(frozen=True)
 class CalibrationResult:
-    calibration: CalibrationMap
+    calibration: ProjectorMap
     summary: dict[str, Any]
 
 
@@ -96,7 +96,7 @@ def calibrate(
         black_level, gamma = photometric(captures, valid)
     except ValueError:
         black_level = gamma = None
-    calibration = CalibrationMap(
+    calibration = ProjectorMap(
         camera_size, (plan.width, plan.height), roi, proj_x, proj_y, source=source, black_level=black_level, gamma=gamma
     )
 
@@ -122,7 +122,7 @@ def calibrate(
     return CalibrationResult(calibration, summary)
 
 
-def truth_error(calibration: CalibrationMap, truth_x: np.ndarray, truth_y: np.ndarray) -> dict[str, float | None]:
+def truth_error(calibration: ProjectorMap, truth_x: np.ndarray, truth_y: np.ndarray) -> dict[str, float | None]:
     """Distance (projector px) between the recovered map and the true one over the covered area."""
     covered = calibration.covered
     err = np.hypot(calibration.proj_x - truth_x, calibration.proj_y - truth_y)[covered]

@@ -35,7 +35,7 @@ import numpy as np
 from feelium.events import TouchEvent
 from feelium.projector.backlight import BacklightPredictor
 from feelium.lab.projector.calibrate import run_calibration
-from feelium.skin.projector_map import CalibrationMap
+from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
 from feelium.lab.sim import protocol
@@ -69,7 +69,7 @@ class FaceVideo:
         return self._cache[k]
 
 
-def sim_calibration(seed: int, projector: ProjectorConfig, warp: FisheyeWarp, optics: ProjectorOptics) -> tuple[CalibrationMap, dict]:
+def sim_calibration(seed: int, projector: ProjectorConfig, warp: FisheyeWarp, optics: ProjectorOptics) -> tuple[ProjectorMap, dict]:
     """The Gray-code calibration run against the simulator, as a user would run it (not the true warp)."""
     light = ProjectedLight(warp, (WIDTH, HEIGHT), optics)
     capture = SimPatternCapture(Session("face-video-calibration"), light, np.random.default_rng([seed, 0xCA1]))

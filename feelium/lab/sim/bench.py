@@ -20,7 +20,7 @@ import numpy as np
 
 from feelium.recording import RecordingWriter
 from feelium.sim.hand import Blob, HandPose
-from feelium.sim.motion import HandTrack, Keyframe, Tremor
+from feelium.sim.hand_paths import HandTrack, Keyframe, Tremor
 from feelium.sim.sessions import session_presets
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, exposure_samples
 from feelium.lab.timing import time_calls

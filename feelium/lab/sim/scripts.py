@@ -25,7 +25,7 @@ import numpy as np
 
 from feelium.recording import Contact, Labels
 from feelium.sim.hand import HandPose
-from feelium.sim.motion import BlobTrack, HandTrack, Keyframe, Tremor
+from feelium.sim.hand_paths import BlobTrack, HandTrack, Keyframe, Tremor
 from feelium.sim.scene import SceneState
 
 Roi = tuple[int, int, int, int]

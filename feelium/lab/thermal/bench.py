@@ -15,7 +15,7 @@ import numpy as np
 from feelium.thermal.calibration import extract_calibration
 from feelium.thermal.decoder import Decoder
 from feelium.thermal.emulator import Mlx90640Emulator, VirtualClock
-from feelium.lab.thermal.reference import reference_temperatures
+from feelium.lab.thermal.per_pixel import per_pixel_temperatures
 from feelium.thermal.vendor_eeprom import vendor_eeprom
 from feelium.lab.timing import time_calls
 
@@ -58,15 +58,15 @@ def run_bench(repeats: int = 100, baseline_repeats: int = 15) -> dict[str, Any]:
         decoder.decode(pairs[i][1])
 
     def per_pixel(i: int) -> None:
-        reference_temperatures(cal, as_lists[i][0])
-        reference_temperatures(cal, as_lists[i][1])
+        per_pixel_temperatures(cal, as_lists[i][0])
+        per_pixel_temperatures(cal, as_lists[i][1])
 
     vec = {**time_calls(vectorised, repeats), "runs": repeats}
     base = {**time_calls(per_pixel, baseline_repeats), "runs": baseline_repeats}
     worst = 0.0
     for a, b in pairs[:baseline_repeats]:
         for raw in (a, b):
-            ref = np.asarray(reference_temperatures(cal, raw.tolist()))
+            ref = np.asarray(per_pixel_temperatures(cal, raw.tolist()))
             worst = max(worst, float(np.nanmax(np.abs(decoder.decode(raw).celsius - ref))))
     return {
         "bench": "thermal",

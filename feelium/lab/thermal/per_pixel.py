@@ -20,7 +20,7 @@ def _s16(word: int) -> int:
     return word - 0x10000 if word >= 0x8000 else word
 
 
-def reference_temperatures(
+def per_pixel_temperatures(
     cal: Calibration, words: Sequence[int], emissivity: float = 1.0, reflected_offset_c: float = -8.0
 ) -> list[float]:
     """768 temperatures (NaN for pixels the frame's sub-page did not refresh or whose equations fail)."""
@@ -94,4 +94,4 @@ def reference_temperatures(
     return out
 
 
-__all__ = ["reference_temperatures"]
+__all__ = ["per_pixel_temperatures"]
