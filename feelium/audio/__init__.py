@@ -1,1 +1,1 @@
-"""Speech between wearer and room: ALSA on the blimp, fakes elsewhere."""
+"""Speech between wearer and room: ALSA on the blimp, simulated (sim) elsewhere."""

@@ -1,11 +1,11 @@
-"""Speaker and microphone behind small protocols: ALSA via ``aplay``/``arecord`` on the blimp, fakes elsewhere.
+"""Speaker and microphone behind small protocols: ALSA via ``aplay``/``arecord`` on the blimp, simulated (sim) elsewhere.
 
 ``aplay``/``arecord`` (alsa-utils, on every Raspberry Pi OS image) keep the
 daemon free of a native audio binding: raw PCM goes through a pipe, the
 kernel's pipe buffer plus ALSA's period buffer are the only queues, and a
-crashed tool is just a process to restart. The fakes keep real-time pace on
-an absolute schedule (chunk k is due at start + k * duration), so their
-timing never drifts however late the event loop runs.
+crashed tool is just a process to restart. The sim devices keep real-time
+pace on an absolute schedule (chunk k is due at start + k * duration), so
+their timing never drifts however late the event loop runs.
 """
 
 from __future__ import annotations
@@ -129,8 +129,8 @@ async def _end(proc: asyncio.subprocess.Process | None, grace_s: float = 0.3) ->
         await proc.wait()
 
 
-class FakeSpeaker:
-    """Consumes audio at real-time pace and remembers the last ``keep_bytes`` it played."""
+class SimSpeaker:
+    """The simulated speaker: consumes audio at real-time pace and remembers the last ``keep_bytes`` it played."""
 
     def __init__(self, rate: int, clock: Callable[[], float] = time.monotonic, keep_bytes: int = 64000) -> None:
         self.rate = rate
@@ -160,8 +160,8 @@ class FakeSpeaker:
         pass
 
 
-class FakeMicrophone:
-    """A continuous quiet tone (or silence) delivered in real time on an absolute schedule."""
+class SimMicrophone:
+    """The simulated microphone: a continuous quiet tone (or silence) delivered in real time on an absolute schedule."""
 
     def __init__(self, rate: int, tone_hz: float, clock: Callable[[], float] = time.monotonic) -> None:
         self.rate = rate

@@ -12,8 +12,8 @@ from feelium.settings import setting
 class AudioConfig:
     """Speech playback and capture on the blimp."""
 
-    backend: Literal["auto", "alsa", "fake", "off"] = setting(
-        "auto", "Audio device; auto uses ALSA when a sound card is found, else the fake."
+    backend: Literal["auto", "alsa", "sim", "off"] = setting(
+        "auto", "Audio device; auto uses ALSA when a sound card is found, else the simulated speaker and microphone."
     )
     sample_rate: int = setting(16000, "Sample rate of speech both ways (PCM16 mono); uploads at other rates are resampled.",
                                min=8000, max=48000)
@@ -27,6 +27,6 @@ class AudioConfig:
     )
     playback_device: str = setting("default", "ALSA playback device (aplay -D).")
     capture_device: str = setting("default", "ALSA capture device (arecord -D).")
-    fake_tone_hz: float = setting(
-        440.0, "The fake microphone's tone (0 = silence), so a browser can hear the link works.", min=0.0, max=4000.0
+    sim_tone_hz: float = setting(
+        440.0, "The simulated microphone's tone (0 = silence), so a browser can hear the link works.", min=0.0, max=4000.0
     )

@@ -18,7 +18,7 @@ def register(registry: CommandRegistry) -> None:
     )
     target = probe.add_mutually_exclusive_group(required=True)
     target.add_argument("--port", help="serial device or pyserial URL, e.g. /dev/ttyUSB0 or socket://127.0.0.1:5761")
-    target.add_argument("--sim", action="store_true", help="probe the emulated motor board instead")
+    target.add_argument("--sim", action="store_true", help="probe the simulated motor board instead")
     probe.add_argument("--baud", type=int, default=115200, help="serial speed (default 115200)")
     probe.add_argument("--timeout", type=float, default=0.5, help="seconds to wait for each reply (default 0.5)")
     probe.set_defaults(handler=_probe)

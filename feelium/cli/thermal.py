@@ -14,7 +14,7 @@ def register(registry: CommandRegistry) -> None:
         "thermal", "read", "Show live thermal frames as a terminal heat map (check the wiring in seconds).", _read
     )
     read.add_argument("--frames", type=int, default=0, help="stop after N images (each new sub-page updates half the pixels; default: until Ctrl-C)")
-    read.add_argument("--emulate", action="store_true", help="use the emulated sensor instead of the I2C bus")
+    read.add_argument("--sim", action="store_true", help="use the simulated sensor instead of the I2C bus")
     read.add_argument("--config", help="TOML config file (default: built-in defaults)")
     read.add_argument("--colors", choices=("auto", "truecolor", "256"), default="auto", help="terminal colour mode")
     read.add_argument("--timeout", type=float, default=5.0, help="give up after this long without a frame (s)")
@@ -49,7 +49,7 @@ def register(registry: CommandRegistry) -> None:
     )
     presence.add_argument(
         "--through-driver", action="store_true",
-        help="frames go emulated sensor -> I2C transport -> driver -> decoder, as in the daemon (about 4 ms a sub-page)",
+        help="frames go simulated sensor -> I2C transport -> driver -> decoder, as in the daemon (about 4 ms a sub-page)",
     )
     presence.add_argument("--config", help="TOML config file (its [thermal.presence] is evaluated)")
     presence.add_argument("--json", metavar="PATH", help="also write the report as JSON here ('-' for stdout)")
@@ -76,22 +76,22 @@ def _read(args: argparse.Namespace) -> int:
     from feelium.thermal.calibration import CalibrationError
     from feelium.thermal.decoder import FrameAssembler
     from feelium.thermal.heatmap import render
-    from feelium.thermal.service import emulated_driver, smbus2_driver
+    from feelium.thermal.service import sim_driver, smbus2_driver
 
     config = load_config(args.config)
     cfg = config.thermal
-    emulate = args.emulate or cfg.backend == "emulator"
+    sim = args.sim or cfg.backend == "sim"
     try:
-        driver = emulated_driver(cfg, Hub(), config.sim.seed) if emulate else smbus2_driver(cfg)
+        driver = sim_driver(cfg, Hub(), config.sim.seed) if sim else smbus2_driver(cfg)
         calibration = driver.start()
     except (OSError, CalibrationError) as exc:
-        where = "emulator" if emulate else f"/dev/i2c-{cfg.i2c_bus} address 0x{cfg.i2c_address:02X}"
+        where = "the simulated bus" if sim else f"/dev/i2c-{cfg.i2c_bus} address 0x{cfg.i2c_address:02X}"
         print(f"feelium thermal read: no sensor on {where}: {exc}", file=sys.stderr)
         if isinstance(exc, FileNotFoundError):
             print("the I2C bus is not enabled: dtparam=i2c_arm=on in /boot/firmware/config.txt, reboot", file=sys.stderr)
         elif isinstance(exc, PermissionError):
             print("no access to the I2C device: add the user to the i2c group (or run as root)", file=sys.stderr)
-        print(f"check wiring (SDA, SCL, 3.3 V, GND), `i2cdetect -y {cfg.i2c_bus}`, or try --emulate", file=sys.stderr)
+        print(f"check wiring (SDA, SCL, 3.3 V, GND), `i2cdetect -y {cfg.i2c_bus}`, or try --sim", file=sys.stderr)
         return 1
     assembler = FrameAssembler(calibration, cfg.emissivity, cfg.reflected_offset_c)
     truecolor = None if args.colors == "auto" else args.colors == "truecolor"
@@ -218,7 +218,7 @@ def _bench_presence(args: argparse.Namespace) -> int:
         through_driver=args.through_driver,
     )
     lat, leave = report["approach_latency_ms"] or {}, report["leave_latency_ms"] or {}
-    via = "emulated sensor + driver + decoder" if report["through_driver"] else "renderer"
+    via = "simulated sensor + driver + decoder" if report["through_driver"] else "renderer"
     print(f"frames from the {via}; room {report['room_c'][0]:.1f}..{report['room_c'][1]:.1f} degC; approach clips {report['clips']['approach']}, detected {report['detection_rate']:.3f} {report['by_kind']}")
     print(f"false alarms: {report['false_alarms_per_hour']} per hour over {report['clips']['empty_hours']} h of empty room, "
           f"{report['false_alarms_in_approach_clips']} before a body moved")

@@ -77,7 +77,7 @@ def build_front_camera(config: Config, hub: Hub) -> Service | None:
 
 def build_thermal(config: Config, hub: Hub) -> Service | None:
     """MLX90640 (or its I2C-level simulation) -> presence detector -> ``PresenceEvent`` on the bus."""
-    from feelium.thermal.service import ThermalService, choose_backend, emulated_driver, smbus2_driver
+    from feelium.thermal.service import ThermalService, choose_backend, sim_driver, smbus2_driver
 
     cfg = config.thermal
     if cfg.backend == "off":
@@ -85,12 +85,12 @@ def build_thermal(config: Config, hub: Hub) -> Service | None:
     if choose_backend(cfg) == "smbus2":
         return ThermalService(cfg, hub, lambda: smbus2_driver(cfg), "smbus2")
     seed = config.sim.seed
-    return ThermalService(cfg, hub, lambda: emulated_driver(cfg, hub, seed), "emulator")
+    return ThermalService(cfg, hub, lambda: sim_driver(cfg, hub, seed), "sim")
 
 
 def build_audio(config: Config, hub: Hub) -> Service | None:
     """Microphone -> ``SpeechOut`` on the bus; ``SpeechIn`` from the bus -> speaker (ALSA, else simulated)."""
-    from feelium.audio.backends import AlsaMicrophone, AlsaSpeaker, FakeMicrophone, FakeSpeaker, Microphone, Speaker
+    from feelium.audio.backends import AlsaMicrophone, AlsaSpeaker, Microphone, SimMicrophone, SimSpeaker, Speaker
     from feelium.audio.backends import alsa_available
     from feelium.audio.service import AudioService
 
@@ -102,9 +102,9 @@ def build_audio(config: Config, hub: Hub) -> Service | None:
         speaker: Speaker = AlsaSpeaker(cfg.sample_rate, cfg.playback_device)
         microphone: Microphone = AlsaMicrophone(cfg.sample_rate, cfg.capture_device)
     else:
-        speaker = FakeSpeaker(cfg.sample_rate, hub.clock)
-        microphone = FakeMicrophone(cfg.sample_rate, cfg.fake_tone_hz, hub.clock)
-    return AudioService(cfg, hub, speaker, microphone, "alsa" if use_alsa else "fake")
+        speaker = SimSpeaker(cfg.sample_rate, hub.clock)
+        microphone = SimMicrophone(cfg.sample_rate, cfg.sim_tone_hz, hub.clock)
+    return AudioService(cfg, hub, speaker, microphone, "alsa" if use_alsa else "sim")
 
 
 # --- answering: the skin -------------------------------------------------------------------------------------------

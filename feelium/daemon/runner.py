@@ -23,17 +23,14 @@ from feelium.hub import Hub
 
 log = logging.getLogger(__name__)
 
-SIM_BACKENDS = ("sim", "emulator", "fake", "null")  # what each section calls its no-hardware backend
+SIM_BACKEND = "sim"  # every section's no-hardware backend (docs/architecture.md: Backends and sims)
 WORKER_THREADS = 8  # camera reads, the touch pipeline, overlays, other services' blocking calls
 
 
-def _sim_backend(section: Any) -> str | None:
-    """The simulated choice among a section's ``backend`` values, if it has one."""
+def _has_sim_backend(section: Any) -> bool:
+    """Whether ``sim`` is among the section's ``backend`` values."""
     hints = get_type_hints(type(section))
-    if "backend" not in hints:
-        return None
-    choices = get_args(hints["backend"])
-    return next((name for name in SIM_BACKENDS if name in choices), None)
+    return "backend" in hints and SIM_BACKEND in get_args(hints["backend"])
 
 
 def with_overrides(config: Config, *, sim: bool = False, replay: str | None = None) -> Config:
@@ -46,10 +43,8 @@ def with_overrides(config: Config, *, sim: bool = False, replay: str | None = No
     changes: dict[str, Any] = {}
     for field in dataclasses.fields(config):
         section = getattr(config, field.name)
-        backend = getattr(section, "backend", None)
-        choice = _sim_backend(section)
-        if choice is not None and backend != "off":
-            changes[field.name] = dataclasses.replace(section, backend=choice)
+        if _has_sim_backend(section) and section.backend != "off":
+            changes[field.name] = dataclasses.replace(section, backend=SIM_BACKEND)
     if replay:
         changes["rear_camera"] = dataclasses.replace(config.rear_camera, backend="replay", replay_path=str(replay))
     return dataclasses.replace(config, **changes)

@@ -37,9 +37,9 @@ class CalibrationConfig:
 class ProjectorConfig:
     """Inner projector output and what it renders."""
 
-    backend: Literal["auto", "fbdev", "window", "null"] = setting(
+    backend: Literal["auto", "fbdev", "window", "sim"] = setting(
         "auto",
-        "Display output; auto uses the framebuffer when /dev/fb0 exists and null elsewhere; window needs a GUI build of OpenCV.",
+        "Display output; auto uses the framebuffer when /dev/fb0 exists and sim elsewhere; window needs a GUI build of OpenCV.",
     )
     width: int = setting(1280, "Projector native width (Ultimems HD309: 1280).", min=16, max=7680)
     height: int = setting(720, "Projector native height (Ultimems HD309: 720).", min=16, max=4320)

@@ -1,9 +1,9 @@
-"""Where projector frames go: the Linux framebuffer on the blimp, or nowhere (null) elsewhere.
+"""Where projector frames go: the Linux framebuffer on the blimp, or the simulated display (sim) elsewhere.
 
 The blimp has no desktop: the projector is an HDMI display, so its frames are
 written straight into ``/dev/fb0`` in the framebuffer's own pixel format,
 which the kernel describes in sysfs (``virtual_size``, ``bits_per_pixel``,
-``stride``). The null backend keeps the newest frame, which is also what the
+``stride``). The sim backend keeps the newest frame, which is also what the
 HTTP preview stream shows. A development window (OpenCV's ``imshow``) exists
 only where OpenCV was built with a GUI: the headless wheel the project
 depends on has none, so there the window backend refuses to start with a
@@ -35,10 +35,10 @@ class Display(Protocol):
     def close(self) -> None: ...
 
 
-class NullDisplay:
-    """Keeps the newest frame and counts them; nothing is shown."""
+class SimDisplay:
+    """The simulated display: keeps the newest frame and counts them; nothing is shown."""
 
-    name = "null"
+    name = "sim"
 
     def __init__(self) -> None:
         self.last: np.ndarray | None = None
@@ -135,7 +135,7 @@ class WindowDisplay:
             cv2.namedWindow(title, cv2.WINDOW_AUTOSIZE)
         except cv2.error as exc:
             raise DisplayUnavailable(
-                "this OpenCV has no GUI (opencv-python-headless); use the null backend and watch "
+                "this OpenCV has no GUI (opencv-python-headless); use the sim backend and watch "
                 "/video/projector.mjpeg, or install a GUI build of OpenCV for a window"
             ) from exc
         self.frames = 0
@@ -156,9 +156,9 @@ class WindowDisplay:
 
 
 def open_display(backend: str, device: str) -> Display:
-    """The configured backend; ``auto`` is the framebuffer when ``device`` exists, else null."""
-    if backend == "null" or (backend == "auto" and not Path(device).exists()):
-        return NullDisplay()
+    """The configured backend; ``auto`` is the framebuffer when ``device`` exists, else sim."""
+    if backend == "sim" or (backend == "auto" and not Path(device).exists()):
+        return SimDisplay()
     if backend == "window":
         return WindowDisplay()
     return FbdevDisplay(device)

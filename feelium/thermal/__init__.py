@@ -1,1 +1,1 @@
-"""MLX90640 thermal camera: I2C transport, decoder, emulator, presence detector."""
+"""MLX90640 thermal camera: I2C transport, decoder, simulated sensor (sim), presence detector."""

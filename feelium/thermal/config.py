@@ -41,8 +41,8 @@ class PresenceConfig:
 class ThermalConfig:
     """MLX90640 thermal camera and the presence detector."""
 
-    backend: Literal["auto", "smbus2", "emulator", "off"] = setting(
-        "auto", "Where frames come from; auto uses the sensor when /dev/i2c-<i2c_bus> exists, else the emulator."
+    backend: Literal["auto", "smbus2", "sim", "off"] = setting(
+        "auto", "Where frames come from; auto uses the sensor when /dev/i2c-<i2c_bus> exists, else the simulated sensor."
     )
     i2c_bus: int = setting(1, "Linux I2C bus number (/dev/i2c-N) the sensor is on.", min=0, max=255)
     i2c_address: int = setting(0x33, "7-bit I2C address of the sensor (factory default 0x33 = 51).", min=0x08, max=0x77)

@@ -1,4 +1,4 @@
-"""The thermal service: sensor (or emulator) -> decoder -> presence detector -> hub.
+"""The thermal service: sensor (or its simulation) -> decoder -> presence detector -> hub.
 
 A thin shell. Bus work and decoding run in a worker thread (``asyncio.to_thread``)
 so the event loop never waits on I2C; presence events are published on
@@ -6,8 +6,8 @@ so the event loop never waits on I2C; presence events are published on
 an I2C error or a bad EEPROM dump is counted, reported in ``health()``, and
 retried after a backoff that doubles while failures continue.
 
-In sim (``backend = "emulator"``, or ``auto`` without an I2C bus) the
-emulated sensor sees the scene renderer's frames: the live simulator's warm
+In sim (``backend = "sim"``, or ``auto`` without an I2C bus) the
+simulated sensor sees the scene renderer's frames: the live simulator's warm
 bodies when it offers them (``hub.rear_scene.warm_bodies(t)``), else a
 repeating demo visit.
 """
@@ -45,10 +45,10 @@ def smbus2_driver(config: ThermalConfig) -> Mlx90640Driver:
     return Mlx90640Driver(transport, control_settings(config))
 
 
-def emulated_driver(config: ThermalConfig, hub: Hub, seed: int) -> Mlx90640Driver:
-    """A driver on the emulated sensor, which sees the scene renderer's frames on the hub's clock."""
+def sim_driver(config: ThermalConfig, hub: Hub, seed: int) -> Mlx90640Driver:
+    """A driver on the simulated sensor, which sees the scene renderer's frames on the hub's clock."""
     from feelium.sim.thermal import ThermalSceneRenderer, demo_bodies
-    from feelium.thermal.emulator import Mlx90640Emulator
+    from feelium.thermal.sim_device import SimMlx90640
     from feelium.thermal.transport import SMBus2Transport
 
     renderer = ThermalSceneRenderer(np.random.default_rng(seed), 22.0, fps=config.refresh_hz / 2)
@@ -58,8 +58,8 @@ def emulated_driver(config: ThermalConfig, hub: Hub, seed: int) -> Mlx90640Drive
         bodies = live(t) if callable(live) else demo_bodies(t)
         return renderer.frame(t, bodies)
 
-    emulator = Mlx90640Emulator(scene, clock=hub.clock, sleep=time.sleep, rng=np.random.default_rng(seed + 1), ta_c=29.0)
-    transport = SMBus2Transport(emulator.bus(), emulator.device, config.max_read_words, config.attempts)
+    sensor = SimMlx90640(scene, clock=hub.clock, sleep=time.sleep, rng=np.random.default_rng(seed + 1), ta_c=29.0)
+    transport = SMBus2Transport(sensor.bus(), sensor.device, config.max_read_words, config.attempts)
     return Mlx90640Driver(transport, control_settings(config))
 
 
@@ -190,10 +190,10 @@ class ThermalService:
 
 
 def choose_backend(config: ThermalConfig) -> str:
-    """``smbus2`` or ``emulator`` (``auto``: the real bus if its device node exists)."""
+    """``smbus2`` or ``sim`` (``auto``: the real bus if its device node exists)."""
     if config.backend != "auto":
         return config.backend
-    return "smbus2" if os.path.exists(f"/dev/i2c-{config.i2c_bus}") else "emulator"
+    return "smbus2" if os.path.exists(f"/dev/i2c-{config.i2c_bus}") else "sim"
 
 
-__all__ = ["ThermalService", "choose_backend", "emulated_driver", "smbus2_driver"]
+__all__ = ["ThermalService", "choose_backend", "sim_driver", "smbus2_driver"]

@@ -2,7 +2,7 @@
 
 :class:`I2CTransport` is all the driver needs. :class:`SMBus2Transport`
 implements it on anything with smbus2's ``i2c_rdwr`` (a real ``smbus2.SMBus``
-on the Pi, or the emulator's fake bus in tests and in sim), so the same
+on the Pi, or the simulated sensor's bus in tests and in sim), so the same
 byte-level code runs in both. One read is one write-then-read transaction
 (repeated start, no stop in between, as the MLX90640 needs to keep its
 address pointer); long reads are split into several such transactions because

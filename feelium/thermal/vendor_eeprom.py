@@ -1,9 +1,9 @@
-"""The EEPROM image of Melexis's published example device, for the emulator when no device is attached.
+"""The EEPROM image of Melexis's published example device, for the simulated sensor when no device is attached.
 
 Source: Melexis "MLX90640 example data.xlsx" (melexis/mlx90640-library; identical
 copy in pimoroni/mlx90640-library), the same dump as the test fixture
 `tests/data/mlx90640/melexis-example.json`. A real device's calibration makes the
-emulated frames exercise the decoder exactly as hardware would.
+simulated frames exercise the decoder exactly as hardware would.
 """
 
 from __future__ import annotations

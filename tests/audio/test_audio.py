@@ -1,4 +1,4 @@
-"""Speech: WAV coding, resampling, the bounded speaker queue, and the service with fake devices."""
+"""Speech: WAV coding, resampling, the bounded speaker queue, and the service with sim devices."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from feelium.audio.backends import FakeMicrophone, FakeSpeaker
+from feelium.audio.backends import SimMicrophone, SimSpeaker
 from feelium.audio.buffer import PlaybackBuffer
 from feelium.events import SpeechIn, SpeechOut
 from feelium.audio.config import AudioConfig
@@ -91,9 +91,9 @@ class ManualClock:
         return self.now
 
 
-async def test_fake_microphone_keeps_an_absolute_schedule() -> None:
+async def test_sim_microphone_keeps_an_absolute_schedule() -> None:
     clock = ManualClock()
-    mic = FakeMicrophone(rate=1000, tone_hz=100.0, clock=clock)
+    mic = SimMicrophone(rate=1000, tone_hz=100.0, clock=clock)
     await mic.start()
     clock.now = 5.0  # the loop ran late: chunks due long ago come at once, none is skipped or stretched
     chunks = [await asyncio.wait_for(mic.read(200), 0.5) for _ in range(10)]
@@ -106,8 +106,8 @@ async def test_fake_microphone_keeps_an_absolute_schedule() -> None:
 async def test_service_plays_wearer_speech_and_publishes_room_audio() -> None:
     hub = Hub()
     cfg = replace(AudioConfig(), sample_rate=8000, chunk_ms=20, max_playback_ms=200)
-    speaker = FakeSpeaker(8000)
-    service = AudioService(cfg, hub, speaker, FakeMicrophone(8000, 0.0), "fake")
+    speaker = SimSpeaker(8000)
+    service = AudioService(cfg, hub, speaker, SimMicrophone(8000, 0.0), "sim")
     out = hub.bus.subscribe([SpeechOut])
     task = asyncio.create_task(service.run())
     await asyncio.sleep(0.01)
@@ -130,12 +130,12 @@ async def test_service_plays_wearer_speech_and_publishes_room_audio() -> None:
 
 def test_accept_resamples_to_the_device_rate() -> None:
     hub = Hub()
-    service = AudioService(replace(AudioConfig(), sample_rate=16000), hub, FakeSpeaker(16000), FakeMicrophone(16000, 0), "fake")
+    service = AudioService(replace(AudioConfig(), sample_rate=16000), hub, SimSpeaker(16000), SimMicrophone(16000, 0), "sim")
     service.accept(SpeechIn(b"\x00\x01" * 100, 8000, 0.0))
     assert len(service.buffer) == 400
 
 
-def test_build_audio_respects_off_and_falls_back_to_the_fake() -> None:
+def test_build_audio_respects_off_and_falls_back_to_sim() -> None:
     assert build_audio(replace(Config(), audio=replace(AudioConfig(), backend="off")), Hub()) is None
-    service = build_audio(replace(Config(), audio=replace(AudioConfig(), backend="fake")), Hub())
-    assert service.health()["backend"] == "fake"
+    service = build_audio(replace(Config(), audio=replace(AudioConfig(), backend="sim")), Hub())
+    assert service.health()["backend"] == "sim"

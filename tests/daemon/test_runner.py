@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+from typing import get_args, get_type_hints
+
 from feelium.daemon.config import Config, parse_config
 from feelium.daemon.assembly import SERVICES, build_services
 from feelium.daemon.runner import status_line, with_overrides
@@ -15,6 +18,20 @@ def test_sim_puts_every_part_with_a_backend_on_its_simulator_but_keeps_off_off()
     assert config.rear_camera.backend == "sim" and config.front_camera.backend == "sim"
     assert config.thermal.backend == "off"
     assert config.flight.backend == "sim"
+
+
+def test_every_backend_choice_calls_its_simulated_part_sim():
+    """One name for the no-hardware part (docs/architecture.md, Backends and sims)."""
+    sections = get_type_hints(Config)
+    with_backend = {}
+    for field in dataclasses.fields(Config):
+        hints = get_type_hints(sections[field.name])
+        if "backend" in hints:
+            with_backend[field.name] = set(get_args(hints["backend"]))
+    assert {"rear_camera", "front_camera", "thermal", "flight", "projector", "audio"} <= set(with_backend)
+    for name, choices in with_backend.items():
+        assert "sim" in choices, name
+        assert not choices & {"fake", "emulator", "emulated", "null"}, name
 
 
 def test_replay_sets_the_rear_camera_and_simulates_the_rest():

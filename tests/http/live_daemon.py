@@ -65,7 +65,7 @@ stream_write_timeout_s = 0.5
 keepalive_s = 1.0
 
 [audio]
-backend = "fake"
+backend = "sim"
 
 [sim]
 autoplay = false

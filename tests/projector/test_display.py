@@ -5,7 +5,7 @@ import pytest
 
 import cv2
 
-from feelium.projector.display import DisplayUnavailable, FbdevDisplay, NullDisplay, open_display, to_bgr565, to_xrgb8888
+from feelium.projector.display import DisplayUnavailable, FbdevDisplay, SimDisplay, open_display, to_bgr565, to_xrgb8888
 
 
 def test_bgr565_packs_red_high_and_blue_low():
@@ -58,9 +58,9 @@ def test_fbdev_refuses_unsupported_depth_and_missing_device(tmp_path):
         FbdevDisplay(str(tmp_path / "fb9"), sysfs)
 
 
-def test_auto_falls_back_to_null_without_a_framebuffer(tmp_path):
+def test_auto_falls_back_to_sim_without_a_framebuffer(tmp_path):
     display = open_display("auto", str(tmp_path / "no-fb"))
-    assert isinstance(display, NullDisplay)
+    assert isinstance(display, SimDisplay)
     display.show(np.zeros((2, 2, 3), np.uint8))
     assert display.frames == 1 and display.last is not None
 

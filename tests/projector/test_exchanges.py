@@ -21,7 +21,7 @@ from feelium.events import InteractionEvent, TouchEvent, WearerAction
 from feelium.hub import Hub
 from feelium.skin.annotation import annotate
 from feelium.skin.regions import Regions
-from feelium.projector.display import NullDisplay
+from feelium.projector.display import SimDisplay
 from feelium.projector.service import ProjectorService
 from feelium.lab.sim import protocol, scripts
 from feelium.sim.sessions import session_presets
@@ -60,7 +60,7 @@ class SimSkin:
         self.warp = FisheyeWarp()
         self.hub = Hub()
         config = Config()
-        self.service = ProjectorService(config.projector, config.interactions, self.hub, NullDisplay(), self.calibration)
+        self.service = ProjectorService(config.projector, config.interactions, self.hub, SimDisplay(), self.calibration)
         self.regions = Regions.from_config(config.interactions)
         self.inputs = self.hub.bus.subscribe((TouchEvent, WearerAction), maxsize=4096)
         self.wearer = self.hub.bus.subscribe([InteractionEvent], maxsize=4096)

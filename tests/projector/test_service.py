@@ -12,7 +12,7 @@ import pytest
 from feelium.daemon.config import Config
 from feelium.events import InteractionEvent, WearerAction
 from feelium.hub import Hub
-from feelium.projector.display import NullDisplay
+from feelium.projector.display import SimDisplay
 from feelium.daemon.assembly import build_projector
 from feelium.projector.service import ProjectorService
 from feelium.skin.projector_map import calibration_path, load_or_default
@@ -31,7 +31,7 @@ async def _until(predicate, timeout=10.0):
 @pytest.fixture
 async def running():
     hub = Hub()
-    service = ProjectorService(Config().projector, Config().interactions, hub, NullDisplay(), truth_calibration())
+    service = ProjectorService(Config().projector, Config().interactions, hub, SimDisplay(), truth_calibration())
     task = asyncio.create_task(service.run())
     yield hub, service
     await service.stop()
@@ -86,13 +86,13 @@ async def test_face_jpeg_is_shown_and_a_broken_one_is_counted(running):
     assert hub.projector_video.get().value[360, 640, 1] > 200
     hub.face.publish(hub.clock(), b"not a jpeg")
     await _until(lambda: service.counters["bad_faces"] == 1)
-    assert service.health()["frames"] > 0 and service.health()["display"] == "null"
+    assert service.health()["frames"] > 0 and service.health()["display"] == "sim"
 
 
 def test_build_projector_without_calibration_uses_the_default_map(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     config = Config()
-    config = dataclasses.replace(config, projector=dataclasses.replace(config.projector, backend="null"))
+    config = dataclasses.replace(config, projector=dataclasses.replace(config.projector, backend="sim"))
     service = build_projector(config, Hub())
     assert service.name == "projector" and service.calibration.source == "default"
     truth_calibration().save(tmp_path / "projector_calibration.npz")

@@ -1,4 +1,4 @@
-"""The thermal commands: decode a recording's raw words, read from the emulator, bench and presence report."""
+"""The thermal commands: decode a recording's raw words, read from the simulated sensor, bench and presence report."""
 
 import json
 
@@ -37,8 +37,8 @@ def test_decode_rejects_bad_inputs_clearly(tmp_path, capsys):
     assert "needs arrays" in capsys.readouterr().err
 
 
-def test_read_emulated_prints_heat_maps(capsys):
-    assert main(["thermal", "read", "--emulate", "--frames", "2", "--colors", "256"]) == 0
+def test_read_sim_prints_heat_maps(capsys):
+    assert main(["thermal", "read", "--sim", "--frames", "2", "--colors", "256"]) == 0
     out = capsys.readouterr().out
     assert out.count("Ta ") == 2 and out.count("\n") == 2 * 13
     assert "\x1b[38;5;" in out and "\u2580" in out
@@ -80,4 +80,4 @@ def test_read_without_a_bus_says_what_to_do(tmp_path, capsys):
     config.write_text('[thermal]\nbackend = "smbus2"\ni2c_bus = 250\n')  # no /dev/i2c-250 anywhere
     assert main(["thermal", "read", "--frames", "1", "--config", str(config)]) == 1
     err = capsys.readouterr().err
-    assert "/dev/i2c-250" in err and "i2c_arm=on" in err and "--emulate" in err
+    assert "/dev/i2c-250" in err and "i2c_arm=on" in err and "--sim" in err

@@ -1,4 +1,4 @@
-"""The thermal service end to end: emulated sensor seeing a scene -> presence events on the hub."""
+"""The thermal service end to end: simulated sensor seeing a scene -> presence events on the hub."""
 
 import asyncio
 
@@ -13,7 +13,7 @@ from feelium.sim.thermal import ThermalSceneRenderer, WarmBody
 from feelium.thermal import registers as reg
 from feelium.thermal.config import ThermalConfig
 from feelium.thermal.driver import Mlx90640Driver
-from feelium.thermal.emulator import Faults, Mlx90640Emulator
+from feelium.thermal.sim_device import Faults, SimMlx90640
 from feelium.daemon.assembly import build_thermal
 from feelium.thermal.service import ThermalService
 from feelium.thermal.transport import SMBus2Transport
@@ -37,18 +37,18 @@ def make_service(scene, faults=None, config=None, eeprom=None):
     clock = FakeClock()
     hub = Hub(clock=clock)
     cfg = config or ThermalConfig(refresh_hz=16.0, retry_backoff_s=0.01)
-    emulators = []
+    sensors = []
 
     def make_driver():
-        emu = Mlx90640Emulator(scene, clock=clock, sleep=clock.sleep, rng=np.random.default_rng(1), faults=faults, eeprom=eeprom)
-        emulators.append(emu)
-        return Mlx90640Driver(SMBus2Transport(emu.bus(), max_read_words=cfg.max_read_words), reg.ControlSettings(16.0, 18, "chess"))
+        sensor = SimMlx90640(scene, clock=clock, sleep=clock.sleep, rng=np.random.default_rng(1), faults=faults, eeprom=eeprom)
+        sensors.append(sensor)
+        return Mlx90640Driver(SMBus2Transport(sensor.bus(), max_read_words=cfg.max_read_words), reg.ControlSettings(16.0, 18, "chess"))
 
     async def sleep(dt):
         clock.sleep(dt)
         await asyncio.sleep(0)
 
-    return hub, clock, ThermalService(cfg, hub, make_driver, "emulator", sleep=sleep), emulators
+    return hub, clock, ThermalService(cfg, hub, make_driver, "sim", sleep=sleep), sensors
 
 
 async def run_until(service, clock, t_end):
@@ -67,7 +67,7 @@ async def run_until(service, clock, t_end):
 def test_build_thermal_honours_backend():
     hub = Hub()
     assert build_thermal(parse_config('[thermal]\nbackend = "off"\n'), hub) is None
-    service = build_thermal(parse_config('[thermal]\nbackend = "emulator"\n'), hub)
+    service = build_thermal(parse_config('[thermal]\nbackend = "sim"\n'), hub)
     assert isinstance(service, Service) and service.name == "thermal"
 
 
@@ -96,7 +96,7 @@ async def test_presence_events_reach_the_bus_and_state():
 async def test_i2c_errors_are_counted_never_fatal():
     renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
     scene = lambda t: renderer.frame(t, [])
-    hub, clock, service, emulators = make_service(scene, faults=Faults(nack_rate=0.3, invalid_word_rate=0.2))
+    hub, clock, service, sensors = make_service(scene, faults=Faults(nack_rate=0.3, invalid_word_rate=0.2))
     await run_until(service, clock, 10.0)
     health = service.health()
     assert health["failures"] > 0 and "OSError" in health["last_error"]
@@ -106,7 +106,7 @@ async def test_i2c_errors_are_counted_never_fatal():
 
 
 async def test_bad_eeprom_is_reported_and_retried():
-    hub, clock, service, emulators = make_service(np.full((24, 32), 22.0), eeprom=np.zeros(832, dtype=np.uint16))
+    hub, clock, service, sensors = make_service(np.full((24, 32), 22.0), eeprom=np.zeros(832, dtype=np.uint16))
     await run_until(service, clock, 0.5)
     health = service.health()
     assert health["frames"] == 0 and "all zero" in health["last_error"] and health["failures"] >= 2

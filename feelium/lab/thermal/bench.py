@@ -1,6 +1,6 @@
 """`feelium bench thermal`: the vectorised decoder against the per-pixel baseline, in one run.
 
-Both decode the same raw frames (the emulated vendor device looking at a
+Both decode the same raw frames (the simulated vendor device looking at a
 scene with a warm hand) with the same calibration; a "frame" is both
 sub-pages, i.e. all 768 pixels. Reported: median and 95th percentile of each,
 their ratio, and the largest disagreement between them (which must be ~0).
@@ -14,26 +14,26 @@ import numpy as np
 
 from feelium.thermal.calibration import extract_calibration
 from feelium.thermal.decoder import Decoder
-from feelium.thermal.emulator import Mlx90640Emulator, VirtualClock
+from feelium.thermal.sim_device import SimMlx90640, VirtualClock
 from feelium.lab.thermal.per_pixel import per_pixel_temperatures
 from feelium.thermal.vendor_eeprom import vendor_eeprom
 from feelium.lab.timing import time_calls
 
 
 def _frames(count: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``count`` pairs of raw sub-page frames (0 then 1) from the emulated vendor device."""
+    """``count`` pairs of raw sub-page frames (0 then 1) from the simulated vendor device."""
     from feelium.sim.thermal import ThermalSceneRenderer, WarmBody
 
     renderer = ThermalSceneRenderer(np.random.default_rng(0), 22.0)
     clock = VirtualClock()
-    emu = Mlx90640Emulator(lambda t: renderer.frame(t, [WarmBody(0.4, 0.5, 50.0, 0.15)]), clock=clock, sleep=clock.sleep)
+    sensor = SimMlx90640(lambda t: renderer.frame(t, [WarmBody(0.4, 0.5, 50.0, 0.15)]), clock=clock, sleep=clock.sleep)
     pairs = []
     for _ in range(count):
         pair = []
         for subpage in (0, 1):
-            emu.ram = emu.raw_subpage(subpage, renderer.frame(clock(), [WarmBody(0.4, 0.5, 50.0, 0.15)]))
+            sensor.ram = sensor.raw_subpage(subpage, renderer.frame(clock(), [WarmBody(0.4, 0.5, 50.0, 0.15)]))
             status = 0x0008 | subpage
-            pair.append(np.concatenate([emu.ram, np.array([status, emu.control], dtype=np.uint16)]))
+            pair.append(np.concatenate([sensor.ram, np.array([status, sensor.control], dtype=np.uint16)]))
             clock.sleep(0.125)
         pairs.append((pair[0], pair[1]))
     return pairs

@@ -12,10 +12,10 @@ near zone. Every ``approach`` in an empty clip, or before a body started
 moving, is a false alarm.
 
 Frames come straight from the scene renderer at the sub-page rate (the
-decoder's own accuracy is tested against the vendor and the emulator
-separately), so an hour of empty room evaluates in seconds. With
+decoder's own accuracy is tested against the vendor and the simulated
+sensor separately), so an hour of empty room evaluates in seconds. With
 ``through_driver`` each frame instead goes the daemon's whole way: the
-emulated sensor turns the scene into raw words (ADC rounding included), the
+simulated sensor turns the scene into raw words (ADC rounding included), the
 real transport, driver and decoder read them back, about 4 ms a sub-page.
 """
 
@@ -32,7 +32,7 @@ from feelium.thermal import registers as reg
 from feelium.thermal.config import PresenceConfig
 from feelium.thermal.decoder import FrameAssembler
 from feelium.thermal.driver import Mlx90640Driver
-from feelium.thermal.emulator import Mlx90640Emulator, VirtualClock
+from feelium.thermal.sim_device import SimMlx90640, VirtualClock
 from feelium.thermal.presence import PresenceDetector
 from feelium.thermal.transport import SMBus2Transport
 
@@ -90,8 +90,8 @@ def run_clip(clip: Clip, config: PresenceConfig, fps: float, through_driver: boo
             events.extend(detector.step(i / fps, scene(i / fps)))
         return events
     clock = VirtualClock()
-    emulator = Mlx90640Emulator(scene, clock=clock, sleep=clock.sleep, rng=np.random.default_rng(clip.seed + 1))
-    driver = Mlx90640Driver(SMBus2Transport(emulator.bus()), reg.ControlSettings(fps, 18, "chess"))
+    sensor = SimMlx90640(scene, clock=clock, sleep=clock.sleep, rng=np.random.default_rng(clip.seed + 1))
+    driver = Mlx90640Driver(SMBus2Transport(sensor.bus()), reg.ControlSettings(fps, 18, "chess"))
     assembler = FrameAssembler(driver.start(), emissivity=1.0)
     while clock() < clip.duration_s:
         clock.sleep(1.0 / fps)

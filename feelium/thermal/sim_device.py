@@ -1,10 +1,10 @@
-"""An MLX90640 that lives in memory: answers the same I2C transactions as the sensor.
+"""The simulated MLX90640 (sim): lives in memory and answers the same I2C transactions as the sensor.
 
 It holds an EEPROM image (the vendor's example device unless given one) and,
 given a scene of object temperatures, writes RAM frames by running the
 datasheet's equations backwards, one sub-page at a time at the refresh rate
 its control register says, raising the new-data bit as the device does. The
-driver talks to it through :meth:`Mlx90640Emulator.bus`, an object with
+driver talks to it through :meth:`SimMlx90640.bus`, an object with
 smbus2's ``i2c_rdwr``, so tests and the simulator exercise the real
 transport, driver and decoder byte for byte.
 
@@ -68,8 +68,8 @@ def _signed_word(value: np.ndarray | float) -> np.ndarray:
     return (v & 0xFFFF).astype(np.uint16)
 
 
-class Mlx90640Emulator:
-    """The sensor, emulated. ``scene(t)`` gives the (24, 32) degC object temperatures at time ``t``."""
+class SimMlx90640:
+    """The sensor, simulated. ``scene(t)`` gives the (24, 32) degC object temperatures at time ``t``."""
 
     def __init__(
         self,
@@ -277,17 +277,17 @@ class Mlx90640Emulator:
 
     def _nack(self) -> None:
         self.nacks += 1
-        raise OSError(errno.EREMOTEIO, "Remote I/O error (emulated NACK)")
+        raise OSError(errno.EREMOTEIO, "Remote I/O error (simulated NACK)")
 
-    def bus(self) -> "EmulatedBus":
+    def bus(self) -> "SimBus":
         """An smbus2-like bus with this device on it."""
-        return EmulatedBus(self)
+        return SimBus(self)
 
 
-class EmulatedBus:
-    """The subset of ``smbus2.SMBus`` the transport uses, wired to an emulator."""
+class SimBus:
+    """The subset of ``smbus2.SMBus`` the transport uses, wired to a simulated sensor."""
 
-    def __init__(self, device: Mlx90640Emulator) -> None:
+    def __init__(self, device: SimMlx90640) -> None:
         self.device = device
         self.closed = False
 
@@ -300,4 +300,4 @@ class EmulatedBus:
         self.closed = True
 
 
-__all__ = ["EmulatedBus", "Faults", "Mlx90640Emulator", "POWER_ON_CONTROL", "VirtualClock"]
+__all__ = ["SimBus", "Faults", "SimMlx90640", "POWER_ON_CONTROL", "VirtualClock"]

@@ -1,4 +1,4 @@
-"""The real transport and driver against the emulated device: configuration, reads, faults."""
+"""The real transport and driver against the simulated sensor: configuration, reads, faults."""
 
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ from feelium.thermal import registers as reg
 from feelium.thermal.calibration import CalibrationError
 from feelium.thermal.decoder import FrameAssembler
 from feelium.thermal.driver import Mlx90640Driver
-from feelium.thermal.emulator import Faults, Mlx90640Emulator, VirtualClock
+from feelium.thermal.sim_device import Faults, SimMlx90640, VirtualClock
 from feelium.thermal.transport import SMBus2Transport
 
 SCENE = np.linspace(15.0, 45.0, 768).reshape(24, 32)
@@ -16,13 +16,13 @@ SCENE = np.linspace(15.0, 45.0, 768).reshape(24, 32)
 
 def rig(mode="chess", refresh=8.0, faults=None, max_read_words=128, noise=0.3, scene=SCENE, eeprom=None):
     clock = VirtualClock()
-    emu = Mlx90640Emulator(
+    sensor = SimMlx90640(
         scene, clock=clock, sleep=clock.sleep, rng=np.random.default_rng(3), adc_noise_counts=noise, faults=faults,
         eeprom=eeprom,
     )
-    transport = SMBus2Transport(emu.bus(), max_read_words=max_read_words)
+    transport = SMBus2Transport(sensor.bus(), max_read_words=max_read_words)
     driver = Mlx90640Driver(transport, reg.ControlSettings(refresh, 18, mode))
-    return clock, emu, transport, driver
+    return clock, sensor, transport, driver
 
 
 def run(clock, driver, polls=60, step=0.02):
@@ -45,7 +45,7 @@ def run(clock, driver, polls=60, step=0.02):
 
 @pytest.mark.parametrize("mode", ["chess", "interleaved"])
 def test_scene_round_trips_through_device_words(mode):
-    clock, emu, _, driver = rig(mode)
+    clock, sensor, _, driver = rig(mode)
     asm, images = run(clock, driver)
     assert images, driver.counters
     # one ADC count is about 0.3 degC here: rounding to counts plus 0.3 counts of noise
@@ -57,61 +57,61 @@ def test_scene_round_trips_through_device_words(mode):
 
 
 def test_driver_applies_config_and_never_writes_eeprom():
-    clock, emu, _, driver = rig("interleaved", refresh=4.0)
+    clock, sensor, _, driver = rig("interleaved", refresh=4.0)
     run(clock, driver, polls=10)
-    settings = reg.ControlSettings.from_word(emu.control)
+    settings = reg.ControlSettings.from_word(sensor.control)
     assert settings == reg.ControlSettings(4.0, 18, "interleaved")
-    assert emu.control & reg.CONTROL_SUBPAGES_ENABLED
-    assert emu.eeprom_write_attempts == 0
+    assert sensor.control & reg.CONTROL_SUBPAGES_ENABLED
+    assert sensor.eeprom_write_attempts == 0
 
 
 def test_transport_refuses_eeprom_writes():
-    _, emu, transport, _ = rig()
+    _, sensor, transport, _ = rig()
     with pytest.raises(PermissionError):
         transport.write_word(0x2410, 0x1234)
-    assert emu.eeprom_write_attempts == 0 and emu.transactions == 0
+    assert sensor.eeprom_write_attempts == 0 and sensor.transactions == 0
 
 
 def test_reads_are_split_and_big_endian():
-    _, emu, transport, _ = rig(max_read_words=100)
+    _, sensor, transport, _ = rig(max_read_words=100)
     words = transport.read_words(reg.EEPROM_START, 832)
     assert transport.transactions == 9
-    assert np.array_equal(words, emu.eeprom)
+    assert np.array_equal(words, sensor.eeprom)
     msg = i2c_msg.read(0x33, 2)
-    emu.bus().i2c_rdwr(i2c_msg.write(0x33, [0x24, 0x00]), msg)
-    assert bytes(msg) == bytes([emu.eeprom[0] >> 8, emu.eeprom[0] & 0xFF])
+    sensor.bus().i2c_rdwr(i2c_msg.write(0x33, [0x24, 0x00]), msg)
+    assert bytes(msg) == bytes([sensor.eeprom[0] >> 8, sensor.eeprom[0] & 0xFF])
 
 
 def test_wrong_device_address_nacks():
-    _, emu, _, _ = rig()
+    _, sensor, _, _ = rig()
     with pytest.raises(OSError):
-        emu.bus().i2c_rdwr(i2c_msg.write(0x34, [0x80, 0x00]), i2c_msg.read(0x34, 2))
+        sensor.bus().i2c_rdwr(i2c_msg.write(0x34, [0x80, 0x00]), i2c_msg.read(0x34, 2))
 
 
 def test_nacks_are_retried_then_reported():
-    clock, emu, _, driver = rig(faults=Faults(nack_next=2))
+    clock, sensor, _, driver = rig(faults=Faults(nack_next=2))
     driver.start()
     assert driver.health()["retries"] == 2 and driver.health()["io_errors"] == 2
-    emu.faults.nack_next = 3
+    sensor.faults.nack_next = 3
     with pytest.raises(OSError):
         driver.poll()
     assert driver.health()["io_errors"] == 5
 
 
 def test_random_nacks_cost_retries_not_frames():
-    clock, emu, _, driver = rig(faults=Faults(nack_rate=0.05))
+    clock, sensor, _, driver = rig(faults=Faults(nack_rate=0.05))
     _, images = run(clock, driver, polls=120)
     assert driver.health()["retries"] > 0 and len(images) >= 5
 
 
 def test_invalid_words_are_rejected_by_the_decoder():
-    clock, emu, _, driver = rig(faults=Faults(invalid_word_rate=1.0))
+    clock, sensor, _, driver = rig(faults=Faults(invalid_word_rate=1.0))
     asm, images = run(clock, driver)
     assert images == [] and asm.rejected.get("invalid_word", 0) == driver.counters.subpages > 0
 
 
 def test_stale_data_ready_bit_is_detected():
-    clock, emu, _, driver = rig(faults=Faults(stale_ready=True))
+    clock, sensor, _, driver = rig(faults=Faults(stale_ready=True))
     driver.start()
     clock.sleep(0.13)
     assert driver.poll() is not None
@@ -123,21 +123,21 @@ def test_stale_data_ready_bit_is_detected():
 
 def test_slow_bus_tears_reads_and_they_are_dropped():
     # 1 ms per word: a RAM read (832 words) spans 6.7 sub-pages at 8 Hz... so use 64 Hz with 20 us words
-    clock, emu, _, driver = rig(refresh=64.0, faults=Faults(seconds_per_word=20e-6), max_read_words=64)
+    clock, sensor, _, driver = rig(refresh=64.0, faults=Faults(seconds_per_word=20e-6), max_read_words=64)
     asm, images = run(clock, driver, polls=200, step=0.001)
     assert driver.counters.torn > 0
     assert asm.rejected == {}  # torn reads never reached the decoder
 
 
 def test_garbage_eeprom_is_a_clear_error():
-    clock, emu, _, driver = rig()
-    emu.eeprom[:] = 0xFFFF
+    clock, sensor, _, driver = rig()
+    sensor.eeprom[:] = 0xFFFF
     with pytest.raises(CalibrationError, match="0xFFFF"):
         driver.start()
 
 
 def test_power_on_ram_is_not_decoded():
-    clock, emu, _, driver = rig()
+    clock, sensor, _, driver = rig()
     driver.start()
     assert driver.poll() is None  # nothing measured yet: no new-data bit
     assert driver.counters.not_ready == 1
