@@ -1,7 +1,7 @@
 """The MSP client: requests, replies and the one pipelined exchange a control cycle needs.
 
-It is synchronous on purpose: the service runs it in a worker thread
-(``asyncio.to_thread``) with a short read timeout, so the event loop never
+It is synchronous on purpose: the service runs it on its one serial thread
+with a short read timeout, so the event loop never
 blocks, and the same code runs unchanged against pyserial, Betaflight SITL
 and the emulated board. A control cycle writes the motor command and all
 telemetry requests in one burst and collects the replies until a deadline,
@@ -118,6 +118,10 @@ class MspClient:
         """
         self.link.write(encode_v2(m.MSP_SET_MOTOR, m.encode_motors(list(motors_us))))
         self.motor_commands_sent += 1
+
+    def send_neutral(self) -> None:
+        """Every motor to neutral (no thrust), the safe state; written at once like any motor command."""
+        self.send_motors(m.NEUTRAL_MOTORS_US)
 
     def poll(self, with_battery: bool = False) -> Telemetry:
         """One control cycle's telemetry: rangefinder, attitude, gyro (and the battery when asked)."""

@@ -236,11 +236,6 @@ class FlightController:
         self._thrust_targets = (vertical, left + right, (left - right) * self.c.arm_m)
         return self._output(t, commands, "soft" if soft and mode == "flying" else mode, setpoint)
 
-    def safe_commands(self) -> tuple[float, float, float, float]:
-        """The safe state: all motors at neutral (no thrust). The body then rises slowly to the ceiling."""
-        self.mixer.reset()
-        return (0.0, 0.0, 0.0, 0.0)
-
     # ---------------------------------------------------------------- sensing
     def _advance_thrust_model(self, dt: float) -> None:
         """The modelled motor forces over the period just ended.

@@ -70,7 +70,7 @@ class EmulatedMotorBoard:
         self._start_t = start_t
         self._rng = np.random.default_rng(seed)
         self._drafts = bm.Drafts(params.drafts, seed + 1) if params.drafts else None
-        self.motors_us: tuple[int, ...] = (m.MOTOR_NEUTRAL_US,) * 4
+        self.motors_us: tuple[int, ...] = m.NEUTRAL_MOTORS_US
         self._last_motor_t: float | None = None
         self.watchdog_trips = 0
         self._watchdog_tripped = True
@@ -95,7 +95,7 @@ class EmulatedMotorBoard:
 
     def _physics_step(self, dt: float) -> None:
         if self._last_motor_t is not None and self.t - self._last_motor_t > self.params.watchdog_s and not self._watchdog_tripped:
-            self.motors_us = (m.MOTOR_NEUTRAL_US,) * 4
+            self.motors_us = m.NEUTRAL_MOTORS_US
             self.watchdog_trips += 1
             self._watchdog_tripped = True
         commands = tuple(us_to_command(v) for v in self.motors_us[:4])

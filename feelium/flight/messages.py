@@ -23,6 +23,7 @@ MSP_SET_MOTOR = 214
 MOTOR_SLOTS = 8  # MSP_MOTOR / MSP_SET_MOTOR always carry eight values
 MOTOR_MIN_US = 1000
 MOTOR_NEUTRAL_US = 1500  # reversible motors: 1500 is no thrust, the safe state
+NEUTRAL_MOTORS_US = (MOTOR_NEUTRAL_US,) * 4  # the one definition of "motors neutral" (the board's four used slots)
 MOTOR_MAX_US = 2000
 RANGE_OUT = -1
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 from feelium.flight import messages as m
 
-NEUTRAL: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+NEUTRAL: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # command space; to_microseconds maps it to messages.NEUTRAL_MOTORS_US
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """The flight service: motor board link, control loop, failsafes, state on the hub.
 
 A thin shell around :class:`FlightController`. Every period it polls the
-board (in a worker thread, so the loop never blocks on the serial port),
+board (on the service's one serial thread, so the loop never blocks on the port and the
+port is never used from two threads at once),
 steps the controller with the wearer's dead-man command and the soften
 flag, commands the motors at once, and publishes altitude, heading, battery
 and link state. When the port disappears it keeps stepping the controller
@@ -9,7 +10,8 @@ without telemetry (which goes to its failsafe; the board's own watchdog
 stops the motors) and reopens the port with a doubling backoff.
 
 ``stop()`` runs first on shutdown (``stop_order = 0``): it commands every
-motor to neutral at once and stops the loop from commanding anything else.
+motor to neutral through the MSP client, as the very next job of the serial thread,
+and stops the loop from commanding anything else.
 """
 
 from __future__ import annotations
@@ -18,13 +20,13 @@ import asyncio
 import logging
 import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Protocol
 
 from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.client import MspClient
 from feelium.flight.config import FlightConfig
 from feelium.flight.controller import ControlOutput, FlightController
-from feelium.flight.messages import MOTOR_NEUTRAL_US
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
 from feelium.flight.transport import ByteLink, open_serial
@@ -34,7 +36,6 @@ if TYPE_CHECKING:
     from feelium.flight.emulated_board import EmulatedMotorBoard
 
 log = logging.getLogger(__name__)
-NEUTRAL_US = (MOTOR_NEUTRAL_US,) * 4
 STOP_WRITE_TIMEOUT_S = 0.3
 
 
@@ -122,6 +123,13 @@ class FlightService:
         self.last: ControlOutput | None = None
         self._next_open_t = float("-inf")
         self._backoff_s = config.reconnect_min_s
+        self._serial: ThreadPoolExecutor | None = None
+
+    async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
+        """Run a port operation on the service's single serial thread (jobs run one at a time, in order)."""
+        if self._serial is None:
+            self._serial = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flight-serial")
+        return await asyncio.get_running_loop().run_in_executor(self._serial, call, *args)
 
     # ------------------------------------------------------------ lifecycle
     async def run(self) -> None:
@@ -140,21 +148,30 @@ class FlightService:
                 await asyncio.sleep(delay)
         finally:
             events.close()
+            if self.stopping and self._serial is not None:
+                self._serial.shutdown(wait=False)
+                self._serial = None
 
     async def stop(self) -> None:
-        """Motors to neutral now; the loop commands nothing after this."""
+        """Motors to neutral now, through the MSP client; the loop commands nothing after this.
+
+        ``stopping`` is set before anything is awaited, so the loop queues no further serial job: the
+        neutral command is the next one the serial thread runs, at most one exchange (``reply_timeout_s``)
+        behind whatever it is doing.
+        """
         self.stopping = True
-        link = self.link
-        if link is None:
+        client = self.client
+        if client is None:
             return
         try:
-            from feelium.flight.msp import encode_v2
-            from feelium.flight.messages import MSP_SET_MOTOR, encode_motors
+            await asyncio.wait_for(self._on_serial_thread(self._neutral_and_close, client), STOP_WRITE_TIMEOUT_S)
+        except (OSError, ValueError, asyncio.TimeoutError) as exc:  # the board's watchdog stops them within 300 ms anyway
+            self.last_error = f"stop: {exc!r}"
 
-            frame = encode_v2(MSP_SET_MOTOR, encode_motors(list(NEUTRAL_US)))
-            await asyncio.wait_for(asyncio.to_thread(link.write, frame), STOP_WRITE_TIMEOUT_S)
-        except (OSError, asyncio.TimeoutError) as exc:  # the board's watchdog stops them within 300 ms anyway
-            self.last_error = f"stop: {exc}"
+    def _neutral_and_close(self, client: MspClient) -> None:
+        """Serial-thread job: neutral, then close the port (nothing may be written after the neutral)."""
+        try:
+            client.send_neutral()
         finally:
             self._close()
 
@@ -190,14 +207,14 @@ class FlightService:
                 self.soften.observe(event, now)
             except (AttributeError, TypeError, ValueError):
                 self.bad_events += 1
-        if self.client is None and now >= self._next_open_t:
+        if self.client is None and now >= self._next_open_t and not self.stopping:
             await self._open(now)
         telemetry = None
         if self.client is not None:
             try:
-                telemetry = await asyncio.to_thread(self.client.poll, self.cycles % self.config.battery_every == 0)
+                telemetry = await self._on_serial_thread(self.client.poll, self.cycles % self.config.battery_every == 0)
             except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
-                self._lost(now, exc)
+                await self._lost(now, exc)
         now = self.hub.clock()
         soft = self.soften.active(now)
         command = self.hub.motion.active(now)
@@ -207,21 +224,24 @@ class FlightService:
         self.cycles += 1
         if self.client is not None and not self.stopping:
             try:
-                await asyncio.to_thread(self.client.send_motors, out.motors_us)
+                await self._on_serial_thread(self.client.send_motors, out.motors_us)
             except (OSError, ValueError) as exc:
-                self._lost(now, exc)
+                await self._lost(now, exc)
         self._publish(out)
 
     async def _open(self, now: float) -> None:
         self.link_state = "connecting"
         try:
-            link = await asyncio.to_thread(self.opener.open)
+            link = await self._on_serial_thread(self.opener.open)
         except (OSError, ValueError) as exc:
             self.open_failures += 1
             self.last_error = f"open {self.opener.description}: {exc}"
             self.link_state = "down"
             self._next_open_t = now + self._backoff_s
             self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_max_s)
+            return
+        if self.stopping:  # stop() came while the port was opening: leave it closed, command nothing
+            await self._on_serial_thread(link.close)
             return
         if self.link_losses:
             self.reconnects += 1
@@ -230,11 +250,11 @@ class FlightService:
         self.link_state = "up"
         self._backoff_s = self.config.reconnect_min_s
 
-    def _lost(self, now: float, exc: Exception) -> None:
+    async def _lost(self, now: float, exc: Exception) -> None:
         log.warning("flight: motor board link lost: %s", exc)
         self.link_losses += 1
         self.last_error = f"link: {exc}"
-        self._close()
+        await self._on_serial_thread(self._close)
         self.link_state = "down"
         self._next_open_t = now + self._backoff_s
         self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_max_s)
