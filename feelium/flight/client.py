@@ -3,7 +3,7 @@
 It is synchronous on purpose: the service runs it on its one serial thread
 with a short read timeout, so the event loop never
 blocks, and the same code runs unchanged against pyserial, Betaflight SITL
-and the emulated board. A control cycle writes the motor command and all
+and the simulated board. A control cycle writes the motor command and all
 telemetry requests in one burst and collects the replies until a deadline,
 so one 115200-baud cycle costs about one round trip, not six.
 """

@@ -11,7 +11,7 @@ from feelium.settings import section, setting
 
 @dataclass(frozen=True)
 class FlightSimConfig:
-    """The emulated motor board flown by `feelium run --sim` (its physics are in docs/blimp-simulator.md)."""
+    """The simulated motor board flown by `feelium run --sim` (its physics are in docs/blimp-simulator.md)."""
 
     drafts: bool = setting(True, "Simulate indoor air drafts (random gusts of about 0.15 m/s).")
     start_altitude_m: float = setting(1.2, "Altitude the simulated blimp starts at.", min=0.1, max=3.0)

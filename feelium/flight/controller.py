@@ -35,7 +35,7 @@ RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an ou
 SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 THRUST_LAG_S = 0.08
 # Age of a rangefinder reading when the controller gets it: a VL53L1X-class sensor ranging at 50 Hz
-# reports the middle of its 20 ms window, plus the transfer (the emulated board: 15 ms).
+# reports the middle of its 20 ms window, plus the transfer (the simulated board: 15 ms).
 RANGE_LATENCY_S = 0.015
 HANDOVER_S = 0.15  # time constant of the last part of a rate onset, where full thrust hands over to the rate loop
 RESIDUAL_GATE_M = 0.06  # about 4 sigma of the rangefinder's noise at 2 m

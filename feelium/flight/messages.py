@@ -1,7 +1,7 @@
 """The MSP commands the motor board must serve, and their payload layouts.
 
 One place defines each layout, used both by the client on the Pi and by the
-emulated board, so the two cannot drift apart. The layouts are Betaflight's
+simulated board, so the two cannot drift apart. The layouts are Betaflight's
 (little-endian), which ``docs/motor-board.md`` restates as the contract a
 motor board's firmware must meet.
 """
@@ -122,7 +122,7 @@ class Rangefinder:
 
 @dataclass(frozen=True)
 class RawImu:
-    """Accelerometer (raw units, 512 = 1 g on the emulated board), gyro in deg/s, magnetometer raw."""
+    """Accelerometer (raw units, 512 = 1 g on the simulated board), gyro in deg/s, magnetometer raw."""
 
     acc: tuple[int, int, int]
     gyro_dps: tuple[int, int, int]

@@ -17,11 +17,11 @@ def probe_board(port: str | None, sim: bool = False, baudrate: int = 115200, tim
     if sim:
         import time
 
-        from feelium.flight.emulated_board import BoardParams, EmulatedMotorBoard, EmulatedSerial
+        from feelium.flight.sim_board import BoardParams, SimMotorBoard, SimSerial
 
         clock = time.monotonic
-        link: Any = EmulatedSerial(EmulatedMotorBoard(BoardParams(), start_t=clock()), clock)
-        where = "emulated motor board"
+        link: Any = SimSerial(SimMotorBoard(BoardParams(), start_t=clock()), clock)
+        where = "simulated motor board"
     else:
         import serial
 

@@ -33,14 +33,14 @@ from feelium.flight.transport import ByteLink, open_serial
 from feelium.hub import Hub
 
 if TYPE_CHECKING:
-    from feelium.flight.emulated_board import EmulatedMotorBoard
+    from feelium.flight.sim_board import SimMotorBoard
 
 log = logging.getLogger(__name__)
 STOP_WRITE_TIMEOUT_S = 0.3
 
 
 class LinkOpener(Protocol):
-    """Opens the byte link to a motor board: a serial port, or the emulated board."""
+    """Opens the byte link to a motor board: a serial port, or the simulated board."""
 
     description: str
 
@@ -57,7 +57,7 @@ class SerialOpener:
 
 
 class SimOpener:
-    """The emulated board on the hub's clock; one board for the daemon's life, reconnects reuse it.
+    """The simulated board on the hub's clock; one board for the daemon's life, reconnects reuse it.
 
     The board is powered up when the link first opens, not when the daemon is assembled: a real
     blimp is held at its start altitude until its controller runs, and a slow daemon start must
@@ -66,7 +66,7 @@ class SimOpener:
 
     def __init__(self, config: FlightConfig, seed: int, clock: Callable[[], float]) -> None:
         from feelium.flight.blimp_model import DraftParams
-        from feelium.flight.emulated_board import BoardParams, SensorParams, board_with
+        from feelium.flight.sim_board import BoardParams, SensorParams, board_with
 
         self.params = board_with(
             BoardParams(
@@ -77,15 +77,15 @@ class SimOpener:
         )
         self.seed = seed
         self.clock = clock
-        self.board: EmulatedMotorBoard | None = None
-        self.description = "emulated motor board (blimp simulator)"
+        self.board: SimMotorBoard | None = None
+        self.description = "simulated motor board (blimp simulator)"
 
     def open(self) -> ByteLink:
-        from feelium.flight.emulated_board import EmulatedMotorBoard, EmulatedSerial
+        from feelium.flight.sim_board import SimMotorBoard, SimSerial
 
         if self.board is None:
-            self.board = EmulatedMotorBoard(self.params, seed=self.seed, start_t=self.clock())
-        return EmulatedSerial(self.board, self.clock)
+            self.board = SimMotorBoard(self.params, seed=self.seed, start_t=self.clock())
+        return SimSerial(self.board, self.clock)
 
 
 def resolve_backend(config: FlightConfig) -> str:

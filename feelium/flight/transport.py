@@ -2,7 +2,7 @@
 
 pyserial's ``serial_for_url`` already understands device paths
 (``/dev/ttyAMA0``) and URLs (``socket://host:port``, ``loop://``), so the
-real backend is one call; the emulated board implements the same four
+real backend is one call; the simulated board implements the same four
 members, which is all the client touches.
 """
 
@@ -12,7 +12,7 @@ from typing import Protocol
 
 
 class ByteLink(Protocol):
-    """A half of a serial line: pyserial's ``Serial`` satisfies it, so does the emulated board."""
+    """A half of a serial line: pyserial's ``Serial`` satisfies it, so does the simulated board."""
 
     @property
     def in_waiting(self) -> int: ...

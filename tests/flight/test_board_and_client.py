@@ -1,4 +1,4 @@
-"""The emulated board through the MSP client: the contract's commands, errors and the link watchdog."""
+"""The simulated board through the MSP client: the contract's commands, errors and the link watchdog."""
 
 from __future__ import annotations
 
@@ -6,15 +6,15 @@ import pytest
 
 from feelium.flight import messages as m
 from feelium.flight.client import MspClient, MspErrorReply, MspTimeout
-from feelium.flight.emulated_board import BoardParams, EmulatedMotorBoard, EmulatedSerial
+from feelium.flight.sim_board import BoardParams, SimMotorBoard, SimSerial
 from feelium.flight.msp import MspParser, encode_v1, encode_v2
 from feelium.lab.flight.simulation import ManualClock
 
 
-def make() -> tuple[EmulatedMotorBoard, MspClient, ManualClock]:
+def make() -> tuple[SimMotorBoard, MspClient, ManualClock]:
     clock = ManualClock()
-    board = EmulatedMotorBoard(BoardParams(), seed=3)
-    return board, MspClient(EmulatedSerial(board, clock), timeout_s=0.05, clock=clock), clock
+    board = SimMotorBoard(BoardParams(), seed=3)
+    return board, MspClient(SimSerial(board, clock), timeout_s=0.05, clock=clock), clock
 
 
 def test_every_contract_command_answers() -> None:
@@ -37,7 +37,7 @@ def test_unknown_command_is_an_error_reply() -> None:
 
 def test_v1_request_gets_a_v1_reply() -> None:
     board, _, clock = make()
-    link = EmulatedSerial(board, clock)
+    link = SimSerial(board, clock)
     link.write(encode_v1(m.MSP_API_VERSION))
     frames = MspParser().feed(link.read(64))
     assert frames[0].version == 1 and frames[0].payload == m.ApiVersion(0, 1, 46).encode()

@@ -1,4 +1,4 @@
-"""The controller flying the emulated board faster than real time: hold, steps, commands, safety."""
+"""The controller flying the simulated board faster than real time: hold, steps, commands, safety."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from feelium.daemon.config import Config
 from feelium.lab.flight import scenarios as sc
-from feelium.flight.emulated_board import BoardParams, SensorParams, board_with
+from feelium.flight.sim_board import BoardParams, SensorParams, board_with
 from feelium.flight.setpoint import HOLD, Setpoint, setpoint_for_motion
 from feelium.lab.flight.simulation import SimFlight
 

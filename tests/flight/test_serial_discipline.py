@@ -1,6 +1,6 @@
 """One owner per flight concept: neutral is defined once, stop goes through the MSP client, the port has one thread.
 
-Runs the real service against the emulated board on the wall clock (slow marker, like test_service.py).
+Runs the real service against the simulated board on the wall clock (slow marker, like test_service.py).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import threading
 import pytest
 
 from feelium.flight import messages as m
-from feelium.flight.emulated_board import EmulatedSerial
+from feelium.flight.sim_board import SimSerial
 from feelium.flight.mixer import NEUTRAL, to_microseconds
 from feelium.flight.msp import MspParser
 from feelium.flight.service import FlightService, SimOpener
@@ -25,7 +25,7 @@ pytestmark = pytest.mark.slow
 class ThreadRecordingSerial:
     """Wraps the emulated serial link: records the thread of every call and every byte written."""
 
-    def __init__(self, inner: EmulatedSerial) -> None:
+    def __init__(self, inner: SimSerial) -> None:
         self.inner = inner
         self.threads: set[int] = set()
         self.written = bytearray()

@@ -1,6 +1,6 @@
 """The flight service in the daemon: state on the hub, dead-man commands, softening, link loss and reconnect, stop.
 
-These run the real asyncio shell on the wall clock against the emulated board (a
+These run the real asyncio shell on the wall clock against the simulated board (a
 second or two each); conditions are awaited with a generous deadline, nothing is timed.
 """
 
@@ -15,7 +15,7 @@ import pytest
 from feelium.daemon.config import Config
 from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.config import FlightSimConfig
-from feelium.flight.emulated_board import EmulatedSerial
+from feelium.flight.sim_board import SimSerial
 from feelium.daemon.assembly import build_flight
 from feelium.flight.service import FlightService, SerialOpener, SimOpener
 from feelium.hub import Hub
@@ -29,11 +29,11 @@ class RecordingSimOpener(SimOpener):
 
     def __init__(self, *args: object) -> None:
         super().__init__(*args)  # type: ignore[arg-type]
-        self.links: list[EmulatedSerial] = []
+        self.links: list[SimSerial] = []
 
-    def open(self) -> EmulatedSerial:
+    def open(self) -> SimSerial:
         link = super().open()
-        assert isinstance(link, EmulatedSerial)
+        assert isinstance(link, SimSerial)
         self.links.append(link)
         return link
 

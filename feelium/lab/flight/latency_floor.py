@@ -8,7 +8,7 @@ both from rest in a hover and measured with the scenarios' thresholds
 - ``closed_form_s``: the whole available force change at once, through the
   lag alone: v(t) = (F/m)(t - tau(1 - e^(-t/tau))) reaches the threshold at
   this time. No controller can beat it.
-- ``slew_limited_s``: the blimp model (``blimp_model.step`` at the emulated
+- ``slew_limited_s``: the blimp model (``blimp_model.step`` at the simulated
   board's physics step) driven with the largest commands the mixer allows,
   each changed no faster than the slew limit per control period: the best a
   controller with these quietness limits can do.
@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 
 from feelium.flight import blimp_model as bm
 from feelium.flight.config import FlightConfig
-from feelium.flight.emulated_board import PHYSICS_DT
+from feelium.flight.sim_board import PHYSICS_DT
 from feelium.flight.mixer import command_for_thrust
 from feelium.flight.propellers import ONE_DIRECTION_REVERSE_RATIO
 from feelium.lab.flight.scenarios import MOTION_THRESHOLD as THRESHOLD

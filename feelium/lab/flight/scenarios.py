@@ -14,7 +14,7 @@ import numpy as np
 
 from feelium.flight.blimp_model import BlimpParams, DraftParams
 from feelium.flight.config import FlightConfig
-from feelium.flight.emulated_board import BoardParams, board_with
+from feelium.flight.sim_board import BoardParams, board_with
 from feelium.flight.setpoint import Setpoint, setpoint_for_motion
 from feelium.lab.flight.simulation import Controller, FlightLog, SimFlight
 from feelium.motion import DeadManCommands

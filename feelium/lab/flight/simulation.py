@@ -1,9 +1,9 @@
-"""Fly the controller against the emulated board faster than real time, over the real MSP path.
+"""Fly the controller against the simulated board faster than real time, over the real MSP path.
 
 The loop is what the service does, minus the wall clock: advance the
 simulated time by one control period, run one MSP exchange (motor command
 plus telemetry requests) through :class:`MspClient` and
-:class:`EmulatedSerial`, step the controller. Tests and ``feelium bench
+:class:`SimSerial`, step the controller. Tests and ``feelium bench
 flight`` use it; every run with the same seed gives the same numbers.
 """
 
@@ -18,7 +18,7 @@ import numpy as np
 from feelium.flight.client import MspClient
 from feelium.flight.config import FlightConfig
 from feelium.flight.controller import ControlOutput, FlightController
-from feelium.flight.emulated_board import BoardParams, EmulatedMotorBoard, EmulatedSerial
+from feelium.flight.sim_board import BoardParams, SimMotorBoard, SimSerial
 from feelium.flight.setpoint import HOLD, Setpoint
 from feelium.flight.telemetry import Telemetry
 
@@ -59,8 +59,8 @@ class SimFlight:
     ) -> None:
         self.config = config
         self.clock = ManualClock()
-        self.board = EmulatedMotorBoard(board_params, seed=seed)
-        self.link = EmulatedSerial(self.board, self.clock)
+        self.board = SimMotorBoard(board_params, seed=seed)
+        self.link = SimSerial(self.board, self.clock)
         self.client = MspClient(self.link, timeout_s=config.reply_timeout_s, clock=self.clock)
         self.controller = controller or FlightController(config)
         self.period = 1.0 / config.rate_hz

@@ -60,7 +60,7 @@ def us_to_command(value_us: int) -> float:
     return float(np.clip((value_us - m.MOTOR_NEUTRAL_US) / 500.0, -1.0, 1.0))
 
 
-class EmulatedMotorBoard:
+class SimMotorBoard:
     """The board: physics, sensors, watchdog and the MSP command handler."""
 
     def __init__(self, params: BoardParams, seed: int = 1, start_t: float = 0.0) -> None:
@@ -198,7 +198,7 @@ def _encode(request: MspFrame, payload: bytes, direction: str) -> bytes:
     return encode_v2(request.command, payload, direction)  # type: ignore[arg-type]
 
 
-class EmulatedSerial:
+class SimSerial:
     """The board seen through a pyserial-like byte link (``write``/``read``/``in_waiting``/``close``).
 
     Requests are answered when written, after the board has been advanced to
@@ -206,7 +206,7 @@ class EmulatedSerial:
     makes every call raise like an unplugged USB adapter.
     """
 
-    def __init__(self, board: EmulatedMotorBoard, clock: Callable[[], float]) -> None:
+    def __init__(self, board: SimMotorBoard, clock: Callable[[], float]) -> None:
         self.board = board
         self.clock = clock
         self.connected = True
@@ -216,7 +216,7 @@ class EmulatedSerial:
 
     def _check(self) -> None:
         if not self.connected or self.closed:
-            raise OSError("emulated motor board disconnected")
+            raise OSError("simulated motor board disconnected")
 
     @property
     def in_waiting(self) -> int:
