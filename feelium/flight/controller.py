@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 
 from feelium.flight.config import FlightConfig
-from feelium.flight.mixer import Mixer, MixerGeometry, thrust_for_command, to_microseconds
+from feelium.flight.mixer import NEUTRAL, Mixer, MixerGeometry, thrust_for_command, to_microseconds
 from feelium.flight.setpoint import Setpoint
 from feelium.flight.telemetry import Telemetry
 
@@ -202,7 +202,7 @@ class FlightController:
         heading_age = math.inf if self._last_heading_t is None else t - self._last_heading_t
         range_age = math.inf if self._last_range_t is None else t - self._last_range_t
         if self.z_hat is None and self.heading is None:
-            return self._output(t, self.mixer.limit((0.0, 0.0, 0.0, 0.0), dt), "waiting", setpoint)
+            return self._output(t, self.mixer.limit(NEUTRAL, dt), "waiting", setpoint)
 
         stale = min(heading_age, range_age) > self.c.telemetry_stale_s
         if stale:

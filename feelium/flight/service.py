@@ -11,7 +11,9 @@ stops the motors) and reopens the port with a doubling backoff.
 
 ``stop()`` runs first on shutdown (``stop_order = 0``): it commands every
 motor to neutral through the MSP client, as the very next job of the serial thread,
-and stops the loop from commanding anything else.
+and stops the loop from commanding anything else. The serial thread belongs to one
+``run()``: it opens the port and is the only thread that ever touches it, and a
+``run()`` that ends for any reason leaves the motors neutral and the port closed.
 """
 
 from __future__ import annotations
@@ -20,7 +22,8 @@ import asyncio
 import logging
 import os
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import suppress
 from typing import TYPE_CHECKING, Any, Protocol
 
 from feelium.events import InteractionEvent, TouchEvent
@@ -37,6 +40,20 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 STOP_WRITE_TIMEOUT_S = 0.3
+
+
+def _close_quietly(link: ByteLink) -> None:
+    """Serial-thread job: close the port; one that is already gone cannot fail the caller."""
+    with suppress(OSError):
+        link.close()
+
+
+def _neutral_then_close(client: MspClient) -> None:
+    """Serial-thread job, a link's last: neutral through the client, then close, so nothing can follow the neutral."""
+    try:
+        client.send_neutral()
+    finally:
+        _close_quietly(client.link)
 
 
 class LinkOpener(Protocol):
@@ -126,15 +143,15 @@ class FlightService:
         self._serial: ThreadPoolExecutor | None = None
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
-        """Run a port operation on the service's single serial thread (jobs run one at a time, in order)."""
-        if self._serial is None:
-            self._serial = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flight-serial")
+        """Run a port operation on this run's serial thread (jobs run one at a time, in order)."""
+        assert self._serial is not None, "serial I/O outside run()"
         return await asyncio.get_running_loop().run_in_executor(self._serial, call, *args)
 
     # ------------------------------------------------------------ lifecycle
     async def run(self) -> None:
         period = 1.0 / self.config.rate_hz
         events = self.hub.bus.subscribe(types=(TouchEvent, InteractionEvent), maxsize=64)
+        serial = self._serial = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flight-serial")
         try:
             next_t = self.hub.clock()
             while not self.stopping:
@@ -148,32 +165,33 @@ class FlightService:
                 await asyncio.sleep(delay)
         finally:
             events.close()
-            if self.stopping and self._serial is not None:
-                self._serial.shutdown(wait=False)
-                self._serial = None
+            self._release()  # a crash or a cancel must not leave the last command on the motors
+            serial.shutdown(wait=False)  # queued jobs (the neutral) still run; the thread then ends
+            self._serial = None
 
     async def stop(self) -> None:
         """Motors to neutral now, through the MSP client; the loop commands nothing after this.
 
-        ``stopping`` is set before anything is awaited, so the loop queues no further serial job: the
-        neutral command is the next one the serial thread runs, at most one exchange (``reply_timeout_s``)
-        behind whatever it is doing.
+        ``stopping`` is set and the neutral queued before anything is awaited, so the loop cannot queue
+        another serial job ahead of it: it runs right after whatever exchange is in flight. Waiting for it
+        is bounded by ``STOP_WRITE_TIMEOUT_S``; the job is shielded, so a late board still gets it.
         """
         self.stopping = True
-        client = self.client
-        if client is None:
+        job = self._release()
+        if job is None:
             return
         try:
-            await asyncio.wait_for(self._on_serial_thread(self._neutral_and_close, client), STOP_WRITE_TIMEOUT_S)
+            await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(job)), STOP_WRITE_TIMEOUT_S)
         except (OSError, ValueError, asyncio.TimeoutError) as exc:  # the board's watchdog stops them within 300 ms anyway
             self.last_error = f"stop: {exc!r}"
 
-    def _neutral_and_close(self, client: MspClient) -> None:
-        """Serial-thread job: neutral, then close the port (nothing may be written after the neutral)."""
-        try:
-            client.send_neutral()
-        finally:
-            self._close()
+    def _release(self) -> Future[None] | None:
+        """Detach the link (the loop sees none from now on); queue neutral-then-close as the serial thread's next job."""
+        client, self.link, self.client = self.client, None, None
+        if client is None:
+            return None
+        assert self._serial is not None, "a link outlived its run()"  # run() releases it before its thread goes
+        return self._serial.submit(_neutral_then_close, client)
 
     def health(self) -> dict[str, Any]:
         out = self.last
@@ -241,7 +259,7 @@ class FlightService:
             self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_max_s)
             return
         if self.stopping:  # stop() came while the port was opening: leave it closed, command nothing
-            await self._on_serial_thread(link.close)
+            await self._on_serial_thread(_close_quietly, link)
             return
         if self.link_losses:
             self.reconnects += 1
@@ -254,18 +272,12 @@ class FlightService:
         log.warning("flight: motor board link lost: %s", exc)
         self.link_losses += 1
         self.last_error = f"link: {exc}"
-        await self._on_serial_thread(self._close)
+        link, self.link, self.client = self.link, None, None
+        if link is not None:
+            await self._on_serial_thread(_close_quietly, link)
         self.link_state = "down"
         self._next_open_t = now + self._backoff_s
         self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_max_s)
-
-    def _close(self) -> None:
-        link, self.link, self.client = self.link, None, None
-        if link is not None:
-            try:
-                link.close()
-            except OSError:
-                pass
 
     def _publish(self, out: ControlOutput) -> None:
         self.hub.state.update(

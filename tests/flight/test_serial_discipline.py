@@ -5,16 +5,23 @@ Runs the real service against the simulated board on the wall clock (slow marker
 
 from __future__ import annotations
 
+import ast
 import asyncio
 import threading
+import time
+from pathlib import Path
 
 import pytest
 
 from feelium.flight import messages as m
+from feelium.flight import service as service_module
+from feelium.flight.client import MspClient
+from feelium.flight.controller import ControlOutput, FlightController
 from feelium.flight.sim_board import SimSerial
 from feelium.flight.mixer import NEUTRAL, to_microseconds
-from feelium.flight.msp import MspParser
-from feelium.flight.service import FlightService, SimOpener
+from feelium.flight.msp import MspFrame, MspParser
+from feelium.flight.service import STOP_WRITE_TIMEOUT_S, FlightService, SimOpener
+from feelium.flight.setpoint import setpoint_for_motion
 from feelium.hub import Hub
 
 from tests.flight.test_service import CONFIG, wait_for
@@ -31,6 +38,8 @@ class ThreadRecordingSerial:
         self.written = bytearray()
         self.closed_at_bytes: int | None = None
         self.writes_after_close = 0
+        self.stall_s = 0.0  # the next read blocks this long, like a board that answers late
+        self.stalled = threading.Event()
 
     def _mark(self) -> None:
         self.threads.add(threading.get_ident())
@@ -44,6 +53,10 @@ class ThreadRecordingSerial:
 
     def read(self, size: int = 1) -> bytes:
         self._mark()
+        if self.stall_s:
+            stall_s, self.stall_s = self.stall_s, 0.0
+            self.stalled.set()
+            time.sleep(stall_s)
         return self.inner.read(size)
 
     @property
@@ -70,9 +83,38 @@ class RecordingOpener(SimOpener):
         return link
 
 
-def test_neutral_has_one_definition_that_the_mixer_and_client_agree_with():
+def serial_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name.startswith("flight-serial")]
+
+
+def requests_in(written: bytes | bytearray) -> list[MspFrame]:
+    """The MSP requests the Pi wrote, in order (replies never travel this way)."""
+    return [f for f in MspParser().feed(bytes(written)) if f.direction == "<"]
+
+
+def is_neutral(frame: MspFrame) -> bool:
+    return frame.command == m.MSP_SET_MOTOR and m.decode_motors(frame.payload)[:4] == m.NEUTRAL_MOTORS_US
+
+
+def test_neutral_has_one_definition_that_the_mixer_and_client_agree_with() -> None:
     assert m.NEUTRAL_MOTORS_US == (m.MOTOR_NEUTRAL_US,) * 4
     assert to_microseconds(NEUTRAL) == m.NEUTRAL_MOTORS_US
+    assert not hasattr(service_module, "NEUTRAL_US")
+    waiting = FlightController(CONFIG).step(0.0, None, setpoint_for_motion(None, CONFIG))
+    assert waiting.mode == "waiting" and waiting.commands == NEUTRAL and waiting.motors_us == m.NEUTRAL_MOTORS_US
+
+
+def test_the_neutral_microseconds_are_written_down_only_in_messages() -> None:
+    """Every other flight module derives neutral from ``messages``; a second literal 1500 would be a second definition."""
+    root = Path(service_module.__file__).resolve().parents[1]
+    holders = {
+        path.relative_to(root).as_posix()
+        for folder in (root / "flight", root / "lab" / "flight")
+        for path in folder.glob("*.py")
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.Constant) and type(node.value) in (int, float) and node.value == m.MOTOR_NEUTRAL_US
+    }
+    assert holders == {"flight/messages.py"}
 
 
 async def test_every_serial_call_runs_on_one_thread_and_stop_sends_neutral_last() -> None:
@@ -94,3 +136,70 @@ async def test_every_serial_call_runs_on_one_thread_and_stop_sends_neutral_last(
     assert m.decode_motors(motor_frames[-1].payload)[:4] == m.NEUTRAL_MOTORS_US
     assert any(m.decode_motors(f.payload)[:4] != m.NEUTRAL_MOTORS_US for f in motor_frames[:-1])  # it was flying
     assert service.client is None and service.link is None
+
+
+async def test_stop_during_a_stalled_exchange_is_the_next_serial_job_and_is_never_dropped(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The board answers late (longer than stop() may wait): neutral still goes out, right after that exchange, last."""
+    sent_neutral_on: list[int] = []
+    send_neutral = MspClient.send_neutral
+
+    def recording_send_neutral(client: MspClient) -> None:
+        sent_neutral_on.append(threading.get_ident())
+        send_neutral(client)
+
+    monkeypatch.setattr(MspClient, "send_neutral", recording_send_neutral)
+    hub = Hub()
+    opener = RecordingOpener(CONFIG, 1, hub.clock)
+    service = FlightService(CONFIG, hub, opener)
+    task = asyncio.create_task(service.run())
+    hub.motion.command("forward", now=hub.clock(), hold_s=2.0)
+    await wait_for(lambda: service.cycles > 30)
+    (link,) = opener.links
+    link.stall_s = 2 * STOP_WRITE_TIMEOUT_S
+    await wait_for(link.stalled.is_set, timeout_s=2.0)  # the serial thread is now inside a poll's read
+    written_before_stop = len(link.written)
+    loop = asyncio.get_running_loop()
+    started_at = loop.time()
+    await service.stop()
+    assert loop.time() - started_at < STOP_WRITE_TIMEOUT_S + 0.15  # stop() keeps its bound...
+    assert "stop" in (service.last_error or "")
+    await asyncio.wait_for(task, 2.0)
+    await wait_for(lambda: link.closed_at_bytes is not None, timeout_s=2.0)  # ...and the neutral still lands
+    assert len(sent_neutral_on) == 1 and set(sent_neutral_on) == link.threads
+    after_stop = requests_in(link.written[written_before_stop:])
+    assert len(after_stop) == 1 and is_neutral(after_stop[0]), "the loop commanded something after stop()"
+    assert link.writes_after_close == 0
+    assert opener.board is not None and opener.board.motors_us == m.NEUTRAL_MOTORS_US
+    await wait_for(lambda: not serial_threads(), timeout_s=2.0)
+
+
+async def test_a_crashed_run_leaves_motors_neutral_and_ends_its_thread_and_a_restart_flies_again() -> None:
+    hub = Hub()
+    opener = RecordingOpener(CONFIG, 1, hub.clock)
+    service = FlightService(CONFIG, hub, opener)
+    step = service.controller.step
+
+    def crashing_step(*args: object) -> ControlOutput:
+        if service.cycles >= 20:
+            raise RuntimeError("controller bug")
+        return step(*args)  # type: ignore[arg-type]
+
+    service.controller.step = crashing_step  # type: ignore[method-assign]
+    hub.motion.command("forward", now=hub.clock(), hold_s=2.0)
+    with pytest.raises(RuntimeError, match="controller bug"):
+        await asyncio.wait_for(service.run(), 5.0)
+    crashed = opener.links[0]
+    await wait_for(lambda: crashed.closed_at_bytes is not None, timeout_s=2.0)
+    assert is_neutral(requests_in(crashed.written)[-1]) and crashed.writes_after_close == 0
+    assert len(crashed.threads | opener.opened_on) == 1
+    await wait_for(lambda: not serial_threads(), timeout_s=2.0)
+
+    service.controller.step = step  # type: ignore[method-assign]
+    opener.opened_on.clear()
+    task = asyncio.create_task(service.run())  # what the supervisor does after its backoff
+    await wait_for(lambda: service.cycles > 40)
+    await service.stop()
+    await asyncio.wait_for(task, 2.0)
+    restarted = opener.links[1]
+    assert len(restarted.threads | opener.opened_on) == 1
+    assert is_neutral(requests_in(restarted.written)[-1]) and restarted.closed_at_bytes is not None
