@@ -33,6 +33,7 @@ from feelium.daemon.memory import tune_malloc
 from feelium.daemon.runner import run_daemon, with_overrides
 from feelium.daemon.sdnotify import Notifier
 from feelium.hub import Hub
+from feelium.lab.report import emit_report
 
 RSS_GOAL_MB = 150.0
 BASELINE_FRAMES = 150
@@ -380,10 +381,5 @@ def bench_daemon_command(args: argparse.Namespace) -> int:
     result = bench_daemon(
         load_config(args.config), args.seconds, per_service_seconds=args.per_service_seconds, config_file=args.config
     )
-    print(format_table(result))
-    text = json.dumps(result, indent=1)
-    if args.json:
-        Path(args.json).write_text(text + "\n", encoding="utf-8")
-    else:
-        print(text)
+    emit_report(format_table(result), result, args.json)
     return 0

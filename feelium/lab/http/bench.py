@@ -16,7 +16,6 @@ import sys
 import threading
 import time
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 import aiohttp
@@ -31,6 +30,7 @@ from feelium.http.server import JsonErrorAppRunner
 from feelium.http.video import BOUNDARY
 from feelium.hub import Hub
 from feelium.motion import DEFAULT_HOLD_S, DeadManCommands, MotionCommand
+from feelium.lab.report import emit_report
 
 TOKEN = "bench-token-0123456789abcdef"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -431,10 +431,5 @@ def bench_http_command(args: Any) -> int:
         print("feelium bench http: --requests >= 10, --seconds > 0 and --fps > 0 please", file=sys.stderr)
         return 2
     result = asyncio.run(run_bench(args.requests, args.seconds, args.fps))
-    print(format_table(result))
-    text = json.dumps(result, indent=1)
-    if args.json:
-        Path(args.json).write_text(text + "\n", encoding="utf-8")
-    else:
-        print(text)
+    emit_report(format_table(result), result, args.json)
     return 0
