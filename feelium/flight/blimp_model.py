@@ -69,6 +69,11 @@ class BlimpParams:
     )
     floor_m: float = 0.0
     ceiling_m: float = 3.0
+    # Added mass differs per axis on a real envelope (gondola, fins): each axis's inertial mass is
+    # inertial_mass_kg times its factor. 1.0 everywhere is the sphere-like body.
+    surge_mass_factor: float = 1.0
+    sway_mass_factor: float = 1.0
+    heave_mass_factor: float = 1.0
 
     @property
     def volume_m3(self) -> float:
@@ -151,9 +156,9 @@ def step(
     def drag(rel: float) -> float:
         return -k1 * rel - k2 * rel * abs(rel)
 
-    du = (left + right + drag(rel_u) + ext_u) / mass + state.v * state.r
-    dv = (drag(rel_v) + ext_v) / mass - state.u * state.r
-    dw = (params.net_buoyancy_n - front_v - rear_v + drag(rel_w) + external_force_n[2]) / mass
+    du = (left + right + drag(rel_u) + ext_u) / (mass * params.surge_mass_factor) + state.v * state.r
+    dv = (drag(rel_v) + ext_v) / (mass * params.sway_mass_factor) - state.u * state.r
+    dw = (params.net_buoyancy_n - front_v - rear_v + drag(rel_w) + external_force_n[2]) / (mass * params.heave_mass_factor)
     torque = (left - right) * params.arm_m + yaw_torque_nm
     dr = (torque - params.yaw_linear_drag * state.r - params.yaw_quadratic_drag * state.r * abs(state.r)) / params.yaw_inertia_kg_m2
 

@@ -27,7 +27,7 @@ class MspErrorReply(RuntimeError):
     """The board answered a request with an error frame (it does not support the command)."""
 
 
-POLL_COMMANDS = (m.MSP_SONAR_ALTITUDE, m.MSP_ATTITUDE, m.MSP_RAW_IMU)
+POLL_COMMANDS = (m.MSP_SONAR_ALTITUDE, m.MSP_ATTITUDE, m.MSP_RAW_IMU, m.MSP2_SENSOR_OPTIC_FLOW)
 
 
 class MspClient:
@@ -153,6 +153,11 @@ class MspClient:
         imu = decoded(m.MSP_RAW_IMU, m.RawImu.decode)
         if isinstance(imu, m.RawImu):
             values["yaw_rate_dps"] = float(imu.gyro_dps[2])
+        flow = decoded(m.MSP2_SENSOR_OPTIC_FLOW, m.OpticFlow.decode)
+        if isinstance(flow, m.OpticFlow):
+            values["flow_quality"] = flow.quality
+            if flow.quality > 0:
+                values.update(flow_x_rad_s=flow.x_rad_s, flow_y_rad_s=flow.y_rad_s)
         analog = decoded(m.MSP_ANALOG, m.Analog.decode)
         if isinstance(analog, m.Analog):
             values["battery_v"] = analog.voltage_v

@@ -19,6 +19,9 @@ MSP_ATTITUDE = 108
 MSP_ALTITUDE = 109
 MSP_ANALOG = 110
 MSP_SET_MOTOR = 214
+# The optical-flow sensor's reading, relayed by the board. The id and field layout (uint8 quality,
+# int32 x, int32 y) are those INAV uses for an MSP optical-flow sensor; the units are this contract's.
+MSP2_SENSOR_OPTIC_FLOW = 0x1F02
 
 MOTOR_SLOTS = 8  # MSP_MOTOR / MSP_SET_MOTOR always carry eight values
 MOTOR_MIN_US = 1000
@@ -36,6 +39,7 @@ COMMAND_NAMES = {
     MSP_ALTITUDE: "altitude",
     MSP_ANALOG: "analog",
     MSP_SET_MOTOR: "set_motor",
+    MSP2_SENSOR_OPTIC_FLOW: "optic_flow",
 }
 
 
@@ -167,6 +171,29 @@ class Analog:
             (centi,) = struct.unpack_from("<H", payload, 7)
             voltage = centi / 100.0
         return cls(voltage, mah, amps / 100.0, rssi)
+
+
+@dataclass(frozen=True)
+class OpticFlow:
+    """Ground motion seen by a downward flow sensor: angular flow rate in rad/s (sent as mrad/s).
+
+    ``x`` is forward, ``y`` right, in the body frame, already compensated for the body's own
+    rotation by the board; the ground speed along an axis is its rate times the height.
+    ``quality`` is the sensor's 0..255 confidence, 0 when it has no lock (dark, featureless floor).
+    """
+
+    quality: int
+    x_rad_s: float
+    y_rad_s: float
+
+    def encode(self) -> bytes:
+        return struct.pack("<Bii", max(0, min(255, self.quality)), round(self.x_rad_s * 1000), round(self.y_rad_s * 1000))
+
+    @classmethod
+    def decode(cls, payload: bytes) -> "OpticFlow":
+        _need(payload, 9, "MSP2_SENSOR_OPTIC_FLOW")
+        quality, x, y = struct.unpack_from("<Bii", payload)
+        return cls(quality, x / 1000.0, y / 1000.0)
 
 
 def encode_motors(values_us: tuple[int, ...] | list[int]) -> bytes:

@@ -39,6 +39,14 @@ class SensorParams:
     gyro_noise_dps: float = 0.3
     gyro_bias_dps: float = 0.5
     gyro_calibration_s: float = 1.0
+    # Downward optical flow (PMW3901-class, on one module with the rangefinder): the measured
+    # horizontal speed. ``flow_fitted = False`` is a board without it (it answers an error reply).
+    flow_fitted: bool = True
+    flow_noise_rad_s: float = 0.02
+    flow_period_s: float = 0.01
+    flow_min_height_m: float = 0.08
+    flow_max_height_m: float = 4.0
+    flow_quality: int = 180
     battery_capacity_mah: float = 600.0
     battery_full_v: float = 4.15
     battery_empty_v: float = 3.3
@@ -80,6 +88,9 @@ class SimMotorBoard:
         self._heading_est_deg = self.state.heading_deg
         self._range_m: float | None = self.state.z
         self._next_range_t = start_t
+        self._flow = m.OpticFlow(0, 0.0, 0.0)
+        self._next_flow_t = start_t
+        self._flow_rng = np.random.default_rng(seed + 2)  # its own stream: adding the sensor left the others' draws unchanged
         self.mah_drawn = 0.0
         self.current_a = 0.0
         self.held = False  # a partner holds the body still
@@ -105,6 +116,7 @@ class SimMotorBoard:
         )
         self._update_gyro(dt)
         self._update_range()
+        self._update_flow()
         self._update_battery(commands, dt)
 
     def _gyro_dps(self) -> float:
@@ -135,6 +147,19 @@ class SimMotorBoard:
             return
         sigma = s.range_noise_m + s.range_noise_fraction * z
         self._range_m = max(0.01, z + sigma * float(self._rng.standard_normal()))
+
+    def _update_flow(self) -> None:
+        """The flow sensor's latest frame: body-frame ground speed over height, plus noise; no lock out of its range."""
+        if self.t < self._next_flow_t:
+            return
+        s = self.params.sensors
+        self._next_flow_t = self.t + s.flow_period_s
+        z = self.state.z
+        if not s.flow_min_height_m <= z <= s.flow_max_height_m:
+            self._flow = m.OpticFlow(0, 0.0, 0.0)
+            return
+        noise = self._flow_rng.normal(0.0, s.flow_noise_rad_s, 2)
+        self._flow = m.OpticFlow(s.flow_quality, self.state.u / z + float(noise[0]), self.state.v / z + float(noise[1]))
 
     def _update_battery(self, commands: tuple[float, ...], dt: float) -> None:
         self.current_a = 0.12 + sum(0.9 * abs(c) ** 3 for c in commands)
@@ -187,6 +212,8 @@ class SimMotorBoard:
             return m.RawImu((0, 0, 512), (0, 0, gyro), (0, 0, 0)).encode()
         if cmd == m.MSP_ANALOG:
             return m.Analog(self.battery_v(), int(self.mah_drawn), self.current_a).encode()
+        if cmd == m.MSP2_SENSOR_OPTIC_FLOW and self.params.sensors.flow_fitted:
+            return self._flow.encode()
         return None
 
 

@@ -12,6 +12,9 @@ class Telemetry:
     ``t`` is the Pi's clock when the replies were collected. ``range_m`` is
     the rangefinder's distance to the floor (``None`` when out of range).
     Heading is in degrees, clockwise seen from above; yaw rate likewise.
+    ``flow_x_rad_s``/``flow_y_rad_s`` are the optical-flow sensor's angular
+    rates (``None`` when it has no lock or no sensor is fitted); the
+    controller turns them into ground speed with the rangefinder's height.
     """
 
     t: float
@@ -23,3 +26,6 @@ class Telemetry:
     battery_v: float | None = None
     baro_altitude_m: float | None = None
     motors_us: tuple[int, ...] | None = None
+    flow_x_rad_s: float | None = None
+    flow_y_rad_s: float | None = None
+    flow_quality: int | None = None
