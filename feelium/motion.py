@@ -15,7 +15,7 @@ from typing import Literal, get_args
 MotionName = Literal["forward", "backward", "up", "down", "turn_left", "turn_right", "stop"]
 MOTION_NAMES: tuple[str, ...] = get_args(MotionName)
 DEFAULT_HOLD_S = 0.5
-MAX_HOLD_S = 2.0
+MAX_HOLD_S = 0.5  # the flight goal: stopped within 1.5 s of the last refresh, of which braking takes up to 1.0 s
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ class FlightConfig:
     rate_hz: float = setting(50.0, "Control loop rate.", min=5.0, max=200.0)
     reply_timeout_s: float = setting(0.03, "How long one control cycle waits for the board's replies.", min=0.005, max=1.0)
     reconnect_min_s: float = setting(0.5, "First delay before reopening a lost serial port (doubles each try).", min=0.05, max=60.0)
-    reconnect_max_s: float = setting(8.0, "Longest delay between reopening attempts.", min=0.1, max=600.0)
+    reconnect_max_s: float = setting(0.8, "Longest delay between reopening attempts: under 1 s, so a returning link is used within 1 s.", min=0.1, max=600.0)
     battery_every: int = setting(25, "Poll the battery every N control cycles.", min=1, max=1000)
 
     # What the controller knows about the body (feed-forward and the mixer).
@@ -58,12 +58,23 @@ class FlightConfig:
     motor_deadband: float = setting(0.06, "Command below which a motor makes no thrust.", min=0.0, max=0.5)
     quadratic_drag: float = setting(0.197, "Air drag coefficient 0.5 rho Cd A in N/(m/s)^2, for the speed observer.", min=0.0, max=10.0)
 
+    plant_uncertainty: float = setting(
+        2.0,
+        "How far the real blimp may be from the numbers above: mass, thrust and reverse ratio each within this"
+        " factor either way. The loops learn the truth in flight inside that box and count only on what they"
+        " have measured; `feelium calibrate flight` writes fitted numbers and a smaller factor. 1 trusts the model.",
+        min=1.0,
+        max=4.0,
+    )
+
     # Gains (accelerations per unit error, so they do not change with mass).
     altitude_kp: float = setting(2.2, "Altitude stiffness, (m/s^2) per m.", min=0.0, max=50.0)
     altitude_kd: float = setting(2.4, "Vertical speed damping, (m/s^2) per m/s.", min=0.0, max=50.0)
     altitude_observer_hz: float = setting(0.6, "Bandwidth of the altitude observer (rangefinder, modelled thrust).", min=0.05, max=10.0)
     disturbance_observer_hz: float = setting(0.06, "Bandwidth of learning the unmodelled vertical force (the integral).", min=0.001, max=5.0)
-    altitude_integral_limit: float = setting(0.2, "Largest disturbance the observer may learn (the integral), m/s^2.", min=0.0, max=5.0)
+    altitude_integral_limit: float = setting(
+        1.0, "Largest disturbance the observer may learn (the integral), m/s^2: a buoyancy or thrust error inside the box.", min=0.0, max=5.0
+    )
     altitude_integral_band_m: float = setting(0.12, "Learn the disturbance only within this altitude error (anti-windup).", min=0.0, max=5.0)
     altitude_error_limit_m: float = setting(0.3, "Altitude error the controller acts on at most (bounded return speed).", min=0.01, max=5.0)
     reference_hz: float = setting(0.4, "Bandwidth of the smooth reference that altitude and heading targets follow.", min=0.05, max=5.0)
@@ -81,6 +92,16 @@ class FlightConfig:
     altitude_min_m: float = setting(0.4, "Lowest altitude a down command may ask for.", min=0.0, max=10.0)
     altitude_max_m: float = setting(2.6, "Highest altitude an up command may ask for.", min=0.0, max=10.0)
 
+    stop_within_s: float = setting(
+        1.0, "A stop must leave the body still within this time: rate commands are capped at what it can stop from.", min=0.3, max=10.0
+    )
+    no_flow_speed_fraction: float = setting(
+        0.5, "Without a measured speed (no optical-flow lock) forward/backward run at this fraction of the cap.", min=0.0, max=1.0
+    )
+    hover_heading_tolerance_deg: float = setting(
+        2.0, "In hover the heading loop rests while within this many degrees (the board reports whole degrees).", min=0.0, max=20.0
+    )
+
     # Quietness.
     max_output: float = setting(0.9, "Largest motor command magnitude (fraction of full).", min=0.05, max=1.0)
     slew_per_s: float = setting(25.0, "Largest change of a motor command per second (full range is 2).", min=0.1, max=100.0)
@@ -90,6 +111,7 @@ class FlightConfig:
     soften_hold_s: float = setting(0.8, "Stay soft this long after the last firm touch event.", min=0.0, max=10.0)
     firm_touch_depth: float = setting(0.5, "Relative shadow depth from which a touch counts as firm.", min=0.0, max=1.0)
     range_hold_s: float = setting(0.5, "Hold the last vertical output this long when the rangefinder drops out.", min=0.0, max=10.0)
+    telemetry_max_age_s: float = setting(0.1, "Telemetry older than this when it arrives is ignored, never acted on.", min=0.01, max=1.0)
     telemetry_stale_s: float = setting(0.3, "Telemetry older than this is stale: hold, then fail safe.", min=0.02, max=10.0)
     failsafe_buoyancy_fraction: float = setting(
         0.9, "In failsafe the vertical motors cancel this fraction of the net buoyancy: it rises slowly.", min=0.0, max=1.0

@@ -10,6 +10,8 @@ the horizontal pair), and the one-direction what-if behind that spec.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import math
 from functools import lru_cache
 
@@ -21,11 +23,13 @@ from hypothesis import strategies as st
 from feelium.daemon.config import Config
 from feelium.lab.flight import scenarios as sc
 from feelium.flight.blimp_model import BlimpParams
-from feelium.flight.controller import HANDOVER_S, THRUST_LAG_S, FlightController, _RateOnset
+from feelium.flight.controller import FlightController
+from feelium.flight.references import HANDOVER_S, THRUST_LAG_S, RateOnset as _RateOnset
 from feelium.lab.flight.latency_floor import available_accel, lag_response_time, latency_floor, one_direction_horizontal_propellers
 from feelium.flight.setpoint import setpoint_for_motion
 
-CONFIG = Config().flight
+# The tight goals are for a fitted model (what `feelium calibrate flight` writes): the plant is the config.
+CONFIG = replace(Config().flight, plant_uncertainty=1.0)
 COMMANDS = ("forward", "backward", "up", "down", "turn_left", "turn_right")
 
 

@@ -122,7 +122,7 @@ async def test_every_serial_call_runs_on_one_thread_and_stop_sends_neutral_last(
     opener = RecordingOpener(CONFIG, 1, hub.clock)
     service = FlightService(CONFIG, hub, opener)
     task = asyncio.create_task(service.run())
-    hub.motion.command("forward", now=hub.clock(), hold_s=2.0)  # motors busy, not neutral
+    hub.motion.command("forward", now=hub.clock(), hold_s=0.5)  # motors busy, not neutral
     await wait_for(lambda: service.cycles > 30)
     await service.stop()
     await asyncio.wait_for(task, 2.0)
@@ -152,7 +152,7 @@ async def test_stop_during_a_stalled_exchange_is_the_next_serial_job_and_is_neve
     opener = RecordingOpener(CONFIG, 1, hub.clock)
     service = FlightService(CONFIG, hub, opener)
     task = asyncio.create_task(service.run())
-    hub.motion.command("forward", now=hub.clock(), hold_s=2.0)
+    hub.motion.command("forward", now=hub.clock(), hold_s=0.5)
     await wait_for(lambda: service.cycles > 30)
     (link,) = opener.links
     link.stall_s = 2 * STOP_WRITE_TIMEOUT_S
@@ -185,7 +185,7 @@ async def test_a_crashed_run_leaves_motors_neutral_and_ends_its_thread_and_a_res
         return step(*args)  # type: ignore[arg-type]
 
     service.controller.step = crashing_step  # type: ignore[method-assign]
-    hub.motion.command("forward", now=hub.clock(), hold_s=2.0)
+    hub.motion.command("forward", now=hub.clock(), hold_s=0.5)
     with pytest.raises(RuntimeError, match="controller bug"):
         await asyncio.wait_for(service.run(), 5.0)
     crashed = opener.links[0]

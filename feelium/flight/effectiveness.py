@@ -1,0 +1,83 @@
+"""How strongly the real blimp answers a push, learned in flight: one bounded gain per axis and direction.
+
+The controller's config describes a nominal blimp; a real one's mass, thrust
+and reverse ratio may each be off by a factor of two, so the acceleration a
+motor command gives may be anywhere from an eighth to four times what the
+config predicts. A loop tuned for the nominal plant then overshoots on a
+strong plant (the feedback's effective gain is four times too high for the
+motor lag) and cannot stop a weak one. This estimator measures the ratio
+*effectiveness = measured change of rate / modelled change of rate* over
+short windows with real excitation, by least squares with forgetting, and
+the loops divide their forces by it. It starts at the box's *upper* bound
+(assume the strongest plant: low gains, never unstable) and is bounded by
+the box, so a burst of bad measurements cannot make it unsafe. Pushes of
+each sign are learned apart: braking uses the reverse thrust, whose ratio
+is one of the unknowns.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+
+class Effectiveness:
+    """Least-squares ratio of measured to modelled rate change over ``window_s`` windows, per push direction."""
+
+    def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
+                 memory_s: float = 6.0, min_change: float = 0.0) -> None:
+        """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
+        ``min_change``: the smallest modelled rate change over a window that counts as excitation."""
+        reverse_low = low if reverse_low is None else reverse_low
+        if not (0.0 < low <= high and 0.0 < reverse_low <= high):
+            raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
+        self.lows = [reverse_low, low]
+        self.high = high
+        self.window_s, self.memory_s, self.min_change = window_s, memory_s, min_change
+        self.values = [high, high]  # [push < 0, push > 0]
+        self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
+        self._history: deque[tuple[float, float, float]] = deque()  # (t, modelled push integral, measured rate)
+        self._push_integral = 0.0
+        self.samples = [0, 0]
+
+    def value(self, push: float) -> float:
+        """The effectiveness for a push of this sign (the larger one for no push: the safe side)."""
+        if push > 0.0:
+            return self.values[1]
+        if push < 0.0:
+            return self.values[0]
+        return max(self.values)
+
+    def assured(self, push: float) -> float:
+        """The effectiveness a safety margin may count on: the learned one once taught, else the box's lower bound."""
+        side = 1 if push > 0.0 else 0
+        return self.values[side] if self.samples[side] else self.lows[side]
+
+    def update(self, t: float, dt: float, push: float, measured_rate: float | None) -> None:
+        """Fold in one cycle: the modelled acceleration ``push`` held over ``dt`` and the measured rate at ``t``."""
+        self._push_integral += push * dt
+        if measured_rate is None or not math.isfinite(measured_rate):
+            self._history.clear()  # a gap breaks the windows
+            return
+        self._history.append((t, self._push_integral, measured_rate))
+        while len(self._history) >= 2 and self._history[1][0] <= t - self.window_s + 1e-9:
+            self._history.popleft()  # keep the newest sample at or before the window's start
+        t0, integral0, rate0 = self._history[0]
+        if t - t0 < self.window_s - 1e-6:
+            return
+        x = self._push_integral - integral0
+        if abs(x) < self.min_change:
+            return
+        y = measured_rate - rate0
+        side = 1 if x > 0 else 0
+        decay = math.exp(-dt / self.memory_s)
+        sums = self._sums[side]
+        sums[0] = sums[0] * decay + x * x
+        sums[1] = sums[1] * decay + x * y
+        self.samples[side] += 1
+        self.values[side] = min(max(sums[1] / sums[0], self.lows[side]), self.high)
+
+    def as_dict(self) -> dict[str, float | int]:
+        """For health: both directions and how many windows taught them."""
+        return {"reverse": round(self.values[0], 3), "forward": round(self.values[1], 3),
+                "reverse_samples": self.samples[0], "forward_samples": self.samples[1]}

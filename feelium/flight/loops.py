@@ -1,0 +1,328 @@
+"""The three loops: altitude, heading and surge, each from its estimate and setpoint to one force.
+
+Every loop works in accelerations and turns them into a force with the
+config's mass (or inertia) divided by the learned effectiveness, so the same
+gains hold on a blimp twice as heavy or half as strong. A rate command
+(forward, up, turn) starts through a :class:`RateOnset`, is capped at the
+rate the body can still stop from within ``stop_within_s`` (counting only on
+the braking it has shown, or the box's weakest until it has braked once),
+and on release brakes along a ramp, then holds where the body came to rest.
+In hover the horizontal loops rest inside a small band instead of chasing
+sensor noise, so the horizontal motors do not reverse back and forth.
+"""
+
+from __future__ import annotations
+
+import math
+
+from feelium.flight.config import FlightConfig
+from feelium.flight.estimators import AltitudeObserver, SurgeEstimate, ThrustModel, YawEstimate, linear_drag
+from feelium.flight.mixer import Mixer
+from feelium.flight.references import (
+    HANDOVER_S,
+    THRUST_LAG_S,
+    RateOnset,
+    Reference,
+    ramp_to_zero,
+    stoppable_rate,
+    wrap_deg,
+)
+from feelium.flight.setpoint import Setpoint
+
+SETTLE_S = 0.6  # damping-only phase after a braking ramp
+RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an outage
+SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
+STOPPED_SPEED_M_S = 0.05  # the stop goal's thresholds (docs/flight-robustness.md)
+STOPPED_YAW_DPS = 3.0
+BRAKE_SHARE = 0.7  # of the full reverse authority a stop may count on (the rest: drag, the other loop, slew)
+HOVER_SPEED_BAND_M_S = 0.04  # in hover the surge loop rests below this measured speed...
+HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
+HOVER_GAIN = 0.5  # a hover correction is gentle: it must not overshoot into a correction the other way
+
+
+class _Band:
+    """Hysteresis for a hover loop: engage when the error leaves the band, rest once it is well inside.
+
+    Inside the band the push keeps the sign it last had outside (the other sign rests instead):
+    a correction that overshoots a little is left to the air's drag, not answered by reversing
+    the motors, which in hover is what made the horizontal pair reverse several times a second.
+    Outside the band the loop acts either way.
+    """
+
+    def __init__(self) -> None:
+        self.engaged = True
+        self.outside = True
+        self.sign = 0.0
+
+    def release(self) -> None:
+        self.engaged, self.sign = False, 0.0
+
+    def update(self, outside: bool, well_inside: bool) -> bool:
+        self.outside = outside
+        if outside:
+            self.engaged = True
+        elif well_inside:
+            self.release()
+        return self.engaged
+
+    def same_sign(self, push: float) -> float:
+        """``push``, or 0 when inside the band it would reverse the direction it had."""
+        if (self.outside or self.sign == 0.0) and push != 0.0:
+            self.sign = math.copysign(1.0, push)
+        return push if push * self.sign >= 0.0 else 0.0
+
+
+class AltitudeLoop:
+    """Altitude hold, climb and descent on the rangefinder, with the net buoyancy as feed-forward."""
+
+    def __init__(self, config: FlightConfig, mixer: Mixer) -> None:
+        self.c, self.mixer = config, mixer
+        self.target: float | None = None
+        self.ref = Reference(2.0 * math.pi * config.reference_hz)
+        self.climbing = False
+        self.onset = RateOnset()
+        self.braking = False
+        self.settle_until: float | None = None
+        self.up_n = -config.net_buoyancy_n
+
+    def restart(self, z: float) -> None:
+        """Hold here from now on (first reading, or back from a failsafe)."""
+        self.target = z
+        self.ref.reset(z)
+
+    def recover(self, t: float) -> None:
+        """Back from an outage, probably drifting: damp it out, then hold where it comes to rest (inside the limits)."""
+        self.climbing = self.braking = False
+        self.settle_until = t + RECOVERY_SETTLE_S
+
+    def step(self, t: float, dt: float, sp: Setpoint, obs: AltitudeObserver, thrust: ThrustModel, gain: float, soft: bool) -> float:
+        c = self.c
+        z = obs.z
+        assert z is not None and self.target is not None
+        ref = self.ref
+        climb = 0.0 if soft else sp.climb_m_s
+        rate_ahead = 0.0
+        if climb:
+            if not self.climbing:
+                self.onset.start(obs.vz, obs.accel(thrust.vertical))
+            self.climbing = True
+            target = self._climb_within_limits(z, obs.vz, climb)
+            ref.rate, rate_ahead, ref.accel = self.onset.step(target, self._accel_limits(obs, self.onset.rate), dt)
+            ref.value = min(max(ref.value + ref.rate * dt, z - 0.25, c.altitude_min_m), z + 0.25, c.altitude_max_m)
+            self.target = ref.value
+        elif self.climbing:
+            # Just released: decelerate along a planned ramp from the present climb rate, then hold.
+            self.climbing = False
+            ref.reset(z, obs.vz)
+            self.braking = True
+        p_gain = 0.0 if climb else 1.0
+        if not climb and self.braking:
+            ref.rate, ref.accel = ramp_to_zero(ref.rate, c.brake_climb_m_s2, dt)
+            ref.value += ref.rate * dt
+            self.target = ref.value
+            if ref.rate == 0.0:
+                self.braking, self.settle_until = False, t + SETTLE_S
+        elif not climb and self.settle_until is not None:
+            # Damp out what is left and hold where it comes to rest, never outside the limits.
+            p_gain, gain = 0.0, gain * SETTLE_DAMPING / max(c.altitude_kd, 1e-6)
+            ref.reset(z)
+            self.target = min(max(z, c.altitude_min_m), c.altitude_max_m)
+            if t >= self.settle_until:
+                self.settle_until = None
+                ref.reset(z)
+        elif not climb:
+            if sp.altitude_m is not None:
+                self.target = sp.altitude_m
+            self.target = min(max(self.target, c.altitude_min_m), c.altitude_max_m)
+            ref.advance(self.target - ref.value, dt)
+        error = min(max(ref.value - z, -c.altitude_error_limit_m), c.altitude_error_limit_m)
+        rate_ref = rate_ahead if climb else ref.rate
+        predicted = obs.vz + obs.accel(thrust.vertical) * THRUST_LAG_S
+        accel = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - predicted)) + ref.accel - obs.disturbance
+        up_n = c.mass_kg * accel - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
+        lo, hi = self.mixer.limits_up_n()
+        saturated = up_n >= hi or up_n <= lo
+        # Anti-windup: the disturbance (the integral) learns only while the loop is in charge: not
+        # saturated, not softened by a partner, and not far *below* its target (a partner holding the
+        # body down must not wind it up into a lunge when let go). Far *above* it still learns: a weak
+        # blimp pinned under the ceiling must learn to push down harder, and up is where it fails safe.
+        below = max(ref.value - z, self.target - z) > c.altitude_integral_band_m
+        obs.freeze_disturbance = soft or saturated or below
+        self.up_n = min(max(up_n, lo), hi)
+        return self.up_n
+
+    def _climb_within_limits(self, z: float, vz: float, climb: float) -> float:
+        """The commanded climb rate, slowed near the altitude limits so that a held up or down stops there."""
+        c = self.c
+        z_ahead = z + vz * (HANDOVER_S + THRUST_LAG_S * c.plant_uncertainty)
+        room = c.altitude_max_m - z_ahead if climb > 0 else z_ahead - c.altitude_min_m
+        allowed = math.sqrt(2.0 * 0.25 * c.brake_climb_m_s2 * max(room, 0.0))
+        return math.copysign(min(abs(climb), allowed), climb)
+
+    def _accel_limits(self, obs: AltitudeObserver, rate: float) -> tuple[float, float]:
+        c = self.c
+        lo, hi = self.mixer.limits_up_n()
+        drag = linear_drag(rate, c.quadratic_drag)
+        return ((lo + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance,
+                (hi + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance)
+
+
+class HeadingLoop:
+    """Heading hold and turns on the gyro, normalised by the learned yaw effectiveness."""
+
+    def __init__(self, config: FlightConfig, mixer: Mixer) -> None:
+        self.c, self.mixer = config, mixer
+        self.target: float | None = None
+        self.ref = Reference(2.0 * math.pi * config.reference_hz)
+        self.turning = False
+        self.onset = RateOnset()
+        self.braking = False
+        self.settle_until: float | None = None
+        self.band = _Band()
+        self.turn_cap_dps = config.yaw_rate_dps
+
+    def restart(self, heading: float) -> None:
+        self.target = heading
+        self.ref.reset(heading)
+
+    def recover(self, t: float) -> None:
+        self.turning = self.braking = False
+        self.settle_until = t + RECOVERY_SETTLE_S
+
+    def step(self, t: float, dt: float, sp: Setpoint, est: YawEstimate, thrust: ThrustModel, gain: float) -> float:
+        c = self.c
+        if est.heading is None or self.target is None:
+            return 0.0
+        ref = self.ref
+        self.turn_cap_dps = self._stoppable_dps(est)
+        turn = 0.0 if sp.soften else math.copysign(min(abs(sp.yaw_rate_dps), self.turn_cap_dps), sp.yaw_rate_dps)
+        rate_ahead = 0.0
+        if turn:
+            if not self.turning:
+                self.onset.start(math.degrees(self._rate_now(est, thrust)), math.degrees(est.accel(thrust.yaw)))
+            self.turning = True
+            ref.rate, rate_ahead, ref.accel = self.onset.step(turn, self._accel_limits_dps2(est, self.onset.rate), dt)
+            ahead = wrap_deg(ref.value + ref.rate * dt - est.heading)
+            ref.value = (est.heading + min(max(ahead, -20.0), 20.0)) % 360.0
+            self.target = ref.value
+        elif self.turning:
+            self.turning = False
+            ref.reset(est.heading, est.rate_dps)
+            self.braking = True
+        p_gain = 0.0 if turn else 1.0
+        hover = False
+        if not turn and self.braking:
+            ref.rate, ref.accel = ramp_to_zero(ref.rate, c.brake_yaw_dps2, dt)
+            ref.value = (ref.value + ref.rate * dt) % 360.0
+            self.target = ref.value
+            if ref.rate == 0.0:
+                self.braking, self.settle_until = False, t + SETTLE_S
+        elif not turn and self.settle_until is not None:
+            p_gain, gain = 0.0, gain * SETTLE_DAMPING / max(c.heading_kd, 1e-6)
+            ref.reset(est.heading)
+            self.target = est.heading
+            if t >= self.settle_until:
+                self.settle_until = None
+        elif not turn:
+            hover = sp.heading_deg is None
+            if sp.heading_deg is not None:
+                self.target = sp.heading_deg % 360.0
+            ref.advance(wrap_deg(self.target - ref.value), dt)
+            ref.value %= 360.0
+        error_deg = wrap_deg(ref.value - est.heading)
+        if hover:
+            tolerance = c.hover_heading_tolerance_deg
+            outside = abs(wrap_deg(self.target - est.heading)) > tolerance or abs(est.rate_dps) > 2.0 * HOVER_YAW_BAND_DPS
+            inside = abs(wrap_deg(self.target - est.heading)) < 0.5 * tolerance and abs(est.rate_dps) < HOVER_YAW_BAND_DPS
+            if not self.band.update(outside, inside):
+                return 0.0
+            gain *= HOVER_GAIN
+        else:
+            self.band.release()
+            self.band.engaged = True
+        error = math.radians(min(max(error_deg, -45.0), 45.0))
+        predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (0.06 + THRUST_LAG_S)
+        rate_error = math.radians(rate_ahead if turn else ref.rate) - predicted
+        alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
+        r_ref = math.radians(ref.rate)
+        torque = c.yaw_inertia_kg_m2 * alpha / est.effectiveness.value(alpha) + c.yaw_drag * r_ref * abs(r_ref)
+        return self.band.same_sign(torque) if hover else torque
+
+    def _rate_now(self, est: YawEstimate, thrust: ThrustModel) -> float:
+        """The yaw rate (rad/s) now: the filtered gyro brought forward over its filter lag."""
+        return math.radians(est.rate_dps) + est.accel(thrust.yaw) * 0.06
+
+    def _stoppable_dps(self, est: YawEstimate) -> float:
+        c = self.c
+        torque = self.mixer.limit_yaw_nm() * BRAKE_SHARE
+        decel = math.degrees(min(est.effectiveness.assured(1.0), est.effectiveness.assured(-1.0)) * torque / c.yaw_inertia_kg_m2)
+        decel = min(decel, c.brake_yaw_dps2)
+        lag = THRUST_LAG_S * c.plant_uncertainty + 0.1
+        return min(c.yaw_rate_dps, stoppable_rate(decel, c.stop_within_s, lag, 0.7 * STOPPED_YAW_DPS))
+
+    def _accel_limits_dps2(self, est: YawEstimate, rate_dps: float) -> tuple[float, float]:
+        c = self.c
+        r = math.radians(rate_dps)
+        torque, drag = self.mixer.limit_yaw_nm(), c.yaw_drag * r * abs(r)
+        return (math.degrees((-torque * est.effectiveness.value(-1.0) - drag) / c.yaw_inertia_kg_m2),
+                math.degrees((torque * est.effectiveness.value(1.0) - drag) / c.yaw_inertia_kg_m2))
+
+
+class SurgeLoop:
+    """Forward speed on the measured speed (optical flow), normalised by the learned surge effectiveness."""
+
+    def __init__(self, config: FlightConfig, mixer: Mixer) -> None:
+        self.c, self.mixer = config, mixer
+        self.ref_speed = 0.0
+        self.surging = False
+        self.onset = RateOnset()
+        self.band = _Band()
+        self.speed_cap = config.forward_speed_m_s
+
+    def step(self, t: float, dt: float, speed_sp: float, gain: float, est: SurgeEstimate, thrust: ThrustModel) -> float:
+        c = self.c
+        self.speed_cap = self._stoppable_speed(t, est, speed_sp)
+        speed_sp = math.copysign(min(abs(speed_sp), self.speed_cap), speed_sp) if speed_sp else 0.0
+        if speed_sp:
+            if not self.surging:
+                self.onset.start(est.speed, est.accel(thrust.surge))
+            self.surging = True
+            self.band.release()
+            self.band.engaged = True
+            self.ref_speed, v_ahead, accel = self.onset.step(speed_sp, self._accel_limits(est, self.onset.rate), dt)
+        else:  # released: brake along a ramp the reverse thrust can follow
+            self.surging = False
+            self.ref_speed, accel = ramp_to_zero(min(self.ref_speed, est.speed, key=abs), c.brake_m_s2, dt)
+            v_ahead = self.ref_speed
+            if self.ref_speed == 0.0 and est.measured(t):
+                outside = abs(est.speed) > 1.5 * HOVER_SPEED_BAND_M_S
+                if not self.band.update(outside, abs(est.speed) < HOVER_SPEED_BAND_M_S):
+                    return 0.0
+        hover = not speed_sp and self.ref_speed == 0.0 and est.measured(t)
+        if not hover and not speed_sp:
+            self.band.release()
+            self.band.engaged = True
+        v = self.ref_speed
+        predicted = est.speed + est.accel(thrust.surge) * THRUST_LAG_S
+        wanted = accel + gain * c.speed_kp * (v_ahead - predicted)
+        force = c.mass_kg * wanted / est.effectiveness.value(wanted) + linear_drag(v, c.quadratic_drag)
+        return self.band.same_sign(force) if hover else force
+
+    def _stoppable_speed(self, t: float, est: SurgeEstimate, speed_sp: float) -> float:
+        """The fastest speed this blimp has shown it can stop from in time (reverse thrust for forward)."""
+        c = self.c
+        lo, hi = self.mixer.limits_surge_n()
+        braking_n = (-lo if speed_sp >= 0 else hi) * BRAKE_SHARE
+        effectiveness = est.effectiveness.assured(-1.0 if speed_sp >= 0 else 1.0)
+        decel = min(effectiveness * braking_n / c.mass_kg, c.brake_m_s2 * 2.0)
+        lag = THRUST_LAG_S * c.plant_uncertainty + 0.1
+        cap = min(c.forward_speed_m_s, stoppable_rate(decel, c.stop_within_s, lag, 0.7 * STOPPED_SPEED_M_S))
+        if not est.measured(t):
+            cap *= c.no_flow_speed_fraction
+        return cap
+
+    def _accel_limits(self, est: SurgeEstimate, speed: float) -> tuple[float, float]:
+        c = self.c
+        lo, hi = self.mixer.limits_surge_n()
+        drag = linear_drag(speed, c.quadratic_drag)
+        return ((lo * est.effectiveness.value(-1.0) - drag) / c.mass_kg, (hi * est.effectiveness.value(1.0) - drag) / c.mass_kg)

@@ -1,0 +1,89 @@
+"""The references the loops follow: smooth targets, rate-command onsets and braking ramps.
+
+Pure numerical pieces shared by the altitude, heading and surge loops; each
+is a few lines of state advanced by ``dt``, so each is tested alone.
+"""
+
+from __future__ import annotations
+
+import math
+
+THRUST_LAG_S = 0.08  # the config model's motor lag (a real one is 40-150 ms; the loops are robust to that)
+HANDOVER_S = 0.15  # time constant of the last part of a rate onset, where full thrust hands over to the rate loop
+
+
+def wrap_deg(angle: float) -> float:
+    """An angle difference folded into [-180, 180)."""
+    return (angle + 180.0) % 360.0 - 180.0
+
+
+class Reference:
+    """A critically damped second-order reference: targets are approached smoothly, never jumped to."""
+
+    def __init__(self, omega: float) -> None:
+        self.omega = omega
+        self.value = 0.0
+        self.rate = 0.0
+        self.accel = 0.0
+
+    def reset(self, value: float, rate: float = 0.0) -> None:
+        self.value, self.rate, self.accel = value, rate, 0.0
+
+    def advance(self, error: float, dt: float) -> None:
+        """Move toward ``value + error`` (error given, so angles can wrap)."""
+        w = self.omega
+        self.accel = w * w * error - 2.0 * w * self.rate
+        self.rate += self.accel * dt
+        self.value += self.rate * dt
+
+
+class RateOnset:
+    """The reference a rate command (forward, up, turn...) follows from its first cycle.
+
+    A step in the reference rate asked for only gain x rate error at onset, well
+    short of what the motors can give, so the body got going late. This
+    reference instead models the body as the controller's feed-forward will
+    move it: its acceleration follows the commanded one through the motor lag
+    (``THRUST_LAG_S``). The command is the largest acceleration the actuators
+    allow (``limits``) until the reference's *lag-aware predicted* rate
+    (``rate + accel x lag``: where it ends up if the command went to zero now)
+    comes within ``HANDOVER_S`` of the commanded rate, then tapers
+    exponentially. The predicted rate moves exactly at the commanded
+    acceleration, so it never passes the commanded rate, and the rate itself,
+    which trails it by the lag, does not either.
+    """
+
+    def __init__(self) -> None:
+        self.rate = 0.0
+        self.accel = 0.0  # after the motor lag
+
+    def start(self, rate: float, accel: float) -> None:
+        """Begin from the body's present rate and (modelled) acceleration, so nothing jumps."""
+        self.rate, self.accel = rate, accel
+
+    @property
+    def predicted(self) -> float:
+        return self.rate + self.accel * THRUST_LAG_S
+
+    def step(self, target: float, limits: tuple[float, float], dt: float) -> tuple[float, float, float]:
+        """This cycle's reference (rate, predicted rate, acceleration command); then advance over ``dt``."""
+        rate, predicted = self.rate, self.predicted
+        lo, hi = min(limits[0], 0.0), max(limits[1], 0.0)
+        command = min(max((target - predicted) / max(HANDOVER_S, dt), lo), hi)
+        decay = math.exp(-dt / THRUST_LAG_S)  # the command held over dt through the lag, exactly
+        self.rate += command * dt + (self.accel - command) * THRUST_LAG_S * (1.0 - decay)
+        self.accel = command + (self.accel - command) * decay
+        return rate, predicted, command
+
+
+def ramp_to_zero(rate: float, decel: float, dt: float) -> tuple[float, float]:
+    """One step of a constant-deceleration ramp from ``rate`` to zero: (new rate, acceleration)."""
+    step = decel * dt
+    if abs(rate) <= step:
+        return 0.0, -rate / dt if dt > 0 else 0.0
+    return rate - math.copysign(step, rate), -math.copysign(decel, rate)
+
+
+def stoppable_rate(decel: float, within_s: float, lag_s: float, stopped_below: float) -> float:
+    """The fastest rate a body braking at ``decel`` after a ``lag_s`` dead time gets under ``stopped_below`` within ``within_s``."""
+    return stopped_below + decel * max(within_s - lag_s, 0.0)

@@ -1,0 +1,160 @@
+"""The safety flight: one scripted flight per plant that measures every safety goal of the controller.
+
+It is what a careful user does to a blimp they do not trust: hover and
+listen to the motors, drive forward and say ``stop``, drive and let go,
+back up, turn both ways, climb into the ceiling limit and sink to the floor
+limit, all through the dead-man path the headset uses (refreshed every
+0.1 s). Everything is measured on the simulator's *true* state. The goals
+(``docs/flight-robustness.md``):
+
+- stopped (surge speed under 5 cm/s and yaw rate under 3 deg/s, and staying so)
+  within 1.0 s of an explicit ``stop`` and within 1.5 s of the last refresh;
+- never over 120 % of the commanded speed or turn rate;
+- never outside [altitude_min, altitude_max] by more than 10 cm;
+- at most 0.5 direction reversals per second of either horizontal motor in hover.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from feelium.flight.config import FlightConfig
+from feelium.flight.setpoint import setpoint_for_motion
+from feelium.flight.sim_board import BoardParams, SensorParams, board_with
+from feelium.lab.flight.plants import MILD_DRAFTS, Plant
+from feelium.lab.flight.simulation import Controller, SimFlight
+from feelium.motion import DeadManCommands
+
+START_ALTITUDE_M = 1.2
+SETTLE_S = 6.0
+HOVER_S = 15.0
+HELD_S = 3.0
+OBSERVE_S = 3.0
+REFRESH_S = 0.1
+HOLD_S = 0.5
+STOPPED_SPEED_M_S = 0.05
+STOPPED_YAW_DPS = 3.0
+
+GOALS = {"stop_s": 1.0, "lapse_s": 1.5, "speed_peak_fraction": 1.2, "turn_peak_fraction": 1.2,
+         "altitude_excursion_m": 0.1, "hover_reversals_per_s": 0.5}
+
+
+@dataclass
+class SafetyResult:
+    """The worst figure of each goal over the flight, and each manoeuvre's own."""
+
+    plant: str
+    stop_s: float = 0.0  # explicit stop -> stopped, worst manoeuvre
+    lapse_s: float = 0.0  # last refresh -> stopped, worst manoeuvre
+    speed_peak_fraction: float = 0.0
+    turn_peak_fraction: float = 0.0
+    altitude_excursion_m: float = 0.0  # furthest outside [altitude_min, altitude_max]
+    hover_reversals_per_s: float = 0.0
+    manoeuvres: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def failures(self) -> dict[str, float]:
+        """The goals this flight missed, with the figure."""
+        return {key: getattr(self, key) for key, limit in GOALS.items() if not getattr(self, key) <= limit}
+
+    def figures(self) -> dict[str, float]:
+        return {key: getattr(self, key) for key in GOALS}
+
+
+def reversals_per_s(commands: np.ndarray, deadband: float, seconds: float) -> float:
+    """Direction changes of one motor per second: sign changes between commands that spin it (outside the deadband)."""
+    spinning = commands[np.abs(commands) > deadband]
+    if spinning.size < 2:
+        return 0.0
+    return float(np.count_nonzero(np.diff(np.sign(spinning)) != 0) / max(seconds, 1e-9))
+
+
+def stopped_after(t: np.ndarray, u: np.ndarray, r_dps: np.ndarray, since: float, until: float) -> float:
+    """Seconds from ``since`` until surge and yaw rate are below the stop thresholds for good (up to ``until``)."""
+    window = (t >= since) & (t <= until)
+    moving = (np.abs(u[window]) >= STOPPED_SPEED_M_S) | (np.abs(r_dps[window]) >= STOPPED_YAW_DPS)
+    times = t[window]
+    if not moving.any():
+        return 0.0
+    last = int(np.nonzero(moving)[0][-1])
+    if last == moving.size - 1:
+        return float("inf")
+    return float(times[last + 1] - since)
+
+
+class _Pilot:
+    """Drives a SimFlight through the dead-man path, as the headset does."""
+
+    def __init__(self, flight: SimFlight, config: FlightConfig) -> None:
+        self.flight, self.config = flight, config
+        self.dead_man = DeadManCommands()
+        self.last_refresh = -np.inf
+
+    def fly(self, seconds: float, refresh: str | None = None, until_refresh: float | None = None) -> None:
+        """Step ``seconds``; refresh ``refresh`` every 0.1 s while before ``until_refresh``."""
+        end = self.flight.t + seconds - 1e-9
+        last = -np.inf
+        while self.flight.t < end:
+            now = self.flight.t + self.flight.period
+            if refresh and (until_refresh is None or now <= until_refresh) and now - last >= REFRESH_S - 1e-9:
+                self.dead_man.command(refresh, now, hold_s=HOLD_S)
+                last = self.last_refresh = now
+            active = self.dead_man.active(now)
+            self.flight.step(setpoint_for_motion(active.name if active else None, self.config))
+
+    def command(self, name: str) -> None:
+        self.dead_man.command(name, self.flight.t + self.flight.period, hold_s=HOLD_S)
+
+
+def safety_flight(config: FlightConfig, plant: Plant, seed: int = 1, controller: Controller | None = None,
+                  flow: bool = True, report: Callable[[str], None] | None = None) -> SafetyResult:
+    """Fly the whole script on ``plant``; ``flow=False`` is a board without the optical-flow sensor."""
+    board = board_with(BoardParams(blimp=plant.blimp, drafts=MILD_DRAFTS, sensors=SensorParams(flow_fitted=flow)),
+                       z=START_ALTITUDE_M)
+    flight = SimFlight(config, board, seed=seed, controller=controller)
+    pilot = _Pilot(flight, config)
+    result = SafetyResult(plant.name)
+    deadband = plant.blimp.horizontal_motor.deadband
+
+    pilot.fly(SETTLE_S)
+    start = flight.cycles
+    pilot.fly(HOVER_S)
+    m1, m2 = flight.log["m1"][start:], flight.log["m2"][start:]
+    result.hover_reversals_per_s = max(reversals_per_s(m1, deadband, HOVER_S), reversals_per_s(m2, deadband, HOVER_S))
+
+    for name, ending in (("forward", "stop"), ("forward", "lapse"), ("backward", "stop"),
+                         ("turn_right", "stop"), ("turn_left", "lapse")):
+        t_issue = flight.t
+        if ending == "stop":
+            pilot.fly(HELD_S, refresh=name)
+            t_end = flight.t
+            pilot.command("stop")
+            pilot.fly(OBSERVE_S)
+        else:
+            pilot.fly(HELD_S + HOLD_S + OBSERVE_S, refresh=name, until_refresh=t_issue + HELD_S)
+            t_end = pilot.last_refresh
+        t, rows = flight.log["t"], flight.log
+        held = (t > t_issue) & (t <= t_end)
+        if name in ("forward", "backward"):
+            peak = float(np.max(np.abs(rows["u"][held]))) / config.forward_speed_m_s
+            result.speed_peak_fraction = max(result.speed_peak_fraction, peak)
+        else:
+            peak = float(np.max(np.abs(rows["r_dps"][held]))) / config.yaw_rate_dps
+            result.turn_peak_fraction = max(result.turn_peak_fraction, peak)
+        stop = stopped_after(t, rows["u"], rows["r_dps"], t_end, flight.t)
+        if ending == "stop":
+            result.stop_s = max(result.stop_s, stop)
+        else:
+            result.lapse_s = max(result.lapse_s, stop)
+        result.manoeuvres[f"{name}-{ending}"] = {"peak_fraction": round(peak, 3), "stop_s": round(stop, 3)}
+
+    for name, seconds in (("up", 9.0), ("down", 12.0)):
+        pilot.fly(seconds, refresh=name)
+        pilot.fly(3.0)
+    z = flight.log["z"][int(SETTLE_S * config.rate_hz):]
+    result.altitude_excursion_m = float(max(0.0, np.max(z) - config.altitude_max_m, config.altitude_min_m - np.min(z)))
+    if report is not None:
+        report(f"{plant.name}: " + ", ".join(f"{k}={v:.3g}" for k, v in result.figures().items()))
+    return result
