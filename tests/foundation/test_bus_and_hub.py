@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from feelium.bus import EventBus
 from feelium.events import PresenceEvent, TouchEvent
 from feelium.hub import Latest, StateBoard
-from feelium.motion import DeadManCommands
+from feelium.motion import MAX_HOLD_S, DeadManCommands
 
 
 def _touch(i: int) -> TouchEvent:
@@ -87,7 +87,7 @@ def test_dead_man_rejects_unknown_motion():
         DeadManCommands().command("fly", now=0.0)
 
 
-@given(st.lists(st.tuples(st.sampled_from(["forward", "up", "stop"]), st.floats(0.01, 2.0)), max_size=30))
+@given(st.lists(st.tuples(st.sampled_from(["forward", "up", "stop"]), st.floats(0.01, MAX_HOLD_S)), max_size=30))
 def test_dead_man_never_outlives_its_hold(commands):
     dm = DeadManCommands()
     now = 0.0
