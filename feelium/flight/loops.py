@@ -35,7 +35,7 @@ SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 STOPPED_SPEED_M_S = 0.05  # the stop goal's thresholds (docs/flight-robustness.md)
 STOPPED_YAW_DPS = 3.0
 BRAKE_SHARE = 0.7  # of the full reverse authority a stop may count on (the rest: drag, the other loop, slew)
-HOVER_SPEED_BAND_M_S = 0.04  # in hover the surge loop rests below this measured speed...
+HOVER_SPEED_BAND_M_S = 0.025  # in hover the surge loop rests below this measured speed (acts above 0.04)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
 HOVER_GAIN = 0.5  # a hover correction is gentle: it must not overshoot into a correction the other way
 
@@ -295,7 +295,7 @@ class SurgeLoop:
             self.ref_speed, accel = ramp_to_zero(min(self.ref_speed, est.speed, key=abs), c.brake_m_s2, dt)
             v_ahead = self.ref_speed
             if self.ref_speed == 0.0 and est.measured(t):
-                outside = abs(est.speed) > 1.5 * HOVER_SPEED_BAND_M_S
+                outside = abs(est.speed) > 1.6 * HOVER_SPEED_BAND_M_S
                 if not self.band.update(outside, abs(est.speed) < HOVER_SPEED_BAND_M_S):
                     return 0.0
         hover = not speed_sp and self.ref_speed == 0.0 and est.measured(t)
