@@ -26,6 +26,10 @@ def register(registry: CommandRegistry) -> None:
     bench.add_argument("--out", default="bench-out/flight", help="directory for the JSON and PNG plots")
     bench.add_argument("--seed", type=int, default=1, help="simulation seed")
     bench.add_argument("--config", help="TOML config file (its [flight] section is used)")
+    bench.add_argument("--plants", type=int, help="instead: the safety goals across N randomised plants (corners first), median and worst")
+    bench.add_argument("--json", help="with --plants: write the report here (default: print it)")
+    bench.add_argument("--workers", type=int, default=1, help="with --plants: processes flying plants in parallel")
+    bench.add_argument("--no-flow", action="store_true", help="with --plants: a board without the optical-flow sensor")
 
 
 def _probe(args: argparse.Namespace) -> int:
@@ -47,6 +51,13 @@ def _bench(args: argparse.Namespace) -> int:
     from feelium.lab.flight.bench import format_table, run_bench
 
     config = load_config(args.config).flight
+    if args.plants:
+        from feelium.lab.flight.plant_bench import format_plant_table, run_plant_bench
+        from feelium.lab.report import emit_report
+
+        report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow)
+        emit_report(format_plant_table(report), report, args.json)
+        return 0
     results = run_bench(config, Path(args.out), seed=args.seed)
     print(format_table(results))
     print(f"JSON and plots in {args.out}/")

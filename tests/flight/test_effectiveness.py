@@ -1,0 +1,63 @@
+"""The in-flight effectiveness estimate: it finds the plant's true gain, stays in its box, and starts safe."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.flight.effectiveness import Effectiveness
+from feelium.flight.estimators import effectiveness_bounds
+
+
+def _fly(estimator: Effectiveness, gains: tuple[float, float], seconds: float = 6.0, noise: float = 0.0, seed: int = 1) -> None:
+    """A first-order body pushed forward and back in turn; its true rate changes by ``gain * push``."""
+    rng = np.random.default_rng(seed)
+    rate, dt = 0.0, 0.02
+    for k in range(int(seconds / dt)):
+        push = 0.5 * math.sin(2 * math.pi * k * dt / 1.5)
+        rate += (gains[1] if push > 0 else gains[0]) * push * dt
+        estimator.update(k * dt, dt, push, rate + noise * float(rng.standard_normal()))
+
+
+def test_it_starts_at_the_strongest_plant_and_counts_only_on_the_weakest() -> None:
+    estimator = Effectiveness(0.25, 4.0, reverse_low=0.125)
+    assert estimator.value(1.0) == estimator.value(-1.0) == 4.0  # low gains until measured: never unstable
+    assert estimator.assured(1.0) == 0.25 and estimator.assured(-1.0) == 0.125  # what a stop may count on
+
+
+@pytest.mark.parametrize("gains", [(0.3, 0.6), (1.0, 1.0), (2.5, 3.5)])
+def test_it_learns_each_direction_apart(gains: tuple[float, float]) -> None:
+    estimator = Effectiveness(0.125, 4.0)
+    _fly(estimator, gains, noise=0.002)
+    assert estimator.value(-1.0) == pytest.approx(gains[0], rel=0.15)
+    assert estimator.value(1.0) == pytest.approx(gains[1], rel=0.15)
+    assert estimator.assured(1.0) == estimator.value(1.0)  # once taught, the margin uses what was measured
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.01, 50.0), st.floats(0.0, 0.2), st.integers(0, 1000))
+def test_it_never_leaves_its_box(gain: float, noise: float, seed: int) -> None:
+    estimator = Effectiveness(0.25, 4.0)
+    _fly(estimator, (gain, gain), seconds=3.0, noise=noise, seed=seed)
+    for push in (-1.0, 1.0):
+        assert 0.25 <= estimator.value(push) <= 4.0
+
+
+def test_a_gap_in_the_measurement_breaks_the_window_instead_of_spanning_it() -> None:
+    estimator = Effectiveness(0.25, 4.0)
+    for k in range(10):
+        estimator.update(k * 0.02, 0.02, 1.0, 0.02 * k if k < 5 else None)
+    assert estimator.samples == [0, 0]  # 0.1 s of data, then nothing: no window was complete
+    estimator.update(1.0, 0.02, 1.0, float("nan"))
+    assert estimator.samples == [0, 0]
+
+
+def test_the_box_widens_with_the_uncertainty_and_reverse_is_wider() -> None:
+    assert effectiveness_bounds(1.0, reverse=False) == (1.0, 1.0)  # a trusted model: nothing to learn
+    low, high = effectiveness_bounds(2.0, reverse=False)
+    low_r, _ = effectiveness_bounds(2.0, reverse=True)
+    assert (low, high) == (0.25, 4.0) and low_r == 0.125
