@@ -77,6 +77,7 @@ class Burst:
     replies: dict[int, MspFrame] = field(default_factory=dict)
     heard: bool = False
     stale_bytes: int = 0
+    late: int = 0
     unmatched: int = 0
 
 
@@ -139,13 +140,22 @@ class MspClient:
 
     # ---- single requests (probe, conformance tests) ----
     def request(self, command: int, payload: bytes = b"") -> MspFrame:
-        """Send one request and return its reply; raises :class:`MspTimeout` or :class:`MspErrorReply`."""
+        """Send one request and return its reply; raises :class:`MspTimeout` or :class:`MspErrorReply`.
+
+        A request that went unanswered leaves the line in doubt (was it lost, or is its reply
+        still coming?), so the next one waits for a quiet line first: a retried command must
+        not take, or be taken for, the earlier one's reply.
+        """
+        name = f"MSP command {command} ({m.COMMAND_NAMES.get(command, '?')})"
+        if not self._wait_settled():
+            raise MspTimeout(f"the line did not go quiet within {self.quiet_s + self.timeout_s} s before {name}")
         replies = self.exchange([(command, payload)])
         frame = replies.get(command)
         if frame is None:
-            raise MspTimeout(f"no reply to MSP command {command} ({m.COMMAND_NAMES.get(command, '?')}) within {self.timeout_s} s")
+            self._resync(self.clock())
+            raise MspTimeout(f"no reply to {name} within {self.timeout_s} s")
         if frame.is_error:
-            raise MspErrorReply(f"board rejected MSP command {command} ({m.COMMAND_NAMES.get(command, '?')})")
+            raise MspErrorReply(f"board rejected {name}")
         return frame
 
     def api_version(self) -> m.ApiVersion:
@@ -240,6 +250,7 @@ class MspClient:
             self.error_replies[frame.command] = self.error_replies.get(frame.command, 0) + 1
         if request.burst != burst.number:
             self.late_replies += 1
+            burst.late += 1
             return
         burst.replies[frame.command] = frame
         self.last_reply_t = self.clock()
@@ -280,7 +291,7 @@ class MspClient:
         stalled or resynchronising it returns at once with no fields.
         """
         now = self.clock()
-        if self.state != "up" and not self._settled(now):
+        if not self._settled(now):
             return Telemetry(t=now)
         requests = [(command, b"") for command in POLL_COMMANDS]
         if with_battery:
@@ -290,9 +301,14 @@ class MspClient:
         return self._telemetry(burst.replies, burst.t)
 
     def _judge(self, burst: Burst) -> None:
-        """After a burst: a silent board is stalled; a backlog, repeated stale bytes or a stray reply mean resync."""
+        """After a burst: a silent board is stalled; a backlog, repeated stale bytes or a stray reply mean resync.
+
+        Late replies count as stale: a board that keeps answering an earlier burst is either
+        lagging past the timeout or lost a request (so every reply is taken for the one before);
+        either way only a quiet line sorts it out.
+        """
         self._silent_bursts = 0 if burst.heard else self._silent_bursts + 1
-        self._stale_run = self._stale_run + 1 if burst.stale_bytes else 0
+        self._stale_run = self._stale_run + 1 if burst.stale_bytes or burst.late else 0
         if self._silent_bursts >= self.stall_bursts:
             self._stall()
         elif burst.unmatched or self._stale_run >= self.stale_bursts or len(self._outstanding) > self.max_outstanding:
@@ -317,9 +333,19 @@ class MspClient:
         self._outstanding.clear()
         self._silent_bursts = self._stale_run = 0
 
-    def _settled(self, now: float) -> bool:
-        """Listen without blocking while stalled or resynchronising; True once replies can be trusted again."""
-        heard, noisy = self._discard_waiting()
+    def _wait_settled(self) -> bool:
+        """Block (request() only; the control loop never waits) until replies can be trusted, or give up."""
+        deadline = self.clock() + self.quiet_s + self.timeout_s
+        while not self._settled(self.clock(), block=True):
+            if self.clock() >= deadline:
+                return False
+        return True
+
+    def _settled(self, now: float, block: bool = False) -> bool:
+        """Listen while stalled or resynchronising; True once replies can be trusted again (at once when up)."""
+        if self.state == "up":
+            return True
+        heard, noisy = self._discard_waiting(block)
         if self.state == "stalled":
             if not heard:
                 self.link.write(encode_v2(PROBE_COMMAND))
@@ -332,9 +358,12 @@ class MspClient:
         self.state = "up"
         return True
 
-    def _discard_waiting(self) -> tuple[bool, bool]:
-        """Read and drop what is waiting, all counted as stale; (anything heard, anything besides motor acks)."""
-        data = self._read_waiting()
+    def _discard_waiting(self, block: bool = False) -> tuple[bool, bool]:
+        """Read and drop what is waiting (or, blocking, what comes within a read timeout), all counted as stale.
+
+        Returns (anything heard, anything besides motor acks).
+        """
+        data = self.link.read(max(1, self.link.in_waiting)) if block else self._read_waiting()
         if not data:
             return False, False
         self.stale_bytes += len(data)
