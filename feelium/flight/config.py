@@ -62,7 +62,7 @@ class FlightConfig:
         2.0,
         "How far the real blimp may be from the numbers above: mass, thrust and reverse ratio each within this"
         " factor either way. The loops learn the truth in flight inside that box and count only on what they"
-        " have measured; `feelium calibrate flight` writes fitted numbers and a smaller factor. 1 trusts the model.",
+        " have measured (docs/flight-robustness.md). 1 trusts the model: set it only for numbers fitted to this blimp.",
         min=1.0,
         max=4.0,
     )
