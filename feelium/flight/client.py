@@ -6,34 +6,12 @@ blocks, and the same code runs unchanged against pyserial, Betaflight SITL
 and the simulated board. A control cycle writes the motor command and all
 telemetry requests in one burst and collects the replies until a deadline,
 so one 115200-baud cycle costs about one round trip, not six.
-
-MSP has no sequence numbers, so a reply is attributed by order: the board
-answers one request with one reply, in order (``docs/motor-board.md``).
-Every request written is kept in a FIFO of outstanding requests; a reply
-pops the oldest outstanding request of its command, and the older ones it
-overtook are lost. A reply to a request of an earlier burst is *late*: it is
-counted and never used, so telemetry is never older than the burst it
-claims to answer (``Telemetry.t`` is that burst's write time).
-
-A board that stalls and then answers seconds of buffered requests must not
-leave a backlog behind. Before each burst whatever is already waiting is
-read and, apart from motor acknowledgements, counted as stale. When the
-FIFO outgrows its bound, stale bytes keep arriving or a reply answers
-nothing we asked, the client *resynchronises*: it discards the input,
-forgets the outstanding requests and sends no telemetry requests until the
-line has been quiet for ``quiet_s``, so replies to forgotten requests cannot
-pass for new ones. A board silent for ``stall_bursts`` bursts is *stalled*:
-nothing is tracked, one small probe goes out per poll, and the first bytes
-heard again start a resynchronisation (they may be the stall's backlog).
 """
 
 from __future__ import annotations
 
 import time
-from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
-from typing import Literal
 
 from feelium.flight import messages as m
 from feelium.flight.msp import MspFrame, MspParser, encode_v2
@@ -50,69 +28,16 @@ class MspErrorReply(RuntimeError):
 
 
 POLL_COMMANDS = (m.MSP_SONAR_ALTITUDE, m.MSP_ATTITUDE, m.MSP_RAW_IMU, m.MSP2_SENSOR_OPTIC_FLOW)
-# Three bursts' worth: the poll commands, the battery and the motor command of each cycle.
-MAX_OUTSTANDING = 3 * (len(POLL_COMMANDS) + 2)
-STALL_BURSTS = 3
-STALE_BURSTS = 3
-PROBE_COMMAND = m.MSP_API_VERSION  # every board answers it; one small frame per poll while stalled
-
-LinkState = Literal["up", "stalled", "resyncing"]
-
-
-@dataclass(frozen=True)
-class Outstanding:
-    """A request written and not yet answered: its command, when and in which burst it went out."""
-
-    command: int
-    written_t: float
-    burst: int
-
-
-@dataclass
-class Burst:
-    """One exchange: its number, write time, the replies that answered it and what else the line carried."""
-
-    number: int
-    t: float = 0.0
-    replies: dict[int, MspFrame] = field(default_factory=dict)
-    heard: bool = False
-    stale_bytes: int = 0
-    late: int = 0
-    unmatched: int = 0
-
-
-def _wire_size(frame: MspFrame) -> int:
-    """Bytes the frame took on the line (header, payload, checksum)."""
-    return (9 if frame.version == 2 else 6) + len(frame.payload)
-
-
-def _is_ack(frame: MspFrame) -> bool:
-    """The board's (empty or error) answer to MSP_SET_MOTOR: it carries no telemetry."""
-    return frame.direction != "<" and frame.command == m.MSP_SET_MOTOR
 
 
 class MspClient:
     """Talks MSP v2 over a :class:`ByteLink`; counts what went wrong instead of raising mid-flight."""
 
-    def __init__(
-        self,
-        link: ByteLink,
-        timeout_s: float = 0.05,
-        clock: Callable[[], float] = time.monotonic,
-        max_outstanding: int = MAX_OUTSTANDING,
-        quiet_s: float | None = None,
-        stall_bursts: int = STALL_BURSTS,
-        stale_bursts: int = STALE_BURSTS,
-    ) -> None:
+    def __init__(self, link: ByteLink, timeout_s: float = 0.05, clock: Callable[[], float] = time.monotonic) -> None:
         self.link = link
         self.timeout_s = timeout_s
         self.clock = clock
-        self.max_outstanding = max_outstanding
-        self.quiet_s = 2.0 * timeout_s if quiet_s is None else quiet_s
-        self.stall_bursts = stall_bursts
-        self.stale_bursts = stale_bursts
         self.parser = MspParser()
-        self.state: LinkState = "up"
         self.timeouts = 0
         self.unexpected_replies = 0
         self.error_replies: dict[int, int] = {}
@@ -120,42 +45,16 @@ class MspClient:
         self.motor_commands_sent = 0
         self.motor_acks = 0
         self.motor_rejections = 0
-        self.late_replies = 0
-        self.lost_requests = 0
-        self.stale_bytes = 0
-        self.stalls = 0
-        self.resyncs = 0
-        self.last_reply_t: float | None = None  # when the last in-time reply arrived
-        self.telemetry_t: float | None = None  # write time of the last burst that got an in-time reply
-        self._outstanding: deque[Outstanding] = deque()
-        self._bursts = 0
-        self._silent_bursts = 0
-        self._stale_run = 0
-        self._noise_t = 0.0
-
-    @property
-    def stalled(self) -> bool:
-        """No byte came back for the last ``stall_bursts`` bursts (and none since)."""
-        return self.state == "stalled"
 
     # ---- single requests (probe, conformance tests) ----
     def request(self, command: int, payload: bytes = b"") -> MspFrame:
-        """Send one request and return its reply; raises :class:`MspTimeout` or :class:`MspErrorReply`.
-
-        A request that went unanswered leaves the line in doubt (was it lost, or is its reply
-        still coming?), so the next one waits for a quiet line first: a retried command must
-        not take, or be taken for, the earlier one's reply.
-        """
-        name = f"MSP command {command} ({m.COMMAND_NAMES.get(command, '?')})"
-        if not self._wait_settled():
-            raise MspTimeout(f"the line did not go quiet within {self.quiet_s + self.timeout_s} s before {name}")
+        """Send one request and return its reply; raises :class:`MspTimeout` or :class:`MspErrorReply`."""
         replies = self.exchange([(command, payload)])
         frame = replies.get(command)
         if frame is None:
-            self._resync(self.clock())
-            raise MspTimeout(f"no reply to {name} within {self.timeout_s} s")
+            raise MspTimeout(f"no reply to MSP command {command} ({m.COMMAND_NAMES.get(command, '?')}) within {self.timeout_s} s")
         if frame.is_error:
-            raise MspErrorReply(f"board rejected {name}")
+            raise MspErrorReply(f"board rejected MSP command {command} ({m.COMMAND_NAMES.get(command, '?')})")
         return frame
 
     def api_version(self) -> m.ApiVersion:
@@ -184,201 +83,55 @@ class MspClient:
 
     # ---- the pipelined exchange ----
     def exchange(self, requests: list[tuple[int, bytes]]) -> dict[int, MspFrame]:
-        """Write every request at once, then collect this burst's replies (by command) until all came or time ran out.
-
-        Replies to earlier bursts met on the way are counted as late and left out.
-        """
-        return self._exchange(requests).replies
-
-    def _exchange(self, requests: list[tuple[int, bytes]]) -> Burst:
-        burst = Burst(self._bursts + 1)
-        self._drain(burst)
-        self._write_burst(burst, requests)
-        self._collect(burst)
-        return burst
-
-    def _drain(self, burst: Burst) -> None:
-        """Read what waited before the burst: acks and late replies pop their requests, the rest is stale."""
-        data = self._read_waiting()
-        if not data:
-            return
-        burst.heard = True
-        frames = self.parser.feed(data)
-        for frame in frames:
-            self._receive(frame, burst)
-        stale = len(data) - sum(_wire_size(f) for f in frames if _is_ack(f))
-        burst.stale_bytes = max(stale, 0)
-        self.stale_bytes += burst.stale_bytes
-
-    def _write_burst(self, burst: Burst, requests: list[tuple[int, bytes]]) -> None:
-        burst.t = self.clock()
-        self._bursts = burst.number
+        """Write every request at once, then collect replies (by command) until all came or time ran out."""
         self.link.write(b"".join(encode_v2(command, payload) for command, payload in requests))
-        self._outstanding.extend(Outstanding(command, burst.t, burst.number) for command, _ in requests)
-
-    def _collect(self, burst: Burst) -> None:
-        deadline = burst.t + self.timeout_s
-        while any(r.burst == burst.number for r in self._outstanding):
+        wanted = {command for command, _ in requests}
+        replies: dict[int, MspFrame] = {}
+        deadline = self.clock() + self.timeout_s
+        while wanted - replies.keys():
             data = self.link.read(max(1, self.link.in_waiting))
-            burst.heard |= bool(data)
             for frame in self.parser.feed(data):
-                self._receive(frame, burst)
+                if frame.direction == "<":
+                    self.unexpected_replies += 1  # our own requests echoed back (e.g. loop://)
+                elif frame.command == m.MSP_SET_MOTOR and frame.command not in wanted:
+                    if frame.is_error:
+                        self.motor_rejections += 1
+                    else:
+                        self.motor_acks += 1
+                elif frame.command in wanted:
+                    replies[frame.command] = frame
+                    if frame.is_error:
+                        self.error_replies[frame.command] = self.error_replies.get(frame.command, 0) + 1
+                else:
+                    self.unexpected_replies += 1
             if not data and self.clock() >= deadline:
                 self.timeouts += 1
                 self.parser.abandon()
                 break
-
-    def _receive(self, frame: MspFrame, burst: Burst) -> None:
-        """Attribute one frame to the request it answers; only replies to ``burst`` are kept."""
-        if frame.direction == "<":
-            self.unexpected_replies += 1  # our own requests echoed back (e.g. loop://)
-            return
-        request = self._take(frame.command)
-        if _is_ack(frame):
-            if frame.is_error:
-                self.motor_rejections += 1
-            else:
-                self.motor_acks += 1
-            if request is not None and request.burst == burst.number:
-                burst.replies[frame.command] = frame  # set_motors() waits for its own ack
-            return  # an ack without a request answers a command sent while resynchronising
-        if request is None:
-            self.unexpected_replies += 1
-            burst.unmatched += 1
-            return
-        if frame.is_error:
-            self.error_replies[frame.command] = self.error_replies.get(frame.command, 0) + 1
-        if request.burst != burst.number:
-            self.late_replies += 1
-            burst.late += 1
-            return
-        burst.replies[frame.command] = frame
-        self.last_reply_t = self.clock()
-        self.telemetry_t = burst.t
-
-    def _take(self, command: int) -> Outstanding | None:
-        """Pop the oldest outstanding request of ``command``; replies come in order, so the older ones it overtook are lost."""
-        for index, request in enumerate(self._outstanding):
-            if request.command == command:
-                for _ in range(index):
-                    self._outstanding.popleft()
-                self.lost_requests += index
-                return self._outstanding.popleft()
-        return None
+        return replies
 
     def send_motors(self, motors_us: Iterable[int]) -> None:
         """Write MSP_SET_MOTOR without waiting: the acknowledgement is consumed by the next poll.
 
         A control cycle polls, computes, then commands at once, so the motors
-        never wait a whole period for a decision already made. Motor commands go
-        out in every state (the board's watchdog must be fed); only while the line
-        is trusted are they tracked, so acks of untracked ones are merely counted.
+        never wait a whole period for a decision already made.
         """
         self.link.write(encode_v2(m.MSP_SET_MOTOR, m.encode_motors(list(motors_us))))
         self.motor_commands_sent += 1
-        if self.state == "up":
-            self._outstanding.append(Outstanding(m.MSP_SET_MOTOR, self.clock(), self._bursts))
 
     def send_neutral(self) -> None:
         """Every motor to neutral (no thrust), the safe state; written at once like any motor command."""
         self.send_motors(m.NEUTRAL_MOTORS_US)
 
-    # ---- one control cycle ----
     def poll(self, with_battery: bool = False) -> Telemetry:
-        """One control cycle's telemetry: rangefinder, attitude, gyro, flow (and the battery when asked).
-
-        Only replies to this cycle's burst are used and ``t`` is the burst's write time. While
-        stalled or resynchronising it returns at once with no fields.
-        """
-        now = self.clock()
-        if not self._settled(now):
-            return Telemetry(t=now)
+        """One control cycle's telemetry: rangefinder, attitude, gyro (and the battery when asked)."""
         requests = [(command, b"") for command in POLL_COMMANDS]
         if with_battery:
             requests.append((m.MSP_ANALOG, b""))
-        burst = self._exchange(requests)
-        self._judge(burst)
-        return self._telemetry(burst.replies, burst.t)
+        replies = self.exchange(requests)
+        return self._telemetry(replies)
 
-    def _judge(self, burst: Burst) -> None:
-        """After a burst: a silent board is stalled; a backlog, repeated stale bytes or a stray reply mean resync.
-
-        Late replies count as stale: a board that keeps answering an earlier burst is either
-        lagging past the timeout or lost a request (so every reply is taken for the one before);
-        either way only a quiet line sorts it out.
-        """
-        self._silent_bursts = 0 if burst.heard else self._silent_bursts + 1
-        self._stale_run = self._stale_run + 1 if burst.stale_bytes or burst.late else 0
-        if self._silent_bursts >= self.stall_bursts:
-            self._stall()
-        elif burst.unmatched or self._stale_run >= self.stale_bursts or len(self._outstanding) > self.max_outstanding:
-            self._resync(self.clock())
-
-    def _stall(self) -> None:
-        """Nothing comes back: stop tracking (everything outstanding is doubtful now) and probe until it does."""
-        self.stalls += 1
-        self.state = "stalled"
-        self._forget()
-
-    def _resync(self, now: float) -> None:
-        """Discard the input and forget every outstanding request; telemetry waits until the line is quiet."""
-        self.resyncs += 1
-        self.state = "resyncing"
-        self._discard_waiting()
-        self._forget()
-        self._noise_t = now
-
-    def _forget(self) -> None:
-        self.parser.abandon()
-        self._outstanding.clear()
-        self._silent_bursts = self._stale_run = 0
-
-    def _wait_settled(self) -> bool:
-        """Block (request() only; the control loop never waits) until replies can be trusted, or give up."""
-        deadline = self.clock() + self.quiet_s + self.timeout_s
-        while not self._settled(self.clock(), block=True):
-            if self.clock() >= deadline:
-                return False
-        return True
-
-    def _settled(self, now: float, block: bool = False) -> bool:
-        """Listen while stalled or resynchronising; True once replies can be trusted again (at once when up)."""
-        if self.state == "up":
-            return True
-        heard, noisy = self._discard_waiting(block)
-        if self.state == "stalled":
-            if not heard:
-                self.link.write(encode_v2(PROBE_COMMAND))
-                return False
-            self._resync(now)  # the board is back, perhaps answering the stall's backlog
-        elif noisy:
-            self._noise_t = now
-        if now - self._noise_t < self.quiet_s:
-            return False
-        self.state = "up"
-        return True
-
-    def _discard_waiting(self, block: bool = False) -> tuple[bool, bool]:
-        """Read and drop what is waiting (or, blocking, what comes within a read timeout), all counted as stale.
-
-        Returns (anything heard, anything besides motor acks).
-        """
-        data = self.link.read(max(1, self.link.in_waiting)) if block else self._read_waiting()
-        if not data:
-            return False, False
-        self.stale_bytes += len(data)
-        counters = self.parser.counters
-        errors_before = counters.garbage_bytes + counters.bad_checksums + counters.oversized
-        frames = self.parser.feed(data)
-        errors_after = counters.garbage_bytes + counters.bad_checksums + counters.oversized
-        return True, errors_after > errors_before or not all(_is_ack(f) for f in frames)
-
-    def _read_waiting(self) -> bytes:
-        """What the link already holds, without blocking (a read of nothing would wait for its timeout)."""
-        waiting = self.link.in_waiting
-        return self.link.read(waiting) if waiting else b""
-
-    def _telemetry(self, replies: dict[int, MspFrame], t: float) -> Telemetry:
+    def _telemetry(self, replies: dict[int, MspFrame]) -> Telemetry:
         values: dict[str, object] = {}
 
         def decoded(command: int, decoder: Callable[[bytes], object]) -> object | None:
@@ -408,17 +161,11 @@ class MspClient:
         analog = decoded(m.MSP_ANALOG, m.Analog.decode)
         if isinstance(analog, m.Analog):
             values["battery_v"] = analog.voltage_v
-        return Telemetry(t=t, **values)  # type: ignore[arg-type]
-
-    def telemetry_age_s(self) -> float | None:
-        """How old the newest in-time telemetry is (from its burst's write time); None before the first."""
-        return None if self.telemetry_t is None else self.clock() - self.telemetry_t
+        return Telemetry(t=self.clock(), **values)  # type: ignore[arg-type]
 
     def health(self) -> dict[str, object]:
         return {
             **self.parser.counters.as_dict(),
-            "state": self.state,
-            "stalled": self.stalled,
             "timeouts": self.timeouts,
             "unexpected_replies": self.unexpected_replies,
             "error_replies_by_command": dict(self.error_replies),
@@ -426,12 +173,4 @@ class MspClient:
             "motor_commands_sent": self.motor_commands_sent,
             "motor_acks": self.motor_acks,
             "motor_rejections": self.motor_rejections,
-            "late_replies": self.late_replies,
-            "lost_requests": self.lost_requests,
-            "stale_bytes": self.stale_bytes,
-            "stalls": self.stalls,
-            "resyncs": self.resyncs,
-            "outstanding": len(self._outstanding),
-            "last_reply_t": self.last_reply_t,
-            "telemetry_age_s": self.telemetry_age_s(),
         }
