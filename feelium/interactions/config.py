@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from feelium.motion import MAX_HOLD_S
 from feelium.settings import setting
 
 
@@ -43,5 +44,5 @@ class InteractionsConfig:
         10.0, "A wearer's heart within this long after a peck goes back to that cheek.", min=0.1, max=600.0
     )
     shimmer_s: float = setting(6.0, "How long the inviting shimmer lasts.", min=0.5, max=120.0)
-    drift_hold_s: float = setting(0.6, "Forward motion of the 'drift closer' reply.", min=0.05, max=2.0)
-    bounce_hold_s: float = setting(0.4, "Each half (up, then down) of the 'gentle bounce' reply.", min=0.05, max=2.0)
+    drift_hold_s: float = setting(0.5, "Forward motion of the 'drift closer' reply (at most the dead man's longest hold).", min=0.05, max=MAX_HOLD_S)
+    bounce_hold_s: float = setting(0.4, "Each half (up, then down) of the 'gentle bounce' reply.", min=0.05, max=MAX_HOLD_S)
