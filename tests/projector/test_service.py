@@ -12,6 +12,7 @@ import pytest
 from feelium.daemon.config import Config
 from feelium.events import InteractionEvent, WearerAction
 from feelium.hub import Hub
+from feelium.motion import MAX_HOLD_S
 from feelium.projector.display import SimDisplay
 from feelium.daemon.assembly import build_projector
 from feelium.projector.service import ProjectorService
@@ -68,7 +69,7 @@ async def test_motion_replies_use_the_dead_man_path_but_never_override_the_weare
     await _until(lambda: service.counters["motions_sent"] >= 1)
     cmd = hub.motion.active(hub.clock())
     assert cmd is not None and cmd.name == "forward" and cmd.source == "interaction"
-    hub.motion.command("turn_left", hub.clock(), 2.0, source="headset")
+    hub.motion.command("turn_left", hub.clock(), MAX_HOLD_S, source="headset")
     hub.bus.publish(tap(1, hub.clock(), *at_uv(0.5, 0.5))[0])  # accepts the invite: a bounce is due
     await _until(lambda: service.counters["motions_skipped"] >= 1)
     assert hub.motion.active(hub.clock()).name == "turn_left"
