@@ -7,7 +7,12 @@ steps the controller with the wearer's dead-man command and the soften
 flag, commands the motors at once, and publishes altitude, heading, battery
 and link state. When the port disappears it keeps stepping the controller
 without telemetry (which goes to its failsafe; the board's own watchdog
-stops the motors) and reopens the port with a doubling backoff.
+stops the motors) and reopens the port with a doubling backoff, capped
+(``reconnect_max_s``, under 1 s) so a returning board is flown again within
+a second. The link state in ``health()`` is ``up``, ``stalled`` (the board
+went silent), ``resyncing`` (the client discards a backlog and waits for a
+quiet line), ``down`` or ``connecting``; each change into a bad state is
+logged once as a warning, the recovery once as info.
 
 ``stop()`` runs first on shutdown (``stop_order = 0``): it commands every
 motor to neutral through the MSP client, as the very next job of the serial thread,
@@ -40,6 +45,11 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 STOP_WRITE_TIMEOUT_S = 0.3
+LINK_COUNTERS = ("stalls", "resyncs", "late_replies")  # summed over every client a run opened
+LINK_REASONS = {
+    "stalled": "no reply to the last telemetry requests; probing",
+    "resyncing": "discarding a backlog of replies until the line is quiet",
+}
 
 
 def _close_quietly(link: ByteLink) -> None:
@@ -129,6 +139,9 @@ class FlightService:
         self.link: ByteLink | None = None
         self.client: MspClient | None = None
         self.link_state = "down"
+        self._logged_state: str | None = None
+        self._past_counts = dict.fromkeys(LINK_COUNTERS, 0)
+        self._telemetry_t: float | None = None
         self.stopping = False
         self.cycles = 0
         self.overruns = 0
@@ -139,7 +152,7 @@ class FlightService:
         self.last_error: str | None = None
         self.last: ControlOutput | None = None
         self._next_open_t = float("-inf")
-        self._backoff_s = config.reconnect_min_s
+        self._backoff_s = min(config.reconnect_min_s, config.reconnect_max_s)
         self._serial: ThreadPoolExecutor | None = None
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
@@ -190,6 +203,7 @@ class FlightService:
         client, self.link, self.client = self.client, None, None
         if client is None:
             return None
+        self._retire(client)
         assert self._serial is not None, "a link outlived its run()"  # run() releases it before its thread goes
         return self._serial.submit(_neutral_then_close, client)
 
@@ -198,6 +212,8 @@ class FlightService:
         report: dict[str, Any] = {
             "backend": self.opener.description,
             "link": self.link_state,
+            "telemetry_age_s": None if self._telemetry_t is None else round(self.hub.clock() - self._telemetry_t, 3),
+            **self._link_counts(),
             "cycles": self.cycles,
             "overruns": self.overruns,
             "link_losses": self.link_losses,
@@ -217,6 +233,29 @@ class FlightService:
             report["sim_watchdog_trips"] = board.watchdog_trips
         return report
 
+    def _link_counts(self) -> dict[str, int]:
+        """Stalls, resyncs and late replies of this service's life, the live client's included."""
+        live = self.client
+        return {name: self._past_counts[name] + (getattr(live, name) if live else 0) for name in LINK_COUNTERS}
+
+    def _retire(self, client: MspClient) -> None:
+        """Keep a dropped client's counts: each reconnect starts a fresh client."""
+        for name in LINK_COUNTERS:
+            self._past_counts[name] += getattr(client, name)
+
+    def _set_link_state(self, state: str) -> None:
+        """Record the link state; log the change into a bad state once (a failed reopen is no change), and the recovery."""
+        self.link_state = state
+        if state == "connecting" or state == self._logged_state:
+            return
+        previous, self._logged_state = self._logged_state, state
+        if state == "up":
+            log.info("flight: motor board link up (was %s)", previous or "not yet open")
+        elif state == "down":
+            log.warning("flight: motor board link down: %s", self.last_error)
+        else:
+            log.warning("flight: motor board link %s (%s)", state, LINK_REASONS[state])
+
     # ------------------------------------------------------------ one cycle
     async def _cycle(self, events: Any) -> None:
         now = self.hub.clock()
@@ -228,11 +267,14 @@ class FlightService:
         if self.client is None and now >= self._next_open_t and not self.stopping:
             await self._open(now)
         telemetry = None
-        if self.client is not None:
+        client = self.client
+        if client is not None:
             try:
-                telemetry = await self._on_serial_thread(self.client.poll, self.cycles % self.config.battery_every == 0)
+                telemetry = await self._on_serial_thread(client.poll, self.cycles % self.config.battery_every == 0)
             except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
                 await self._lost(now, exc)
+            else:
+                self._observe_link(client)
         now = self.hub.clock()
         soft = self.soften.active(now)
         command = self.hub.motion.active(now)
@@ -247,16 +289,26 @@ class FlightService:
                 await self._lost(now, exc)
         self._publish(out)
 
+    def _observe_link(self, client: MspClient) -> None:
+        """After a poll: the client's view of the line becomes the link state, its newest telemetry the age.
+
+        Not if stop() released that client while it polled: the link is no longer ours to describe.
+        """
+        if client is not self.client:
+            return
+        self._set_link_state(client.state)
+        if client.telemetry_t is not None:
+            self._telemetry_t = client.telemetry_t
+
     async def _open(self, now: float) -> None:
-        self.link_state = "connecting"
+        self._set_link_state("connecting")
         try:
             link = await self._on_serial_thread(self.opener.open)
         except (OSError, ValueError) as exc:
             self.open_failures += 1
             self.last_error = f"open {self.opener.description}: {exc}"
-            self.link_state = "down"
-            self._next_open_t = now + self._backoff_s
-            self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_max_s)
+            self._set_link_state("down")
+            self._schedule_reopen(now)
             return
         if self.stopping:  # stop() came while the port was opening: leave it closed, command nothing
             await self._on_serial_thread(_close_quietly, link)
@@ -265,17 +317,22 @@ class FlightService:
             self.reconnects += 1
         self.link = link
         self.client = MspClient(link, timeout_s=self.config.reply_timeout_s, clock=self.hub.clock)
-        self.link_state = "up"
-        self._backoff_s = self.config.reconnect_min_s
+        self._set_link_state("up")
+        self._backoff_s = min(self.config.reconnect_min_s, self.config.reconnect_max_s)
 
     async def _lost(self, now: float, exc: Exception) -> None:
-        log.warning("flight: motor board link lost: %s", exc)
         self.link_losses += 1
         self.last_error = f"link: {exc}"
-        link, self.link, self.client = self.link, None, None
+        link, client, self.link, self.client = self.link, self.client, None, None
+        if client is not None:
+            self._retire(client)
         if link is not None:
             await self._on_serial_thread(_close_quietly, link)
-        self.link_state = "down"
+        self._set_link_state("down")
+        self._schedule_reopen(now)
+
+    def _schedule_reopen(self, now: float) -> None:
+        """The next attempt after the backoff, which doubles up to ``reconnect_max_s`` (under 1 s by default)."""
         self._next_open_t = now + self._backoff_s
         self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_max_s)
 
