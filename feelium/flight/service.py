@@ -225,7 +225,10 @@ class FlightService:
             "battery": out.battery if out else "unknown",
             "last_error": self.last_error,
             "fps": self.config.rate_hz if self.link_state == "up" else 0.0,
+            "estimates": self.controller.estimates(self.hub.clock()),
         }
+        if out is not None and out.mode != "waiting" and not out.speed_measured:
+            report["warning"] = "no measured speed (optical flow missing or without lock): forward/backward at reduced speed"
         if self.client is not None:
             report["msp"] = self.client.health()
         board = getattr(self.opener, "board", None)

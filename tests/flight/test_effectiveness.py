@@ -61,3 +61,18 @@ def test_the_box_widens_with_the_uncertainty_and_reverse_is_wider() -> None:
     low, high = effectiveness_bounds(2.0, reverse=False)
     low_r, _ = effectiveness_bounds(2.0, reverse=True)
     assert (low, high) == (0.25, 4.0) and low_r == 0.125
+
+
+@pytest.mark.parametrize("flow", [True, False])
+def test_the_controller_says_where_its_speed_comes_from(flow: bool) -> None:
+    from feelium.daemon.config import Config
+    from feelium.flight.sim_board import BoardParams, SensorParams, board_with
+    from feelium.lab.flight.simulation import SimFlight
+
+    config = Config().flight
+    flight = SimFlight(config, board_with(BoardParams(sensors=SensorParams(flow_fitted=flow)), z=1.2))
+    flight.run(2.0)
+    estimates = flight.controller.estimates(flight.t)
+    assert estimates["speed_source"] == ("optical_flow" if flow else "model_only")
+    assert flight.last is not None and flight.last.speed_measured is flow
+    assert estimates["speed_cap_m_s"] <= (config.forward_speed_m_s if flow else config.no_flow_speed_fraction * config.forward_speed_m_s)
