@@ -21,12 +21,8 @@ from feelium.flight.config import FlightConfig
 from feelium.flight.estimators import AltitudeObserver, SurgeEstimate, ThrustModel, YawEstimate
 from feelium.flight.loops import AltitudeLoop, HeadingLoop, SurgeLoop
 from feelium.flight.mixer import NEUTRAL, Mixer, MixerGeometry, thrust_for_command, to_microseconds
-from feelium.flight.references import wrap_deg
 from feelium.flight.setpoint import Setpoint
 from feelium.flight.telemetry import Telemetry
-
-__all__ = ["ControlOutput", "FlightController", "wrap_deg"]
-
 
 @dataclass(frozen=True)
 class ControlOutput:

@@ -32,8 +32,8 @@ FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone
 MIN_FLOW_HEIGHT_M = 0.08
 
 
-def linear_drag(speed: float, quadratic: float) -> float:
-    """The config's air drag (N) at ``speed``: quadratic plus the small linear term of the body."""
+def air_drag(speed: float, quadratic: float) -> float:
+    """The config's air drag (N) at ``speed``: quadratic, plus the small linear term of the body."""
     return quadratic * speed * abs(speed) + 0.02 * speed
 
 
@@ -94,7 +94,7 @@ class AltitudeObserver:
 
     def accel(self, up_force_n: float) -> float:
         c = self.c
-        return (up_force_n + c.net_buoyancy_n - linear_drag(self.vz, c.quadratic_drag)) / c.mass_kg + self.disturbance
+        return (up_force_n + c.net_buoyancy_n - air_drag(self.vz, c.quadratic_drag)) / c.mass_kg + self.disturbance
 
     def predict(self, up_force_n: float, dt: float) -> None:
         """Propagate with the modelled forces (thrust, buoyancy, drag)."""
@@ -190,7 +190,7 @@ class SurgeEstimate:
     def update(self, t: float, dt: float, surge_mean_n: float, flow_x_rad_s: float | None, height_m: float | None) -> None:
         c = self.c
         push = surge_mean_n / c.mass_kg
-        self.speed += (self.effectiveness.value(push) * push - linear_drag(self.speed, c.quadratic_drag) / c.mass_kg) * dt
+        self.speed += (self.effectiveness.value(push) * push - air_drag(self.speed, c.quadratic_drag) / c.mass_kg) * dt
         measured = None
         if flow_x_rad_s is not None and height_m is not None and height_m >= MIN_FLOW_HEIGHT_M:
             measured = flow_x_rad_s * height_m
@@ -202,4 +202,4 @@ class SurgeEstimate:
     def accel(self, surge_n: float) -> float:
         """The forward acceleration the model and the learned effectiveness give for ``surge_n`` now."""
         push = surge_n / self.c.mass_kg
-        return self.effectiveness.value(push) * push - linear_drag(self.speed, self.c.quadratic_drag) / self.c.mass_kg
+        return self.effectiveness.value(push) * push - air_drag(self.speed, self.c.quadratic_drag) / self.c.mass_kg

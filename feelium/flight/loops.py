@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 from feelium.flight.config import FlightConfig
-from feelium.flight.estimators import AltitudeObserver, SurgeEstimate, ThrustModel, YawEstimate, linear_drag
+from feelium.flight.estimators import YAW_RATE_TAU_S, AltitudeObserver, SurgeEstimate, ThrustModel, YawEstimate, air_drag
 from feelium.flight.mixer import Mixer
 from feelium.flight.references import (
     HANDOVER_S,
@@ -40,6 +40,11 @@ HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and wit
 HOVER_GAIN = 0.5  # a hover correction is gentle: it must not overshoot into a correction the other way
 
 
+def worst_lag_s(config: FlightConfig) -> float:
+    """The longest motor lag the box allows, plus a cycle and the flow sensor's frame: what a stop must wait out."""
+    return THRUST_LAG_S * config.plant_uncertainty + 0.1
+
+
 class _Band:
     """Hysteresis for a hover loop: engage when the error leaves the band, rest once it is well inside.
 
@@ -56,6 +61,10 @@ class _Band:
 
     def release(self) -> None:
         self.engaged, self.sign = False, 0.0
+
+    def take_over(self) -> None:
+        """Outside hover (a command, a brake): the loop acts, and remembers no hover sign."""
+        self.engaged, self.sign = True, 0.0
 
     def update(self, outside: bool, well_inside: bool) -> bool:
         self.outside = outside
@@ -162,7 +171,7 @@ class AltitudeLoop:
     def _accel_limits(self, obs: AltitudeObserver, rate: float) -> tuple[float, float]:
         c = self.c
         lo, hi = self.mixer.limits_up_n()
-        drag = linear_drag(rate, c.quadratic_drag)
+        drag = air_drag(rate, c.quadratic_drag)
         return ((lo + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance,
                 (hi + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance)
 
@@ -238,10 +247,9 @@ class HeadingLoop:
                 return 0.0
             gain *= HOVER_GAIN
         else:
-            self.band.release()
-            self.band.engaged = True
+            self.band.take_over()
         error = math.radians(min(max(error_deg, -45.0), 45.0))
-        predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (0.06 + THRUST_LAG_S)
+        predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (YAW_RATE_TAU_S + THRUST_LAG_S)
         rate_error = math.radians(rate_ahead if turn else ref.rate) - predicted
         alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
         r_ref = math.radians(ref.rate)
@@ -250,15 +258,14 @@ class HeadingLoop:
 
     def _rate_now(self, est: YawEstimate, thrust: ThrustModel) -> float:
         """The yaw rate (rad/s) now: the filtered gyro brought forward over its filter lag."""
-        return math.radians(est.rate_dps) + est.accel(thrust.yaw) * 0.06
+        return math.radians(est.rate_dps) + est.accel(thrust.yaw) * YAW_RATE_TAU_S
 
     def _stoppable_dps(self, est: YawEstimate) -> float:
         c = self.c
         torque = self.mixer.limit_yaw_nm() * BRAKE_SHARE
         decel = math.degrees(min(est.effectiveness.assured(1.0), est.effectiveness.assured(-1.0)) * torque / c.yaw_inertia_kg_m2)
         decel = min(decel, c.brake_yaw_dps2)
-        lag = THRUST_LAG_S * c.plant_uncertainty + 0.1
-        return min(c.yaw_rate_dps, stoppable_rate(decel, c.stop_within_s, lag, 0.7 * STOPPED_YAW_DPS))
+        return min(c.yaw_rate_dps, stoppable_rate(decel, c.stop_within_s, worst_lag_s(c), 0.7 * STOPPED_YAW_DPS))
 
     def _accel_limits_dps2(self, est: YawEstimate, rate_dps: float) -> tuple[float, float]:
         c = self.c
@@ -283,29 +290,27 @@ class SurgeLoop:
         c = self.c
         self.speed_cap = self._stoppable_speed(t, est, speed_sp)
         speed_sp = math.copysign(min(abs(speed_sp), self.speed_cap), speed_sp) if speed_sp else 0.0
+        hover = False
         if speed_sp:
             if not self.surging:
                 self.onset.start(est.speed, est.accel(thrust.surge))
             self.surging = True
-            self.band.release()
-            self.band.engaged = True
             self.ref_speed, v_ahead, accel = self.onset.step(speed_sp, self._accel_limits(est, self.onset.rate), dt)
         else:  # released: brake along a ramp the reverse thrust can follow
             self.surging = False
             self.ref_speed, accel = ramp_to_zero(min(self.ref_speed, est.speed, key=abs), c.brake_m_s2, dt)
             v_ahead = self.ref_speed
-            if self.ref_speed == 0.0 and est.measured(t):
-                outside = abs(est.speed) > 1.6 * HOVER_SPEED_BAND_M_S
-                if not self.band.update(outside, abs(est.speed) < HOVER_SPEED_BAND_M_S):
-                    return 0.0
-        hover = not speed_sp and self.ref_speed == 0.0 and est.measured(t)
-        if not hover and not speed_sp:
-            self.band.release()
-            self.band.engaged = True
+            hover = self.ref_speed == 0.0 and est.measured(t)  # the hover band needs a measured speed
+        if hover:
+            outside = abs(est.speed) > 1.6 * HOVER_SPEED_BAND_M_S
+            if not self.band.update(outside, abs(est.speed) < HOVER_SPEED_BAND_M_S):
+                return 0.0
+        else:
+            self.band.take_over()
         v = self.ref_speed
         predicted = est.speed + est.accel(thrust.surge) * THRUST_LAG_S
         wanted = accel + gain * c.speed_kp * (v_ahead - predicted)
-        force = c.mass_kg * wanted / est.effectiveness.value(wanted) + linear_drag(v, c.quadratic_drag)
+        force = c.mass_kg * wanted / est.effectiveness.value(wanted) + air_drag(v, c.quadratic_drag)
         return self.band.same_sign(force) if hover else force
 
     def _stoppable_speed(self, t: float, est: SurgeEstimate, speed_sp: float) -> float:
@@ -315,8 +320,7 @@ class SurgeLoop:
         braking_n = (-lo if speed_sp >= 0 else hi) * BRAKE_SHARE
         effectiveness = est.effectiveness.assured(-1.0 if speed_sp >= 0 else 1.0)
         decel = min(effectiveness * braking_n / c.mass_kg, c.brake_m_s2 * 2.0)
-        lag = THRUST_LAG_S * c.plant_uncertainty + 0.1
-        cap = min(c.forward_speed_m_s, stoppable_rate(decel, c.stop_within_s, lag, 0.7 * STOPPED_SPEED_M_S))
+        cap = min(c.forward_speed_m_s, stoppable_rate(decel, c.stop_within_s, worst_lag_s(c), 0.7 * STOPPED_SPEED_M_S))
         if not est.measured(t):
             cap *= c.no_flow_speed_fraction
         return cap
@@ -324,5 +328,5 @@ class SurgeLoop:
     def _accel_limits(self, est: SurgeEstimate, speed: float) -> tuple[float, float]:
         c = self.c
         lo, hi = self.mixer.limits_surge_n()
-        drag = linear_drag(speed, c.quadratic_drag)
+        drag = air_drag(speed, c.quadratic_drag)
         return ((lo * est.effectiveness.value(-1.0) - drag) / c.mass_kg, (hi * est.effectiveness.value(1.0) - drag) / c.mass_kg)

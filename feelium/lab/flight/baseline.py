@@ -10,7 +10,8 @@ from __future__ import annotations
 
 
 from feelium.flight.config import FlightConfig
-from feelium.flight.controller import ControlOutput, wrap_deg
+from feelium.flight.controller import ControlOutput
+from feelium.flight.references import wrap_deg
 from feelium.flight.mixer import to_microseconds
 from feelium.flight.setpoint import Setpoint
 from feelium.flight.telemetry import Telemetry
