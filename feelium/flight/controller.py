@@ -92,6 +92,7 @@ class FlightController:
             "yaw_effectiveness": self.yaw.effectiveness.as_dict(),
             "speed_cap_m_s": round(self.surge_loop.speed_cap, 3),
             "turn_cap_dps": round(self.heading_loop.turn_cap_dps, 1),
+            "heave_effectiveness": self.altitude.effectiveness.as_dict(),
             "altitude_disturbance_m_s2": round(self.altitude.disturbance, 3),
             "old_telemetry": self.old_telemetry,
         }
@@ -151,6 +152,7 @@ class FlightController:
                 self._on_range_restart(t)
         else:
             self.altitude.predict(thrust.vertical_mean, dt)
+        self.altitude.learn(t, dt, thrust.vertical_mean)
         heading = tel.heading_deg if tel is not None else None
         if heading is not None and self.yaw.heading is None:
             self.heading_loop.restart(heading)

@@ -12,6 +12,7 @@ slow down (``docs/flight-robustness.md``).
 from __future__ import annotations
 
 import math
+from collections import deque
 
 from feelium.flight.config import FlightConfig
 from feelium.flight.effectiveness import Effectiveness
@@ -21,6 +22,15 @@ YAW_RATE_TAU_S = 0.06
 # Age of a rangefinder reading when the controller gets it: a VL53L1X-class sensor ranging at 50 Hz
 # reports the middle of its 20 ms window, plus the transfer.
 RANGE_LATENCY_S = 0.015
+# The climb rate measured by the rangefinder alone (no model): the least-squares slope of the readings
+# of this window. It teaches the heave effectiveness, so it must not lean on the model it checks.
+RANGE_RATE_WINDOW_S = 0.3
+RANGE_RATE_MIN_SAMPLES = 6
+CLIMB_RATE_TAU_S = 0.1  # how fast the climb rate follows the range slope at plant_uncertainty 2 (never at 1)
+DISTURBANCE_FROM_RATE_TAU_S = 3.0  # and how fast the disturbance learns what the model missed of it...
+NEW_HOLD_S, NEW_HOLD_TAU_S = 5.0, 0.5  # ...and how fast in the first seconds of a hold, when nothing is learned yet
+HEAVE_WINDOW_S = 0.5  # its effectiveness windows: longer than the surge's, the range slope is noisier
+HEAVE_MIN_CHANGE = 0.03  # m/s of modelled climb-rate change: below it a window is noise, not excitation
 RESIDUAL_GATE_M = 0.06  # about 4 sigma of the rangefinder's noise at 2 m
 RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and is learned
 # How fast the speed estimate follows the flow sensor (its noise is about 2 cm/s a sample): 3 s when the
@@ -78,9 +88,47 @@ class ThrustModel:
         self.yaw += (yaw - self.yaw) * (1.0 - decay)
 
 
+class RangeRate:
+    """The climb rate from the rangefinder alone: the least-squares slope of the readings of the last
+    ``window_s``. It describes the middle of its window: it is ``age_s`` old when read."""
+
+    def __init__(self, window_s: float = RANGE_RATE_WINDOW_S) -> None:
+        self.window_s = window_s
+        self._readings: deque[tuple[float, float]] = deque()
+
+    @property
+    def age_s(self) -> float:
+        return 0.5 * self.window_s + RANGE_LATENCY_S
+
+    def add(self, t: float, range_m: float) -> None:
+        self._readings.append((t, range_m))
+
+    def clear(self) -> None:
+        self._readings.clear()
+
+    def rate(self, t: float) -> float | None:
+        """The slope over the window ending at ``t``, or ``None`` with too few readings (dropouts, a restart)."""
+        readings = self._readings
+        while readings and readings[0][0] < t - self.window_s + 1e-9:
+            readings.popleft()
+        n = len(readings)
+        if n < RANGE_RATE_MIN_SAMPLES:
+            return None
+        t_mean = sum(r[0] for r in readings) / n
+        z_mean = sum(r[1] for r in readings) / n
+        spread = sum((r[0] - t_mean) ** 2 for r in readings)
+        return sum((r[0] - t_mean) * (r[1] - z_mean) for r in readings) / spread if spread > 0.0 else None
+
+
 class AltitudeObserver:
     """Altitude and climb rate from the rangefinder and the modelled vertical force, with the unmodelled
-    vertical acceleration (buoyancy error, thrust error) learned slowly as the altitude loop's integral."""
+    vertical acceleration (buoyancy error, thrust error) learned slowly as the altitude loop's integral.
+
+    How strongly the body answers a change of the modelled net force (the heave effectiveness: mass
+    and thrust may each be off by ``plant_uncertainty``) is learned against the rangefinder's own
+    slope (:class:`RangeRate`), never against this observer's climb rate, which leans on the model.
+    The modelled push is delayed to the slope's age, so both describe the same moment.
+    """
 
     def __init__(self, config: FlightConfig) -> None:
         self.c = config
@@ -89,12 +137,64 @@ class AltitudeObserver:
         self.last_range_t: float | None = None
         self.disturbance = 0.0
         self.freeze_disturbance = False
+        self.touched = False  # set by the loop: a partner's hand is on the body, its motion teaches nothing
         self.reacquire = False  # set by a failsafe: the next reading restarts the observer
         self._gated_since: float | None = None
+        self._restart_t = -math.inf
+        low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
+        self.effectiveness = Effectiveness(low, high, window_s=HEAVE_WINDOW_S, min_change=HEAVE_MIN_CHANGE)
+        self.range_rate = RangeRate()
+        self._pushes: deque[float] = deque(maxlen=max(1, round(self.range_rate.age_s * config.rate_hz)) + 1)
+
+    def push(self, up_force_n: float) -> float:
+        """The modelled net vertical acceleration of ``up_force_n``: thrust, buoyancy and drag over the mass."""
+        c = self.c
+        return (up_force_n + c.net_buoyancy_n - air_drag(self.vz, c.quadratic_drag)) / c.mass_kg
 
     def accel(self, up_force_n: float) -> float:
-        c = self.c
-        return (up_force_n + c.net_buoyancy_n - air_drag(self.vz, c.quadratic_drag)) / c.mass_kg + self.disturbance
+        """The body's acceleration: the learned effectiveness times the push beyond the hover push.
+
+        The disturbance is the push that holds the body still (the negative of the hover push), so
+        the effectiveness scales only what the loop changes: a wrong effectiveness never moves the
+        hover force, and learning it never disturbs the hold."""
+        push = self.push(up_force_n) + self.disturbance
+        return self.effectiveness.value(push) * push
+
+    def _correct_climb_rate(self, t: float, dt: float, up_force_n: float) -> None:
+        """Pull the climb rate toward the rangefinder's own slope, as strongly as the model is doubted.
+
+        Between readings the climb rate is the model's; on a blimp whose thrust or mass is off by 2x
+        (and before the disturbance is learned) that rate may be off by half a metre per second while
+        the altitude still looks close, and the loop would not damp a fall it cannot see. The slope
+        is compared with the estimate brought back to the slope's age."""
+        gain = (self.c.plant_uncertainty - 1.0) / CLIMB_RATE_TAU_S
+        slope = self.range_rate.rate(t) if gain > 0.0 else None
+        if slope is None:
+            return
+        then = self.vz - self.accel(up_force_n) * self.range_rate.age_s
+        missed = min(1.0, gain * dt) * (slope - then)  # the climb rate the model did not predict
+        self.vz += missed
+        if self._may_learn(t):  # and the acceleration it missed is the disturbance's to learn
+            limit = self.c.altitude_integral_limit
+            tau = DISTURBANCE_FROM_RATE_TAU_S if t - self._restart_t > NEW_HOLD_S else NEW_HOLD_TAU_S
+            step = missed / (tau * self.effectiveness.value(self.push(up_force_n) + self.disturbance))
+            self.disturbance = min(max(self.disturbance + step, -limit), limit)
+
+    def _may_learn(self, t: float) -> bool:
+        """The disturbance learns while the loop is in charge (not held, not saturated: a hand must not
+        wind it up into a lunge when it lets go) or the hold is new (nothing learned yet), and never from
+        a sudden large innovation (the body moved by a hand, something passing under the rangefinder)
+        unless that persists."""
+        gated = self._gated_since is not None and t - self._gated_since < RESIDUAL_GATE_S
+        return not gated and (not self.freeze_disturbance or t - self._restart_t <= NEW_HOLD_S)
+
+    def learn(self, t: float, dt: float, up_force_mean_n: float) -> None:
+        """Teach the heave effectiveness one cycle: the push of ``rate.age_s`` ago against the range slope now."""
+        self._pushes.append(self.push(up_force_mean_n) + self.disturbance)
+        measured = None if self.touched or self.z is None else self.range_rate.rate(t)
+        if len(self._pushes) < self._pushes.maxlen:  # type: ignore[operator]
+            measured = None
+        self.effectiveness.update(t, dt, self._pushes[0], measured)
 
     def predict(self, up_force_n: float, dt: float) -> None:
         """Propagate with the modelled forces (thrust, buoyancy, drag)."""
@@ -110,7 +210,12 @@ class AltitudeObserver:
         self.last_range_t = t
         if restarted:
             self.z, self.vz, self.reacquire = range_m, 0.0, False
+            self._restart_t = t
+            self.range_rate.clear()
+            self._pushes.clear()
+            self.range_rate.add(t, range_m)
             return True
+        self.range_rate.add(t, range_m)
         self.predict(up_force_n, dt)
         assert self.z is not None
         # The reading is RANGE_LATENCY_S old: compare it with where the body was then.
@@ -119,16 +224,17 @@ class AltitudeObserver:
         q = 2.0 * math.pi * self.c.disturbance_observer_hz
         self.z += (2.0 * p + q) * dt * residual
         self.vz += (p * p + 2.0 * p * q) * dt * residual
+        self._correct_climb_rate(t, dt, up_force_n)
         # A sudden large innovation is the body being moved or something passing under the
         # rangefinder, not a buoyancy error: do not learn from it, unless it persists.
         if abs(residual) <= RESIDUAL_GATE_M:
             self._gated_since = None
         elif self._gated_since is None:
             self._gated_since = t
-        gated = self._gated_since is not None and t - self._gated_since < RESIDUAL_GATE_S
-        if not self.freeze_disturbance and not gated:
+        if self._may_learn(t):
             limit = self.c.altitude_integral_limit
-            self.disturbance = min(max(self.disturbance + p * p * q * dt * residual, -limit), limit)
+            step = p * p * q * dt * residual / self.effectiveness.value(self.push(up_force_n) + self.disturbance)
+            self.disturbance = min(max(self.disturbance + step, -limit), limit)
         return False
 
 

@@ -37,7 +37,11 @@ STOPPED_YAW_DPS = 3.0
 BRAKE_SHARE = 0.7  # of the full reverse authority a stop may count on (the rest: drag, the other loop, slew)
 HOVER_SPEED_BAND_M_S = 0.025  # in hover the surge loop rests below this measured speed (acts above 0.04)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
-HOVER_GAIN = 0.5  # a hover correction is gentle: it must not overshoot into a correction the other way
+HOVER_GAIN = 0.5
+MIN_CLIMB_BRAKE_M_S2 = 0.02  # a body that shows no braking at all still gets a finite (very slow) approach  # a hover correction is gentle: it must not overshoot into a correction the other way
+STILL_M_S = 0.05  # a climb rate this small is holding still: its force is the hover force...
+HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
+LIMIT_BRAKE_SHARE = 0.35  # of the vertical authority a climb into a limit plans to brake with (the loop needs the rest)
 
 
 def worst_lag_s(config: FlightConfig) -> float:
@@ -93,6 +97,7 @@ class AltitudeLoop:
         self.braking = False
         self.settle_until: float | None = None
         self.up_n = -config.net_buoyancy_n
+        self.hover_up_n = -config.net_buoyancy_n  # the force that held the body still, lately
 
     def restart(self, z: float) -> None:
         """Hold here from now on (first reading, or back from a failsafe)."""
@@ -115,16 +120,18 @@ class AltitudeLoop:
             if not self.climbing:
                 self.onset.start(obs.vz, obs.accel(thrust.vertical))
             self.climbing = True
-            target = self._climb_within_limits(z, obs.vz, climb)
+            target = self._climb_within_limits(z, obs, climb)
             ref.rate, rate_ahead, ref.accel = self.onset.step(target, self._accel_limits(obs, self.onset.rate), dt)
-            ref.value = min(max(ref.value + ref.rate * dt, z - 0.25, c.altitude_min_m), z + 0.25, c.altitude_max_m)
+            ahead = min(max(ref.value + ref.rate * dt, z - 0.25), z + 0.25)
+            ref.value = min(max(ahead, c.altitude_min_m), c.altitude_max_m)
             self.target = ref.value
         elif self.climbing:
             # Just released: decelerate along a planned ramp from the present climb rate, then hold.
             self.climbing = False
             ref.reset(z, obs.vz)
             self.braking = True
-        p_gain = 0.0 if climb else 1.0
+        # A held climb flies on its rate alone, but past a limit the limit is a position to hold.
+        p_gain = 0.0 if climb and c.altitude_min_m <= z <= c.altitude_max_m else 1.0
         if not climb and self.braking:
             ref.rate, ref.accel = ramp_to_zero(ref.rate, c.brake_climb_m_s2, dt)
             ref.value += ref.rate * dt
@@ -147,8 +154,9 @@ class AltitudeLoop:
         error = min(max(ref.value - z, -c.altitude_error_limit_m), c.altitude_error_limit_m)
         rate_ref = rate_ahead if climb else ref.rate
         predicted = obs.vz + obs.accel(thrust.vertical) * THRUST_LAG_S
-        accel = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - predicted)) + ref.accel - obs.disturbance
-        up_n = c.mass_kg * accel - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
+        wanted = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - predicted)) + ref.accel
+        push = wanted / obs.effectiveness.value(wanted) - obs.disturbance
+        up_n = c.mass_kg * push - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
         lo, hi = self.mixer.limits_up_n()
         saturated = up_n >= hi or up_n <= lo
         # Anti-windup: the disturbance (the integral) learns only while the loop is in charge: not
@@ -157,23 +165,41 @@ class AltitudeLoop:
         # blimp pinned under the ceiling must learn to push down harder, and up is where it fails safe.
         below = max(ref.value - z, self.target - z) > c.altitude_integral_band_m
         obs.freeze_disturbance = soft or saturated or below
+        obs.touched = soft or below
         self.up_n = min(max(up_n, lo), hi)
+        if not climb and abs(obs.vz) < STILL_M_S:
+            self.hover_up_n += (self.up_n - self.hover_up_n) * min(1.0, dt / HOVER_FORCE_TAU_S)
         return self.up_n
 
-    def _climb_within_limits(self, z: float, vz: float, climb: float) -> float:
+    def _climb_within_limits(self, z: float, obs: AltitudeObserver, climb: float) -> float:
         """The commanded climb rate, slowed near the altitude limits so that a held up or down stops there."""
         c = self.c
-        z_ahead = z + vz * (HANDOVER_S + THRUST_LAG_S * c.plant_uncertainty)
+        z_ahead = z + obs.vz * (HANDOVER_S + THRUST_LAG_S * c.plant_uncertainty)
         room = c.altitude_max_m - z_ahead if climb > 0 else z_ahead - c.altitude_min_m
-        allowed = math.sqrt(2.0 * 0.25 * c.brake_climb_m_s2 * max(room, 0.0))
+        allowed = math.sqrt(2.0 * self._braking(obs, climb) * max(room, 0.0))
         return math.copysign(min(abs(climb), allowed), climb)
+
+    def _braking(self, obs: AltitudeObserver, climb: float) -> float:
+        """The deceleration a climb (or a descent) at the limit may plan on: a quarter of the planned
+        brake, or what this body has shown it can do with a share of its authority, if that is less
+        (a heavy blimp whose motors barely hold its buoyancy stops a climb slowly). The authority is
+        the headroom between the force that holds it still and the motors' limit: both are commands
+        the loop really sent, so the buoyancy error cancels."""
+        c = self.c
+        lo, hi = self.mixer.limits_up_n()
+        toward = -1.0 if climb > 0 else 1.0
+        headroom = ((lo if climb > 0 else hi) - self.hover_up_n) / c.mass_kg
+        shown = toward * obs.effectiveness.assured(toward) * headroom
+        return max(min(0.25 * c.brake_climb_m_s2, LIMIT_BRAKE_SHARE * shown), MIN_CLIMB_BRAKE_M_S2)
 
     def _accel_limits(self, obs: AltitudeObserver, rate: float) -> tuple[float, float]:
         c = self.c
         lo, hi = self.mixer.limits_up_n()
         drag = air_drag(rate, c.quadratic_drag)
-        return ((lo + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance,
-                (hi + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance)
+        e = obs.effectiveness
+        down = (lo + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance
+        up = (hi + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance
+        return e.value(down) * down, e.value(up) * up
 
 
 class HeadingLoop:

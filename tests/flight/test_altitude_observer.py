@@ -1,0 +1,108 @@
+"""The altitude observer on a blimp nobody tuned it to: the range slope, the heave effectiveness, the limits.
+
+The climb rate a loop damps must be measured, not predicted: these tests
+check the rangefinder's own slope (exact on a ramp, bounded with noise,
+silent with too few readings), that the heave effectiveness finds the true
+ratio of a plant twice as heavy, and that the heavy, weak corner of the box
+(motors that barely hold its buoyancy) stops a held climb at the ceiling.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.daemon.config import Config
+from feelium.flight.estimators import RANGE_LATENCY_S, RANGE_RATE_WINDOW_S, RangeRate
+from feelium.flight.setpoint import setpoint_for_motion
+from feelium.flight.sim_board import BoardParams, board_with
+from feelium.lab.flight.plants import corner_plants
+from feelium.lab.flight.simulation import SimFlight
+
+
+@given(rate=st.floats(-2.0, 2.0), start=st.floats(0.1, 3.0), t0=st.floats(0.0, 1e5))
+def test_the_range_slope_of_a_ramp_is_its_rate(rate: float, start: float, t0: float) -> None:
+    slope = RangeRate()
+    for k in range(40):
+        t = t0 + 0.02 * k
+        slope.add(t, start + rate * (t - t0))
+    measured = slope.rate(t0 + 0.02 * 39)
+    assert measured is not None and measured == pytest.approx(rate, abs=1e-6)
+
+
+@settings(deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_the_range_slope_with_sensor_noise_stays_within_a_few_cm_per_s(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    slope = RangeRate()
+    errors = []
+    for k in range(500):
+        t = 0.02 * k
+        slope.add(t, 1.2 + 0.1 * t + 0.01 * float(rng.standard_normal()))  # 1 cm noise, the sim's VL53L1X at 1.2 m
+        measured = slope.rate(t)
+        if measured is not None:
+            errors.append(measured - 0.1)
+    # The least-squares slope of 15 readings over 0.3 s: about 3 cm/s of noise.
+    assert np.std(errors) < 0.05 and abs(np.mean(errors)) < 0.01
+
+
+def test_the_range_slope_says_nothing_without_enough_readings_and_tells_its_age() -> None:
+    slope = RangeRate()
+    for k in range(4):
+        slope.add(0.02 * k, 1.0)
+    assert slope.rate(0.06) is None
+    slope.add(0.08, 1.0)
+    slope.add(0.10, 1.0)
+    assert slope.rate(0.10) == pytest.approx(0.0)
+    assert slope.rate(10.0) is None  # a gap longer than the window: every reading has aged out
+    assert slope.age_s == pytest.approx(0.5 * RANGE_RATE_WINDOW_S + RANGE_LATENCY_S)
+
+
+def _corner(label: str):
+    return next(plant for plant in corner_plants() if plant.name == f"corner-{label}")
+
+
+def _climbs_and_descents(flight: SimFlight, config, cycles: int) -> None:
+    for _ in range(cycles):
+        for name, seconds in (("up", 2.0), (None, 3.0), ("down", 2.0), (None, 3.0)):
+            flight.run(seconds, setpoint_for_motion(name, config))
+
+
+def test_the_heave_effectiveness_finds_a_blimp_twice_as_heavy() -> None:
+    config = Config().flight
+    nominal = BoardParams().blimp
+    heavy = replace(nominal, heave_mass_factor=2.0 * nominal.heave_mass_factor)
+    flight = SimFlight(config, board_with(BoardParams(blimp=heavy), z=1.2))
+    flight.run(6.0)
+    _climbs_and_descents(flight, config, 3)
+    learned = flight.controller.altitude.effectiveness
+    assert min(learned.samples) > 0
+    # The model's heave mass is the nominal one: this body answers each push about half as much.
+    # (It starts at 4, the strongest plant of the box, and may settle anywhere in 0.25..4 if it learns nothing.)
+    for value in learned.values:
+        assert 0.35 < value < 0.75, learned.as_dict()
+
+
+@pytest.mark.parametrize("label", ["Mtdl", "MtDL"])
+def test_a_heavy_blimp_whose_motors_barely_hold_it_down_stops_a_held_climb_at_the_ceiling(label: str) -> None:
+    config = Config().flight
+    flight = SimFlight(config, board_with(BoardParams(blimp=_corner(label).blimp), z=1.2))
+    flight.run(8.0)
+    flight.run(12.0, setpoint_for_motion("up", config))
+    flight.run(4.0)
+    z = flight.log["z"]
+    assert z.max() <= config.altitude_max_m + 0.1
+    assert abs(z[-1] - config.altitude_max_m) < 0.15  # and it holds near the limit, not somewhere below
+
+
+def test_a_light_blimp_with_strong_motors_starts_without_falling_through_the_floor_limit() -> None:
+    config = Config().flight
+    flight = SimFlight(config, board_with(BoardParams(blimp=_corner("MTdl").blimp), z=1.2))
+    flight.run(12.0)
+    z = flight.log["z"]
+    assert z.min() >= config.altitude_min_m - 0.1
+    assert abs(z[-1] - 1.2) < 0.1
