@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from feelium.flight.config import FlightConfig
 from feelium.flight.estimators import AltitudeObserver, SurgeEstimate, ThrustModel, YawEstimate
 from feelium.flight.loops import AltitudeLoop, HeadingLoop, SurgeLoop
+from feelium.flight.reversal import ReversalGuard, calm
 from feelium.flight.mixer import NEUTRAL, Mixer, MixerGeometry, thrust_for_command, to_microseconds
 from feelium.flight.setpoint import Setpoint
 from feelium.flight.telemetry import Telemetry
@@ -67,6 +68,7 @@ class FlightController:
         self.altitude_loop = AltitudeLoop(config, self.mixer)
         self.heading_loop = HeadingLoop(config, self.mixer)
         self.surge_loop = SurgeLoop(config, self.mixer)
+        self.reversals = ReversalGuard(config.motor_deadband)
         self._last_t: float | None = None
         self._altitude_failsafe = False
         self._telemetry_failsafe = False
@@ -95,6 +97,7 @@ class FlightController:
             "heave_effectiveness": self.altitude.effectiveness.as_dict(),
             "altitude_disturbance_m_s2": round(self.altitude.disturbance, 3),
             "old_telemetry": self.old_telemetry,
+            "reversals_held": self.reversals.held,
         }
 
     # ---------------------------------------------------------------- public
@@ -139,6 +142,8 @@ class FlightController:
         yaw_nm = self.heading_loop.step(t, dt, setpoint, self.yaw, self.thrust, gain) if heading_age <= self.c.telemetry_stale_s else 0.0
         surge_n = self.surge_loop.step(t, dt, 0.0 if soft else setpoint.forward_m_s, gain, self.surge, self.thrust)
         commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt)
+        hovering = self.heading_loop.hovering and self.surge_loop.hovering
+        commands = self.reversals.limit(t, commands, hovering, calm(self.surge.speed, self.yaw.rate_dps))
         self.thrust.targets = self._modelled_forces(commands)
         return self._output(t, commands, "soft" if soft and mode == "flying" else mode)
 

@@ -35,10 +35,10 @@ SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 STOPPED_SPEED_M_S = 0.05  # the stop goal's thresholds (docs/flight-robustness.md)
 STOPPED_YAW_DPS = 3.0
 BRAKE_SHARE = 0.7  # of the full reverse authority a stop may count on (the rest: drag, the other loop, slew)
-HOVER_SPEED_BAND_M_S = 0.025  # in hover the surge loop rests below this measured speed (acts above 0.04)...
+HOVER_SPEED_BAND_M_S = 0.02  # in hover the surge loop rests below this measured speed (acts above 0.03)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
-HOVER_GAIN = 0.5
-MIN_CLIMB_BRAKE_M_S2 = 0.02  # a body that shows no braking at all still gets a finite (very slow) approach  # a hover correction is gentle: it must not overshoot into a correction the other way
+HOVER_GAIN = 0.5  # a hover correction is gentle: it must not overshoot into a correction the other way
+MIN_CLIMB_BRAKE_M_S2 = 0.02  # a body that shows no braking at all still gets a finite (very slow) approach
 STILL_M_S = 0.05  # a climb rate this small is holding still: its force is the hover force...
 HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
 LIMIT_BRAKE_SHARE = 0.35  # of the vertical authority a climb into a limit plans to brake with (the loop needs the rest)
@@ -214,6 +214,7 @@ class HeadingLoop:
         self.braking = False
         self.settle_until: float | None = None
         self.band = _Band()
+        self.hovering = False  # no command, no brake, no settling: the motors may be kept from reversing
         self.turn_cap_dps = config.yaw_rate_dps
 
     def restart(self, heading: float) -> None:
@@ -265,6 +266,7 @@ class HeadingLoop:
             ref.advance(wrap_deg(self.target - ref.value), dt)
             ref.value %= 360.0
         error_deg = wrap_deg(ref.value - est.heading)
+        self.hovering = hover
         if hover:
             tolerance = c.hover_heading_tolerance_deg
             outside = abs(wrap_deg(self.target - est.heading)) > tolerance or abs(est.rate_dps) > 2.0 * HOVER_YAW_BAND_DPS
@@ -310,6 +312,7 @@ class SurgeLoop:
         self.surging = False
         self.onset = RateOnset()
         self.band = _Band()
+        self.hovering = False  # no command, no brake, no settling: the motors may be kept from reversing
         self.speed_cap = config.forward_speed_m_s
 
     def step(self, t: float, dt: float, speed_sp: float, gain: float, est: SurgeEstimate, thrust: ThrustModel) -> float:
@@ -327,8 +330,9 @@ class SurgeLoop:
             self.ref_speed, accel = ramp_to_zero(min(self.ref_speed, est.speed, key=abs), c.brake_m_s2, dt)
             v_ahead = self.ref_speed
             hover = self.ref_speed == 0.0 and est.measured(t)  # the hover band needs a measured speed
+        self.hovering = not speed_sp and self.ref_speed == 0.0  # no command, braking done
         if hover:
-            outside = abs(est.speed) > 1.6 * HOVER_SPEED_BAND_M_S
+            outside = abs(est.speed) > 1.5 * HOVER_SPEED_BAND_M_S
             if not self.band.update(outside, abs(est.speed) < HOVER_SPEED_BAND_M_S):
                 return 0.0
         else:

@@ -1,0 +1,65 @@
+"""In hover a horizontal motor keeps its direction for a while: no audible back-and-forth.
+
+The hover bands (``loops.py``) keep each loop from reversing its own push, but
+a motor serves two loops (surge plus or minus yaw), so their sum can still
+flip sign every time either loop re-engages: on an untuned blimp in mild
+drafts that was 0.7-1.1 direction changes a second, each one a propeller
+stopping and spinning up the other way (noise, wear, and a thrust the model
+gets wrong while the ESC reverses). In calm hover, and only there, a motor that
+spun one way is not reversed until ``MIN_INTERVAL_S`` has passed: it waits at
+neutral, and the air's drag does the rest. Calm hover means both loops have
+been hovering (no command, brake or settling) for ``SETTLE_S`` and the body
+is still by the stop goal's measure, with a margin. Once it moves faster, or
+at any command, brake or stop, the guard steps aside at once: a correction
+that matters always has full authority.
+"""
+
+from __future__ import annotations
+
+import math
+
+MIN_INTERVAL_S = 2.5  # at most one reversal per 2.5 s per motor: 0.4/s, under the 0.5/s goal
+# Calm: slower than this, the body counts as still (inside the stop goal's 5 cm/s and 3 deg/s, with a margin).
+CALM_SPEED_M_S = 0.045
+CALM_YAW_DPS = 2.5
+SETTLE_S = 3.0  # after a command or a brake, this long with full authority first
+
+
+def calm(speed_m_s: float, yaw_rate_dps: float) -> bool:
+    """Still enough that a correction may wait: a faster body is corrected at once, reversal or not."""
+    return abs(speed_m_s) < CALM_SPEED_M_S and abs(yaw_rate_dps) < CALM_YAW_DPS
+
+
+class ReversalGuard:
+    """Per horizontal motor: the direction it last spun and when it took that direction."""
+
+    def __init__(self, deadband: float) -> None:
+        self.deadband = deadband
+        self._sign = [0.0, 0.0]  # the horizontal pair: the mixer's first two motors
+        self._since = [-math.inf, -math.inf]
+        self._hovering_since = math.inf
+        self.held = 0  # cycles in which a motor was kept from reversing, for health
+
+    def limit(self, t: float, commands: tuple[float, float, float, float], hovering: bool, calm: bool) -> tuple[float, float, float, float]:
+        """``commands`` with each horizontal motor that would reverse too soon at neutral: only while the
+        body is ``calm`` and has been ``hovering`` for ``SETTLE_S`` (the settling after a command or a brake
+        keeps full authority)."""
+        if not hovering:
+            self._hovering_since = math.inf
+        elif self._hovering_since == math.inf:
+            self._hovering_since = t
+        quiet = calm and t - self._hovering_since >= SETTLE_S
+        out = list(commands)
+        for i in range(2):
+            if abs(commands[i]) <= self.deadband:
+                continue  # not spinning: no direction taken
+            wanted = math.copysign(1.0, commands[i])
+            if wanted == self._sign[i]:
+                continue
+            if quiet and self._sign[i] != 0.0 and t - self._since[i] < MIN_INTERVAL_S:
+                out[i] = 0.0
+                continue
+            self._sign[i], self._since[i] = wanted, t
+        if out[:2] != list(commands[:2]):
+            self.held += 1
+        return out[0], out[1], out[2], out[3]
