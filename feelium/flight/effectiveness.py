@@ -25,15 +25,21 @@ class Effectiveness:
     """Least-squares ratio of measured to modelled rate change over ``window_s`` windows, per push direction."""
 
     def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
-                 memory_s: float = 6.0, min_change: float = 0.0) -> None:
+                 memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
-        ``min_change``: the smallest modelled rate change over a window that counts as excitation."""
+        ``min_change``: the smallest modelled rate change over a window that counts as excitation;
+        ``assuring_change``: the smallest *real* rate change (modelled times learned) that may teach what
+        a safety margin counts on. Small
+        corrections against drift are biased high (the air's drag brakes the body along with the
+        push and is credited to it), so a margin waits for a real push, such as a brake."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
         self.lows = [reverse_low, low]
         self.high = high
         self.window_s, self.memory_s, self.min_change = window_s, memory_s, min_change
+        self.assuring_change = assuring_change
+        self.assuring_samples = [0, 0]
         self.values = [high, high]  # [push < 0, push > 0]
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
         self._history: deque[tuple[float, float, float]] = deque()  # (t, modelled push integral, measured rate)
@@ -49,9 +55,10 @@ class Effectiveness:
         return max(self.values)
 
     def assured(self, push: float) -> float:
-        """The effectiveness a safety margin may count on: the learned one once taught, else the box's lower bound."""
+        """The effectiveness a safety margin may count on: the learned one once a real push taught it, else
+        the box's lower bound."""
         side = 1 if push > 0.0 else 0
-        return self.values[side] if self.samples[side] else self.lows[side]
+        return self.values[side] if self.assuring_samples[side] else self.lows[side]
 
     def update(self, t: float, dt: float, push: float, measured_rate: float | None) -> None:
         """Fold in one cycle: the modelled acceleration ``push`` held over ``dt`` and the measured rate at ``t``."""
@@ -76,6 +83,8 @@ class Effectiveness:
         sums[1] = sums[1] * decay + x * y
         self.samples[side] += 1
         self.values[side] = min(max(sums[1] / sums[0], self.lows[side]), self.high)
+        if abs(x) * self.values[side] >= self.assuring_change:  # the rate change it made, not the one modelled
+            self.assuring_samples[side] += 1
 
     def as_dict(self) -> dict[str, float | int]:
         """For health: both directions and how many windows taught them."""

@@ -38,6 +38,7 @@ RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and
 # default: the flow is the speed), in between on a log scale (the exponent joins those two points).
 FLOW_TAU_TRUSTED_S = 3.0
 FLOW_TAU_EXPONENT = 5.23
+SURGE_ASSURING_CHANGE_M_S = 0.02  # a window must change the modelled speed this much to teach the stop's margin
 FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone
 MIN_FLOW_HEIGHT_M = 0.08
 
@@ -286,9 +287,11 @@ class SurgeEstimate:
         self.speed = 0.0
         self.last_flow_t: float | None = None
         self.last_measured: float | None = None
+        self._drag_integral = 0.0
         low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
         reverse_low, _ = effectiveness_bounds(config.plant_uncertainty, reverse=True)
-        self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005)
+        self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005,
+                                      assuring_change=SURGE_ASSURING_CHANGE_M_S)
 
     def measured(self, t: float) -> bool:
         return self.last_flow_t is not None and t - self.last_flow_t <= FLOW_FRESH_S
@@ -303,7 +306,10 @@ class SurgeEstimate:
             tau = FLOW_TAU_TRUSTED_S / c.plant_uncertainty**FLOW_TAU_EXPONENT
             self.speed += (measured - self.speed) * (1.0 - math.exp(-dt / tau))
             self.last_flow_t, self.last_measured = t, measured
-        self.effectiveness.update(t, dt, push, measured)
+        # The air's drag brakes the body along with any push against a drift; added back (by the model),
+        # it is not credited to the push.
+        self._drag_integral += air_drag(self.speed, c.quadratic_drag) / c.mass_kg * dt
+        self.effectiveness.update(t, dt, push, None if measured is None else measured + self._drag_integral)
 
     def accel(self, surge_n: float) -> float:
         """The forward acceleration the model and the learned effectiveness give for ``surge_n`` now."""

@@ -76,3 +76,17 @@ def test_the_controller_says_where_its_speed_comes_from(flow: bool) -> None:
     assert estimates["speed_source"] == ("optical_flow" if flow else "model_only")
     assert flight.last is not None and flight.last.speed_measured is flow
     assert estimates["speed_cap_m_s"] <= (config.forward_speed_m_s if flow else config.no_flow_speed_fraction * config.forward_speed_m_s)
+
+
+def test_small_corrections_teach_the_loop_but_only_a_real_push_teaches_the_safety_margin() -> None:
+    estimator = Effectiveness(0.25, 4.0, assuring_change=0.02)
+    _fly(estimator, (0.5, 0.5), seconds=6.0)  # pushes of 0.5 modelled: real rate changes well over 0.02
+    assert estimator.assured(-1.0) == pytest.approx(estimator.values[0])
+    gentle = Effectiveness(0.25, 4.0, assuring_change=0.02)
+    rate, dt = 0.0, 0.02
+    for k in range(300):  # hover-sized corrections: 0.02 modelled, 0.01 real per second
+        push = 0.02 * math.sin(2 * math.pi * k * dt / 1.5)
+        rate += 0.5 * push * dt
+        gentle.update(k * dt, dt, push, rate)
+    assert min(gentle.samples) > 0  # the loop's normalisation learns from them...
+    assert gentle.assured(-1.0) == 0.25 and gentle.assured(1.0) == 0.25  # ...a stop's margin does not
