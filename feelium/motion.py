@@ -14,6 +14,8 @@ from typing import Literal, get_args
 
 MotionName = Literal["forward", "backward", "up", "down", "turn_left", "turn_right", "stop"]
 MOTION_NAMES: tuple[str, ...] = get_args(MotionName)
+# Commands that only ever bring the blimp to rest: never rate limited, never refused for want of control.
+NEUTRAL_NAMES: frozenset[str] = frozenset({"stop"})
 DEFAULT_HOLD_S = 0.5
 MAX_HOLD_S = 0.5  # the flight goal: stopped within 1.5 s of the last refresh, of which braking takes up to 1.0 s
 
@@ -44,7 +46,7 @@ class DeadManCommands:
         if not (math.isfinite(hold_s) and 0.0 < hold_s <= self.max_hold_s):
             raise ValueError(f"hold must be in (0, {self.max_hold_s}] seconds, got {hold_s}")
         cmd = MotionCommand(name=name, issued_at=now, expires_at=now + hold_s, source=source)
-        self._current = None if name == "stop" else cmd
+        self._current = None if name in NEUTRAL_NAMES else cmd
         self.accepted += 1
         return cmd
 

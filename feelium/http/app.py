@@ -11,12 +11,14 @@ from aiohttp import web
 from feelium.http import control, events_api, video
 from feelium.http.config import HttpConfig
 from feelium.http.context import CONTEXT, LinkContext, SpeechSettings, ctx
-from feelium.http.errors import ERROR_STATS, json_errors
+from feelium.http.errors import ERROR_STATS, ApiError, json_errors
 from feelium.http.face import FacePlayer
 from feelium.http.feed import EventFeed
 from feelium.http.jpeg import JpegFeed
 from feelium.http.openapi import openapi_document
-from feelium.http.ratelimit import TokenBucket
+from feelium.http.lease import ControlLease
+from feelium.http.ratelimit import ClientBuckets
+from feelium.http.slots import StreamSlots
 from feelium.http.security import API_PREFIX, add_cors_headers, make_cors_middleware, parse_origins, require_token
 from feelium.http.speech import SpeechFeed
 from feelium.hub import Hub
@@ -40,8 +42,12 @@ def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettin
         events=EventFeed(hub.bus, config.event_ring_size),
         speech=SpeechFeed(hub.bus, speech.capture_keep_ms),
         videos=videos,
-        motion_bucket=TokenBucket(config.motion_rate_per_s, config.motion_burst, hub.clock()),
         face=FacePlayer(hub),
+        motion_limit=ClientBuckets(config.motion_rate_per_s, config.motion_burst),
+        action_limit=ClientBuckets(config.action_rate_per_s, config.action_burst),
+        speech_limit=ClientBuckets(config.speech_rate_per_s, config.speech_burst),
+        lease=ControlLease(config.control_lease_s),
+        streams=StreamSlots(config.max_stream_clients, config.max_streams_per_client),
     )
 
 
@@ -73,6 +79,15 @@ async def index(request: web.Request) -> web.FileResponse:
 
 async def partner(request: web.Request) -> web.FileResponse:
     return web.FileResponse(STATIC_DIR / "partner.html", headers={"Cache-Control": "no-cache"})
+
+
+async def static_file(request: web.Request) -> web.FileResponse:
+    """A file of the browser client; a missing one is a JSON 404 (aiohttp's static route answers an empty body)."""
+    name = request.match_info["name"]
+    path = STATIC_DIR / name
+    if "/" in name or "\\" in name or name.startswith(".") or not path.is_file():
+        raise ApiError(404, f"no such file: /static/{name[:80]}")
+    return web.FileResponse(path)
 
 
 def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings | None = None) -> web.Application:
@@ -110,7 +125,7 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     app.router.add_post(f"{p}/sim/release", control.post_sim_release)
     app.router.add_get("/", index)
     app.router.add_get("/partner", partner)
-    app.router.add_static("/static/", STATIC_DIR, show_index=False)
+    app.router.add_get("/static/{name}", static_file)
     return app
 
 

@@ -33,11 +33,36 @@ class HttpConfig:
     max_speech_bytes: int = setting(
         256_000, "Largest speech upload (one WAV chunk; 413 above).", min=1024, max=4_000_000
     )
+    max_json_depth: int = setting(
+        8, "Deepest nesting of arrays and objects in a JSON body (400 above); the API's bodies are flat.", min=2, max=64
+    )
+    max_face_pixels: int = setting(
+        4_194_304,
+        "Largest face or avatar frame in pixels (width x height, read from the JPEG header before decoding; 413 "
+        "above). 2048x2048 keeps even a progressive JPEG's decode under 50 MB on a 512 MB board.",
+        min=4096, max=67_108_864,
+    )
     motion_rate_per_s: float = setting(
-        25.0, "Sustained motion commands per second accepted (headsets refresh the dead man ~10/s); 429 above.",
+        25.0, "Sustained motion commands per second accepted from one client (headsets refresh the dead man "
+        "~7/s); 429 above. stop is never limited.",
         min=1.0, max=1000.0,
     )
-    motion_burst: int = setting(25, "Motion commands accepted in a burst before the rate limit applies.", min=1, max=1000)
+    motion_burst: int = setting(25, "Motion commands one client may send in a burst before its limit applies.", min=1, max=1000)
+    control_lease_s: float = setting(
+        5.0, "Motion is exclusive to one client; its lease lapses after this long without a motion command from "
+        "it, and another client may then steer without taking over.",
+        min=0.5, max=600.0,
+    )
+    action_rate_per_s: float = setting(
+        4.0, "Sustained wearer actions and face uploads per second accepted from one client; 429 above.",
+        min=0.1, max=1000.0,
+    )
+    action_burst: int = setting(8, "Wearer actions and face uploads one client may send in a burst.", min=1, max=1000)
+    speech_rate_per_s: float = setting(
+        20.0, "Sustained speech chunks per second accepted from one client (100-200 ms chunks are 5-10/s); 429 above.",
+        min=1.0, max=1000.0,
+    )
+    speech_burst: int = setting(20, "Speech chunks one client may send in a burst.", min=1, max=1000)
     event_ring_size: int = setting(
         512, "Events kept for long-poll, SSE and WebSocket catch-up; a client further behind gets reset.",
         min=8, max=100000,
@@ -52,7 +77,10 @@ class HttpConfig:
         min=0, max=16_000_000,
     )
     max_stream_clients: int = setting(
-        16, "Concurrent MJPEG streams per camera; more get 429.", min=1, max=1000
+        16, "Concurrent MJPEG streams in total, all cameras together; more get 429.", min=1, max=1000
+    )
+    max_streams_per_client: int = setting(
+        4, "Concurrent MJPEG streams of one client (all cameras); more get 429.", min=1, max=1000
     )
     jpeg_quality: int = setting(80, "JPEG quality of the video streams (encoded once per frame).", min=10, max=100)
     keepalive_s: float = setting(

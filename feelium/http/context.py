@@ -11,7 +11,9 @@ from feelium.http.config import HttpConfig
 from feelium.http.face import FacePlayer
 from feelium.http.feed import EventFeed
 from feelium.http.jpeg import JpegFeed
-from feelium.http.ratelimit import TokenBucket
+from feelium.http.lease import ControlLease
+from feelium.http.ratelimit import ClientBuckets
+from feelium.http.slots import StreamSlots
 from feelium.http.speech import SpeechFeed
 from feelium.hub import Hub
 
@@ -42,8 +44,12 @@ class LinkContext:
     events: EventFeed
     speech: SpeechFeed
     videos: dict[str, JpegFeed]
-    motion_bucket: TokenBucket
     face: FacePlayer
+    motion_limit: ClientBuckets  # per client; stop is never charged
+    action_limit: ClientBuckets  # wearer actions and face uploads, per client
+    speech_limit: ClientBuckets
+    lease: ControlLease  # who may steer
+    streams: StreamSlots  # MJPEG streams per client and in total
     counters: dict[str, int] = field(default_factory=dict)
     last_request_at: float | None = None
     last_motion_at: float | None = None
@@ -59,6 +65,7 @@ class LinkContext:
         return {
             "last_request_age_s": age(self.last_request_at),
             "last_motion_age_s": age(self.last_motion_at),
+            "controller": holder.client if (holder := self.lease.holder(now)) is not None else None,
             "video_clients": sum(f.clients for f in self.videos.values()),
             "event_clients": self.counters.get("event_clients", 0),
         }

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 import numpy as np
 from aiohttp import web
@@ -11,14 +12,17 @@ from aiohttp import web
 from feelium.events import SpeechIn
 from feelium.wav import WavError, decode_wav, encode_wav, resample
 from feelium.events import WearerAction
-from feelium.http.context import ctx
+from feelium.http.clients import client_of
+from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
-from feelium.http.face import JpegError, check_jpeg
+from feelium.http.face import ImageTooLarge, JpegError, check_jpeg
 from feelium.http.params import check_keys, number_field, query_number, read_body, read_json_object
-from feelium.motion import DEFAULT_HOLD_S, MOTION_NAMES
+from feelium.http.ratelimit import ClientBuckets
+from feelium.motion import DEFAULT_HOLD_S, MOTION_NAMES, NEUTRAL_NAMES
 
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
 MAX_WORD = 40
+MAX_CAMERA_PX = 65535.0  # bound of a simulated press coordinate (a live camera is far smaller: 409 beyond it)
 
 
 def _motion_json(cmd, now: float) -> dict:  # type: ignore[no-untyped-def]
@@ -32,28 +36,59 @@ def _motion_json(cmd, now: float) -> dict:  # type: ignore[no-untyped-def]
     }
 
 
-async def post_motion(request: web.Request) -> web.Response:
-    """A dead-man motion command: it lapses unless refreshed within ``hold_ms``."""
-    link = ctx(request)
-    now = link.hub.clock()
-    if not link.motion_bucket.take(now):
-        wait = link.motion_bucket.retry_after(now)
+def charge(limit: ClientBuckets, client: str, now: float, what: str) -> None:
+    """Take one request from ``client``'s bucket or answer 429 with ``Retry-After``."""
+    if not limit.take(client, now):
+        wait = limit.retry_after(client, now)
         raise ApiError(
             429,
-            f"motion commands are limited to {link.config.motion_rate_per_s:g}/s; retry in {wait:.2f} s",
-            headers={"Retry-After": str(max(1, round(wait + 0.5)))},
+            f"{what} are limited to {limit.rate:g}/s per client; retry in {wait:.2f} s",
+            headers={"Retry-After": str(max(1, math.ceil(wait)))},
         )
-    body = await read_json_object(request, link.config.max_json_bytes)
-    check_keys(body, {"command", "hold_ms"})
+
+
+async def _json_body(request: web.Request, link: LinkContext, *, required: bool = True) -> dict[str, Any]:
+    return await read_json_object(request, link.config.max_json_bytes, link.config.max_json_depth, required=required)
+
+
+async def post_motion(request: web.Request) -> web.Response:
+    """A dead-man motion command: it lapses unless refreshed within ``hold_ms``.
+
+    The body is read and validated first; a ``stop`` is then applied at once, before any rate limit or
+    lease, from any client. Only other commands are charged to the client's bucket and need the lease.
+    """
+    link = ctx(request)
+    client = client_of(request)
+    body = await _json_body(request, link)
+    check_keys(body, {"command", "hold_ms", "take_over"})
     name = body.get("command")
     if not isinstance(name, str) or name not in MOTION_NAMES:
         raise ApiError(400, f"command must be one of {', '.join(MOTION_NAMES)}, got {str(name)[:40]!r}")
     max_ms = 1000.0 * link.hub.motion.max_hold_s
     hold_ms = number_field(body, "hold_ms", 1000.0 * DEFAULT_HOLD_S, 1.0, max_ms)
     assert hold_ms is not None
-    cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
+    take_over = body.get("take_over", False)
+    if not isinstance(take_over, bool):
+        raise ApiError(400, "take_over must be true or false")
+    now = link.hub.clock()
+    if name in NEUTRAL_NAMES:
+        cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
+        link.lease.stopped_by(client, now)
+        link.count("motion_stops")
+    else:
+        charge(link.motion_limit, client, now, "motion commands")
+        holder = link.lease.claim(client, now, take_over)
+        if holder is not None:
+            raise ApiError(
+                409,
+                f"{holder.client} is steering; send the command with \"take_over\": true to take control, "
+                f"or wait until its lease lapses ({link.lease.lease_s:g} s after its last motion command)",
+                "not_in_control",
+                extra={"controller": holder.client, "lease_remaining_s": round(holder.expires_at - now, 3), "you": client},
+            )
+        cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
     link.last_motion_at = now
-    return web.json_response(_motion_json(link.hub.motion.active(now), now) | {"accepted": cmd.name})
+    return web.json_response(_motion_json(link.hub.motion.active(now), now) | {"accepted": cmd.name, "controller": client})
 
 
 async def get_motion(request: web.Request) -> web.Response:
@@ -68,7 +103,8 @@ async def post_action(request: web.Request) -> web.Response:
     name = request.match_info["action"]
     if name not in ACTIONS:
         raise ApiError(404, f"no action {name!r}; expected one of {', '.join(ACTIONS)}")
-    body = await read_json_object(request, link.config.max_json_bytes, required=name == "guess")
+    client = client_of(request)
+    body = await _json_body(request, link, required=name == "guess")
     detail: dict = {}
     if name == "guess":
         check_keys(body, {"word"})
@@ -78,7 +114,9 @@ async def post_action(request: web.Request) -> web.Response:
         detail["word"] = word.strip()
     else:
         check_keys(body, set())
-    action = WearerAction(name, link.hub.clock(), detail)  # type: ignore[arg-type]
+    now = link.hub.clock()
+    charge(link.action_limit, client, now, "wearer actions and face uploads")
+    action = WearerAction(name, now, detail)  # type: ignore[arg-type]
     link.hub.bus.publish(action)
     link.count(f"action_{name}")
     return web.json_response(action.to_json(), status=202)
@@ -123,9 +161,12 @@ async def put_face(request: web.Request) -> web.Response:
         raise ApiError(415, f"expected image/jpeg or multipart/form-data of JPEG frames, got {ctype}")
     try:
         for i, frame in enumerate(frames):
-            check_jpeg(frame, "body" if len(frames) == 1 else f"frame {i}")
+            check_jpeg(frame, cfg.max_face_pixels, "body" if len(frames) == 1 else f"frame {i}")
+    except ImageTooLarge as exc:
+        raise ApiError(413, str(exc), "image_too_large") from exc
     except JpegError as exc:
         raise ApiError(400, str(exc)) from exc
+    charge(link.action_limit, client_of(request), link.hub.clock(), "wearer actions and face uploads")
     link.face.show(frames, fps)
     return web.json_response({"frames": len(frames), "fps": fps if len(frames) > 1 else None, "bytes": sum(map(len, frames))})
 
@@ -140,6 +181,7 @@ async def post_speech(request: web.Request) -> web.Response:
         samples, rate = decode_wav(data)
     except WavError as exc:
         raise ApiError(400, str(exc)) from exc
+    charge(link.speech_limit, client_of(request), link.hub.clock(), "speech chunks")
     target = link.speech_settings.sample_rate
     pcm = resample(samples, rate, target).astype("<i2").tobytes()
     link.hub.bus.publish(SpeechIn(pcm, target, link.hub.clock()))
@@ -184,14 +226,14 @@ async def post_sim_press(request: web.Request) -> web.Response:
     """Press (or hover) a simulated fingertip on the rear camera at ``x``, ``y`` (camera pixels)."""
     link = ctx(request)
     scene = _scene(request)
-    body = await read_json_object(request, link.config.max_json_bytes)
+    body = await _json_body(request, link)
     check_keys(body, {"x", "y", "hover"})
     size = scene_size(scene)
     width, height = float(size[0] or 10000), float(size[1] or 10000)
     if "x" not in body or "y" not in body:
         raise ApiError(400, "x and y (camera pixels) are required")
-    x = number_field(body, "x", None, 0.0, float("inf"))
-    y = number_field(body, "y", None, 0.0, float("inf"))
+    x = number_field(body, "x", None, 0.0, MAX_CAMERA_PX)
+    y = number_field(body, "y", None, 0.0, MAX_CAMERA_PX)
     if x is None or y is None:
         raise ApiError(400, "x and y must be numbers")
     if x > width - 1 or y > height - 1:  # valid numbers, but the live camera is smaller
@@ -211,7 +253,7 @@ async def post_sim_release(request: web.Request) -> web.Response:
     """Lift the simulated fingertip."""
     link = ctx(request)
     scene = _scene(request)
-    body = await read_json_object(request, link.config.max_json_bytes, required=False)
+    body = await _json_body(request, link, required=False)
     check_keys(body, set())
     try:
         scene.release(link.hub.clock())

@@ -34,18 +34,27 @@ _CODES = {
 class ApiError(Exception):
     """An HTTP error with a machine code and a human message."""
 
-    def __init__(self, status: int, message: str, code: str | None = None, headers: dict[str, str] | None = None) -> None:
+    def __init__(
+        self,
+        status: int,
+        message: str,
+        code: str | None = None,
+        headers: dict[str, str] | None = None,
+        extra: dict[str, Any] | None = None,
+    ) -> None:
         super().__init__(message)
         self.status = status
         self.code = code or _CODES.get(status, "error")
         self.message = message
         self.headers = headers or {}
+        self.extra = extra or {}  # more fields for the body, e.g. who holds the motion lease
 
 
-def error_response(status: int, message: str, code: str | None = None, headers: Any = None) -> web.Response:
-    return web.json_response(
-        {"error": code or _CODES.get(status, "error"), "message": message}, status=status, headers=headers
-    )
+def error_response(
+    status: int, message: str, code: str | None = None, headers: Any = None, extra: dict[str, Any] | None = None
+) -> web.Response:
+    body = {"error": code or _CODES.get(status, "error"), "message": message} | (extra or {})
+    return web.json_response(body, status=status, headers=headers)
 
 
 def _passthrough_headers(exc: web.HTTPException) -> dict[str, str]:
@@ -62,7 +71,7 @@ async def json_errors(request: web.Request, handler: Handler) -> web.StreamRespo
     try:
         return await handler(request)
     except ApiError as exc:
-        return error_response(exc.status, exc.message, exc.code, exc.headers)
+        return error_response(exc.status, exc.message, exc.code, exc.headers, exc.extra)
     except web.HTTPException as exc:
         if exc.status < 400:
             raise

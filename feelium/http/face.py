@@ -11,18 +11,34 @@ import contextlib
 from collections.abc import Sequence
 
 from feelium.hub import Hub
+from feelium.jpeginfo import JpegHeaderError, jpeg_size
 
 
 class JpegError(ValueError):
     """An upload is not a complete JPEG."""
 
 
-def check_jpeg(data: bytes, what: str = "body") -> None:
-    """Cheap structural check (no decode on the Pi): SOI at the start, EOI at the end."""
+class ImageTooLarge(JpegError):
+    """A JPEG declares more pixels than the configured limit."""
+
+
+def check_jpeg(data: bytes, max_pixels: int, what: str = "body") -> tuple[int, int]:
+    """Cheap structural check (no decode on the Pi): SOI at the start, EOI at the end, a frame size within
+    ``max_pixels`` read from the header. Returns ``(width, height)``."""
     if len(data) < 4 or not data.startswith(b"\xff\xd8\xff"):
         raise JpegError(f"{what} is not a JPEG (it must start with the FF D8 FF marker)")
     if not data.rstrip(b"\x00").endswith(b"\xff\xd9"):
         raise JpegError(f"{what} is a truncated JPEG (no FF D9 end marker)")
+    try:
+        width, height = jpeg_size(data)
+    except JpegHeaderError as exc:
+        raise JpegError(f"{what}: {exc}") from None
+    if width * height > max_pixels:
+        raise ImageTooLarge(
+            f"{what} is {width}x{height} = {width * height} pixels; at most {max_pixels} are accepted "
+            "([http] max_face_pixels): scale it down before sending"
+        )
+    return width, height
 
 
 class FacePlayer:

@@ -10,6 +10,10 @@ from __future__ import annotations
 from functools import lru_cache
 from typing import Any
 
+from feelium.http.clients import CLIENT_HEADER, CLIENT_ID_PATTERN
+from feelium.http.control import MAX_CAMERA_PX, MAX_WORD
+from feelium.http.events_api import MAX_SEQ
+from feelium.http.video import MAX_FPS, MIN_FPS
 from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
@@ -31,8 +35,8 @@ def _errors(*codes: int) -> dict[str, Any]:
         404: "Not found (or not available in this mode).",
         409: "The simulator refused the request.",
         413: "The body exceeds the configured limit.",
-        415: "Wrong Content-Type.",
-        429: "Rate limit or stream limit reached; see Retry-After.",
+        415: "Wrong Content-Type (JSON bodies must be application/json, UTF-8).",
+        429: "This client's rate limit or a stream limit reached; see Retry-After.",
     }
     # a browser page from a foreign origin is refused on every endpoint, before the token is looked at
     return {str(c): _json(_ref("Error"), text[c]) for c in sorted({*codes, 403})}
@@ -43,6 +47,14 @@ def _query(name: str, schema: dict[str, Any], description: str) -> dict[str, Any
 
 
 TOKEN_QUERY = _query("token", {"type": "string"}, "The token, for clients that cannot set headers (img, EventSource).")
+_CLIENT_ID = {"type": "string", "pattern": CLIENT_ID_PATTERN}
+CLIENT_ID_HEADER = {
+    "name": CLIENT_HEADER, "in": "header", "required": False, "schema": _CLIENT_ID,
+    "description": "The client's own id (e.g. a UUID made at app launch). With the remote address it is the "
+    "client identity of rate limits, stream slots and the motion lease; without it the address alone is. "
+    "A value outside the pattern is ignored.",
+}  # fmt: skip
+CLIENT_ID_QUERY = _query("client", _CLIENT_ID, f"The {CLIENT_HEADER} id, for clients that cannot set headers.")
 
 
 @lru_cache(maxsize=1)
@@ -66,12 +78,15 @@ def openapi_document() -> dict[str, Any]:
             "remaining_ms": {"type": "number", "minimum": 0},
             "source": {"type": ["string", "null"]},
             "accepted": {"type": "string", "enum": list(MOTION_NAMES)},
+            "controller": {"type": "string", "description": "The client identity now holding the motion lease (POST only)."},
         },
     }
     schemas: dict[str, Any] = {
         "Error": {
             "type": "object",
             "required": ["error", "message"],
+            "description": "Every 4xx (and any 5xx) body: a machine code and a sentence. Some errors add fields "
+            "(409 not_in_control: see NotInControl).",
             "properties": {"error": {"type": "string"}, "message": {"type": "string"}},
         },
         "Event": event,
@@ -95,6 +110,22 @@ def openapi_document() -> dict[str, Any]:
                     "type": "number", "minimum": 1, "maximum": 1000 * MAX_HOLD_S, "default": 500,
                     "description": "Dead man: the command lapses unless refreshed within this time.",
                 },
+                "take_over": {
+                    "type": "boolean", "default": False,
+                    "description": "Take the motion lease from the client that holds it (else 409 not_in_control). "
+                    "Not needed for stop, which every client may send at any time.",
+                },
+            },
+        },  # fmt: skip
+        "NotInControl": {
+            "type": "object",
+            "required": ["error", "message", "controller", "lease_remaining_s", "you"],
+            "properties": {
+                "error": {"const": "not_in_control"},
+                "message": {"type": "string"},
+                "controller": {"type": "string", "description": "The client identity that holds the lease."},
+                "lease_remaining_s": {"type": "number", "minimum": 0, "description": "When it lapses unless that client moves again."},
+                "you": {"type": "string", "description": "Your own client identity as the server sees it."},
             },
         },  # fmt: skip
         "MotionState": motion_state,
@@ -105,7 +136,10 @@ def openapi_document() -> dict[str, Any]:
                 "t": {"type": "number"},
                 "services": {"type": "object", "description": "Each service's part: touch, presence, flight..."},
                 "motion_command": motion_state,
-                "headset_link": {"type": "object"},
+                "headset_link": {
+                    "type": "object",
+                    "properties": {"controller": {"type": ["string", "null"], "description": "Who holds the motion lease."}},
+                },
                 "last_seq": {"type": "integer"},
             },
         },
@@ -120,8 +154,8 @@ def openapi_document() -> dict[str, Any]:
             "required": ["x", "y"],
             "additionalProperties": False,
             "properties": {
-                "x": {"type": "number", "minimum": 0, "description": "Rear camera pixels."},
-                "y": {"type": "number", "minimum": 0},
+                "x": {"type": "number", "minimum": 0, "maximum": MAX_CAMERA_PX, "description": "Rear camera pixels (409 outside the live camera)."},
+                "y": {"type": "number", "minimum": 0, "maximum": MAX_CAMERA_PX},
                 "hover": {"type": "boolean", "default": False, "description": "Hover above instead of pressing."},
             },
         },
@@ -131,7 +165,7 @@ def openapi_document() -> dict[str, Any]:
         "content": {"application/json": {"schema": schema}},
     }
     cameras = {"name": "camera", "in": "path", "required": True, "schema": {"type": "string", "enum": ["front", "rear", "projector"]}}
-    after = _query("after", {"type": "integer", "minimum": 0}, "Last sequence seen; omitted = only new events.")
+    after = _query("after", {"type": "integer", "minimum": 0, "maximum": MAX_SEQ}, "Last sequence seen; omitted = only new events.")
     paths: dict[str, Any] = {
         "/health": {"get": {
             "operationId": "health", "summary": "Per-service health (no token needed).", "security": [],
@@ -150,7 +184,15 @@ def openapi_document() -> dict[str, Any]:
         "/video/{camera}.mjpeg": {"get": {
             "operationId": "videoMjpeg",
             "summary": "MJPEG stream (multipart/x-mixed-replace; boundary=feeliumframe), newest frame always.",
-            "parameters": [cameras, TOKEN_QUERY, _query("fps", {"type": "number", "minimum": 0, "maximum": 120}, "Rate cap; 0 = camera rate.")],
+            "description": "Each stream takes a slot: at most `max_streams_per_client` per client and `max_stream_clients` "
+            "in all (429 above). A client whose socket accepts nothing for `stream_write_timeout_s` is dropped "
+            "and its slot freed.",
+            "parameters": [
+                cameras, TOKEN_QUERY, CLIENT_ID_HEADER, CLIENT_ID_QUERY,
+                _query("fps", {"anyOf": [{"const": 0}, {"type": "number", "minimum": MIN_FPS, "maximum": MAX_FPS}]},
+                       f"Rate cap; 0 = camera rate; 0 < fps < {MIN_FPS:g} is 400 (a stream must write often enough "
+                       "for the write timeout to notice a client that stopped reading)."),
+            ],
             "x-streaming": True,
             "responses": {
                 "200": {"description": "Endless stream of JPEG parts.", "content": {"multipart/x-mixed-replace": {"schema": {"type": "string"}}}},
@@ -159,8 +201,17 @@ def openapi_document() -> dict[str, Any]:
         "/motion": {
             "post": {
                 "operationId": "motion", "summary": "Dead-man motion command (refresh within hold_ms or the blimp stops).",
+                "description": "stop is applied at once from any client: never rate limited, never refused for want "
+                "of control, and it hands the sender the motion lease. Other commands are charged to the client's "
+                "rate limit (after validation) and need the lease: the first client to move holds it, each of its "
+                "motion commands renews it, and it lapses after `control_lease_s` without one. Another client "
+                "gets 409 not_in_control until it sends `take_over: true`.",
+                "parameters": [CLIENT_ID_HEADER],
                 "requestBody": json_body(_ref("MotionRequest")),
-                "responses": {"200": _json(_ref("MotionState"), "The command now in force.")} | _errors(400, 401, 413, 415, 429),
+                "responses": {
+                    "200": _json(_ref("MotionState"), "The command now in force."),
+                    "409": _json(_ref("NotInControl"), "Another client holds the motion lease; resend with take_over."),
+                } | _errors(400, 401, 413, 415, 429),
             },
             "get": {
                 "operationId": "motionState", "summary": "The motion command in force.",
@@ -174,7 +225,7 @@ def openapi_document() -> dict[str, Any]:
         }},
         "/events/stream": {"get": {
             "operationId": "eventStream", "summary": "Server-Sent Events; `id` is the seq, resume with Last-Event-ID.",
-            "parameters": [after, TOKEN_QUERY, {"name": "Last-Event-ID", "in": "header", "required": False, "schema": {"type": "integer", "minimum": 0}}],
+            "parameters": [after, TOKEN_QUERY, {"name": "Last-Event-ID", "in": "header", "required": False, "schema": {"type": "integer", "minimum": 0, "maximum": MAX_SEQ}}],
             "x-streaming": True,
             "responses": {"200": {"description": "text/event-stream of Event objects.", "content": {"text/event-stream": {"schema": {"type": "string"}}}}} | _errors(400, 401),
         }},
@@ -185,18 +236,22 @@ def openapi_document() -> dict[str, Any]:
         }},
         "/face": {"put": {
             "operationId": "face", "summary": "The wearer's face (one JPEG) or a looping avatar (multipart JPEG frames); newest wins.",
-            "parameters": [_query("fps", {"type": "number", "minimum": 0.5, "maximum": 60}, "Avatar loop rate.")],
+            "description": "Each frame's size is read from its JPEG header before anything is decoded: above "
+            "`max_face_pixels` (width x height) the upload is refused with 413 image_too_large. Rate limited per "
+            "client together with the wearer actions.",
+            "parameters": [CLIENT_ID_HEADER, _query("fps", {"type": "number", "minimum": 0.5, "maximum": 60}, "Avatar loop rate.")],
             "requestBody": {"required": True, "content": {
                 "image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}},
                 "multipart/form-data": {"schema": {"type": "object", "properties": {"frame": {"type": "array", "items": {"type": "string", "contentMediaType": "image/jpeg"}}}}},
             }},
-            "responses": {"200": _json({"type": "object", "required": ["frames"], "properties": {"frames": {"type": "integer"}, "fps": {"type": ["number", "null"]}, "bytes": {"type": "integer"}}}, "Shown.")} | _errors(400, 401, 413, 415),
+            "responses": {"200": _json({"type": "object", "required": ["frames"], "properties": {"frames": {"type": "integer"}, "fps": {"type": ["number", "null"]}, "bytes": {"type": "integer"}}}, "Shown.")} | _errors(400, 401, 413, 415, 429),
         }},
         "/speech": {
             "post": {
                 "operationId": "speechIn", "summary": "A chunk of the wearer's speech (PCM16 WAV, any rate; resampled).",
+                "parameters": [CLIENT_ID_HEADER],
                 "requestBody": {"required": True, "content": {"audio/wav": {"schema": {"type": "string", "contentMediaType": "audio/wav"}}}},
-                "responses": {"202": _json({"type": "object", "required": ["samples", "rate", "ms"], "properties": {"samples": {"type": "integer"}, "rate": {"type": "integer"}, "ms": {"type": "number"}}}, "Queued for the speaker.")} | _errors(400, 401, 413, 415),
+                "responses": {"202": _json({"type": "object", "required": ["samples", "rate", "ms"], "properties": {"samples": {"type": "integer"}, "rate": {"type": "integer"}, "ms": {"type": "number"}}}, "Queued for the speaker.")} | _errors(400, 401, 413, 415, 429),
             },
             "get": {
                 "operationId": "speechOut", "summary": "Room audio captured after `after` as one PCM16 WAV; X-Speech-Seq is the next `after`.",
@@ -209,17 +264,18 @@ def openapi_document() -> dict[str, Any]:
         },
         "/actions/{action}": {"post": {
             "operationId": "wearerAction", "summary": "A wearer action for the interaction engine (heart, palm, shimmer).",
-            "parameters": [{"name": "action", "in": "path", "required": True, "schema": {"type": "string", "enum": [a for a in ACTIONS if a != "guess"]}}],
+            "parameters": [{"name": "action", "in": "path", "required": True, "schema": {"type": "string", "enum": [a for a in ACTIONS if a != "guess"]}}, CLIENT_ID_HEADER],
             "requestBody": json_body({"type": "object", "additionalProperties": False}, required=False),
-            "responses": {"202": _json(_ref("WearerAction"), "Published.")} | _errors(400, 401, 404, 413, 415),
+            "responses": {"202": _json(_ref("WearerAction"), "Published.")} | _errors(400, 401, 404, 413, 415, 429),
         }},
         "/actions/guess": {"post": {
             "operationId": "guess", "summary": "The wearer's guess of the partner's drawing.",
             "requestBody": json_body({
                 "type": "object", "required": ["word"], "additionalProperties": False,
-                "properties": {"word": {"type": "string", "minLength": 1, "maxLength": 40, "pattern": "\\S"}},
+                "properties": {"word": {"type": "string", "minLength": 1, "maxLength": MAX_WORD, "pattern": "\\S"}},
             }),
-            "responses": {"202": _json(_ref("WearerAction"), "Published.")} | _errors(400, 401, 413, 415),
+            "parameters": [CLIENT_ID_HEADER],
+            "responses": {"202": _json(_ref("WearerAction"), "Published.")} | _errors(400, 401, 413, 415, 429),
         }},
         "/sim": {"get": {
             "operationId": "sim", "summary": "Whether simulated touches are available.",

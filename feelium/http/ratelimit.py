@@ -1,8 +1,16 @@
-"""A token bucket for the motion endpoint: time is an input, so the rule is testable without a clock."""
+"""Token buckets, one per client: time is an input, so the rules are testable without a clock.
+
+Each client (see :mod:`feelium.http.clients`) gets its own bucket, so a
+headset that floods can only exhaust its own allowance, never another
+client's. The number of buckets is bounded: the least recently used one is
+forgotten when a new client arrives at the limit (a forgotten client comes
+back with a full bucket, which costs at most one burst).
+"""
 
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 
 
 class TokenBucket:
@@ -35,3 +43,42 @@ class TokenBucket:
         """Seconds until the next token."""
         self._refill(now)
         return max(0.0, (1.0 - self._tokens) / self.rate)
+
+
+class ClientBuckets:
+    """A :class:`TokenBucket` per client key, at most ``max_clients`` remembered."""
+
+    def __init__(self, rate: float, burst: int, max_clients: int = 256) -> None:
+        if max_clients < 1:
+            raise ValueError("max_clients must be at least 1")
+        TokenBucket(rate, burst, 0.0)  # validate the parameters now, not at the first request
+        self.rate = rate
+        self.burst = burst
+        self.max_clients = max_clients
+        self._buckets: OrderedDict[str, TokenBucket] = OrderedDict()
+        self.rejected = 0
+
+    def _bucket(self, client: str, now: float) -> TokenBucket:
+        bucket = self._buckets.get(client)
+        if bucket is None:
+            if len(self._buckets) >= self.max_clients:
+                self._buckets.popitem(last=False)
+            bucket = self._buckets[client] = TokenBucket(self.rate, self.burst, now)
+        else:
+            self._buckets.move_to_end(client)
+        return bucket
+
+    def take(self, client: str, now: float) -> bool:
+        """Charge one request to ``client``; ``False`` when its bucket is empty."""
+        if self._bucket(client, now).take(now):
+            return True
+        self.rejected += 1
+        return False
+
+    def retry_after(self, client: str, now: float) -> float:
+        """Seconds until ``client`` may send again."""
+        bucket = self._buckets.get(client)
+        return 0.0 if bucket is None else bucket.retry_after(now)
+
+    def __len__(self) -> int:
+        return len(self._buckets)

@@ -17,7 +17,7 @@ API_PREFIX = "/api/v1"
 # (neither holds a secret; the client reads the token from its URL fragment).
 PUBLIC_API_PATHS = frozenset({f"{API_PREFIX}/health", f"{API_PREFIX}/openapi.json"})
 ALLOWED_METHODS = "GET, POST, PUT, OPTIONS"
-ALLOWED_HEADERS = "Authorization, Content-Type, Last-Event-ID"
+ALLOWED_HEADERS = "Authorization, Content-Type, Last-Event-ID, X-Feelium-Client"
 
 
 def parse_origins(text: str) -> frozenset[str]:

@@ -75,7 +75,12 @@ class HttpService:
         return {
             "port": self.port,
             "last_seq": link.events.ring.last_seq,
-            "motion_rate_limited": link.motion_bucket.rejected,
+            "motion_rate_limited": link.motion_limit.rejected,
+            "action_rate_limited": link.action_limit.rejected,
+            "speech_rate_limited": link.speech_limit.rejected,
+            "motion_refused_not_in_control": link.lease.refused,
+            "motion_takeovers": link.lease.takeovers,
+            "video_streams_refused": link.streams.refused,
             **{f"video_{name}": feed.health() for name, feed in link.videos.items()},
             **link.counters,
             **{f"events_{k}": v for k, v in link.events.health().items()},

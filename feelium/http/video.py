@@ -17,9 +17,12 @@ import termios
 
 from aiohttp import web
 
+from feelium.http.clients import client_of
 from feelium.http.context import ctx
 from feelium.http.errors import ApiError
+from feelium.http.jpeg import JpegFeed
 from feelium.http.params import query_number
+from feelium.http.slots import SlotsFull
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +66,7 @@ async def wait_until_acknowledged(sock: socket.socket | None, limit: int, timeou
     return True
 
 
-def _feed(request: web.Request):  # type: ignore[no-untyped-def]
+def _feed(request: web.Request) -> JpegFeed:
     name = request.match_info["camera"]
     feed = ctx(request).videos.get(name)
     if feed is None:
@@ -92,13 +95,37 @@ async def jpeg(request: web.Request) -> web.Response:
     )
 
 
+MAX_FPS = 120.0
+# The lowest ?fps= a stream may ask for (400 below; 0 = the camera's rate). A stream that writes once an hour
+# would hold its slot all that time without ever meeting the write timeout, which only runs while writing.
+MIN_FPS = 1.0
+
+
 async def mjpeg(request: web.Request) -> web.StreamResponse:
-    """``multipart/x-mixed-replace`` stream of the newest frames; ``?fps=`` caps the rate."""
+    """``multipart/x-mixed-replace`` stream of the newest frames; ``?fps=`` caps the rate.
+
+    A stream holds one of a bounded number of slots (per client and in total) until it ends. A client
+    that stops reading loses its slot after ``stream_write_timeout_s`` without progress; ``fps`` has a
+    floor so that a stream always writes often enough for that timeout to notice.
+    """
     link = ctx(request)
     feed = _feed(request)
-    max_fps = query_number(request, "fps", 0.0, 0.0, 120.0)
-    if feed.clients >= link.config.max_stream_clients:
-        raise ApiError(429, f"already {feed.clients} {feed.name} streams; close one first", headers={"Retry-After": "1"})
+    client = client_of(request)
+    max_fps = query_number(request, "fps", 0.0, 0.0, MAX_FPS)
+    if 0 < max_fps < MIN_FPS:
+        raise ApiError(400, f"fps must be 0 (camera rate) or within {MIN_FPS:g}..{MAX_FPS:g}, got {max_fps:g}")
+    try:
+        link.streams.acquire(client)
+    except SlotsFull as exc:
+        raise ApiError(429, f"{exc}; close one first", headers={"Retry-After": "1"}) from None
+    try:
+        return await _stream(request, feed, max_fps)
+    finally:
+        link.streams.release(client)
+
+
+async def _stream(request: web.Request, feed: JpegFeed, max_fps: float) -> web.StreamResponse:
+    link = ctx(request)
     response = web.StreamResponse(
         headers={
             "Content-Type": f"multipart/x-mixed-replace; boundary={BOUNDARY}",

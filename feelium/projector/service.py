@@ -23,6 +23,7 @@ import numpy as np
 from feelium.events import TouchEvent, WearerAction
 from feelium.hub import Hub
 from feelium.interactions.config import InteractionsConfig
+from feelium.jpeginfo import JpegHeaderError, jpeg_size, reduction_for
 from feelium.interactions.engine import InteractionEngine, MotionReply
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.display import Display
@@ -31,6 +32,20 @@ from feelium.skin.projector_map import ProjectorMap
 from feelium.skin.regions import Regions
 
 log = logging.getLogger(__name__)
+
+_REDUCED_FLAGS = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4, 8: cv2.IMREAD_REDUCED_COLOR_8}
+
+
+def decode_reduced(jpeg: bytes, need_width: int, need_height: int) -> np.ndarray | None:
+    """A JPEG decoded at the smallest of 1/8, 1/4, 1/2, 1/1 scale that still covers ``need_width`` x
+    ``need_height`` (libjpeg scales while decoding: a large upload never exists in memory at full size);
+    ``None`` when its header or data cannot be read."""
+    try:
+        width, height = jpeg_size(jpeg)
+    except JpegHeaderError:
+        return None
+    factor = reduction_for(width, height, need_width, need_height)
+    return cv2.imdecode(np.frombuffer(jpeg, np.uint8), _REDUCED_FLAGS[factor])
 
 class ProjectorService:
     """Renders the skin at a fixed rate and runs the six exchanges."""
@@ -98,10 +113,10 @@ class ProjectorService:
             self.counters["last_error"] = str(exc)
 
     def _decode_face(self, jpeg: Any) -> np.ndarray | None:
-        data = np.frombuffer(bytes(jpeg), np.uint8) if not isinstance(jpeg, np.ndarray) else jpeg
-        if data.ndim == 3:
-            return self.renderer.fit_face(data)
-        image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        """The face fitted to the canvas; ``None`` when it is not a readable JPEG."""
+        if isinstance(jpeg, np.ndarray) and jpeg.ndim == 3:
+            return self.renderer.fit_face(jpeg)
+        image = decode_reduced(bytes(jpeg), *self.renderer.canvas_size)
         return None if image is None else self.renderer.fit_face(image)
 
     async def update_face(self, now: float) -> None:

@@ -103,6 +103,7 @@ async def test_preflight_for_a_configured_origin(aiohttp_client, hub, http_confi
     assert resp.status == 204
     assert resp.headers["Access-Control-Allow-Origin"] == "https://headset.local:8443"
     assert "Authorization" in resp.headers["Access-Control-Allow-Headers"]
+    assert "X-Feelium-Client" in resp.headers["Access-Control-Allow-Headers"]  # the client id of rate limits and the lease
     resp = await c.options("/api/v1/motion", headers={"Origin": "https://other", "Access-Control-Request-Method": "POST"})
     await assert_error(resp, 403, "cors_origins")
 

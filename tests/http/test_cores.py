@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from feelium.events import TouchEvent
 from feelium.http.auth import TokenError, load_or_create_token, presented_token, token_matches
-from feelium.http.face import JpegError, check_jpeg
+from feelium.http.face import ImageTooLarge, JpegError, check_jpeg
 from feelium.http.jpeg import FrameError, encode_jpeg
 from feelium.http.ratelimit import TokenBucket
 from feelium.http.ring import EventRing, envelope
@@ -93,11 +93,13 @@ def test_presented_token_and_comparison() -> None:
 
 def test_jpeg_structure_check() -> None:
     good = encode_jpeg(np.zeros((8, 8), np.uint8), 80)
-    check_jpeg(good)
+    assert check_jpeg(good, 64) == (8, 8)
     with pytest.raises(JpegError, match="not a JPEG"):
-        check_jpeg(b"\x89PNG....")
+        check_jpeg(b"\x89PNG....", 64)
     with pytest.raises(JpegError, match="truncated"):
-        check_jpeg(good[:-10])
+        check_jpeg(good[:-10], 64)
+    with pytest.raises(ImageTooLarge, match="8x8 = 64 pixels; at most 63"):
+        check_jpeg(good, 63)
 
 
 def test_encode_jpeg_accepts_float_frames_and_names_bad_ones() -> None:

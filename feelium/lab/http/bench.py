@@ -236,8 +236,11 @@ def _small_receive_buffer(addr_info: Any) -> socket.socket:
     return sock
 
 
-async def _mjpeg_reader(api: str, seconds: float, pause_s: float = 0.0) -> list[tuple[float, float]]:
+async def _mjpeg_reader(api: str, seconds: float, client: str, pause_s: float = 0.0) -> list[tuple[float, float]]:
     """(arrival time, capture time) of each frame one client reads in ``seconds``, pausing ``pause_s`` after each.
+
+    ``client`` is the reader's ``X-Feelium-Client`` id: each reader is its own client, as separate headsets
+    are, so the per-client stream limit does not apply across readers.
 
     A pausing (slow) reader keeps its own buffers small (socket and aiohttp
     reader), as a headset that decodes the newest frame should: the age of
@@ -245,7 +248,8 @@ async def _mjpeg_reader(api: str, seconds: float, pause_s: float = 0.0) -> list[
     """
     frames: list[tuple[float, float]] = []
     small = {"connector": aiohttp.TCPConnector(socket_factory=_small_receive_buffer), "read_bufsize": READER_RCVBUF_BYTES}
-    async with aiohttp.ClientSession(headers=AUTH, **(small if pause_s else {})) as session:  # type: ignore[arg-type]
+    headers = AUTH | {"X-Feelium-Client": client}
+    async with aiohttp.ClientSession(headers=headers, **(small if pause_s else {})) as session:  # type: ignore[arg-type]
         async with session.get(api + "/video/front.mjpeg") as resp:
             t0 = time.perf_counter()
             while time.perf_counter() - t0 < seconds:
@@ -326,14 +330,14 @@ async def bench_mjpeg(server: ServerThread, seconds: float, fps: float) -> dict[
 
     pub = asyncio.create_task(publisher())
     await asyncio.sleep(0.3)
-    baseline = _phase(list(await asyncio.gather(*(_mjpeg_reader(server.api, seconds) for _ in range(3)))))
+    baseline = _phase(list(await asyncio.gather(*(_mjpeg_reader(server.api, seconds, f"reader-{i}") for i in range(3)))))
 
     dropped_before = link.counters.get("stalled_clients_dropped", 0)
     stalled = socket.socket()
     stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     stalled.setblocking(False)
     await asyncio.get_running_loop().sock_connect(stalled, ("127.0.0.1", server.port))
-    stalled.send(f"GET /api/v1/video/front.mjpeg?token={TOKEN} HTTP/1.1\r\nHost: bench\r\n\r\n".encode())
+    stalled.send(f"GET /api/v1/video/front.mjpeg?token={TOKEN}&client=stalled HTTP/1.1\r\nHost: bench\r\n\r\n".encode())
     t_stall = time.perf_counter()
     drop_seen: list[float] = []
 
@@ -345,14 +349,14 @@ async def bench_mjpeg(server: ServerThread, seconds: float, fps: float) -> dict[
             await asyncio.sleep(0.01)
 
     watcher = asyncio.create_task(watch_drop())
-    with_stalled = _phase(list(await asyncio.gather(*(_mjpeg_reader(server.api, seconds) for _ in range(3)))))
+    with_stalled = _phase(list(await asyncio.gather(*(_mjpeg_reader(server.api, seconds, f"reader-{i}") for i in range(3)))))
     await watcher
     limit = link.config.stream_inflight_bytes
     slow: dict[str, Any] = {}
     for name, inflight in (("no_inflight_limit", 0), ("inflight_limit", limit)):
         server.call(setattr, link, "config", replace(link.config, stream_inflight_bytes=inflight))
         await asyncio.sleep(0.05)
-        slow[name] = {"inflight_bytes": inflight, **_reader_stats(await _mjpeg_reader(server.api, seconds, SLOW_READER_PAUSE_S))}
+        slow[name] = {"inflight_bytes": inflight, **_reader_stats(await _mjpeg_reader(server.api, seconds, "slow-reader", SLOW_READER_PAUSE_S))}
     stop.set()
     published = await pub
     stalled.close()

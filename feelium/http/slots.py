@@ -1,0 +1,51 @@
+"""MJPEG stream slots: a bounded number per client and in total.
+
+Each stream holds a coroutine, a socket and up to a send buffer of frames;
+without a per-client cap one headset (or a page reloaded in a loop) could
+take every slot and nobody else would get video.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+
+class SlotsFull(Exception):
+    """No slot for this client; the message says which limit was reached."""
+
+
+class StreamSlots:
+    """Counts open streams per client; :meth:`acquire` refuses above either limit."""
+
+    def __init__(self, total: int, per_client: int) -> None:
+        if total < 1 or per_client < 1:
+            raise ValueError("stream limits must be at least 1")
+        self.total = total
+        self.per_client = per_client
+        self._open: Counter[str] = Counter()
+        self.refused = 0
+
+    @property
+    def in_use(self) -> int:
+        return sum(self._open.values())
+
+    def held_by(self, client: str) -> int:
+        return self._open[client]
+
+    def acquire(self, client: str) -> None:
+        """Take a slot for ``client`` or raise :class:`SlotsFull`."""
+        if self._open[client] >= self.per_client:
+            self.refused += 1
+            raise SlotsFull(f"this client already has {self._open[client]} video streams (at most {self.per_client})")
+        if self.in_use >= self.total:
+            self.refused += 1
+            raise SlotsFull(f"all {self.total} video streams are in use")
+        self._open[client] += 1
+
+    def release(self, client: str) -> None:
+        """Give back a slot taken by :meth:`acquire`."""
+        if self._open[client] <= 0:
+            raise ValueError(f"client {client!r} holds no stream slot")
+        self._open[client] -= 1
+        if not self._open[client]:
+            del self._open[client]
