@@ -25,9 +25,12 @@ class Effectiveness:
     """Least-squares ratio of measured to modelled rate change over ``window_s`` windows, per push direction."""
 
     def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
-                 memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0) -> None:
+                 memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
+                 confirming_change: float = 0.0) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
+        ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
+        alone teach what a large push counts on (:meth:`confirmed`; 0: none do);
         ``assuring_change``: the smallest *real* rate change (modelled times learned) that may teach what
         a safety margin counts on. Small
         corrections against drift are biased high (the air's drag brakes the body along with the
@@ -40,8 +43,12 @@ class Effectiveness:
         self.window_s, self.memory_s, self.min_change = window_s, memory_s, min_change
         self.assuring_change = assuring_change
         self.assuring_samples = [0, 0]
+        self.confirming_change = confirming_change
+        self.confirming_samples = [0, 0]
         self.values = [high, high]  # [push < 0, push > 0]
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
+        self._strong_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over real pushes only
+        self.strong_values = [high, high]
         self._history: deque[tuple[float, float, float]] = deque()  # (t, modelled push integral, measured rate)
         self._push_integral = 0.0
         self.samples = [0, 0]
@@ -53,6 +60,14 @@ class Effectiveness:
         if push < 0.0:
             return self.values[0]
         return max(self.values)
+
+    def confirmed(self, push: float) -> float:
+        """The effectiveness for a large push: learned from real pushes only once one taught it, else the
+        box's upper bound. Small corrections against a steady draft teach a value far too low (a steady force
+        that changes no rate looks ineffective), and a turn normalised by it would push several times
+        too hard; hover corrections may use :meth:`value`, a large push waits for a real one."""
+        side = 1 if push > 0.0 else 0
+        return self.strong_values[side] if self.confirming_samples[side] else self.high
 
     def assured(self, push: float) -> float:
         """The effectiveness a safety margin may count on: the learned one once a real push taught it, else
@@ -85,6 +100,12 @@ class Effectiveness:
         self.values[side] = min(max(sums[1] / sums[0], self.lows[side]), self.high)
         if abs(x) * self.values[side] >= self.assuring_change:  # the rate change it made, not the one modelled
             self.assuring_samples[side] += 1
+        if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0:  # a large change, its way
+            strong = self._strong_sums[side]
+            strong[0] = strong[0] * decay + x * x
+            strong[1] = strong[1] * decay + x * y
+            self.confirming_samples[side] += 1
+            self.strong_values[side] = min(max(strong[1] / strong[0], self.lows[side]), self.high)
 
     def as_dict(self) -> dict[str, float | int]:
         """For health: both directions and how many windows taught them."""

@@ -38,6 +38,7 @@ RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and
 # default: the flow is the speed), in between on a log scale (the exponent joins those two points).
 FLOW_TAU_TRUSTED_S = 3.0
 FLOW_TAU_EXPONENT = 5.23
+YAW_CONFIRMING_CHANGE_RAD_S = 0.035  # 2 deg/s of measured yaw-rate change in a window: a turn or a brake, not a nudge
 SURGE_ASSURING_CHANGE_M_S = 0.02  # a window must change the modelled speed this much to teach the stop's margin
 FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone
 MIN_FLOW_HEIGHT_M = 0.08
@@ -249,7 +250,8 @@ class YawEstimate:
         self.rate_dps = 0.0
         self.last_heading_t: float | None = None
         low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
-        self.effectiveness = Effectiveness(low * _yaw_reverse_share(config), high, min_change=0.01)
+        self.effectiveness = Effectiveness(low * _yaw_reverse_share(config), high, min_change=0.01,
+                                           confirming_change=YAW_CONFIRMING_CHANGE_RAD_S)
 
     def update(self, t: float, dt: float, heading_deg: float | None, gyro_dps: float | None, torque_mean: float) -> None:
         if heading_deg is not None:

@@ -281,7 +281,8 @@ class HeadingLoop:
         rate_error = math.radians(rate_ahead if turn else ref.rate) - predicted
         alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
         r_ref = math.radians(ref.rate)
-        torque = c.yaw_inertia_kg_m2 * alpha / est.effectiveness.value(alpha) + c.yaw_drag * r_ref * abs(r_ref)
+        effectiveness = est.effectiveness.value(alpha) if hover else est.effectiveness.confirmed(alpha)
+        torque = c.yaw_inertia_kg_m2 * alpha / effectiveness + c.yaw_drag * r_ref * abs(r_ref)
         return self.band.same_sign(torque) if hover else torque
 
     def _rate_now(self, est: YawEstimate, thrust: ThrustModel) -> float:

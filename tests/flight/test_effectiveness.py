@@ -90,3 +90,21 @@ def test_small_corrections_teach_the_loop_but_only_a_real_push_teaches_the_safet
         gentle.update(k * dt, dt, push, rate)
     assert min(gentle.samples) > 0  # the loop's normalisation learns from them...
     assert gentle.assured(-1.0) == 0.25 and gentle.assured(1.0) == 0.25  # ...a stop's margin does not
+
+
+def test_a_steady_push_against_a_draft_does_not_make_a_large_push_count_on_a_low_value() -> None:
+    """The loop holds a steady push against a steady draft (no rate change) and now and then turns hard."""
+    estimator = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035)
+    rate, dt, true_gain = 0.0, 0.02, 3.0
+    for k in range(1500):
+        t = k * dt
+        turning = (t % 10.0) < 0.6  # a real push twice in 30 s
+        push = 0.3 if turning else 0.1
+        draft = 0.0 if turning else -true_gain * 0.1  # the steady draft the hover push cancels
+        rate += (true_gain * push + draft) * dt
+        if not turning:
+            rate *= 0.95  # and the air's drag stops what is left
+        estimator.update(t, dt, push, rate)
+    assert estimator.values[1] < 1.5  # the hover windows taught a value far too low...
+    assert estimator.confirmed(1.0) > 2.0  # ...the large push counts on what the real pushes showed
+    assert Effectiveness(0.25, 4.0, confirming_change=0.035).confirmed(1.0) == 4.0  # untaught: the safe side
