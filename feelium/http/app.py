@@ -117,6 +117,7 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     app.router.add_get(f"{p}/events/stream", events_api.sse)
     app.router.add_get(f"{p}/events/ws", events_api.websocket)
     app.router.add_put(f"{p}/face", control.put_face)
+    app.router.add_delete(f"{p}/face", control.delete_face)
     app.router.add_post(f"{p}/speech", control.post_speech)
     app.router.add_get(f"{p}/speech", control.get_speech)
     app.router.add_post(f"{p}/actions/{{action}}", control.post_action)

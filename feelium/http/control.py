@@ -171,6 +171,14 @@ async def put_face(request: web.Request) -> web.Response:
     return web.json_response({"frames": len(frames), "fps": fps if len(frames) > 1 else None, "bytes": sum(map(len, frames))})
 
 
+async def delete_face(request: web.Request) -> web.Response:
+    """Clear the wearer's face: the projector shows its default avatar again."""
+    link = ctx(request)
+    charge(link.action_limit, client_of(request), link.hub.clock(), "wearer actions and face uploads")
+    link.face.clear()
+    return web.json_response({"cleared": True})
+
+
 async def post_speech(request: web.Request) -> web.Response:
     """One chunk of the wearer's speech as a PCM16 WAV, queued for the speaker (backlog bounded by [audio] max_playback_ms)."""
     link = ctx(request)

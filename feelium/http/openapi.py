@@ -244,7 +244,11 @@ def openapi_document() -> dict[str, Any]:
                 "image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}},
                 "multipart/form-data": {"schema": {"type": "object", "properties": {"frame": {"type": "array", "items": {"type": "string", "contentMediaType": "image/jpeg"}}}}},
             }},
-            "responses": {"200": _json({"type": "object", "required": ["frames"], "properties": {"frames": {"type": "integer"}, "fps": {"type": ["number", "null"]}, "bytes": {"type": "integer"}}}, "Shown.")} | _errors(400, 401, 413, 415, 429),
+            "responses": {"200": _json({"type": "object", "required": ["frames"], "properties": {"frames": {"type": "integer"}, "fps": {"type": ["number", "null"]}, "bytes": {"type": "integer"}}}, "Shown until replaced or cleared.")} | _errors(400, 401, 413, 415, 429),
+        }, "delete": {
+            "operationId": "clearFace", "summary": "Clear the wearer's face: the projector shows its default avatar again.",
+            "parameters": [CLIENT_ID_HEADER],
+            "responses": {"200": _json({"type": "object", "required": ["cleared"], "properties": {"cleared": {"const": True}}}, "Cleared.")} | _errors(401, 429),
         }},
         "/speech": {
             "post": {

@@ -16,7 +16,7 @@ API_PREFIX = "/api/v1"
 # Reachable without the token: health (for monitors), the API description and the static client
 # (neither holds a secret; the client reads the token from its URL fragment).
 PUBLIC_API_PATHS = frozenset({f"{API_PREFIX}/health", f"{API_PREFIX}/openapi.json"})
-ALLOWED_METHODS = "GET, POST, PUT, OPTIONS"
+ALLOWED_METHODS = "GET, POST, PUT, DELETE, OPTIONS"
 ALLOWED_HEADERS = "Authorization, Content-Type, Last-Event-ID, X-Feelium-Client"
 
 

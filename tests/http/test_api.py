@@ -327,6 +327,17 @@ async def test_face_jpeg_is_published_for_the_projector(client, hub):
     assert hub.face.get().value == data
 
 
+async def test_a_face_stays_until_cleared_with_delete(client, hub, clock):
+    data = jpeg_bytes()
+    await client.put("/api/v1/face", data=data, headers=AUTH | {"Content-Type": "image/jpeg"})
+    clock.now += 600.0
+    assert hub.face.get().value == data  # nothing on the link replaces it by itself
+    resp = await client.delete("/api/v1/face", headers=AUTH)
+    assert resp.status == 200 and await resp.json() == {"cleared": True}
+    assert hub.face.get().value is None
+    assert (await client.delete("/api/v1/face")).status == 401
+
+
 async def test_face_avatar_loops_frames(client, hub):
     import aiohttp
 
