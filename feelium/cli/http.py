@@ -8,7 +8,7 @@ from feelium.cli import CommandRegistry
 
 
 def register(registry: CommandRegistry) -> None:
-    http = registry.command("http-url", "Print the browser client's URL with the headset token (creates the token on first use).", _url)
+    http = registry.command("http-url", "Print the browser client's URL at every reachable address, with the headset token (creates it on first use).", _url)
     http.add_argument("--config", help="TOML config file (default: built-in defaults)")
     bench = registry.subcommand(
         "bench", "http", "Headset link: motion round trip, touch-event latency per transport, MJPEG fps with a stalled client.", _bench
@@ -22,10 +22,11 @@ def register(registry: CommandRegistry) -> None:
 def _url(args: argparse.Namespace) -> int:
     from feelium.daemon.config import load_config
     from feelium.http.auth import load_or_create_token
-    from feelium.http.service import client_url
+    from feelium.http.service import client_urls
 
     config = load_config(args.config).http
-    print(client_url(config, load_or_create_token(config.token, config.token_file)))
+    for url in client_urls(config, token=load_or_create_token(config.token, config.token_file)):
+        print(url)
     return 0
 
 

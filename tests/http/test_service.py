@@ -16,7 +16,8 @@ import pytest
 from feelium.daemon.config import Config
 from feelium.http.config import HttpConfig
 from feelium.daemon.assembly import build_http
-from feelium.http.service import HttpService, client_url, tls_context
+from feelium.http.service import HttpService, client_urls, tls_context
+from feelium.settings import ConfigError
 from feelium.hub import Hub
 
 from tests.http.http_support import AUTH, TOKEN
@@ -104,17 +105,34 @@ async def test_tls_from_configured_files_serves_https_only(tmp_path: Path) -> No
                     await resp.read()
     finally:
         await _stopped(service, task)
-    assert client_url(config, TOKEN, 8443) == f"https://127.0.0.1:8443/#token={TOKEN}"
+    assert client_urls(config, 8443, TOKEN) == [f"https://127.0.0.1:8443/#token={TOKEN}"]
 
 
 def test_tls_needs_both_files_and_a_bad_pair_fails_at_build_time(tmp_path: Path) -> None:
     assert tls_context(_loopback()) is None
-    with pytest.raises(ValueError, match="together"):
+    with pytest.raises(ConfigError, match="tls_key: tls_cert and tls_key must be set together"):
         tls_context(_loopback(tls_cert=str(tmp_path / "cert.pem")))
+    with pytest.raises(ConfigError, match=r"tls_cert: cannot read .*cert.pem: No such file"):
+        tls_context(_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem")))
     (tmp_path / "cert.pem").write_text("not a certificate")
     (tmp_path / "key.pem").write_text("not a key")
-    with pytest.raises(ssl.SSLError):
-        build_http(replace(Config(), http=_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem"))), Hub())
+    with pytest.raises(ConfigError, match="are not a PEM certificate and its key"):
+        tls_context(_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem")))
+
+
+def test_a_tls_misconfiguration_stops_the_daemon_with_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Before, build_services logged the failure and the daemon ran on without the API."""
+    from feelium.cli import main
+    from feelium.daemon.assembly import SERVICES, build_services
+
+    bad = _loopback(tls_cert=str(tmp_path / "missing.pem"), tls_key=str(tmp_path / "missing.key"))
+    with pytest.raises(ConfigError, match="missing.pem"):
+        build_services(replace(Config(), http=bad), Hub(), tuple(b for b in SERVICES if b[0] == "http"))
+    config = tmp_path / "feelium.toml"
+    config.write_text(f'[http]\nport = 0\ntoken = "{TOKEN}"\ntls_cert = "{tmp_path}/missing.pem"\ntls_key = "{tmp_path}/k.pem"\n')
+    assert main(["run", "--sim", "--config", str(config)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("feelium: config error: [http]: tls_cert: cannot read ") and "missing.pem" in err[-1]
 
 
 def test_disabled_link_builds_no_service_and_a_generated_token_is_private(tmp_path: Path) -> None:
