@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import secrets
 from pathlib import Path
 
 from aiohttp import web
@@ -39,7 +40,7 @@ def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettin
         speech_settings=speech,
         hub=hub,
         token=token,
-        events=EventFeed(hub.bus, config.event_ring_size),
+        events=EventFeed(hub.bus, config.event_ring_size, secrets.token_hex(4)),  # a new epoch per run
         speech=SpeechFeed(hub.bus, speech.capture_keep_ms),
         videos=videos,
         face=FacePlayer(hub),

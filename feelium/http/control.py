@@ -290,6 +290,7 @@ async def get_state(request: web.Request) -> web.Response:
         "motion_command": _motion_json(link.hub.motion.active(now), now),
         "headset_link": link.link_state(now),
         "last_seq": link.events.ring.last_seq,
+        "epoch": link.events.ring.epoch,
     }
     return web.json_response(body, dumps=_dumps)
 

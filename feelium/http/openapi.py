@@ -16,6 +16,7 @@ from feelium.http.events_api import MAX_SEQ
 from feelium.http.video import MAX_FPS, MIN_FPS
 from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
+RESUME_PATTERN = "^([^:]{1,32}:)?[0-9]{1,15}$"  # 15 digits stay below 2**53
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
 
 
@@ -62,9 +63,10 @@ def openapi_document() -> dict[str, Any]:
     """The whole document (built once)."""
     event = {
         "type": "object",
-        "required": ["seq", "type", "event"],
+        "required": ["seq", "epoch", "type", "event"],
         "properties": {
             "seq": {"type": "integer", "minimum": 0},
+            "epoch": {"type": "string", "description": "This daemon run's id: sequence numbers restart with it."},
             "type": {"type": "string", "enum": ["touch", "presence", "interaction", "wearer_action", "reset"]},
             "event": {"type": "object", "description": "The event's own JSON (TouchEvent.to_json() etc.)."},
         },
@@ -92,11 +94,14 @@ def openapi_document() -> dict[str, Any]:
         "Event": event,
         "EventBatch": {
             "type": "object",
-            "required": ["events", "last_seq", "reset"],
+            "required": ["events", "last_seq", "epoch", "resume", "reset"],
             "properties": {
                 "events": {"type": "array", "items": _ref("Event")},
                 "last_seq": {"type": "integer", "minimum": 0},
-                "reset": {"type": "boolean", "description": "Events were lost: re-read `state` (included)."},
+                "epoch": {"type": "string"},
+                "resume": {"type": "string", "description": "EPOCH:SEQ: the next `after`."},
+                "reset": {"type": "boolean", "description": "Events were lost or the daemon restarted: `state` (included) "
+                          "replaces them, `events` is empty; continue from `resume`."},
                 "state": {"type": "object"},
             },
         },
@@ -141,6 +146,7 @@ def openapi_document() -> dict[str, Any]:
                     "properties": {"controller": {"type": ["string", "null"], "description": "Who holds the motion lease."}},
                 },
                 "last_seq": {"type": "integer"},
+                "epoch": {"type": "string", "description": "Resume events after `epoch:last_seq`."},
             },
         },
         "Health": {"type": "object", "required": ["status"], "properties": {"status": {"type": "string"}}},
@@ -165,7 +171,9 @@ def openapi_document() -> dict[str, Any]:
         "content": {"application/json": {"schema": schema}},
     }
     cameras = {"name": "camera", "in": "path", "required": True, "schema": {"type": "string", "enum": ["front", "rear", "projector"]}}
-    after = _query("after", {"type": "integer", "minimum": 0, "maximum": MAX_SEQ}, "Last sequence seen; omitted = only new events.")
+    resume = {"type": "string", "pattern": RESUME_PATTERN, "maxLength": 60}
+    after = _query("after", resume, "Resume token EPOCH:SEQ of the last event seen (a bare SEQ is taken as this run's); "
+                   "omitted = only new events; another run's epoch = reset.")
     paths: dict[str, Any] = {
         "/health": {"get": {
             "operationId": "health", "summary": "Per-service health (no token needed).", "security": [],
@@ -225,7 +233,7 @@ def openapi_document() -> dict[str, Any]:
         }},
         "/events/stream": {"get": {
             "operationId": "eventStream", "summary": "Server-Sent Events; `id` is the seq, resume with Last-Event-ID.",
-            "parameters": [after, TOKEN_QUERY, {"name": "Last-Event-ID", "in": "header", "required": False, "schema": {"type": "integer", "minimum": 0, "maximum": MAX_SEQ}}],
+            "parameters": [after, TOKEN_QUERY, {"name": "Last-Event-ID", "in": "header", "required": False, "schema": resume}],
             "x-streaming": True,
             "responses": {"200": {"description": "text/event-stream of Event objects.", "content": {"text/event-stream": {"schema": {"type": "string"}}}}} | _errors(400, 401),
         }},
@@ -259,7 +267,10 @@ def openapi_document() -> dict[str, Any]:
             },
             "get": {
                 "operationId": "speechOut", "summary": "Room audio captured after `after` as one PCM16 WAV; X-Speech-Seq is the next `after`.",
-                "parameters": [after, _query("timeout", {"type": "number", "minimum": 0, "maximum": 5}, "Longest wait in seconds.")],
+                "parameters": [
+                    _query("after", {"type": "integer", "minimum": 0, "maximum": MAX_SEQ}, "The last X-Speech-Seq received."),
+                    _query("timeout", {"type": "number", "minimum": 0, "maximum": 5}, "Longest wait in seconds."),
+                ],
                 "responses": {
                     "200": {"description": "WAV.", "content": {"audio/wav": {"schema": {"type": "string", "contentMediaType": "audio/wav"}}}},
                     "204": {"description": "No audio within the timeout."},

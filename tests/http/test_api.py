@@ -13,6 +13,7 @@ import pytest
 
 from feelium.events import SpeechIn, SpeechOut
 from feelium.events import InteractionEvent, PresenceEvent, TouchEvent, WearerAction
+from feelium.http.app import create_app
 from tests.http.http_support import AUTH, TOKEN, FakeScene
 
 
@@ -202,7 +203,8 @@ async def test_long_poll_waits_for_the_next_event(client, hub):
 
 async def test_long_poll_times_out_empty(client):
     body = await (await client.get("/api/v1/events?after=0&timeout=0.05", headers=AUTH)).json()
-    assert body == {"events": [], "last_seq": 0, "reset": False}
+    epoch = client.link.events.ring.epoch
+    assert body == {"events": [], "last_seq": 0, "epoch": epoch, "resume": f"{epoch}:0", "reset": False}
 
 
 async def test_client_too_far_behind_gets_reset_and_state(client, hub):
@@ -213,12 +215,46 @@ async def test_client_too_far_behind_gets_reset_and_state(client, hub):
     body = await (await client.get("/api/v1/events?after=2", headers=AUTH)).json()
     assert body["reset"] is True
     assert body["state"] == {"touch": {"contacts": 1}}
-    assert [e["seq"] for e in body["events"]] == list(range(13, 21))
+    assert body["events"] == [] and body["last_seq"] == 20  # the state replaces what was lost; nothing replayed
     body = await (await client.get("/api/v1/events?after=999", headers=AUTH)).json()
-    assert body["reset"] is True  # a sequence from an earlier daemon run
+    assert body["reset"] is True  # a sequence this run never reached
 
 
-@pytest.mark.parametrize("query, fragment", [("after=-1", "after"), ("after=x", "integer"), ("timeout=301", "timeout"), ("timeout=nan", "timeout")])
+async def test_after_a_restart_an_old_token_gets_a_snapshot_and_only_new_events(aiohttp_client, hub, http_config):
+    """Two apps on one hub stand for a daemon and its restart: the new run numbers from 1 again."""
+    first = await aiohttp_client(create_app(http_config, hub, TOKEN))
+    for i in range(5):
+        hub.bus.publish(touch(i))
+    await asyncio.sleep(0.01)
+    old = await (await first.get("/api/v1/events?after=0", headers=AUTH)).json()
+    assert old["last_seq"] == 5
+    await first.close()
+
+    restarted = await aiohttp_client(create_app(http_config, hub, TOKEN))
+    hub.state.update("touch", contacts=2)
+    hub.bus.publish(touch(40))
+    hub.bus.publish(touch(41))
+    await asyncio.sleep(0.01)
+    for old_token in (old["resume"], f"{old['epoch']}:1"):  # ahead of or behind the new numbers: both reset
+        body = await (await restarted.get(f"/api/v1/events?after={old_token}", headers=AUTH)).json()
+        assert body["epoch"] != old["epoch"] and body["reset"] is True and body["events"] == []
+        assert body["state"] == {"touch": {"contacts": 2}}
+    ws = await restarted.ws_connect(f"/api/v1/events/ws?after={old['resume']}", headers=AUTH)
+    reset = await asyncio.wait_for(ws.receive_json(), 2)
+    assert reset["type"] == "reset" and reset["epoch"] == body["epoch"] and reset["seq"] == 2
+    hub.bus.publish(touch(42))
+    new = await asyncio.wait_for(ws.receive_json(), 2)
+    assert new["seq"] == 3 and new["event"]["id"] == 42  # never an old event, never a smaller number than the reset's
+    await ws.close()
+    resp = await restarted.get("/api/v1/events/stream", headers=AUTH | {"Last-Event-ID": old["resume"]})
+    lines = []
+    while not any(line.startswith("data: ") for line in lines):
+        lines.append((await asyncio.wait_for(resp.content.readline(), 2)).decode())
+    assert f"id: {body['epoch']}:3\n" in lines and "event: reset\n" in lines
+    resp.close()
+
+
+@pytest.mark.parametrize("query, fragment", [("after=-1", "after"), ("after=x", "integer"), ("after=e:1.5", "EPOCH:SEQ"), ("timeout=301", "timeout"), ("timeout=nan", "timeout")])
 async def test_long_poll_rejects_bad_queries(client, query, fragment):
     await assert_error(await client.get(f"/api/v1/events?{query}", headers=AUTH), 400, fragment)
 
@@ -237,6 +273,13 @@ async def test_sse_delivers_events_and_resumes_after_last_event_id(client, hub):
             messages.append(json.loads(line[6:]))
     assert [m["seq"] for m in messages] == [2, 3]
     assert messages[1]["event"]["id"] == 3
+    epoch = client.link.events.ring.epoch
+    resp.close()
+    resp = await client.get("/api/v1/events/stream", headers=AUTH | {"Last-Event-ID": f"{epoch}:2"})  # the token SSE sent
+    lines = []
+    while not any(line.startswith("data: ") for line in lines):
+        lines.append((await asyncio.wait_for(resp.content.readline(), 2)).decode())
+    assert f"id: {epoch}:3\n" in lines
     resp.close()
     await assert_error(await client.get("/api/v1/events/stream", headers=AUTH | {"Last-Event-ID": "abc"}), 400, "Last-Event-ID")
 
@@ -247,7 +290,7 @@ async def test_websocket_delivers_the_same_envelopes(client, hub):
     hub.bus.publish(WearerAction("heart", 2.0))
     first = await asyncio.wait_for(ws.receive_json(), 2)
     second = await asyncio.wait_for(ws.receive_json(), 2)
-    assert first == {"seq": 1, "type": "touch", "event": touch(5).to_json()}
+    assert first == {"seq": 1, "epoch": client.link.events.ring.epoch, "type": "touch", "event": touch(5).to_json()}
     assert second["type"] == "wearer_action" and second["event"]["action"] == "heart"
     await ws.close()
 

@@ -22,12 +22,17 @@ const Feelium = (() => {
     return { data, resp };
   }
 
-  // One stream of {seq, type, event}: WebSocket first, Server-Sent Events if that fails; resumes after the last seq.
+  // One stream of {seq, epoch, type, event}: WebSocket first, Server-Sent Events if that fails; resumes after
+  // the last event with its token EPOCH:SEQ (another epoch = the daemon restarted: the server sends a reset).
   function events(onEvent, onStatus) {
     let last = null, failures = 0, useSse = false;
-    const deliver = (item) => { if (last === null || item.seq > last || item.type === "reset") { last = item.seq; onEvent(item); } };
+    const deliver = (item) => {
+      if (last === null || item.epoch !== last.epoch || item.seq > last.seq || item.type === "reset") {
+        last = { epoch: item.epoch, seq: item.seq }; onEvent(item);
+      }
+    };
     function connect() {
-      const after = last === null ? "" : `&after=${last}`;
+      const after = last === null ? "" : `&after=${encodeURIComponent(`${last.epoch}:${last.seq}`)}`;
       if (!useSse && "WebSocket" in window) {
         const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${withToken("/events/ws")}${after}`);
         ws.onopen = () => { failures = 0; onStatus(true); };
