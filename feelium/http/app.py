@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import secrets
+import socket
 from pathlib import Path
 
 from aiohttp import web
@@ -20,7 +21,10 @@ from feelium.http.openapi import openapi_document
 from feelium.http.lease import ControlLease
 from feelium.http.ratelimit import ClientBuckets
 from feelium.http.slots import StreamSlots
-from feelium.http.security import API_PREFIX, add_cors_headers, make_cors_middleware, parse_origins, require_token
+from feelium.http.hosts import HostAllowList
+from feelium.http.security import (
+    API_PREFIX, add_cors_headers, make_cors_middleware, make_host_middleware, parse_origins, require_token,
+)
 from feelium.http.speech import SpeechFeed
 from feelium.hub import Hub
 
@@ -99,7 +103,12 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     limit = max(config.max_json_bytes, config.max_face_bytes, config.max_speech_bytes) + 65536
     app = web.Application(
         client_max_size=limit,
-        middlewares=[json_errors, make_cors_middleware(parse_origins(config.cors_origins)), require_token],
+        middlewares=[
+            json_errors,
+            make_host_middleware(HostAllowList.from_config(config.allowed_hosts, socket.gethostname())),
+            make_cors_middleware(parse_origins(config.cors_origins)),
+            require_token,
+        ],
     )
     app[CONTEXT] = link
     app[ERROR_STATS] = link.counters
@@ -109,6 +118,7 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     p = API_PREFIX
     app.router.add_get(f"{p}/openapi.json", openapi)
     app.router.add_get(f"{p}/health", control.get_health)
+    app.router.add_get(f"{p}/clock", control.get_clock)
     app.router.add_get(f"{p}/state", control.get_state)
     app.router.add_get(f"{p}/video/{{camera}}.mjpeg", video.mjpeg)
     app.router.add_get(f"{p}/video/{{camera}}.jpg", video.jpeg)

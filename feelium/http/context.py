@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -51,6 +53,7 @@ class LinkContext:
     lease: ControlLease  # who may steer
     streams: StreamSlots  # MJPEG streams per client and in total
     counters: dict[str, int] = field(default_factory=dict)
+    wall_clock: Callable[[], float] = time.time  # only for GET /clock: every other time is hub.clock
     last_request_at: float | None = None
     last_motion_at: float | None = None
 

@@ -12,7 +12,9 @@ from aiohttp import web
 from feelium.events import SpeechIn
 from feelium.wav import WavError, decode_wav, encode_wav, resample
 from feelium.events import WearerAction
+from feelium.http.auth import presented_token, token_matches
 from feelium.http.clients import client_of
+from feelium.http.clock import CAPTURE_HEADER, read_clocks
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
 from feelium.http.face import ImageTooLarge, JpegError, check_jpeg
@@ -208,6 +210,7 @@ async def get_speech(request: web.Request) -> web.StreamResponse:
     headers = {"X-Speech-Seq": str(last), "Cache-Control": "no-store"}
     if not chunks:
         return web.Response(status=204, headers=headers)
+    headers[CAPTURE_HEADER] = f"{chunks[-1].t:.6f}"  # when the WAV's last sample was captured, daemon clock
     rate = chunks[-1].rate
     pcm = b"".join(c.pcm for c in chunks if c.rate == rate)
     link.count("speech_chunks_out", len(chunks))
@@ -295,9 +298,18 @@ async def get_state(request: web.Request) -> web.Response:
     return web.json_response(body, dumps=_dumps)
 
 
-async def get_health(request: web.Request) -> web.Response:
-    """Per-service health from the daemon's supervisor (public: no token needed)."""
+async def get_clock(request: web.Request) -> web.Response:
+    """The daemon clock every API time is on, read together with the wall clock (``wall = t + offset_s``)."""
     link = ctx(request)
+    return web.json_response(read_clocks(link.hub.clock, link.wall_clock).to_json(), headers={"Cache-Control": "no-store"})
+
+
+async def get_health(request: web.Request) -> web.Response:
+    """``{"status": "alive"}`` for anyone (monitors); the supervisor's per-service report only with the token,
+    since it tells a stranger whether someone is near the blimp and who is wearing the headset."""
+    link = ctx(request)
+    if not token_matches(presented_token(request.headers, request.query), link.token):
+        return web.json_response({"status": "alive"})
     try:
         report = dict(link.hub.health())
     except Exception as exc:  # the supervisor's report must never take the endpoint down

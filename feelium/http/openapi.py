@@ -16,6 +16,7 @@ from feelium.http.events_api import MAX_SEQ
 from feelium.http.video import MAX_FPS, MIN_FPS
 from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
+CAPTURE_T = {"description": "When it was captured (the last sample, for speech): daemon clock, s; see /clock.", "schema": {"type": "number"}}
 RESUME_PATTERN = "^([^:]{1,32}:)?[0-9]{1,15}$"  # 15 digits stay below 2**53
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
 
@@ -179,6 +180,16 @@ def openapi_document() -> dict[str, Any]:
             "operationId": "health", "summary": "Per-service health (no token needed).", "security": [],
             "responses": {"200": _json(_ref("Health"), "The supervisor's report.")} | _errors(),
         }},
+        "/clock": {"get": {
+            "operationId": "clock",
+            "summary": "The daemon clock every API time is on (event and state `t`, X-Feelium-Capture-T), read together with the wall clock.",
+            "description": "Unix time of a daemon time t = t + offset_s. The daemon clock is monotonic seconds since an "
+            "arbitrary start; it never jumps. uncertainty_s bounds how far apart the two reads were.",
+            "responses": {"200": _json({
+                "type": "object", "required": ["t", "wall", "offset_s", "uncertainty_s"],
+                "properties": {k: {"type": "number"} for k in ("t", "wall", "offset_s", "uncertainty_s")},
+            }, "The two clocks now.")} | _errors(401),
+        }},
         "/state": {"get": {
             "operationId": "state", "summary": "Live state as the services provide it.",
             "responses": {"200": _json(_ref("State"), "State.")} | _errors(401),
@@ -186,7 +197,8 @@ def openapi_document() -> dict[str, Any]:
         "/video/{camera}.jpg": {"get": {
             "operationId": "videoJpeg", "summary": "The newest frame as a JPEG.", "parameters": [cameras, TOKEN_QUERY],
             "responses": {
-                "200": {"description": "JPEG.", "content": {"image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}}}},
+                "200": {"description": "JPEG.", "headers": {"X-Feelium-Capture-T": CAPTURE_T, "X-Frame-Seq": {"schema": {"type": "integer"}}},
+                        "content": {"image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}}}},
             } | _errors(401, 404),
         }},
         "/video/{camera}.mjpeg": {"get": {
@@ -203,7 +215,8 @@ def openapi_document() -> dict[str, Any]:
             ],
             "x-streaming": True,
             "responses": {
-                "200": {"description": "Endless stream of JPEG parts.", "content": {"multipart/x-mixed-replace": {"schema": {"type": "string"}}}},
+                "200": {"description": "Endless stream of JPEG parts; each part's headers carry Content-Length, "
+                        "X-Feelium-Capture-T (capture time, daemon clock, s) and X-Frame-Seq.", "content": {"multipart/x-mixed-replace": {"schema": {"type": "string"}}}},
             } | _errors(400, 401, 404, 429),
         }},
         "/motion": {
@@ -272,7 +285,7 @@ def openapi_document() -> dict[str, Any]:
                     _query("timeout", {"type": "number", "minimum": 0, "maximum": 5}, "Longest wait in seconds."),
                 ],
                 "responses": {
-                    "200": {"description": "WAV.", "content": {"audio/wav": {"schema": {"type": "string", "contentMediaType": "audio/wav"}}}},
+                    "200": {"description": "WAV.", "headers": {"X-Feelium-Capture-T": CAPTURE_T}, "content": {"audio/wav": {"schema": {"type": "string", "contentMediaType": "audio/wav"}}}},
                     "204": {"description": "No audio within the timeout."},
                 } | _errors(400, 401),
             },

@@ -1,4 +1,4 @@
-"""Token and CORS middlewares: the room's Wi-Fi reaches the blimp, only the wearer's client may use it."""
+"""Host, CORS and token middlewares: the room's Wi-Fi reaches the blimp, only the wearer's client may use it."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from aiohttp import web
 from feelium.http.auth import presented_token, token_matches
 from feelium.http.context import ctx
 from feelium.http.errors import error_response
+from feelium.http.hosts import HostAllowList
 
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 
@@ -36,6 +37,34 @@ def origin_allowed(request: web.Request, origin: str, allowed: frozenset[str]) -
 
 def needs_token(path: str) -> bool:
     return path.startswith(API_PREFIX) and path not in PUBLIC_API_PATHS
+
+
+def local_address(request: web.Request) -> str | None:
+    """The address the request's connection arrived on (the server's side of the socket)."""
+    sockname = request.transport.get_extra_info("sockname") if request.transport is not None else None
+    return str(sockname[0]) if isinstance(sockname, (tuple, list)) and sockname else None
+
+
+def make_host_middleware(allowed: HostAllowList) -> Callable[..., Awaitable[web.StreamResponse]]:
+    """403 for a ``Host`` that is not one of the blimp's names (DNS rebinding), before anything else runs.
+
+    Checked first because the same-origin rule below trusts ``Host``: only a checked Host makes an
+    ``Origin`` equal to ``scheme://Host`` mean "the blimp's own page".
+    """
+
+    @web.middleware
+    async def host_check(request: web.Request, handler: Handler) -> web.StreamResponse:
+        host = request.headers.get("Host")
+        if not allowed.allows(host, local_address(request)):
+            ctx(request).count("host_not_allowed")
+            return error_response(
+                403,
+                f"Host {str(host)[:80]!r} is not one of this blimp's names; add it to [http] allowed_hosts if it is",
+                "host_not_allowed",
+            )
+        return await handler(request)
+
+    return host_check
 
 
 def make_cors_middleware(allowed: frozenset[str]) -> Callable[..., Awaitable[web.StreamResponse]]:
@@ -75,7 +104,7 @@ async def add_cors_headers(request: web.Request, response: web.StreamResponse) -
     if origin is not None:
         response.headers["Access-Control-Allow-Origin"] = origin
         response.headers["Vary"] = "Origin"
-        response.headers["Access-Control-Expose-Headers"] = "X-Speech-Seq, X-Frame-Seq, X-Timestamp, Retry-After"
+        response.headers["Access-Control-Expose-Headers"] = "X-Speech-Seq, X-Frame-Seq, X-Feelium-Capture-T, Retry-After"
 
 
 @web.middleware

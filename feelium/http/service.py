@@ -14,7 +14,7 @@ from aiohttp import web
 from feelium.http.addresses import interface_ipv4, reachable_hosts, url_host
 from feelium.http.app import link_of
 from feelium.http.config import HttpConfig
-from feelium.http.server import JsonErrorAppRunner
+from feelium.http.server import JsonErrorAppRunner, RedactingAccessLogger
 from feelium.hub import Hub
 from feelium.settings import ConfigError
 
@@ -79,7 +79,8 @@ class HttpService:
 
     async def run(self) -> None:
         self._stopped = asyncio.Event()
-        runner = JsonErrorAppRunner(self.app, access_log=None, shutdown_timeout=0.2)
+        access = logging.getLogger("feelium.http.access") if self.config.access_log else None
+        runner = JsonErrorAppRunner(self.app, access_log=access, access_log_class=RedactingAccessLogger, shutdown_timeout=0.2)
         await runner.setup()
         self._runner = runner
         try:

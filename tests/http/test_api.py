@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+from dataclasses import replace
 import io
 import json
 import wave
@@ -49,9 +50,12 @@ async def assert_error(resp, status: int, fragment: str) -> dict:  # type: ignor
 # --- auth, CORS, errors -------------------------------------------------------------------------------
 
 
-async def test_health_is_public_and_reports_the_supervisor(client, hub):
+async def test_health_without_the_token_says_only_alive_and_with_it_reports_the_supervisor(client, hub):
     hub.health = lambda: {"status": "degraded", "services": {"touch": {"healthy": False, "fps": float("nan")}}}
-    resp = await client.get("/api/v1/health")
+    for headers in ({}, {"Authorization": "Bearer wrong-token-0123456789"}):
+        resp = await client.get("/api/v1/health", headers=headers)
+        assert resp.status == 200 and await resp.json() == {"status": "alive"}  # nothing about who is near or wearing
+    resp = await client.get("/api/v1/health", headers=AUTH)
     assert resp.status == 200
     body = await resp.json()
     assert body["status"] == "degraded"
@@ -517,3 +521,60 @@ async def test_openapi_is_public_and_valid(client):
 async def test_static_client_pages_are_served(client):
     for path in ("/", "/partner", "/static/app.js", "/static/style.css"):
         assert (await client.get(path)).status == 200, path
+
+
+# --- one clock ------------------------------------------------------------------------------------
+
+
+async def test_clock_maps_the_daemon_clock_to_wall_time(client, clock):
+    client.link.wall_clock = lambda: 1_700_000_000.25
+    resp = await client.get("/api/v1/clock", headers=AUTH)
+    body = await resp.json()
+    assert resp.status == 200
+    assert body == {"t": 100.0, "wall": 1_700_000_000.25, "offset_s": 1_699_999_900.25, "uncertainty_s": 0.0}
+    assert (await client.get("/api/v1/clock")).status == 401
+
+
+async def test_frames_and_speech_carry_their_capture_time_on_the_daemon_clock(client, hub, clock):
+    hub.front_video.publish(97.125, np.zeros((48, 64, 3), np.uint8))  # captured 2.875 s before "now" (100.0)
+    resp = await client.get("/api/v1/video/front.jpg", headers=AUTH)
+    assert resp.headers["X-Feelium-Capture-T"] == "97.125000"
+    resp = await client.get("/api/v1/video/front.mjpeg", headers=AUTH)
+    head = b""
+    while not head.endswith(b"\r\n\r\n"):
+        head += await asyncio.wait_for(resp.content.readline(), 2)
+    assert b"X-Feelium-Capture-T: 97.125000\r\n" in head and b"X-Frame-Seq: 1\r\n" in head
+    resp.close()
+    hub.bus.publish(SpeechOut(b"\0\0" * 160, 16000, 99.5))
+    await asyncio.sleep(0.02)
+    resp = await client.get("/api/v1/speech?after=0", headers=AUTH)
+    assert resp.status == 200 and resp.headers["X-Feelium-Capture-T"] == "99.500000"
+
+
+# --- Host and Origin: DNS rebinding -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("host", ["evil.example", "evil.example:8080", "127.0.0.1.nip.io", "10.9.9.9", ""])
+async def test_a_host_that_is_not_the_blimps_is_refused_before_the_token_is_looked_at(client, host):
+    """A rebinding page sends its own name as Host (and an Origin that matches it); both are refused."""
+    for path in ("/api/v1/state", "/api/v1/health", "/"):
+        resp = await client.get(path, headers=AUTH | {"Host": host, "Origin": f"http://{host}"})
+        body = await assert_error(resp, 403, "not one of this blimp's names")
+        assert body["error"] == "host_not_allowed"
+    assert client.link.counters["host_not_allowed"] == 3
+
+
+@pytest.mark.parametrize("host", ["localhost:8080", "LOCALHOST", "blimp.local", "blimp", "127.0.0.1:1234"])
+async def test_the_blimps_own_names_and_the_address_the_connection_arrived_on_are_served(aiohttp_client, hub, http_config, monkeypatch, host):
+    monkeypatch.setattr("feelium.http.app.socket.gethostname", lambda: "blimp")
+    client = await aiohttp_client(create_app(http_config, hub, TOKEN))
+    resp = await client.get("/api/v1/state", headers=AUTH | {"Host": host})
+    assert resp.status == 200
+    origin = f"http://{host.lower()}"  # the blimp's own page, loaded by that name
+    assert (await client.get("/api/v1/state", headers=AUTH | {"Host": host, "Origin": origin})).status == 200
+
+
+async def test_configured_hosts_replace_the_defaults(aiohttp_client, hub, http_config):
+    client = await aiohttp_client(create_app(replace(http_config, allowed_hosts="feelium.example., other"), hub, TOKEN))
+    assert (await client.get("/api/v1/state", headers=AUTH | {"Host": "feelium.example:443"})).status == 200
+    assert (await client.get("/api/v1/state", headers=AUTH | {"Host": "localhost"})).status == 403

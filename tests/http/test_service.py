@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import shutil
 import ssl
 import subprocess
@@ -141,3 +142,32 @@ def test_disabled_link_builds_no_service_and_a_generated_token_is_private(tmp_pa
     service = build_http(replace(Config(), http=replace(HttpConfig(), token_file=str(token_file))), Hub())
     assert token_file.stat().st_mode & 0o777 == 0o600
     assert service.token == token_file.read_text().strip() and len(service.token) >= 16  # type: ignore[attr-defined]
+
+
+async def test_the_token_never_reaches_the_log(caplog: pytest.LogCaptureFixture) -> None:
+    """Access log on, at debug: query tokens are redacted, headers are not logged, a rejected request line too."""
+    caplog.set_level(logging.DEBUG)
+    service, task = await _started(_loopback(access_log=True))
+    try:
+        base = f"http://127.0.0.1:{service.port}/api/v1"
+        async with aiohttp.ClientSession() as session:
+            async with session.get(f"{base}/state?token={TOKEN}&client=a") as resp:
+                assert resp.status == 200
+            async with session.get(f"{base}/state", headers=AUTH) as resp:
+                assert resp.status == 200
+        await _raw(service.port, f"GET /api/v1/state?token={TOKEN} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: x\r\n\r\n".encode())
+    finally:
+        await _stopped(service, task)
+    access = [r.getMessage() for r in caplog.records if r.name == "feelium.http.access"]
+    assert any("/api/v1/state?token=<redacted>&client=a 200" in line for line in access), access
+    assert len(access) >= 2
+    assert TOKEN not in caplog.text
+    assert any("rejected a malformed request" in r.getMessage() for r in caplog.records)
+
+
+def test_redact_hides_every_form_of_the_token() -> None:
+    from feelium.http.server import redact
+
+    assert redact("GET /x?a=1&token=s3cr3t&b=2 HTTP/1.1") == "GET /x?a=1&token=<redacted>&b=2 HTTP/1.1"
+    assert redact("Authorization: Bearer s3cr3t") == "Authorization: Bearer <redacted>"
+    assert redact("b'GET /x?TOKEN=s3cr3t'") == "b'GET /x?TOKEN=<redacted>'"
