@@ -10,7 +10,8 @@ from pathlib import Path
 
 from aiohttp import web
 
-from feelium.http import control, events_api, video
+from feelium.http import control, events_api, pairing_api, video
+from feelium.http.auth import TokenStore
 from feelium.http.config import HttpConfig
 from feelium.http.context import CONTEXT, LinkContext, SpeechSettings, ctx
 from feelium.http.errors import ERROR_STATS, ApiError, json_errors
@@ -18,6 +19,7 @@ from feelium.http.face import FacePlayer
 from feelium.http.feed import EventFeed
 from feelium.http.jpeg import JpegFeed
 from feelium.http.openapi import openapi_document
+from feelium.http.pairing import PairingCodes
 from feelium.http.lease import ControlLease
 from feelium.http.ratelimit import ClientBuckets
 from feelium.http.slots import StreamSlots
@@ -43,7 +45,8 @@ def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettin
         config=config,
         speech_settings=speech,
         hub=hub,
-        token=token,
+        tokens=TokenStore(token, None if config.token else config.token_file),
+        pairing=PairingCodes(config.pairing_ttl_s),
         events=EventFeed(hub.bus, config.event_ring_size, secrets.token_hex(4)),  # a new epoch per run
         speech=SpeechFeed(hub.bus, speech.capture_keep_ms),
         videos=videos,
@@ -119,6 +122,9 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     app.router.add_get(f"{p}/openapi.json", openapi)
     app.router.add_get(f"{p}/health", control.get_health)
     app.router.add_get(f"{p}/clock", control.get_clock)
+    app.router.add_post(f"{p}/pair", pairing_api.post_pair)
+    app.router.add_post(f"{p}/pair/code", pairing_api.post_pair_code)
+    app.router.add_post(f"{p}/token/rotate", pairing_api.post_token_rotate)
     app.router.add_get(f"{p}/state", control.get_state)
     app.router.add_get(f"{p}/video/{{camera}}.mjpeg", video.mjpeg)
     app.router.add_get(f"{p}/video/{{camera}}.jpg", video.jpeg)

@@ -9,11 +9,13 @@ from typing import Any
 
 from aiohttp import web
 
+from feelium.http.auth import TokenStore
 from feelium.http.config import HttpConfig
 from feelium.http.face import FacePlayer
 from feelium.http.feed import EventFeed
 from feelium.http.jpeg import JpegFeed
 from feelium.http.lease import ControlLease
+from feelium.http.pairing import PairingCodes
 from feelium.http.ratelimit import ClientBuckets
 from feelium.http.slots import StreamSlots
 from feelium.http.speech import SpeechFeed
@@ -42,7 +44,8 @@ class LinkContext:
     config: HttpConfig
     speech_settings: SpeechSettings
     hub: Hub
-    token: str
+    tokens: TokenStore  # the bearer token in force (follows a rotated token file)
+    pairing: PairingCodes  # short codes a headset exchanges for the token
     events: EventFeed
     speech: SpeechFeed
     videos: dict[str, JpegFeed]

@@ -12,7 +12,7 @@ from aiohttp import web
 from feelium.events import SpeechIn
 from feelium.wav import WavError, decode_wav, encode_wav, resample
 from feelium.events import WearerAction
-from feelium.http.auth import presented_token, token_matches
+from feelium.http.auth import presented_token
 from feelium.http.clients import client_of
 from feelium.http.clock import CAPTURE_HEADER, read_clocks
 from feelium.http.context import LinkContext, ctx
@@ -308,7 +308,7 @@ async def get_health(request: web.Request) -> web.Response:
     """``{"status": "alive"}`` for anyone (monitors); the supervisor's per-service report only with the token,
     since it tells a stranger whether someone is near the blimp and who is wearing the headset."""
     link = ctx(request)
-    if not token_matches(presented_token(request.headers, request.query), link.token):
+    if not link.tokens.matches(presented_token(request.headers, request.query), link.hub.clock()):
         return web.json_response({"status": "alive"})
     try:
         report = dict(link.hub.health())

@@ -33,7 +33,7 @@ def _errors(*codes: int) -> dict[str, Any]:
     text = {
         400: "The request is malformed; the message says which field.",
         401: "Missing or wrong token.",
-        403: "The Origin is not allowed.",
+        403: "The Host is not one of the blimp's names, the Origin is not allowed, or (pairing) the code is wrong, used or expired.",
         404: "Not found (or not available in this mode).",
         409: "The simulator refused the request.",
         413: "The body exceeds the configured limit.",
@@ -189,6 +189,32 @@ def openapi_document() -> dict[str, Any]:
                 "type": "object", "required": ["t", "wall", "offset_s", "uncertainty_s"],
                 "properties": {k: {"type": "number"} for k in ("t", "wall", "offset_s", "uncertainty_s")},
             }, "The two clocks now.")} | _errors(401),
+        }},
+        "/pair/code": {"post": {
+            "operationId": "pairingCode", "summary": "A new pairing code (what `feelium pair` prints); replaces the outstanding one.",
+            "responses": {"200": _json({
+                "type": "object", "required": ["code", "expires_in_s"],
+                "properties": {"code": {"type": "string", "examples": ["4821-0937"]}, "expires_in_s": {"type": "number"}},
+            }, "The code; it works once, for expires_in_s ([http] pairing_ttl_s).")} | _errors(401),
+        }},
+        "/pair": {"post": {
+            "operationId": "pair", "security": [],
+            "summary": "Exchange a pairing code for the token (no token needed). A code works once and expires; "
+            "after 5 wrong codes the outstanding one is void.",
+            "parameters": [CLIENT_ID_HEADER],
+            "requestBody": json_body({
+                "type": "object", "required": ["code"], "additionalProperties": False,
+                "properties": {"code": {"type": "string", "minLength": 1, "maxLength": 32, "description": "As printed; dashes and spaces are ignored."}},
+            }),
+            "responses": {"200": _json({"type": "object", "required": ["token"], "properties": {"token": {"type": "string"}}}, "The bearer token.")}
+            | _errors(400, 413, 415, 429),
+        }},
+        "/token/rotate": {"post": {
+            "operationId": "rotateToken",
+            "summary": "Replace the token (in force at once; the one that authorised this request stops working).",
+            "description": "409 token_not_rotatable when the token is set in [http] token rather than token_file.",
+            "responses": {"200": _json({"type": "object", "required": ["token"], "properties": {"token": {"type": "string"}}}, "The new token."),
+                          "409": _json(_ref("Error"), "The token comes from the config file.")} | _errors(401),
         }},
         "/state": {"get": {
             "operationId": "state", "summary": "Live state as the services provide it.",

@@ -6,7 +6,7 @@ from collections.abc import Awaitable, Callable
 
 from aiohttp import web
 
-from feelium.http.auth import presented_token, token_matches
+from feelium.http.auth import presented_token
 from feelium.http.context import ctx
 from feelium.http.errors import error_response
 from feelium.http.hosts import HostAllowList
@@ -16,7 +16,8 @@ Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 API_PREFIX = "/api/v1"
 # Reachable without the token: health (for monitors), the API description and the static client
 # (neither holds a secret; the client reads the token from its URL fragment).
-PUBLIC_API_PATHS = frozenset({f"{API_PREFIX}/health", f"{API_PREFIX}/openapi.json"})
+# Pairing is public too: its body carries the short-lived code that stands in for the token.
+PUBLIC_API_PATHS = frozenset({f"{API_PREFIX}/health", f"{API_PREFIX}/openapi.json", f"{API_PREFIX}/pair"})
 ALLOWED_METHODS = "GET, POST, PUT, DELETE, OPTIONS"
 ALLOWED_HEADERS = "Authorization, Content-Type, Last-Event-ID, X-Feelium-Client"
 
@@ -112,7 +113,7 @@ async def require_token(request: web.Request, handler: Handler) -> web.StreamRes
     """401 JSON unless the request carries the token (header, or ``?token=`` for img/EventSource/WebSocket)."""
     if needs_token(request.path):
         link = ctx(request)
-        if not token_matches(presented_token(request.headers, request.query), link.token):
+        if not link.tokens.matches(presented_token(request.headers, request.query), link.hub.clock()):
             link.count("unauthorized")
             return error_response(
                 401,
