@@ -125,6 +125,7 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     app.router.add_post(f"{p}/pair", pairing_api.post_pair)
     app.router.add_post(f"{p}/pair/code", pairing_api.post_pair_code)
     app.router.add_post(f"{p}/token/rotate", pairing_api.post_token_rotate)
+    app.router.add_post(f"{p}/session", pairing_api.post_session)
     app.router.add_get(f"{p}/state", control.get_state)
     app.router.add_get(f"{p}/video/{{camera}}.mjpeg", video.mjpeg)
     app.router.add_get(f"{p}/video/{{camera}}.jpg", video.jpeg)

@@ -137,12 +137,17 @@ class TokenStore:
         return self._token
 
 
-def presented_token(headers: Mapping[str, str], query: Mapping[str, str]) -> str | None:
-    """The token a request carries: the bearer header first, then ``?token=``."""
+SESSION_COOKIE = "feelium_token"
+
+
+def presented_token(headers: Mapping[str, str], query: Mapping[str, str], cookies: Mapping[str, str] | None = None) -> str | None:
+    """The token a request carries: the bearer header first, then the browser's session cookie, then ``?token=``."""
     auth = headers.get("Authorization", "")
     scheme, _, value = auth.partition(" ")
     if scheme.lower() == "bearer" and value.strip():
         return value.strip()
+    if cookies and cookies.get(SESSION_COOKIE):
+        return cookies[SESSION_COOKIE]
     return query.get("token") or None
 
 

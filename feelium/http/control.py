@@ -308,7 +308,7 @@ async def get_health(request: web.Request) -> web.Response:
     """``{"status": "alive"}`` for anyone (monitors); the supervisor's per-service report only with the token,
     since it tells a stranger whether someone is near the blimp and who is wearing the headset."""
     link = ctx(request)
-    if not link.tokens.matches(presented_token(request.headers, request.query), link.hub.clock()):
+    if not link.tokens.matches(presented_token(request.headers, request.query, request.cookies), link.hub.clock()):
         return web.json_response({"status": "alive"})
     try:
         report = dict(link.hub.health())

@@ -48,7 +48,7 @@ def _query(name: str, schema: dict[str, Any], description: str) -> dict[str, Any
     return {"name": name, "in": "query", "required": False, "schema": schema, "description": description}
 
 
-TOKEN_QUERY = _query("token", {"type": "string"}, "The token, for clients that cannot set headers (img, EventSource).")
+TOKEN_QUERY = _query("token", {"type": "string"}, "The token, for clients that can neither set headers nor hold the /session cookie.")
 _CLIENT_ID = {"type": "string", "pattern": CLIENT_ID_PATTERN}
 CLIENT_ID_HEADER = {
     "name": CLIENT_HEADER, "in": "header", "required": False, "schema": _CLIENT_ID,
@@ -208,6 +208,12 @@ def openapi_document() -> dict[str, Any]:
             }),
             "responses": {"200": _json({"type": "object", "required": ["token"], "properties": {"token": {"type": "string"}}}, "The bearer token.")}
             | _errors(400, 413, 415, 429),
+        }},
+        "/session": {"post": {
+            "operationId": "session",
+            "summary": "Set the token as an HttpOnly, SameSite=Strict cookie (path /api/v1) so a browser page's img, "
+            "EventSource and WebSocket need no ?token=. Native clients do not need it.",
+            "responses": {"204": {"description": "Cookie set (Set-Cookie: feelium_token=...)."}} | _errors(401),
         }},
         "/token/rotate": {"post": {
             "operationId": "rotateToken",

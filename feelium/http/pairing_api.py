@@ -1,10 +1,11 @@
-"""Pairing and token rotation: thin handlers over :class:`PairingCodes` and :class:`TokenStore`."""
+"""Pairing, the browser's session cookie and token rotation: thin handlers over :class:`PairingCodes` and
+:class:`TokenStore`."""
 
 from __future__ import annotations
 
 from aiohttp import web
 
-from feelium.http.auth import TokenError
+from feelium.http.auth import SESSION_COOKIE, TokenError
 from feelium.http.clients import client_of
 from feelium.http.context import ctx
 from feelium.http.control import charge
@@ -46,3 +47,18 @@ async def post_token_rotate(request: web.Request) -> web.Response:
     except TokenError as exc:
         raise ApiError(409, str(exc), "token_not_rotatable") from exc
     return web.json_response({"token": token}, headers={"Cache-Control": "no-store"})
+
+
+async def post_session(request: web.Request) -> web.Response:
+    """Give a browser page the token as a cookie, so ``<img>``, ``EventSource`` and ``WebSocket`` need no ``?token=``.
+
+    HttpOnly (page scripts cannot read it back), SameSite=Strict (no other site's page makes the browser send it),
+    scoped to the API and, over HTTPS, Secure. It lasts until the browser closes or the token rotates.
+    """
+    link = ctx(request)
+    response = web.Response(status=204, headers={"Cache-Control": "no-store"})
+    response.set_cookie(
+        SESSION_COOKIE, link.tokens.current(link.hub.clock()), path="/api/v1", httponly=True, samesite="Strict",
+        secure=request.secure,
+    )
+    return response

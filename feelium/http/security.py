@@ -113,7 +113,7 @@ async def require_token(request: web.Request, handler: Handler) -> web.StreamRes
     """401 JSON unless the request carries the token (header, or ``?token=`` for img/EventSource/WebSocket)."""
     if needs_token(request.path):
         link = ctx(request)
-        if not link.tokens.matches(presented_token(request.headers, request.query), link.hub.clock()):
+        if not link.tokens.matches(presented_token(request.headers, request.query, request.cookies), link.hub.clock()):
             link.count("unauthorized")
             return error_response(
                 401,

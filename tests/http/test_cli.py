@@ -26,7 +26,7 @@ def test_http_url_on_all_interfaces_lists_every_address_and_the_local_name(tmp_p
     monkeypatch.setattr(service, "interface_ipv4", lambda: ["127.0.0.1", "192.168.1.50", "10.0.0.7"])
     monkeypatch.setattr(service.socket, "gethostname", lambda: "blimp")
     config = tmp_path / "feelium.toml"
-    config.write_text(f'[http]\nhost = "0.0.0.0"\nport = 8080\ntoken = "a-token-of-sixteen-chars"\n')
+    config.write_text('[http]\nhost = "0.0.0.0"\nport = 8080\ntoken = "a-token-of-sixteen-chars"\n')
     assert main(["http-url", "--config", str(config)]) == 0
     assert capsys.readouterr().out.split() == [
         f"http://{host}:8080/#token=a-token-of-sixteen-chars" for host in ("192.168.1.50", "10.0.0.7", "127.0.0.1", "blimp.local")

@@ -133,3 +133,15 @@ async def test_feelium_pair_and_token_rotate_against_a_running_daemon(tmp_path: 
     finally:
         await service.stop()  # type: ignore[union-attr]
         await asyncio.wait_for(task, 5)
+
+
+async def test_a_browser_session_cookie_replaces_the_token_in_urls(client) -> None:  # type: ignore[no-untyped-def]
+    assert (await client.post("/api/v1/session")).status == 401
+    resp = await client.post("/api/v1/session", headers=AUTH)
+    assert resp.status == 204
+    cookie = resp.cookies["feelium_token"]
+    assert cookie.value == TOKEN and cookie["httponly"] and cookie["samesite"] == "Strict" and cookie["path"] == "/api/v1"
+    # the test client's cookie jar now sends it, as a browser would for <img> and EventSource: no header, no ?token=
+    assert (await client.get("/api/v1/state")).status == 200
+    ws = await client.ws_connect("/api/v1/events/ws")
+    await ws.close()

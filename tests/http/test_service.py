@@ -163,6 +163,7 @@ async def test_the_token_never_reaches_the_log(caplog: pytest.LogCaptureFixture)
     assert len(access) >= 2
     assert TOKEN not in caplog.text
     assert any("rejected a malformed request" in r.getMessage() for r in caplog.records)
+    assert any(r.getMessage().startswith(f"headset client at http://127.0.0.1:{service.port}/ ") for r in caplog.records)
 
 
 def test_redact_hides_every_form_of_the_token() -> None:
