@@ -130,6 +130,8 @@ async def test_feelium_pair_and_token_rotate_against_a_running_daemon(tmp_path: 
                 await asyncio.sleep(0.1)
             async with session.get(f"{base}/state", headers={"Authorization": f"Bearer {old}"}) as resp:
                 assert resp.status == 401
+        health = service.health()  # type: ignore[union-attr]
+        assert health["pairings"] == 1 and health["token_rotations"] == 1
     finally:
         await service.stop()  # type: ignore[union-attr]
         await asyncio.wait_for(task, 5)
