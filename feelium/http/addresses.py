@@ -6,7 +6,7 @@ never use. :func:`interface_ipv4` asks the kernel for each interface's
 address (Linux ``SIOCGIFADDR``; elsewhere the host name's addresses), and
 :func:`reachable_hosts` orders them for people: the room's addresses first,
 loopback last, then ``hostname.local`` (resolved by mDNS on the headset when
-the blimp runs avahi). The same list is the default of the Host allow-list.
+the blimp runs avahi).
 """
 
 from __future__ import annotations

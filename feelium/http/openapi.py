@@ -150,7 +150,10 @@ def openapi_document() -> dict[str, Any]:
                 "epoch": {"type": "string", "description": "Resume events after `epoch:last_seq`."},
             },
         },
-        "Health": {"type": "object", "required": ["status"], "properties": {"status": {"type": "string"}}},
+        "Health": {
+            "type": "object", "required": ["status"], "properties": {"status": {"type": "string"}},
+            "description": "Without the token only {\"status\": \"alive\"}; with it the supervisor's report (status ok, degraded...; services).",
+        },
         "WearerAction": {
             "type": "object",
             "required": ["action", "t"],
@@ -177,7 +180,7 @@ def openapi_document() -> dict[str, Any]:
                    "omitted = only new events; another run's epoch = reset.")
     paths: dict[str, Any] = {
         "/health": {"get": {
-            "operationId": "health", "summary": "Per-service health (no token needed).", "security": [],
+            "operationId": "health", "summary": "Alive for anyone; the per-service health with the token.", "security": [],
             "responses": {"200": _json(_ref("Health"), "The supervisor's report.")} | _errors(),
         }},
         "/clock": {"get": {
