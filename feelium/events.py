@@ -27,7 +27,7 @@ def _rounded(value: float, digits: int) -> float | None:
 class TouchEvent:
     """One phase of one contact on the membrane.
 
-    ``t`` is on the camera clock; ``x``/``y`` are camera pixels at the
+    ``t`` is the frame's time (in the daemon, its monotonic clock); ``x``/``y`` are camera pixels at the
     recording's full resolution; ``u``/``v`` run 0..1 across the ROI.
     """
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import logging
+import time
+from collections.abc import Callable
 from types import ModuleType
 from typing import Any
 
@@ -25,6 +27,20 @@ INSTALL_HINT = (
     "picamera2 is not installed: on Raspberry Pi OS run `sudo apt install python3-picamera2` "
     "(pip-only setups: `pip install 'feelium[pi]'` with libcamera present); the user needs the 'video' group"
 )
+def boottime_ahead_s() -> float:
+    """How far libcamera's clock (``SensorTimestamp``: CLOCK_BOOTTIME) is ahead of the daemon's (CLOCK_MONOTONIC).
+
+    The two differ by the time the board spent suspended; subtracting this puts frame times on the daemon's
+    clock, the one every timestamp of the headset API is on (``hub.clock``, ``time.monotonic``).
+    """
+    return time.clock_gettime(time.CLOCK_BOOTTIME) - time.monotonic()
+
+
+def sensor_time_s(stamp_ns: int, boottime_ahead: float) -> float:
+    """A ``SensorTimestamp`` on the daemon's monotonic clock, in seconds."""
+    return stamp_ns / 1e9 - boottime_ahead
+
+
 AFTER_LOCK_S = 0.3  # frames still exposed with the old automatic values right after locking are skipped
 
 
@@ -67,7 +83,7 @@ def _open(module: ModuleType, index: int) -> Any:
 
 
 class Picamera2RearCamera:
-    """Gray frames from the luma plane of a low-resolution YUV stream, stamped with SensorTimestamp."""
+    """Gray frames from the luma plane of a low-resolution YUV stream, stamped with SensorTimestamp on the daemon clock."""
 
     name = "picamera2"
     realtime = True
@@ -82,8 +98,10 @@ class Picamera2RearCamera:
         settle_s: float,
         roi: Roi | None,
         module: ModuleType | None = None,
+        boottime_ahead: Callable[[], float] = boottime_ahead_s,
     ) -> None:
         module = module if module is not None else load_picamera2()
+        self._boottime_ahead = boottime_ahead()
         self.size = (width, height)
         self.roi = roi
         self._settle_s = settle_s
@@ -119,13 +137,14 @@ class Picamera2RearCamera:
                 stamp = int(metadata["SensorTimestamp"])
                 if self._first_ns is None:
                     self._first_ns = stamp
-                t = (stamp - self._first_ns) / 1e9
+                running = (stamp - self._first_ns) / 1e9
                 if self._locked_at is None:
-                    if t >= self._settle_s:
-                        self._lock_exposure(metadata, t)
+                    if running >= self._settle_s:
+                        self._lock_exposure(metadata, running)
                     continue
-                if t < self._locked_at + AFTER_LOCK_S:
+                if running < self._locked_at + AFTER_LOCK_S:
                     continue
+                t = sensor_time_s(stamp, self._boottime_ahead)
                 width, height = self.size
                 luma = np.ascontiguousarray(yuv[:height, :width])  # Y plane of I420; rows may be padded to a stride
                 return Frame(t=t, image=luma, roi=self.roi)
@@ -155,15 +174,18 @@ class Picamera2FrontCamera:
     name = "picamera2"
     realtime = True
 
-    def __init__(self, *, index: int, width: int, height: int, fps: float, module: ModuleType | None = None) -> None:
+    def __init__(
+        self, *, index: int, width: int, height: int, fps: float, module: ModuleType | None = None,
+        boottime_ahead: Callable[[], float] = boottime_ahead_s,
+    ) -> None:
         module = module if module is not None else load_picamera2()
+        self._boottime_ahead = boottime_ahead()
         self._camera = _open(module, index)
         config = self._camera.create_video_configuration(
             main={"size": (width, height), "format": "RGB888"}, controls={"FrameRate": float(fps)}, buffer_count=3
         )
         self._camera.configure(config)
         self._camera.start()
-        self._first_ns: int | None = None
         self._guard = ClosableReader()
 
     def read(self) -> Frame | None:
@@ -172,9 +194,7 @@ class Picamera2FrontCamera:
                 return None
             metadata, image = _capture(self._camera, "main")
             stamp = int(metadata["SensorTimestamp"])
-            if self._first_ns is None:
-                self._first_ns = stamp
-            return Frame(t=(stamp - self._first_ns) / 1e9, image=np.ascontiguousarray(image[:, :, :3]))
+            return Frame(t=sensor_time_s(stamp, self._boottime_ahead), image=np.ascontiguousarray(image[:, :, :3]))
 
     def close(self) -> None:
         def release() -> None:

@@ -3,7 +3,10 @@
 A path may be one recording or a dataset; recordings play one after another,
 each a new ``segment``. Times are shifted so they keep increasing across
 recordings and loops. ``realtime`` replays sleep to the recordings' own
-pace; otherwise frames come as fast as the consumer asks (nothing dropped).
+pace and stamp each frame with the time it was due on ``clock`` (the
+daemon's, so a replaying daemon's API times mean what a live one's do);
+otherwise frames come as fast as the consumer asks (nothing dropped), on
+the recordings' clock.
 """
 
 from __future__ import annotations
@@ -56,14 +59,15 @@ class ReplayCamera:
                 shift = offset - float(ts[0]) if segment else 0.0  # the first recording keeps its own clock
                 for t, image in recording.frames(gray=self._gray):
                     t_out = t + shift
+                    stamp = t_out
                     if self.realtime:
                         now = self._clock()
                         if wall_start is None:
                             wall_start = now - t_out
-                        delay = wall_start + t_out - now
-                        if delay > 0:
-                            self._sleep(delay)
-                    yield Frame(t=t_out, image=image, segment=segment, roi=recording.meta.roi)
+                        stamp = wall_start + t_out  # when it is due, on the clock: like a live camera's frame
+                        if stamp > now:
+                            self._sleep(stamp - now)
+                    yield Frame(t=stamp, image=image, segment=segment, roi=recording.meta.roi)
                 offset = float(ts[-1]) + shift + period
                 segment += 1
             if not self.loop:

@@ -1,15 +1,24 @@
-"""``feelium http url`` (the browser client's address with the token) and ``feelium bench http``."""
+"""``feelium http-url``, ``feelium pair``, ``feelium token rotate`` and ``feelium bench http``."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 from feelium.cli import CommandRegistry
 
 
 def register(registry: CommandRegistry) -> None:
-    http = registry.command("http-url", "Print the browser client's URL with the headset token (creates the token on first use).", _url)
+    http = registry.command("http-url", "Print the browser client's URL at every reachable address, with the headset token (creates it on first use).", _url)
     http.add_argument("--config", help="TOML config file (default: built-in defaults)")
+    pair = registry.command(
+        "pair", "Ask the running daemon for a one-time pairing code the headset exchanges for the token.", _pair
+    )
+    pair.add_argument("--config", help="TOML config file (default: built-in defaults)")
+    rotate = registry.subcommand(
+        "token", "rotate", "Write a new headset token; the running daemon uses it within a second, the old one stops working.", _rotate
+    )
+    rotate.add_argument("--config", help="TOML config file (default: built-in defaults)")
     bench = registry.subcommand(
         "bench", "http", "Headset link: motion round trip, touch-event latency per transport, MJPEG fps with a stalled client.", _bench
     )
@@ -22,10 +31,63 @@ def register(registry: CommandRegistry) -> None:
 def _url(args: argparse.Namespace) -> int:
     from feelium.daemon.config import load_config
     from feelium.http.auth import load_or_create_token
-    from feelium.http.service import client_url
+    from feelium.http.service import client_urls
 
     config = load_config(args.config).http
-    print(client_url(config, load_or_create_token(config.token, config.token_file)))
+    for url in client_urls(config, token=load_or_create_token(config.token, config.token_file)):
+        print(url)
+    return 0
+
+
+def _pair(args: argparse.Namespace) -> int:
+    import json
+    import ssl
+    import urllib.error
+    import urllib.request
+
+    from feelium.daemon.config import load_config
+    from feelium.http.addresses import WILDCARD_HOSTS, url_host
+    from feelium.http.auth import load_or_create_token
+    from feelium.http.service import client_urls
+
+    config = load_config(args.config).http
+    token = load_or_create_token(config.token, config.token_file)
+    host = "127.0.0.1" if config.host in WILDCARD_HOSTS else config.host
+    scheme = "https" if config.tls_cert else "http"
+    url = f"{scheme}://{url_host(host)}:{config.port}/api/v1/pair/code"
+    context = None
+    if config.tls_cert:  # our own daemon on this machine: its certificate need not name the address we dial
+        context = ssl.create_default_context()
+        context.check_hostname = False
+        context.verify_mode = ssl.CERT_NONE
+    request = urllib.request.Request(url, method="POST", headers={"Authorization": f"Bearer {token}"})
+    try:
+        with urllib.request.urlopen(request, timeout=5, context=context) as resp:
+            answer = json.load(resp)
+    except (urllib.error.URLError, OSError, ValueError) as exc:
+        print(f"feelium: cannot get a pairing code from {url}: {exc}; is `feelium run` running with this config?", file=sys.stderr)
+        return 1
+    print(f"pairing code: {answer['code']}  (works once, for {answer['expires_in_s']:g} s)")
+    print("In the headset app, enter the blimp's address and this code. The blimp is at:")
+    for address in client_urls(config):
+        print(f"  {address}")
+    return 0
+
+
+def _rotate(args: argparse.Namespace) -> int:
+    from feelium.daemon.config import load_config
+    from feelium.http.auth import TokenError, write_new_token
+
+    config = load_config(args.config).http
+    if config.token:
+        print("feelium: the token is set in [http] token: change it there and restart the daemon", file=sys.stderr)
+        return 1
+    try:
+        write_new_token(config.token_file)
+    except TokenError as exc:
+        print(f"feelium: {exc}", file=sys.stderr)
+        return 1
+    print(f"new token written to {config.token_file}; the daemon uses it within a second. Pair the headset again (feelium pair).")
     return 0
 
 

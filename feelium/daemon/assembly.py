@@ -30,6 +30,7 @@ from feelium.cameras.select import CameraSource, front_camera_source, rear_camer
 from feelium.daemon.config import Config
 from feelium.hub import Hub
 from feelium.service import Service
+from feelium.settings import ConfigError
 from feelium.skin.annotation import ProjectorAnnotation
 from feelium.skin.projector_map import CalibrationError, calibration_path, default_calibration, load_calibration, load_or_default
 from feelium.skin.projector_map import DEFAULT_CAMERA_SIZE, DEFAULT_ROI
@@ -189,6 +190,8 @@ def build_services(config: Config, hub: Hub, builders: tuple[tuple[str, ServiceB
             service = build(config, hub)
             if service is not None and not isinstance(service, Service):
                 raise TypeError(f"{part} built {service!r}, which is not a Service (name, stop_order, run, stop, health)")
+        except ConfigError:
+            raise  # a wrong setting (e.g. an unreadable TLS pair) stops the daemon: running without the part would hide it
         except Exception as exc:
             log.error("cannot start %s: %s", part, exc, exc_info=True)
             built.failures[part] = f"{type(exc).__name__}: {exc}"

@@ -139,7 +139,10 @@ def run_process(config: Config) -> int:
         _install_signals(loop, stop)
         watcher = asyncio.create_task(stop.wait())
         watcher.add_done_callback(lambda _: signalled_at.append(time.monotonic()))
-        return await run_daemon(config, stop=stop, notifier=notifier)
+        try:
+            return await run_daemon(config, stop=stop, notifier=notifier)
+        finally:
+            watcher.cancel()  # a start that fails (e.g. a config error) must not leave it pending on a closed loop
 
     try:
         supervisor = loop.run_until_complete(main())

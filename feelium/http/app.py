@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import secrets
+import socket
 from pathlib import Path
 
 from aiohttp import web
 
-from feelium.http import control, events_api, video
+from feelium.http import control, events_api, pairing_api, video
+from feelium.http.auth import TokenStore
 from feelium.http.config import HttpConfig
 from feelium.http.context import CONTEXT, LinkContext, SpeechSettings, ctx
 from feelium.http.errors import ERROR_STATS, ApiError, json_errors
@@ -16,10 +19,14 @@ from feelium.http.face import FacePlayer
 from feelium.http.feed import EventFeed
 from feelium.http.jpeg import JpegFeed
 from feelium.http.openapi import openapi_document
+from feelium.http.pairing import PairingCodes
 from feelium.http.lease import ControlLease
 from feelium.http.ratelimit import ClientBuckets
 from feelium.http.slots import StreamSlots
-from feelium.http.security import API_PREFIX, add_cors_headers, make_cors_middleware, parse_origins, require_token
+from feelium.http.hosts import HostAllowList
+from feelium.http.security import (
+    API_PREFIX, add_cors_headers, make_cors_middleware, make_host_middleware, parse_origins, require_token,
+)
 from feelium.http.speech import SpeechFeed
 from feelium.hub import Hub
 
@@ -38,8 +45,9 @@ def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettin
         config=config,
         speech_settings=speech,
         hub=hub,
-        token=token,
-        events=EventFeed(hub.bus, config.event_ring_size),
+        tokens=TokenStore(token, None if config.token else config.token_file),
+        pairing=PairingCodes(config.pairing_ttl_s),
+        events=EventFeed(hub.bus, config.event_ring_size, secrets.token_hex(4)),  # a new epoch per run
         speech=SpeechFeed(hub.bus, speech.capture_keep_ms),
         videos=videos,
         face=FacePlayer(hub),
@@ -98,7 +106,12 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     limit = max(config.max_json_bytes, config.max_face_bytes, config.max_speech_bytes) + 65536
     app = web.Application(
         client_max_size=limit,
-        middlewares=[json_errors, make_cors_middleware(parse_origins(config.cors_origins)), require_token],
+        middlewares=[
+            json_errors,
+            make_host_middleware(HostAllowList.from_config(config.allowed_hosts, socket.gethostname())),
+            make_cors_middleware(parse_origins(config.cors_origins)),
+            require_token,
+        ],
     )
     app[CONTEXT] = link
     app[ERROR_STATS] = link.counters
@@ -108,6 +121,11 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     p = API_PREFIX
     app.router.add_get(f"{p}/openapi.json", openapi)
     app.router.add_get(f"{p}/health", control.get_health)
+    app.router.add_get(f"{p}/clock", control.get_clock)
+    app.router.add_post(f"{p}/pair", pairing_api.post_pair)
+    app.router.add_post(f"{p}/pair/code", pairing_api.post_pair_code)
+    app.router.add_post(f"{p}/token/rotate", pairing_api.post_token_rotate)
+    app.router.add_post(f"{p}/session", pairing_api.post_session)
     app.router.add_get(f"{p}/state", control.get_state)
     app.router.add_get(f"{p}/video/{{camera}}.mjpeg", video.mjpeg)
     app.router.add_get(f"{p}/video/{{camera}}.jpg", video.jpeg)
@@ -117,6 +135,7 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     app.router.add_get(f"{p}/events/stream", events_api.sse)
     app.router.add_get(f"{p}/events/ws", events_api.websocket)
     app.router.add_put(f"{p}/face", control.put_face)
+    app.router.add_delete(f"{p}/face", control.delete_face)
     app.router.add_post(f"{p}/speech", control.post_speech)
     app.router.add_get(f"{p}/speech", control.get_speech)
     app.router.add_post(f"{p}/actions/{{action}}", control.post_action)

@@ -23,6 +23,17 @@ class HttpConfig:
     cors_origins: str = setting(
         "", "Comma-separated origins (https://host:port) other than the server itself allowed to call the API."
     )
+    allowed_hosts: str = setting(
+        "", "Comma-separated names clients may use in the Host header (DNS rebinding defence; 403 otherwise). Empty "
+        "= the machine's hostname, hostname.local and localhost. The IP address a connection arrived on is always allowed."
+    )
+    access_log: bool = setting(
+        False, "Log every request at debug level (method, path, status, size, time; the token is redacted)."
+    )
+    pairing_ttl_s: float = setting(
+        120.0, "How long a pairing code (feelium pair) may be exchanged for the token; each code works once.",
+        min=10.0, max=3600.0,
+    )
     tls_cert: str = setting("", "PEM certificate file; with tls_key, the server speaks HTTPS only.")
     tls_key: str = setting("", "PEM private key file for tls_cert.")
     max_json_bytes: int = setting(16384, "Largest JSON request body (413 above).", min=256, max=1048576)

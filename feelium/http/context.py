@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from aiohttp import web
 
+from feelium.http.auth import TokenStore
 from feelium.http.config import HttpConfig
 from feelium.http.face import FacePlayer
 from feelium.http.feed import EventFeed
 from feelium.http.jpeg import JpegFeed
 from feelium.http.lease import ControlLease
+from feelium.http.pairing import PairingCodes
 from feelium.http.ratelimit import ClientBuckets
 from feelium.http.slots import StreamSlots
 from feelium.http.speech import SpeechFeed
@@ -40,7 +44,8 @@ class LinkContext:
     config: HttpConfig
     speech_settings: SpeechSettings
     hub: Hub
-    token: str
+    tokens: TokenStore  # the bearer token in force (follows a rotated token file)
+    pairing: PairingCodes  # short codes a headset exchanges for the token
     events: EventFeed
     speech: SpeechFeed
     videos: dict[str, JpegFeed]
@@ -51,6 +56,7 @@ class LinkContext:
     lease: ControlLease  # who may steer
     streams: StreamSlots  # MJPEG streams per client and in total
     counters: dict[str, int] = field(default_factory=dict)
+    wall_clock: Callable[[], float] = time.time  # only for GET /clock: every other time is hub.clock
     last_request_at: float | None = None
     last_motion_at: float | None = None
 

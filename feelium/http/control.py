@@ -12,7 +12,9 @@ from aiohttp import web
 from feelium.events import SpeechIn
 from feelium.wav import WavError, decode_wav, encode_wav, resample
 from feelium.events import WearerAction
+from feelium.http.auth import presented_token
 from feelium.http.clients import client_of
+from feelium.http.clock import CAPTURE_HEADER, read_clocks
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
 from feelium.http.face import ImageTooLarge, JpegError, check_jpeg
@@ -171,6 +173,14 @@ async def put_face(request: web.Request) -> web.Response:
     return web.json_response({"frames": len(frames), "fps": fps if len(frames) > 1 else None, "bytes": sum(map(len, frames))})
 
 
+async def delete_face(request: web.Request) -> web.Response:
+    """Clear the wearer's face: the projector shows its default avatar again."""
+    link = ctx(request)
+    charge(link.action_limit, client_of(request), link.hub.clock(), "wearer actions and face uploads")
+    link.face.clear()
+    return web.json_response({"cleared": True})
+
+
 async def post_speech(request: web.Request) -> web.Response:
     """One chunk of the wearer's speech as a PCM16 WAV, queued for the speaker (backlog bounded by [audio] max_playback_ms)."""
     link = ctx(request)
@@ -200,6 +210,7 @@ async def get_speech(request: web.Request) -> web.StreamResponse:
     headers = {"X-Speech-Seq": str(last), "Cache-Control": "no-store"}
     if not chunks:
         return web.Response(status=204, headers=headers)
+    headers[CAPTURE_HEADER] = f"{chunks[-1].t:.6f}"  # when the WAV's last sample was captured, daemon clock
     rate = chunks[-1].rate
     pcm = b"".join(c.pcm for c in chunks if c.rate == rate)
     link.count("speech_chunks_out", len(chunks))
@@ -282,13 +293,23 @@ async def get_state(request: web.Request) -> web.Response:
         "motion_command": _motion_json(link.hub.motion.active(now), now),
         "headset_link": link.link_state(now),
         "last_seq": link.events.ring.last_seq,
+        "epoch": link.events.ring.epoch,
     }
     return web.json_response(body, dumps=_dumps)
 
 
-async def get_health(request: web.Request) -> web.Response:
-    """Per-service health from the daemon's supervisor (public: no token needed)."""
+async def get_clock(request: web.Request) -> web.Response:
+    """The daemon clock every API time is on, read together with the wall clock (``wall = t + offset_s``)."""
     link = ctx(request)
+    return web.json_response(read_clocks(link.hub.clock, link.wall_clock).to_json(), headers={"Cache-Control": "no-store"})
+
+
+async def get_health(request: web.Request) -> web.Response:
+    """``{"status": "alive"}`` for anyone (monitors); the supervisor's per-service report only with the token,
+    since it tells a stranger whether someone is near the blimp and who is wearing the headset."""
+    link = ctx(request)
+    if not link.tokens.matches(presented_token(request.headers, request.query, request.cookies), link.hub.clock()):
+        return web.json_response({"status": "alive"})
     try:
         report = dict(link.hub.health())
     except Exception as exc:  # the supervisor's report must never take the endpoint down

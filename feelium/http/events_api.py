@@ -1,8 +1,8 @@
 """Touch, presence and interaction events three ways: long-poll, Server-Sent Events and WebSocket.
 
 All three read the same ring and send the same envelopes
-(``{"seq", "type", "event"}``), so a client can switch transports and keep
-its place with the sequence number.
+(``{"seq", "epoch", "type", "event"}``), so a client can switch transports
+and keep its place with the resume token ``EPOCH:SEQ``.
 """
 
 from __future__ import annotations
@@ -17,33 +17,39 @@ from aiohttp import WSMsgType, web
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
 from feelium.http.params import query_number
-from feelium.http.ring import Catchup
+from feelium.http.ring import Catchup, parse_resume, resume_token
 
 log = logging.getLogger(__name__)
 
 MAX_SEQ = 2**53
 
 
-def _after(request: web.Request, header_value: str | None = None) -> int | None:
-    """The client's last seen sequence: ``?after=`` (or ``Last-Event-ID``); ``None`` = only new events."""
-    if header_value:
-        try:
-            value = int(header_value)
-        except ValueError:
-            raise ApiError(400, f"Last-Event-ID must be an integer sequence, got {header_value[:40]!r}") from None
-        if not 0 <= value <= MAX_SEQ:
-            raise ApiError(400, f"Last-Event-ID must be within 0..{MAX_SEQ}")
-        return value
-    if request.query.get("after", "") == "":
+def _after(request: web.Request, header_value: str | None = None) -> tuple[str | None, int] | None:
+    """Where the client resumes: ``(epoch, seq)`` from ``Last-Event-ID`` or ``?after=`` (``EPOCH:SEQ``, or a
+    bare ``SEQ`` taken as this run's); ``None`` = only new events."""
+    name, text = ("Last-Event-ID", header_value) if header_value else ("after", request.query.get("after", ""))
+    if text == "":
         return None
-    return int(query_number(request, "after", 0, 0, MAX_SEQ, integer=True))
+    try:
+        return parse_resume(text, MAX_SEQ)
+    except ValueError as exc:
+        raise ApiError(400, f"{name} must be EPOCH:SEQ (or an integer sequence) as the server sent it, got {text[:40]!r}: {exc}") from None
 
 
 def catchup_body(link: LinkContext, catchup: Catchup) -> dict[str, Any]:
-    body: dict[str, Any] = {"events": catchup.events, "last_seq": catchup.last_seq, "reset": catchup.reset}
+    ring = link.events.ring
+    body: dict[str, Any] = {
+        "events": catchup.events, "last_seq": catchup.last_seq, "epoch": ring.epoch,
+        "resume": resume_token(ring.epoch, catchup.last_seq), "reset": catchup.reset,
+    }
     if catchup.reset:
         body["state"] = link.hub.state.snapshot()
     return body
+
+
+def reset_message(link: LinkContext, catchup: Catchup) -> dict[str, Any]:
+    """What a streaming client gets instead of events it cannot have: the state now, then only new events."""
+    return {"seq": catchup.last_seq, "epoch": link.events.ring.epoch, "type": "reset", "event": {"state": link.hub.state.snapshot()}}
 
 
 async def long_poll(request: web.Request) -> web.Response:
@@ -51,15 +57,14 @@ async def long_poll(request: web.Request) -> web.Response:
     link = ctx(request)
     after = _after(request)
     timeout = min(query_number(request, "timeout", 0.0, 0.0, 300.0), link.config.longpoll_max_s)
-    if after is None:
-        after = link.events.ring.last_seq
-    catchup = await link.events.wait_after(after, timeout)
+    epoch, seq = (None, link.events.ring.last_seq) if after is None else after
+    catchup = await link.events.wait_after(seq, timeout, epoch)
     return web.json_response(catchup_body(link, catchup), headers={"Cache-Control": "no-store"})
 
 
 def sse_message(item: dict[str, Any]) -> bytes:
-    """One SSE message whose ``id`` is the sequence, so ``Last-Event-ID`` resumes after it."""
-    return f"id: {item['seq']}\nevent: {item['type']}\ndata: {json.dumps(item, separators=(',', ':'))}\n\n".encode()
+    """One SSE message whose ``id`` is the resume token, so ``Last-Event-ID`` resumes after it."""
+    return f"id: {resume_token(item['epoch'], item['seq'])}\nevent: {item['type']}\ndata: {json.dumps(item, separators=(',', ':'))}\n\n".encode()
 
 
 async def sse(request: web.Request) -> web.StreamResponse:
@@ -71,15 +76,15 @@ async def sse(request: web.Request) -> web.StreamResponse:
     )
     await response.prepare(request)
     timeout = link.config.stream_write_timeout_s
-    seq = link.events.ring.last_seq if after is None else after
+    epoch, seq = (None, link.events.ring.last_seq) if after is None else after
     link.count("event_clients")
     try:
         await asyncio.wait_for(response.write(b"retry: 1000\n\n"), timeout)
         while True:
-            catchup = await link.events.wait_after(seq, link.config.keepalive_s)
+            catchup = await link.events.wait_after(seq, link.config.keepalive_s, epoch)
+            epoch = None  # from here on the client follows this run's numbers
             if catchup.reset:
-                reset = {"seq": catchup.last_seq, "type": "reset", "event": {"state": link.hub.state.snapshot()}}
-                await asyncio.wait_for(response.write(sse_message(reset)), timeout)
+                await asyncio.wait_for(response.write(sse_message(reset_message(link, catchup))), timeout)
             if catchup.events or catchup.reset:
                 payload = b"".join(sse_message(item) for item in catchup.events)
                 if payload:
@@ -107,7 +112,7 @@ async def websocket(request: web.Request) -> web.StreamResponse:
         raise ApiError(400, "expected a WebSocket upgrade request")
     await ws.prepare(request)
     timeout = link.config.stream_write_timeout_s
-    seq = link.events.ring.last_seq if after is None else after
+    epoch, seq = (None, link.events.ring.last_seq) if after is None else after
     link.count("event_clients")
 
     async def drain_incoming() -> None:
@@ -118,10 +123,10 @@ async def websocket(request: web.Request) -> web.StreamResponse:
     reader = asyncio.create_task(drain_incoming())
     try:
         while not ws.closed and not reader.done():
-            catchup = await link.events.wait_after(seq, link.config.keepalive_s)
+            catchup = await link.events.wait_after(seq, link.config.keepalive_s, epoch)
+            epoch = None
             if catchup.reset:
-                reset = {"seq": catchup.last_seq, "type": "reset", "event": {"state": link.hub.state.snapshot()}}
-                await asyncio.wait_for(ws.send_json(reset), timeout)
+                await asyncio.wait_for(ws.send_json(reset_message(link, catchup)), timeout)
             for item in catchup.events:
                 await asyncio.wait_for(ws.send_json(item), timeout)
             seq = catchup.last_seq

@@ -1,7 +1,9 @@
 """The wearer's face or avatar for the projector: one JPEG, or a short loop played at a fixed rate.
 
 Newest wins: a new upload replaces whatever was showing, and a loop is played
-on an absolute schedule (frame k at start + k / fps) so it never drifts.
+on an absolute schedule (frame k at start + k / fps) so it never drifts. What
+is shown stays until replaced or cleared: a headset that uploads once (a still
+Persona) must not see its face vanish while it is quiet.
 """
 
 from __future__ import annotations
@@ -65,6 +67,11 @@ class FacePlayer:
             await asyncio.sleep(max(0.0, start + k / fps - loop.time()))
             self.hub.face.publish(self.hub.clock(), frames[k % len(frames)])
             k += 1
+
+    def clear(self) -> None:
+        """Stop showing the wearer's face: the projector returns to its default avatar (``None`` in ``hub.face``)."""
+        self.stop()
+        self.hub.face.publish(self.hub.clock(), None)
 
     def stop(self) -> None:
         if self._loop_task is not None:

@@ -12,8 +12,8 @@ from feelium.http.ring import WIRE_TYPES, Catchup, EventRing
 class EventFeed:
     """One bus subscription feeding one ring; clients await :meth:`wait_after`."""
 
-    def __init__(self, bus: EventBus, capacity: int) -> None:
-        self.ring = EventRing(capacity)
+    def __init__(self, bus: EventBus, capacity: int, epoch: str) -> None:
+        self.ring = EventRing(capacity, epoch)
         self._bus = bus
         self._sub: Subscription[Any] | None = None
         self._changed = asyncio.Event()
@@ -54,9 +54,9 @@ class EventFeed:
             self._sub.close()
             self._sub = None
 
-    async def wait_after(self, seq: int, timeout: float) -> Catchup:
-        """Events after ``seq``, waiting up to ``timeout`` seconds for the first one."""
-        catchup = self.ring.after(seq)
+    async def wait_after(self, seq: int, timeout: float, epoch: str | None = None) -> Catchup:
+        """Events after ``seq`` of ``epoch``, waiting up to ``timeout`` seconds for the first one."""
+        catchup = self.ring.after(seq, epoch)
         if catchup.events or catchup.reset or timeout <= 0:
             return catchup
         changed = self._changed
@@ -64,12 +64,13 @@ class EventFeed:
             await asyncio.wait_for(changed.wait(), timeout)
         except asyncio.TimeoutError:
             pass
-        return self.ring.after(seq)
+        return self.ring.after(seq, epoch)
 
     def health(self) -> dict[str, Any]:
         sub = self._sub
         return {
             "last_seq": self.ring.last_seq,
+            "epoch": self.ring.epoch,
             "bus_dropped": sub.dropped if sub is not None else 0,
             "bad_events": self.bad_events,
         }

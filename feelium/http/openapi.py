@@ -16,6 +16,8 @@ from feelium.http.events_api import MAX_SEQ
 from feelium.http.video import MAX_FPS, MIN_FPS
 from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
+CAPTURE_T = {"description": "When it was captured (the last sample, for speech): daemon clock, s; see /clock.", "schema": {"type": "number"}}
+RESUME_PATTERN = "^([^:]{1,32}:)?[0-9]{1,15}$"  # 15 digits stay below 2**53
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
 
 
@@ -31,7 +33,7 @@ def _errors(*codes: int) -> dict[str, Any]:
     text = {
         400: "The request is malformed; the message says which field.",
         401: "Missing or wrong token.",
-        403: "The Origin is not allowed.",
+        403: "The Host is not one of the blimp's names, the Origin is not allowed, or (pairing) the code is wrong, used or expired.",
         404: "Not found (or not available in this mode).",
         409: "The simulator refused the request.",
         413: "The body exceeds the configured limit.",
@@ -46,7 +48,7 @@ def _query(name: str, schema: dict[str, Any], description: str) -> dict[str, Any
     return {"name": name, "in": "query", "required": False, "schema": schema, "description": description}
 
 
-TOKEN_QUERY = _query("token", {"type": "string"}, "The token, for clients that cannot set headers (img, EventSource).")
+TOKEN_QUERY = _query("token", {"type": "string"}, "The token, for clients that can neither set headers nor hold the /session cookie.")
 _CLIENT_ID = {"type": "string", "pattern": CLIENT_ID_PATTERN}
 CLIENT_ID_HEADER = {
     "name": CLIENT_HEADER, "in": "header", "required": False, "schema": _CLIENT_ID,
@@ -62,9 +64,10 @@ def openapi_document() -> dict[str, Any]:
     """The whole document (built once)."""
     event = {
         "type": "object",
-        "required": ["seq", "type", "event"],
+        "required": ["seq", "epoch", "type", "event"],
         "properties": {
             "seq": {"type": "integer", "minimum": 0},
+            "epoch": {"type": "string", "description": "This daemon run's id: sequence numbers restart with it."},
             "type": {"type": "string", "enum": ["touch", "presence", "interaction", "wearer_action", "reset"]},
             "event": {"type": "object", "description": "The event's own JSON (TouchEvent.to_json() etc.)."},
         },
@@ -92,11 +95,14 @@ def openapi_document() -> dict[str, Any]:
         "Event": event,
         "EventBatch": {
             "type": "object",
-            "required": ["events", "last_seq", "reset"],
+            "required": ["events", "last_seq", "epoch", "resume", "reset"],
             "properties": {
                 "events": {"type": "array", "items": _ref("Event")},
                 "last_seq": {"type": "integer", "minimum": 0},
-                "reset": {"type": "boolean", "description": "Events were lost: re-read `state` (included)."},
+                "epoch": {"type": "string"},
+                "resume": {"type": "string", "description": "EPOCH:SEQ: the next `after`."},
+                "reset": {"type": "boolean", "description": "Events were lost or the daemon restarted: `state` (included) "
+                          "replaces them, `events` is empty; continue from `resume`."},
                 "state": {"type": "object"},
             },
         },
@@ -141,9 +147,13 @@ def openapi_document() -> dict[str, Any]:
                     "properties": {"controller": {"type": ["string", "null"], "description": "Who holds the motion lease."}},
                 },
                 "last_seq": {"type": "integer"},
+                "epoch": {"type": "string", "description": "Resume events after `epoch:last_seq`."},
             },
         },
-        "Health": {"type": "object", "required": ["status"], "properties": {"status": {"type": "string"}}},
+        "Health": {
+            "type": "object", "required": ["status"], "properties": {"status": {"type": "string"}},
+            "description": "Without the token only {\"status\": \"alive\"}; with it the supervisor's report (status ok, degraded...; services).",
+        },
         "WearerAction": {
             "type": "object",
             "required": ["action", "t"],
@@ -165,11 +175,55 @@ def openapi_document() -> dict[str, Any]:
         "content": {"application/json": {"schema": schema}},
     }
     cameras = {"name": "camera", "in": "path", "required": True, "schema": {"type": "string", "enum": ["front", "rear", "projector"]}}
-    after = _query("after", {"type": "integer", "minimum": 0, "maximum": MAX_SEQ}, "Last sequence seen; omitted = only new events.")
+    resume = {"type": "string", "pattern": RESUME_PATTERN, "maxLength": 60}
+    after = _query("after", resume, "Resume token EPOCH:SEQ of the last event seen (a bare SEQ is taken as this run's); "
+                   "omitted = only new events; another run's epoch = reset.")
     paths: dict[str, Any] = {
         "/health": {"get": {
-            "operationId": "health", "summary": "Per-service health (no token needed).", "security": [],
+            "operationId": "health", "summary": "Alive for anyone; the per-service health with the token.", "security": [],
             "responses": {"200": _json(_ref("Health"), "The supervisor's report.")} | _errors(),
+        }},
+        "/clock": {"get": {
+            "operationId": "clock",
+            "summary": "The daemon clock every API time is on (event and state `t`, X-Feelium-Capture-T), read together with the wall clock.",
+            "description": "Unix time of a daemon time t = t + offset_s. The daemon clock is monotonic seconds since an "
+            "arbitrary start; it never jumps. uncertainty_s bounds how far apart the two reads were.",
+            "responses": {"200": _json({
+                "type": "object", "required": ["t", "wall", "offset_s", "uncertainty_s"],
+                "properties": {k: {"type": "number"} for k in ("t", "wall", "offset_s", "uncertainty_s")},
+            }, "The two clocks now.")} | _errors(401),
+        }},
+        "/pair/code": {"post": {
+            "operationId": "pairingCode", "summary": "A new pairing code (what `feelium pair` prints); replaces the outstanding one.",
+            "responses": {"200": _json({
+                "type": "object", "required": ["code", "expires_in_s"],
+                "properties": {"code": {"type": "string", "examples": ["4821-0937"]}, "expires_in_s": {"type": "number"}},
+            }, "The code; it works once, for expires_in_s ([http] pairing_ttl_s).")} | _errors(401),
+        }},
+        "/pair": {"post": {
+            "operationId": "pair", "security": [],
+            "summary": "Exchange a pairing code for the token (no token needed). A code works once and expires; "
+            "after 5 wrong codes the outstanding one is void.",
+            "parameters": [CLIENT_ID_HEADER],
+            "requestBody": json_body({
+                "type": "object", "required": ["code"], "additionalProperties": False,
+                "properties": {"code": {"type": "string", "minLength": 1, "maxLength": 32, "description": "As printed; dashes and spaces are ignored."}},
+            }),
+            "responses": {"200": _json({"type": "object", "required": ["token"], "properties": {"token": {"type": "string"}}}, "The bearer token.")}
+            | _errors(400, 413, 415, 429),
+        }},
+        "/session": {"post": {
+            "operationId": "session",
+            "summary": "Set the token as an HttpOnly, SameSite=Strict cookie (path /api/v1) so a browser page's img, "
+            "EventSource and WebSocket need no ?token=. Native clients do not need it.",
+            "responses": {"204": {"description": "Cookie set (Set-Cookie: feelium_token=...)."}} | _errors(401),
+        }},
+        "/token/rotate": {"post": {
+            "operationId": "rotateToken",
+            "summary": "Replace the token (in force at once; the one that authorised this request stops working).",
+            "description": "409 token_not_rotatable when the token is set in [http] token rather than token_file.",
+            "responses": {"200": _json({"type": "object", "required": ["token"], "properties": {"token": {"type": "string"}}}, "The new token."),
+                          "409": _json(_ref("Error"), "The token comes from the config file.")} | _errors(401),
         }},
         "/state": {"get": {
             "operationId": "state", "summary": "Live state as the services provide it.",
@@ -178,7 +232,8 @@ def openapi_document() -> dict[str, Any]:
         "/video/{camera}.jpg": {"get": {
             "operationId": "videoJpeg", "summary": "The newest frame as a JPEG.", "parameters": [cameras, TOKEN_QUERY],
             "responses": {
-                "200": {"description": "JPEG.", "content": {"image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}}}},
+                "200": {"description": "JPEG.", "headers": {"X-Feelium-Capture-T": CAPTURE_T, "X-Frame-Seq": {"schema": {"type": "integer"}}},
+                        "content": {"image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}}}},
             } | _errors(401, 404),
         }},
         "/video/{camera}.mjpeg": {"get": {
@@ -195,7 +250,8 @@ def openapi_document() -> dict[str, Any]:
             ],
             "x-streaming": True,
             "responses": {
-                "200": {"description": "Endless stream of JPEG parts.", "content": {"multipart/x-mixed-replace": {"schema": {"type": "string"}}}},
+                "200": {"description": "Endless stream of JPEG parts; each part's headers carry Content-Length, "
+                        "X-Feelium-Capture-T (capture time, daemon clock, s) and X-Frame-Seq.", "content": {"multipart/x-mixed-replace": {"schema": {"type": "string"}}}},
             } | _errors(400, 401, 404, 429),
         }},
         "/motion": {
@@ -225,7 +281,7 @@ def openapi_document() -> dict[str, Any]:
         }},
         "/events/stream": {"get": {
             "operationId": "eventStream", "summary": "Server-Sent Events; `id` is the seq, resume with Last-Event-ID.",
-            "parameters": [after, TOKEN_QUERY, {"name": "Last-Event-ID", "in": "header", "required": False, "schema": {"type": "integer", "minimum": 0, "maximum": MAX_SEQ}}],
+            "parameters": [after, TOKEN_QUERY, {"name": "Last-Event-ID", "in": "header", "required": False, "schema": resume}],
             "x-streaming": True,
             "responses": {"200": {"description": "text/event-stream of Event objects.", "content": {"text/event-stream": {"schema": {"type": "string"}}}}} | _errors(400, 401),
         }},
@@ -244,7 +300,11 @@ def openapi_document() -> dict[str, Any]:
                 "image/jpeg": {"schema": {"type": "string", "contentMediaType": "image/jpeg"}},
                 "multipart/form-data": {"schema": {"type": "object", "properties": {"frame": {"type": "array", "items": {"type": "string", "contentMediaType": "image/jpeg"}}}}},
             }},
-            "responses": {"200": _json({"type": "object", "required": ["frames"], "properties": {"frames": {"type": "integer"}, "fps": {"type": ["number", "null"]}, "bytes": {"type": "integer"}}}, "Shown.")} | _errors(400, 401, 413, 415, 429),
+            "responses": {"200": _json({"type": "object", "required": ["frames"], "properties": {"frames": {"type": "integer"}, "fps": {"type": ["number", "null"]}, "bytes": {"type": "integer"}}}, "Shown until replaced or cleared.")} | _errors(400, 401, 413, 415, 429),
+        }, "delete": {
+            "operationId": "clearFace", "summary": "Clear the wearer's face: the projector shows its default avatar again.",
+            "parameters": [CLIENT_ID_HEADER],
+            "responses": {"200": _json({"type": "object", "required": ["cleared"], "properties": {"cleared": {"const": True}}}, "Cleared.")} | _errors(401, 429),
         }},
         "/speech": {
             "post": {
@@ -255,9 +315,12 @@ def openapi_document() -> dict[str, Any]:
             },
             "get": {
                 "operationId": "speechOut", "summary": "Room audio captured after `after` as one PCM16 WAV; X-Speech-Seq is the next `after`.",
-                "parameters": [after, _query("timeout", {"type": "number", "minimum": 0, "maximum": 5}, "Longest wait in seconds.")],
+                "parameters": [
+                    _query("after", {"type": "integer", "minimum": 0, "maximum": MAX_SEQ}, "The last X-Speech-Seq received."),
+                    _query("timeout", {"type": "number", "minimum": 0, "maximum": 5}, "Longest wait in seconds."),
+                ],
                 "responses": {
-                    "200": {"description": "WAV.", "content": {"audio/wav": {"schema": {"type": "string", "contentMediaType": "audio/wav"}}}},
+                    "200": {"description": "WAV.", "headers": {"X-Feelium-Capture-T": CAPTURE_T}, "content": {"audio/wav": {"schema": {"type": "string", "contentMediaType": "audio/wav"}}}},
                     "204": {"description": "No audio within the timeout."},
                 } | _errors(400, 401),
             },

@@ -1,4 +1,4 @@
-"""Token and CORS middlewares: the room's Wi-Fi reaches the blimp, only the wearer's client may use it."""
+"""Host, CORS and token middlewares: the room's Wi-Fi reaches the blimp, only the wearer's client may use it."""
 
 from __future__ import annotations
 
@@ -6,17 +6,19 @@ from collections.abc import Awaitable, Callable
 
 from aiohttp import web
 
-from feelium.http.auth import presented_token, token_matches
+from feelium.http.auth import presented_token
 from feelium.http.context import ctx
 from feelium.http.errors import error_response
+from feelium.http.hosts import HostAllowList
 
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 
 API_PREFIX = "/api/v1"
 # Reachable without the token: health (for monitors), the API description and the static client
 # (neither holds a secret; the client reads the token from its URL fragment).
-PUBLIC_API_PATHS = frozenset({f"{API_PREFIX}/health", f"{API_PREFIX}/openapi.json"})
-ALLOWED_METHODS = "GET, POST, PUT, OPTIONS"
+# Pairing is public too: its body carries the short-lived code that stands in for the token.
+PUBLIC_API_PATHS = frozenset({f"{API_PREFIX}/health", f"{API_PREFIX}/openapi.json", f"{API_PREFIX}/pair"})
+ALLOWED_METHODS = "GET, POST, PUT, DELETE, OPTIONS"
 ALLOWED_HEADERS = "Authorization, Content-Type, Last-Event-ID, X-Feelium-Client"
 
 
@@ -36,6 +38,34 @@ def origin_allowed(request: web.Request, origin: str, allowed: frozenset[str]) -
 
 def needs_token(path: str) -> bool:
     return path.startswith(API_PREFIX) and path not in PUBLIC_API_PATHS
+
+
+def local_address(request: web.Request) -> str | None:
+    """The address the request's connection arrived on (the server's side of the socket)."""
+    sockname = request.transport.get_extra_info("sockname") if request.transport is not None else None
+    return str(sockname[0]) if isinstance(sockname, (tuple, list)) and sockname else None
+
+
+def make_host_middleware(allowed: HostAllowList) -> Callable[..., Awaitable[web.StreamResponse]]:
+    """403 for a ``Host`` that is not one of the blimp's names (DNS rebinding), before anything else runs.
+
+    Checked first because the same-origin rule below trusts ``Host``: only a checked Host makes an
+    ``Origin`` equal to ``scheme://Host`` mean "the blimp's own page".
+    """
+
+    @web.middleware
+    async def host_check(request: web.Request, handler: Handler) -> web.StreamResponse:
+        host = request.headers.get("Host")
+        if not allowed.allows(host, local_address(request)):
+            ctx(request).count("host_not_allowed")
+            return error_response(
+                403,
+                f"Host {str(host)[:80]!r} is not one of this blimp's names; add it to [http] allowed_hosts if it is",
+                "host_not_allowed",
+            )
+        return await handler(request)
+
+    return host_check
 
 
 def make_cors_middleware(allowed: frozenset[str]) -> Callable[..., Awaitable[web.StreamResponse]]:
@@ -75,7 +105,7 @@ async def add_cors_headers(request: web.Request, response: web.StreamResponse) -
     if origin is not None:
         response.headers["Access-Control-Allow-Origin"] = origin
         response.headers["Vary"] = "Origin"
-        response.headers["Access-Control-Expose-Headers"] = "X-Speech-Seq, X-Frame-Seq, X-Timestamp, Retry-After"
+        response.headers["Access-Control-Expose-Headers"] = "X-Speech-Seq, X-Frame-Seq, X-Feelium-Capture-T, Retry-After"
 
 
 @web.middleware
@@ -83,7 +113,7 @@ async def require_token(request: web.Request, handler: Handler) -> web.StreamRes
     """401 JSON unless the request carries the token (header, or ``?token=`` for img/EventSource/WebSocket)."""
     if needs_token(request.path):
         link = ctx(request)
-        if not token_matches(presented_token(request.headers, request.query), link.token):
+        if not link.tokens.matches(presented_token(request.headers, request.query, request.cookies), link.hub.clock()):
             link.count("unauthorized")
             return error_response(
                 401,

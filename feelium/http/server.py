@@ -1,17 +1,23 @@
-"""Running the app so that even requests aiohttp's HTTP parser rejects get a JSON error body.
+"""Running the app: JSON bodies even for requests aiohttp's HTTP parser rejects, and logs without the token.
 
 A malformed request line, a bad ``Content-Length`` or oversized headers never
 reach the app's middlewares: aiohttp's connection handler answers them itself
 with a plain-text 400. The API promises a JSON error for every bad request, so
 the runner swaps in a connection handler whose ``handle_error`` (aiohttp's
 documented hook for exactly these answers) returns ``{"error", "message"}``.
+
+Whatever the server writes to its log about a request (the optional access
+log, a rejected request line) goes through :func:`redact` first: a token in a
+query string or an ``Authorization`` header must never reach the journal.
 """
 
 from __future__ import annotations
 
 import logging
+import re
 
 from aiohttp import web
+from aiohttp.abc import AbstractAccessLogger
 from aiohttp.web_protocol import RequestHandler
 from aiohttp.web_request import BaseRequest
 
@@ -20,6 +26,29 @@ from feelium.http.errors import error_response
 log = logging.getLogger(__name__)
 
 MAX_MESSAGE = 300
+_SECRETS = re.compile(r"(?i)(token=|bearer\s+)[^&\s'\"]+")
+
+
+def redact(text: str) -> str:
+    """``text`` with every ``token=...`` value and ``Bearer ...`` credential replaced by ``<redacted>``."""
+    return _SECRETS.sub(lambda m: m.group(1) + "<redacted>", text)
+
+
+class RedactingAccessLogger(AbstractAccessLogger):
+    """One debug line per request: address, method, path with its query redacted, status, bytes, milliseconds.
+
+    No headers are logged at all (so no ``Authorization``), and query strings pass :func:`redact`.
+    """
+
+    def log(self, request: BaseRequest, response: web.StreamResponse, time: float) -> None:
+        self.logger.debug(
+            "%s %s %s %d %d %.1fms",
+            request.remote, request.method, redact(request.path_qs), response.status, response.body_length, time * 1000.0,
+        )
+
+    @property
+    def enabled(self) -> bool:
+        return self.logger.isEnabledFor(logging.DEBUG)
 
 
 class JsonErrorRequestHandler(RequestHandler):
@@ -38,6 +67,7 @@ class JsonErrorRequestHandler(RequestHandler):
         else:
             text = (message or (str(exc) if exc is not None else "") or "malformed request").strip()
             # Anyone on the Wi-Fi can send garbage: one line per rejection, not a traceback.
+            text = redact(text)  # the parser quotes the request line, query string and all
             log.info("rejected a malformed request from %s: %s", request.remote, text.splitlines()[0][:120])
             response = error_response(status, f"malformed HTTP request: {text[:MAX_MESSAGE]}")
         response.force_close()

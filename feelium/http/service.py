@@ -4,35 +4,62 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import socket
 import ssl
+from pathlib import Path
 from typing import Any
 
 from aiohttp import web
 
+from feelium.http.addresses import interface_ipv4, reachable_hosts, url_host
 from feelium.http.app import link_of
 from feelium.http.config import HttpConfig
-from feelium.http.server import JsonErrorAppRunner
+from feelium.http.server import JsonErrorAppRunner, RedactingAccessLogger
 from feelium.hub import Hub
+from feelium.settings import ConfigError
 
 log = logging.getLogger(__name__)
 
 
 def tls_context(config: HttpConfig) -> ssl.SSLContext | None:
-    """An HTTPS context from the configured files, or ``None``; a half-configured pair is an error."""
+    """An HTTPS context from the configured files, or ``None`` when neither is set.
+
+    Anything else wrong (one file set without the other, a missing or unreadable file, not a matching PEM
+    pair) is a :class:`ConfigError`: the daemon stops with that one line instead of running without the API
+    the headset was promised.
+    """
     if not config.tls_cert and not config.tls_key:
         return None
     if not (config.tls_cert and config.tls_key):
-        raise ValueError("[http] tls_cert and tls_key must be set together")
+        missing = "tls_key" if config.tls_cert else "tls_cert"
+        raise ConfigError("[http]", missing, "tls_cert and tls_key must be set together")
+    for key, name in (("tls_cert", config.tls_cert), ("tls_key", config.tls_key)):
+        path = Path(name).expanduser()
+        try:
+            with path.open("rb"):
+                pass
+        except OSError as exc:
+            raise ConfigError("[http]", key, f"cannot read {path}: {exc.strerror}") from None
     context = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
-    context.load_cert_chain(config.tls_cert, config.tls_key)
+    try:
+        context.load_cert_chain(Path(config.tls_cert).expanduser(), Path(config.tls_key).expanduser())
+    except ssl.SSLError as exc:
+        raise ConfigError(
+            "[http]", "tls_cert", f"{config.tls_cert} and {config.tls_key} are not a PEM certificate and its key: {exc.reason or exc}"
+        ) from None
     return context
 
 
-def client_url(config: HttpConfig, token: str, port: int | None = None) -> str:
-    """The browser client's address with the token in the fragment (never sent to servers or logs of proxies)."""
+def client_urls(config: HttpConfig, port: int | None = None, token: str | None = None) -> list[str]:
+    """Every address the browser client can be opened at; with ``token``, it rides in the URL fragment.
+
+    The fragment never travels to the server or a proxy; it is only for a person's own terminal (``feelium
+    http-url``), never for the log.
+    """
     scheme = "https" if config.tls_cert else "http"
-    host = "127.0.0.1" if config.host in ("0.0.0.0", "::", "") else config.host
-    return f"{scheme}://{host}:{port if port is not None else config.port}/#token={token}"
+    hosts = reachable_hosts(config.host, interface_ipv4(), socket.gethostname())
+    fragment = f"#token={token}" if token else ""
+    return [f"{scheme}://{url_host(h)}:{port if port is not None else config.port}/{fragment}" for h in hosts]
 
 
 class HttpService:
@@ -52,7 +79,8 @@ class HttpService:
 
     async def run(self) -> None:
         self._stopped = asyncio.Event()
-        runner = JsonErrorAppRunner(self.app, access_log=None, shutdown_timeout=0.2)
+        access = logging.getLogger("feelium.http.access") if self.config.access_log else None
+        runner = JsonErrorAppRunner(self.app, access_log=access, access_log_class=RedactingAccessLogger, shutdown_timeout=0.2)
         await runner.setup()
         self._runner = runner
         try:
@@ -61,7 +89,8 @@ class HttpService:
             server = getattr(site, "_server", None)
             sockets = getattr(server, "sockets", None) or []
             self.port = sockets[0].getsockname()[1] if sockets else self.config.port
-            log.info("headset client: %s", client_url(self.config, self.token, self.port))
+            urls = client_urls(self.config, self.port)
+            log.info("headset client at %s (the token: feelium http-url, or pair with feelium pair)", ", ".join(urls))
             await self._stopped.wait()
         finally:
             self._runner = None
@@ -81,6 +110,9 @@ class HttpService:
             "motion_refused_not_in_control": link.lease.refused,
             "motion_takeovers": link.lease.takeovers,
             "video_streams_refused": link.streams.refused,
+            "pairings": link.pairing.paired,
+            "pairing_refused": link.pairing.refused,
+            "token_rotations": link.tokens.rotations,
             **{f"video_{name}": feed.health() for name, feed in link.videos.items()},
             **link.counters,
             **{f"events_{k}": v for k, v in link.events.health().items()},

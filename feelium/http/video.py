@@ -18,6 +18,7 @@ import termios
 from aiohttp import web
 
 from feelium.http.clients import client_of
+from feelium.http.clock import CAPTURE_HEADER
 from feelium.http.context import ctx
 from feelium.http.errors import ApiError
 from feelium.http.jpeg import JpegFeed
@@ -75,10 +76,10 @@ def _feed(request: web.Request) -> JpegFeed:
 
 
 def part_header(length: int, t: float, seq: int) -> bytes:
-    """The MIME part header that precedes one JPEG in the multipart stream."""
+    """The MIME part header that precedes one JPEG: its length, capture time ``t`` (daemon clock) and number."""
     return (
         f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {length}\r\n"
-        f"X-Timestamp: {t:.4f}\r\nX-Frame-Seq: {seq}\r\n\r\n"
+        f"{CAPTURE_HEADER}: {t:.6f}\r\nX-Frame-Seq: {seq}\r\n\r\n"
     ).encode("ascii")
 
 
@@ -91,7 +92,7 @@ async def jpeg(request: web.Request) -> web.Response:
     return web.Response(
         body=item.value,
         content_type="image/jpeg",
-        headers={"Cache-Control": "no-store", "X-Timestamp": f"{item.t:.4f}", "X-Frame-Seq": str(item.seq)},
+        headers={"Cache-Control": "no-store", CAPTURE_HEADER: f"{item.t:.6f}", "X-Frame-Seq": str(item.seq)},
     )
 
 

@@ -69,7 +69,4 @@ class ProjectorConfig:
     diffusion_px: float = setting(
         0.7, "Membrane diffusion of projected light, in camera px, for the back-light prediction.", min=0.0, max=30.0
     )
-    face_timeout_s: float = setting(
-        3.0, "Show the default avatar when no face frame came from the headset for this long.", min=0.1, max=600.0
-    )
     calibration: CalibrationConfig = section(CalibrationConfig)

@@ -69,7 +69,6 @@ class ProjectorService:
         self.engine = InteractionEngine(interactions, Regions.from_config(interactions)) if interactions.enabled else None
         self._face: np.ndarray | None = None
         self._face_seq = 0
-        self._face_t = -float("inf")
         self._stopping = False
         self.counters: dict[str, Any] = {
             "frames": 0, "touch_events": 0, "actions": 0, "interaction_events": 0, "motions_sent": 0,
@@ -119,18 +118,20 @@ class ProjectorService:
         image = decode_reduced(bytes(jpeg), *self.renderer.canvas_size)
         return None if image is None else self.renderer.fit_face(image)
 
-    async def update_face(self, now: float) -> None:
+    async def update_face(self) -> None:
         item = self.hub.face.get()
-        if item is not None and item.seq != self._face_seq:
-            self._face_seq = item.seq
-            face = await asyncio.to_thread(self._decode_face, item.value)
-            if face is None:
-                self.counters["bad_faces"] += 1
-            else:
-                self._face, self._face_t = face, now
-                self.counters["faces"] += 1
-        if self._face is not None and now - self._face_t > self.config.face_timeout_s:
-            self._face = None  # the headset stopped sending: back to the avatar
+        if item is None or item.seq == self._face_seq:
+            return
+        self._face_seq = item.seq
+        if item.value is None:  # the wearer cleared the face: back to the default avatar
+            self._face = None
+            return
+        face = await asyncio.to_thread(self._decode_face, item.value)
+        if face is None:
+            self.counters["bad_faces"] += 1
+        else:
+            self._face = face  # shown until the wearer replaces or clears it, however long that is
+            self.counters["faces"] += 1
 
     def _render_and_show(self, now: float, face: np.ndarray | None, answers: tuple) -> np.ndarray:
         start = time.perf_counter()
@@ -151,7 +152,7 @@ class ProjectorService:
         while not self._stopping:
             now = self.hub.clock()
             self.step_engine(subscription, now)
-            await self.update_face(now)
+            await self.update_face()
             answers = self.engine.answers(now) if self.engine is not None else ()
             frame = await asyncio.to_thread(self._render_and_show, now, self._face, answers)
             self.hub.projector_video.publish(now, frame)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import time
 import types
 
 import numpy as np
@@ -87,7 +88,9 @@ def module():
 
 
 def test_rear_camera_locks_exposure_after_settling_and_delivers_luma_on_the_sensor_clock(module):
-    camera = Picamera2RearCamera(index=0, width=W, height=H, fps=15.0, settle_s=1.0, roi=(4, 4, 40, 30), module=module)
+    camera = Picamera2RearCamera(
+        index=0, width=W, height=H, fps=15.0, settle_s=1.0, roi=(4, 4, 40, 30), module=module, boottime_ahead=lambda: 2.0
+    )
     cam = camera._camera
     assert cam.configuration["lores"] == {"size": (W, H), "format": "YUV420"}
     frame = camera.read()
@@ -96,7 +99,8 @@ def test_rear_camera_locks_exposure_after_settling_and_delivers_luma_on_the_sens
     lock = cam.controls_set[0]
     assert lock["AeEnable"] is False and lock["AwbEnable"] is False
     assert lock["ExposureTime"] == 10015 and lock["AnalogueGain"] == 2.0 and lock["ColourGains"] == (1.5, 1.8)
-    assert frame.t >= 1.3 and frame.t == pytest.approx(cam.n * PERIOD_NS / 1e9 - PERIOD_NS / 1e9)
+    # on the daemon's clock: the sensor's CLOCK_BOOTTIME (5 s + n periods) less the 2 s it runs ahead
+    assert frame.t == pytest.approx(5.0 - 2.0 + (cam.n - 1) * PERIOD_NS / 1e9) and frame.t >= 3.0 + 1.3
     assert frame.image.shape == (H, W) and frame.image.flags["C_CONTIGUOUS"]
     assert np.all(frame.image == (cam.n - 1) % 256)  # the luma plane, not the padding or chroma
     assert frame.roi == (4, 4, 40, 30)
@@ -109,11 +113,11 @@ def test_rear_camera_locks_exposure_after_settling_and_delivers_luma_on_the_sens
 
 
 def test_front_camera_delivers_bgr(module):
-    camera = Picamera2FrontCamera(index=1, width=W, height=H, fps=15.0, module=module)
+    camera = Picamera2FrontCamera(index=1, width=W, height=H, fps=15.0, module=module, boottime_ahead=lambda: 0.5)
     assert camera._camera.camera_num == 1
     frame = camera.read()
-    assert frame.image.shape == (H, W, 3) and frame.t == 0.0
-    assert camera.read().t == pytest.approx(PERIOD_NS / 1e9)
+    assert frame.image.shape == (H, W, 3) and frame.t == pytest.approx(4.5)
+    assert camera.read().t == pytest.approx(4.5 + PERIOD_NS / 1e9)
 
 
 def test_a_missing_camera_says_what_to_check(module):
@@ -130,3 +134,9 @@ def test_a_missing_library_says_what_to_install(monkeypatch):
 
 def test_camera_count_of_a_module(module):
     assert camera_count(module) == 2
+
+
+def test_the_sensor_clock_maps_onto_the_daemon_clock() -> None:
+    """libcamera stamps with CLOCK_BOOTTIME; a frame exposed now must read as about now on time.monotonic."""
+    now_ns = time.clock_gettime_ns(time.CLOCK_BOOTTIME)
+    assert picamera2_backend.sensor_time_s(now_ns, picamera2_backend.boottime_ahead_s()) == pytest.approx(time.monotonic(), abs=0.01)

@@ -61,8 +61,9 @@ def test_realtime_replay_sleeps_to_the_recordings_pace(tmp_path):
         now[0] += seconds
 
     camera = ReplayCamera(tmp_path / "a", realtime=True, clock=lambda: now[0], sleep=sleep)
-    _drain(camera)
+    frames = _drain(camera)
     assert sleeps == pytest.approx([0.1, 0.3])
+    assert [f.t for f in frames] == pytest.approx([50.0, 50.1, 50.4])  # on the given (daemon) clock
 
 
 def test_missing_path_and_bad_recordings_are_named(tmp_path):

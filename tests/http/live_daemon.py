@@ -42,7 +42,7 @@ class LiveDaemon:
         return {"Authorization": f"Bearer {self.token}"}
 
     def health(self) -> dict:
-        with urllib.request.urlopen(f"{self.api}/health", timeout=5) as resp:
+        with urllib.request.urlopen(urllib.request.Request(f"{self.api}/health", headers=self.auth), timeout=5) as resp:
             return json.load(resp)
 
     def log(self) -> str:

@@ -181,7 +181,7 @@ async def test_a_client_that_never_reads_loses_its_slot(small_client, hub):
     sock.setblocking(False)
     loop = asyncio.get_running_loop()
     await loop.sock_connect(sock, (host, port))
-    await loop.sock_sendall(sock, f"GET /api/v1/video/front.mjpeg HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {TOKEN}\r\n\r\n".encode())
+    await loop.sock_sendall(sock, f"GET /api/v1/video/front.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: Bearer {TOKEN}\r\n\r\n".encode())
     try:
         released = False
         for i in range(400):  # noise frames (~100 kB JPEGs) at ~100 fps until the stream is dropped

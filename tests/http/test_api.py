@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+from dataclasses import replace
 import io
 import json
 import wave
@@ -13,6 +14,7 @@ import pytest
 
 from feelium.events import SpeechIn, SpeechOut
 from feelium.events import InteractionEvent, PresenceEvent, TouchEvent, WearerAction
+from feelium.http.app import create_app
 from tests.http.http_support import AUTH, TOKEN, FakeScene
 
 
@@ -48,9 +50,12 @@ async def assert_error(resp, status: int, fragment: str) -> dict:  # type: ignor
 # --- auth, CORS, errors -------------------------------------------------------------------------------
 
 
-async def test_health_is_public_and_reports_the_supervisor(client, hub):
+async def test_health_without_the_token_says_only_alive_and_with_it_reports_the_supervisor(client, hub):
     hub.health = lambda: {"status": "degraded", "services": {"touch": {"healthy": False, "fps": float("nan")}}}
-    resp = await client.get("/api/v1/health")
+    for headers in ({}, {"Authorization": "Bearer wrong-token-0123456789"}):
+        resp = await client.get("/api/v1/health", headers=headers)
+        assert resp.status == 200 and await resp.json() == {"status": "alive"}  # nothing about who is near or wearing
+    resp = await client.get("/api/v1/health", headers=AUTH)
     assert resp.status == 200
     body = await resp.json()
     assert body["status"] == "degraded"
@@ -202,7 +207,8 @@ async def test_long_poll_waits_for_the_next_event(client, hub):
 
 async def test_long_poll_times_out_empty(client):
     body = await (await client.get("/api/v1/events?after=0&timeout=0.05", headers=AUTH)).json()
-    assert body == {"events": [], "last_seq": 0, "reset": False}
+    epoch = client.link.events.ring.epoch
+    assert body == {"events": [], "last_seq": 0, "epoch": epoch, "resume": f"{epoch}:0", "reset": False}
 
 
 async def test_client_too_far_behind_gets_reset_and_state(client, hub):
@@ -213,12 +219,46 @@ async def test_client_too_far_behind_gets_reset_and_state(client, hub):
     body = await (await client.get("/api/v1/events?after=2", headers=AUTH)).json()
     assert body["reset"] is True
     assert body["state"] == {"touch": {"contacts": 1}}
-    assert [e["seq"] for e in body["events"]] == list(range(13, 21))
+    assert body["events"] == [] and body["last_seq"] == 20  # the state replaces what was lost; nothing replayed
     body = await (await client.get("/api/v1/events?after=999", headers=AUTH)).json()
-    assert body["reset"] is True  # a sequence from an earlier daemon run
+    assert body["reset"] is True  # a sequence this run never reached
 
 
-@pytest.mark.parametrize("query, fragment", [("after=-1", "after"), ("after=x", "integer"), ("timeout=301", "timeout"), ("timeout=nan", "timeout")])
+async def test_after_a_restart_an_old_token_gets_a_snapshot_and_only_new_events(aiohttp_client, hub, http_config):
+    """Two apps on one hub stand for a daemon and its restart: the new run numbers from 1 again."""
+    first = await aiohttp_client(create_app(http_config, hub, TOKEN))
+    for i in range(5):
+        hub.bus.publish(touch(i))
+    await asyncio.sleep(0.01)
+    old = await (await first.get("/api/v1/events?after=0", headers=AUTH)).json()
+    assert old["last_seq"] == 5
+    await first.close()
+
+    restarted = await aiohttp_client(create_app(http_config, hub, TOKEN))
+    hub.state.update("touch", contacts=2)
+    hub.bus.publish(touch(40))
+    hub.bus.publish(touch(41))
+    await asyncio.sleep(0.01)
+    for old_token in (old["resume"], f"{old['epoch']}:1"):  # ahead of or behind the new numbers: both reset
+        body = await (await restarted.get(f"/api/v1/events?after={old_token}", headers=AUTH)).json()
+        assert body["epoch"] != old["epoch"] and body["reset"] is True and body["events"] == []
+        assert body["state"] == {"touch": {"contacts": 2}}
+    ws = await restarted.ws_connect(f"/api/v1/events/ws?after={old['resume']}", headers=AUTH)
+    reset = await asyncio.wait_for(ws.receive_json(), 2)
+    assert reset["type"] == "reset" and reset["epoch"] == body["epoch"] and reset["seq"] == 2
+    hub.bus.publish(touch(42))
+    new = await asyncio.wait_for(ws.receive_json(), 2)
+    assert new["seq"] == 3 and new["event"]["id"] == 42  # never an old event, never a smaller number than the reset's
+    await ws.close()
+    resp = await restarted.get("/api/v1/events/stream", headers=AUTH | {"Last-Event-ID": old["resume"]})
+    lines = []
+    while not any(line.startswith("data: ") for line in lines):
+        lines.append((await asyncio.wait_for(resp.content.readline(), 2)).decode())
+    assert f"id: {body['epoch']}:3\n" in lines and "event: reset\n" in lines
+    resp.close()
+
+
+@pytest.mark.parametrize("query, fragment", [("after=-1", "after"), ("after=x", "integer"), ("after=e:1.5", "EPOCH:SEQ"), ("timeout=301", "timeout"), ("timeout=nan", "timeout")])
 async def test_long_poll_rejects_bad_queries(client, query, fragment):
     await assert_error(await client.get(f"/api/v1/events?{query}", headers=AUTH), 400, fragment)
 
@@ -237,6 +277,13 @@ async def test_sse_delivers_events_and_resumes_after_last_event_id(client, hub):
             messages.append(json.loads(line[6:]))
     assert [m["seq"] for m in messages] == [2, 3]
     assert messages[1]["event"]["id"] == 3
+    epoch = client.link.events.ring.epoch
+    resp.close()
+    resp = await client.get("/api/v1/events/stream", headers=AUTH | {"Last-Event-ID": f"{epoch}:2"})  # the token SSE sent
+    lines = []
+    while not any(line.startswith("data: ") for line in lines):
+        lines.append((await asyncio.wait_for(resp.content.readline(), 2)).decode())
+    assert f"id: {epoch}:3\n" in lines
     resp.close()
     await assert_error(await client.get("/api/v1/events/stream", headers=AUTH | {"Last-Event-ID": "abc"}), 400, "Last-Event-ID")
 
@@ -247,7 +294,7 @@ async def test_websocket_delivers_the_same_envelopes(client, hub):
     hub.bus.publish(WearerAction("heart", 2.0))
     first = await asyncio.wait_for(ws.receive_json(), 2)
     second = await asyncio.wait_for(ws.receive_json(), 2)
-    assert first == {"seq": 1, "type": "touch", "event": touch(5).to_json()}
+    assert first == {"seq": 1, "epoch": client.link.events.ring.epoch, "type": "touch", "event": touch(5).to_json()}
     assert second["type"] == "wearer_action" and second["event"]["action"] == "heart"
     await ws.close()
 
@@ -325,6 +372,17 @@ async def test_face_jpeg_is_published_for_the_projector(client, hub):
     resp = await client.put("/api/v1/face", data=data, headers=AUTH | {"Content-Type": "image/jpeg"})
     assert resp.status == 200 and (await resp.json())["frames"] == 1
     assert hub.face.get().value == data
+
+
+async def test_a_face_stays_until_cleared_with_delete(client, hub, clock):
+    data = jpeg_bytes()
+    await client.put("/api/v1/face", data=data, headers=AUTH | {"Content-Type": "image/jpeg"})
+    clock.now += 600.0
+    assert hub.face.get().value == data  # nothing on the link replaces it by itself
+    resp = await client.delete("/api/v1/face", headers=AUTH)
+    assert resp.status == 200 and await resp.json() == {"cleared": True}
+    assert hub.face.get().value is None
+    assert (await client.delete("/api/v1/face")).status == 401
 
 
 async def test_face_avatar_loops_frames(client, hub):
@@ -463,3 +521,60 @@ async def test_openapi_is_public_and_valid(client):
 async def test_static_client_pages_are_served(client):
     for path in ("/", "/partner", "/static/app.js", "/static/style.css"):
         assert (await client.get(path)).status == 200, path
+
+
+# --- one clock ------------------------------------------------------------------------------------
+
+
+async def test_clock_maps_the_daemon_clock_to_wall_time(client, clock):
+    client.link.wall_clock = lambda: 1_700_000_000.25
+    resp = await client.get("/api/v1/clock", headers=AUTH)
+    body = await resp.json()
+    assert resp.status == 200
+    assert body == {"t": 100.0, "wall": 1_700_000_000.25, "offset_s": 1_699_999_900.25, "uncertainty_s": 0.0}
+    assert (await client.get("/api/v1/clock")).status == 401
+
+
+async def test_frames_and_speech_carry_their_capture_time_on_the_daemon_clock(client, hub, clock):
+    hub.front_video.publish(97.125, np.zeros((48, 64, 3), np.uint8))  # captured 2.875 s before "now" (100.0)
+    resp = await client.get("/api/v1/video/front.jpg", headers=AUTH)
+    assert resp.headers["X-Feelium-Capture-T"] == "97.125000"
+    resp = await client.get("/api/v1/video/front.mjpeg", headers=AUTH)
+    head = b""
+    while not head.endswith(b"\r\n\r\n"):
+        head += await asyncio.wait_for(resp.content.readline(), 2)
+    assert b"X-Feelium-Capture-T: 97.125000\r\n" in head and b"X-Frame-Seq: 1\r\n" in head
+    resp.close()
+    hub.bus.publish(SpeechOut(b"\0\0" * 160, 16000, 99.5))
+    await asyncio.sleep(0.02)
+    resp = await client.get("/api/v1/speech?after=0", headers=AUTH)
+    assert resp.status == 200 and resp.headers["X-Feelium-Capture-T"] == "99.500000"
+
+
+# --- Host and Origin: DNS rebinding -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("host", ["evil.example", "evil.example:8080", "127.0.0.1.nip.io", "10.9.9.9", ""])
+async def test_a_host_that_is_not_the_blimps_is_refused_before_the_token_is_looked_at(client, host):
+    """A rebinding page sends its own name as Host (and an Origin that matches it); both are refused."""
+    for path in ("/api/v1/state", "/api/v1/health", "/"):
+        resp = await client.get(path, headers=AUTH | {"Host": host, "Origin": f"http://{host}"})
+        body = await assert_error(resp, 403, "not one of this blimp's names")
+        assert body["error"] == "host_not_allowed"
+    assert client.link.counters["host_not_allowed"] == 3
+
+
+@pytest.mark.parametrize("host", ["localhost:8080", "LOCALHOST", "blimp.local", "blimp", "127.0.0.1:1234"])
+async def test_the_blimps_own_names_and_the_address_the_connection_arrived_on_are_served(aiohttp_client, hub, http_config, monkeypatch, host):
+    monkeypatch.setattr("feelium.http.app.socket.gethostname", lambda: "blimp")
+    client = await aiohttp_client(create_app(http_config, hub, TOKEN))
+    resp = await client.get("/api/v1/state", headers=AUTH | {"Host": host})
+    assert resp.status == 200
+    origin = f"http://{host.lower()}"  # the blimp's own page, loaded by that name
+    assert (await client.get("/api/v1/state", headers=AUTH | {"Host": host, "Origin": origin})).status == 200
+
+
+async def test_configured_hosts_replace_the_defaults(aiohttp_client, hub, http_config):
+    client = await aiohttp_client(create_app(replace(http_config, allowed_hosts="feelium.example., other"), hub, TOKEN))
+    assert (await client.get("/api/v1/state", headers=AUTH | {"Host": "feelium.example:443"})).status == 200
+    assert (await client.get("/api/v1/state", headers=AUTH | {"Host": "localhost"})).status == 403

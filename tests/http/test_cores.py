@@ -15,7 +15,7 @@ from feelium.http.auth import TokenError, load_or_create_token, presented_token,
 from feelium.http.face import ImageTooLarge, JpegError, check_jpeg
 from feelium.http.jpeg import FrameError, encode_jpeg
 from feelium.http.ratelimit import TokenBucket
-from feelium.http.ring import EventRing, envelope
+from feelium.http.ring import EventRing, envelope, parse_resume, resume_token
 
 
 def touch(i: int) -> TouchEvent:
@@ -24,21 +24,42 @@ def touch(i: int) -> TouchEvent:
 
 @given(capacity=st.integers(1, 20), n=st.integers(0, 60), after=st.integers(0, 80))
 def test_ring_returns_exactly_the_missing_events_or_resets(capacity: int, n: int, after: int) -> None:
-    ring = EventRing(capacity)
+    ring = EventRing(capacity, "e1")
     for i in range(n):
         ring.append(touch(i))
     got = ring.after(after)
-    held = list(range(max(1, n - capacity + 1), n + 1))
     assert got.last_seq == n
     if after > n or after < n - capacity:
-        assert got.reset and [e["seq"] for e in got.events] == held
+        assert got.reset and got.events == []  # a reset brings the state, never old events out of order
     else:
         assert not got.reset
         assert [e["seq"] for e in got.events] == list(range(after + 1, n + 1))
+        assert got == ring.after(after, "e1")
+
+
+@given(n=st.integers(0, 30), after=st.integers(0, 30))
+def test_a_token_of_an_earlier_run_always_resets_and_numbers_never_go_back(n: int, after: int) -> None:
+    """A restarted daemon numbers from 1 again: whatever the old token's number, the client gets a reset
+    (the state) and then only events numbered above the reset's, never old events replayed."""
+    ring = EventRing(8, "new-run")
+    for i in range(n):
+        ring.append(touch(i))
+    got = ring.after(after, "old-run")
+    assert got.reset and got.events == [] and got.last_seq == n
+    ring.append(touch(99))
+    assert [e["seq"] for e in ring.after(got.last_seq).events] == [n + 1]
+
+
+def test_resume_tokens_round_trip_and_bad_ones_are_refused() -> None:
+    assert parse_resume(resume_token("ab12cd34", 17), 2**53) == ("ab12cd34", 17)
+    assert parse_resume("17", 2**53) == (None, 17)
+    for bad in (":5", "x:", "x:-1", "5.0", "x:1e3", "x:" + "9" * 30, "١٢"):
+        with pytest.raises(ValueError):
+            parse_resume(bad, 2**53)
 
 
 def test_envelope_is_the_one_wire_form() -> None:
-    assert envelope(4, touch(1)) == {"seq": 4, "type": "touch", "event": touch(1).to_json()}
+    assert envelope(4, touch(1), "e") == {"seq": 4, "epoch": "e", "type": "touch", "event": touch(1).to_json()}
 
 
 @given(rate=st.floats(0.5, 100), burst=st.integers(1, 30), gaps=st.lists(st.floats(0, 0.5), min_size=1, max_size=80))

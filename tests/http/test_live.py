@@ -60,7 +60,7 @@ async def test_a_stalled_client_neither_slows_another_nor_stays_connected(live):
     stalled = socket.socket()
     stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # before connect, so the window stays small
     stalled.connect(("127.0.0.1", live.port))
-    stalled.sendall(f"GET /api/v1/video/front.mjpeg?token={live.token} HTTP/1.1\r\nHost: x\r\n\r\n".encode())
+    stalled.sendall(f"GET /api/v1/video/front.mjpeg?token={live.token} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
     try:
         async with aiohttp.ClientSession() as session:
             async with session.get(f"{live.api}/video/front.mjpeg", headers=live.auth) as resp:

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import shutil
 import ssl
 import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -16,7 +18,8 @@ import pytest
 from feelium.daemon.config import Config
 from feelium.http.config import HttpConfig
 from feelium.daemon.assembly import build_http
-from feelium.http.service import HttpService, client_url, tls_context
+from feelium.http.service import HttpService, client_urls, tls_context
+from feelium.settings import ConfigError
 from feelium.hub import Hub
 
 from tests.http.http_support import AUTH, TOKEN
@@ -104,17 +107,37 @@ async def test_tls_from_configured_files_serves_https_only(tmp_path: Path) -> No
                     await resp.read()
     finally:
         await _stopped(service, task)
-    assert client_url(config, TOKEN, 8443) == f"https://127.0.0.1:8443/#token={TOKEN}"
+    assert client_urls(config, 8443, TOKEN) == [f"https://127.0.0.1:8443/#token={TOKEN}"]
 
 
 def test_tls_needs_both_files_and_a_bad_pair_fails_at_build_time(tmp_path: Path) -> None:
     assert tls_context(_loopback()) is None
-    with pytest.raises(ValueError, match="together"):
+    with pytest.raises(ConfigError, match="tls_key: tls_cert and tls_key must be set together"):
         tls_context(_loopback(tls_cert=str(tmp_path / "cert.pem")))
+    with pytest.raises(ConfigError, match=r"tls_cert: cannot read .*cert.pem: No such file"):
+        tls_context(_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem")))
     (tmp_path / "cert.pem").write_text("not a certificate")
     (tmp_path / "key.pem").write_text("not a key")
-    with pytest.raises(ssl.SSLError):
-        build_http(replace(Config(), http=_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem"))), Hub())
+    with pytest.raises(ConfigError, match="are not a PEM certificate and its key"):
+        tls_context(_loopback(tls_cert=str(tmp_path / "cert.pem"), tls_key=str(tmp_path / "key.pem")))
+
+
+def test_a_tls_misconfiguration_stops_the_daemon_with_one_line(tmp_path: Path) -> None:
+    """Before, build_services logged the failure and the daemon ran on without the API."""
+    from feelium.daemon.assembly import SERVICES, build_services
+
+    bad = _loopback(tls_cert=str(tmp_path / "missing.pem"), tls_key=str(tmp_path / "missing.key"))
+    with pytest.raises(ConfigError, match="missing.pem"):
+        build_services(replace(Config(), http=bad), Hub(), tuple(b for b in SERVICES if b[0] == "http"))
+    config = tmp_path / "feelium.toml"
+    config.write_text(f'[http]\nport = 0\ntoken = "{TOKEN}"\ntls_cert = "{tmp_path}/missing.pem"\ntls_key = "{tmp_path}/k.pem"\n')
+    done = subprocess.run(
+        [sys.executable, "-m", "feelium", "run", "--sim", "--config", str(config)],
+        capture_output=True, text=True, timeout=120, cwd=Path(__file__).resolve().parents[2], check=False,
+    )
+    errors = [line for line in done.stderr.splitlines() if "no projector calibration" not in line]  # an info line
+    assert done.returncode == 1
+    assert errors == [f"feelium: config error: [http]: tls_cert: cannot read {tmp_path}/missing.pem: No such file or directory"]
 
 
 def test_disabled_link_builds_no_service_and_a_generated_token_is_private(tmp_path: Path) -> None:
@@ -123,3 +146,33 @@ def test_disabled_link_builds_no_service_and_a_generated_token_is_private(tmp_pa
     service = build_http(replace(Config(), http=replace(HttpConfig(), token_file=str(token_file))), Hub())
     assert token_file.stat().st_mode & 0o777 == 0o600
     assert service.token == token_file.read_text().strip() and len(service.token) >= 16  # type: ignore[attr-defined]
+
+
+async def test_the_token_never_reaches_the_log(caplog: pytest.LogCaptureFixture) -> None:
+    """Access log on, at debug: query tokens are redacted, headers are not logged, a rejected request line too."""
+    caplog.set_level(logging.DEBUG)
+    service, task = await _started(_loopback(access_log=True))
+    try:
+        base = f"http://127.0.0.1:{service.port}/api/v1"
+        async with aiohttp.ClientSession() as session:
+            async with session.get(f"{base}/state?token={TOKEN}&client=a") as resp:
+                assert resp.status == 200
+            async with session.get(f"{base}/state", headers=AUTH) as resp:
+                assert resp.status == 200
+        await _raw(service.port, f"GET /api/v1/state?token={TOKEN} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: x\r\n\r\n".encode())
+    finally:
+        await _stopped(service, task)
+    access = [r.getMessage() for r in caplog.records if r.name == "feelium.http.access"]
+    assert any("/api/v1/state?token=<redacted>&client=a 200" in line for line in access), access
+    assert len(access) >= 2
+    assert TOKEN not in caplog.text
+    assert any("rejected a malformed request" in r.getMessage() for r in caplog.records)
+    assert any(r.getMessage().startswith(f"headset client at http://127.0.0.1:{service.port}/ ") for r in caplog.records)
+
+
+def test_redact_hides_every_form_of_the_token() -> None:
+    from feelium.http.server import redact
+
+    assert redact("GET /x?a=1&token=s3cr3t&b=2 HTTP/1.1") == "GET /x?a=1&token=<redacted>&b=2 HTTP/1.1"
+    assert redact("Authorization: Bearer s3cr3t") == "Authorization: Bearer <redacted>"
+    assert redact("b'GET /x?TOKEN=s3cr3t'") == "b'GET /x?TOKEN=<redacted>'"

@@ -90,6 +90,22 @@ async def test_face_jpeg_is_shown_and_a_broken_one_is_counted(running):
     assert service.health()["frames"] > 0 and service.health()["display"] == "sim"
 
 
+async def test_a_single_face_stays_however_long_the_headset_is_quiet_until_cleared():
+    now = [100.0]
+    hub = Hub(clock=lambda: now[0])
+    service = ProjectorService(Config().projector, Config().interactions, hub, SimDisplay(), truth_calibration())
+    ok, jpeg = cv2.imencode(".jpg", np.full((240, 320, 3), 200, np.uint8))
+    hub.face.publish(hub.clock(), jpeg.tobytes())
+    await service.update_face()
+    assert service._face is not None and service.counters["faces"] == 1
+    now[0] += 3600.0  # an hour without another upload (it used to vanish after 3 s)
+    await service.update_face()
+    assert service._face is not None
+    hub.face.publish(hub.clock(), None)  # DELETE /api/v1/face
+    await service.update_face()
+    assert service._face is None and service.counters["bad_faces"] == 0
+
+
 def test_build_projector_without_calibration_uses_the_default_map(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     config = Config()

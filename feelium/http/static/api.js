@@ -6,7 +6,9 @@ const Feelium = (() => {
   const token = sessionStorage.getItem("feelium-token") || "";
   const base = "/api/v1";
 
-  function withToken(path) { return `${base}${path}${path.includes("?") ? "&" : "?"}token=${encodeURIComponent(token)}`; }
+  // The token goes into an HttpOnly cookie once, so video, EventSource and WebSocket URLs carry no secret.
+  const ready = fetch(`${base}/session`, { method: "POST", headers: { Authorization: `Bearer ${token}` } });
+  function streamUrl(path) { return `${base}${path}`; }
 
   async function call(method, path, body, contentType) {
     const headers = { Authorization: `Bearer ${token}` };
@@ -22,26 +24,31 @@ const Feelium = (() => {
     return { data, resp };
   }
 
-  // One stream of {seq, type, event}: WebSocket first, Server-Sent Events if that fails; resumes after the last seq.
+  // One stream of {seq, epoch, type, event}: WebSocket first, Server-Sent Events if that fails; resumes after
+  // the last event with its token EPOCH:SEQ (another epoch = the daemon restarted: the server sends a reset).
   function events(onEvent, onStatus) {
     let last = null, failures = 0, useSse = false;
-    const deliver = (item) => { if (last === null || item.seq > last || item.type === "reset") { last = item.seq; onEvent(item); } };
+    const deliver = (item) => {
+      if (last === null || item.epoch !== last.epoch || item.seq > last.seq || item.type === "reset") {
+        last = { epoch: item.epoch, seq: item.seq }; onEvent(item);
+      }
+    };
     function connect() {
-      const after = last === null ? "" : `&after=${last}`;
+      const after = last === null ? "" : `?after=${encodeURIComponent(`${last.epoch}:${last.seq}`)}`;
       if (!useSse && "WebSocket" in window) {
-        const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${withToken("/events/ws")}${after}`);
+        const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${streamUrl("/events/ws")}${after}`);
         ws.onopen = () => { failures = 0; onStatus(true); };
         ws.onmessage = (m) => deliver(JSON.parse(m.data));
         ws.onclose = () => { onStatus(false); if (++failures > 2) useSse = true; setTimeout(connect, 500); };
       } else {
-        const es = new EventSource(withToken("/events/stream") + after);
+        const es = new EventSource(streamUrl("/events/stream") + after);
         const handler = (m) => deliver(JSON.parse(m.data));
         for (const t of ["touch", "presence", "interaction", "wearer_action", "reset"]) es.addEventListener(t, handler);
         es.onopen = () => onStatus(true);
         es.onerror = () => onStatus(false);
       }
     }
-    connect();
+    ready.then(connect);
   }
-  return { token, call, withToken, events };
+  return { token, call, streamUrl, ready, events };
 })();

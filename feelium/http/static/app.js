@@ -2,7 +2,7 @@
 "use strict";
 const $ = (s) => document.querySelector(s);
 const video = $("#video"), overlay = $("#overlay"), log = $("#log"), linkBadge = $("#link");
-video.src = Feelium.withToken("/video/front.mjpeg");
+Feelium.ready.then(() => { video.src = Feelium.streamUrl("/video/front.mjpeg"); });
 let videoFrames = 0;
 video.addEventListener("load", () => videoFrames++);
 

@@ -1,7 +1,7 @@
 // The partner page (sim mode): press on the rear camera with the mouse to touch the simulated membrane.
 "use strict";
 const rear = document.querySelector("#rear"), mode = document.querySelector("#mode"), plog = document.querySelector("#log");
-rear.src = Feelium.withToken("/video/rear.mjpeg");
+Feelium.ready.then(() => { rear.src = Feelium.streamUrl("/video/rear.mjpeg"); });
 let size = null, down = false, lastSent = 0;
 function note(text) { const li = document.createElement("li"); li.textContent = text; plog.prepend(li); while (plog.children.length > 100) plog.lastChild.remove(); }
 Feelium.call("GET", "/sim").then(({ data }) => {

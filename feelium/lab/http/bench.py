@@ -264,7 +264,7 @@ async def _mjpeg_reader(api: str, seconds: float, client: str, pause_s: float = 
                         name, _, value = h.partition(b":")
                         if name.lower() == b"content-length":
                             length = int(value)
-                        elif name.lower() == b"x-timestamp":
+                        elif name.lower() == b"x-feelium-capture-t":
                             stamp = float(value)
                     await resp.content.readexactly(length + 2)
                     frames.append((time.perf_counter(), stamp))
@@ -337,7 +337,7 @@ async def bench_mjpeg(server: ServerThread, seconds: float, fps: float) -> dict[
     stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     stalled.setblocking(False)
     await asyncio.get_running_loop().sock_connect(stalled, ("127.0.0.1", server.port))
-    stalled.send(f"GET /api/v1/video/front.mjpeg?token={TOKEN}&client=stalled HTTP/1.1\r\nHost: bench\r\n\r\n".encode())
+    stalled.send(f"GET /api/v1/video/front.mjpeg?token={TOKEN}&client=stalled HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
     t_stall = time.perf_counter()
     drop_seen: list[float] = []
 
