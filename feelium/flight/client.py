@@ -8,7 +8,8 @@ telemetry requests in one burst and collects the replies until a deadline,
 so one 115200-baud cycle costs about one round trip, not six.
 
 MSP has no sequence numbers, so a reply is attributed by order: the board
-answers one request with one reply, in order (``docs/motor-board.md``).
+answers one request with one reply, in order (``docs/motor-board.md``; the
+rule itself is ``replies.py``, the payload decoding ``telemetry_decode.py``).
 Every request written is kept in a FIFO of outstanding requests; a reply
 pops the oldest outstanding request of its command, and the older ones it
 overtook are lost. A reply to a request of an earlier burst is *late*: it is
@@ -42,12 +43,13 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 from typing import Literal
 
 from feelium.flight import messages as m
 from feelium.flight.msp import MspFrame, MspParser, encode_v2
+from feelium.flight.replies import Burst, Outstanding, is_ack, take_reply, wire_size
 from feelium.flight.telemetry import Telemetry
+from feelium.flight.telemetry_decode import decode_telemetry
 from feelium.flight.transport import ByteLink
 
 
@@ -67,44 +69,6 @@ STALE_BURSTS = 3
 PROBE_COMMAND = m.MSP_API_VERSION  # every board answers it; one small frame per poll while stalled
 
 LinkState = Literal["up", "stalled", "resyncing"]
-
-
-@dataclass(frozen=True)
-class Outstanding:
-    """A request written and not yet answered: its command, when and in which burst it went out."""
-
-    command: int
-    written_t: float
-    burst: int
-
-
-@dataclass
-class Burst:
-    """One exchange: its number, write time, the replies that answered it and what else the line carried."""
-
-    number: int
-    t: float = 0.0
-    replies: dict[int, MspFrame] = field(default_factory=dict)
-    heard: bool = False
-    stale_bytes: int = 0
-    late: int = 0
-    lost: int = 0
-    unmatched: int = 0
-
-    @property
-    def disordered(self) -> bool:
-        """Stale bytes, late replies or requests overtaken: the line did not answer this burst as it should."""
-        return bool(self.stale_bytes or self.late or self.lost)
-
-
-def _wire_size(frame: MspFrame) -> int:
-    """Bytes the frame took on the line (header, payload, checksum)."""
-    return (9 if frame.version == 2 else 6) + len(frame.payload)
-
-
-def _is_ack(frame: MspFrame) -> bool:
-    """The board's (empty or error) answer to MSP_SET_MOTOR: it carries no telemetry."""
-    return frame.direction != "<" and frame.command == m.MSP_SET_MOTOR
 
 
 class MspClient:
@@ -234,7 +198,7 @@ class MspClient:
         frames = self._frames(data)
         for frame in frames:
             self._receive(frame, burst, newest=burst.number - 1)
-        stale = len(data) - sum(_wire_size(f) for f in frames if _is_ack(f))
+        stale = len(data) - sum(wire_size(f) for f in frames if is_ack(f))
         burst.stale_bytes = max(stale, 0)
         self.stale_bytes += burst.stale_bytes
 
@@ -264,7 +228,7 @@ class MspClient:
         """Parse what came in and settle the replies owed (every read goes through here)."""
         frames = self.parser.feed(data)
         for frame in frames:
-            if _is_ack(frame):
+            if is_ack(frame):
                 self._acks_owed = max(0, self._acks_owed - 1)
                 self._acks_since_resync += 1
             elif frame.direction != "<":
@@ -276,8 +240,8 @@ class MspClient:
         if frame.direction == "<":
             self.unexpected_replies += 1  # our own requests echoed back (e.g. loop://)
             return
-        request = self._take(frame.command, newest, None if _is_ack(frame) else burst)
-        if _is_ack(frame):
+        request = self._take(frame.command, newest, None if is_ack(frame) else burst)
+        if is_ack(frame):
             if frame.is_error:
                 self.motor_rejections += 1
             else:
@@ -298,27 +262,11 @@ class MspClient:
         burst.replies[frame.command] = frame
 
     def _take(self, command: int, newest: int, overtaking: Burst | None) -> Outstanding | None:
-        """Pop the oldest outstanding request of ``command`` from burst ``newest`` or before; None if there is none.
-
-        Replies come in order, so the older requests a reply overtook are lost; they are
-        counted on the ``overtaking`` burst. An ack (``overtaking`` None) never decides that:
-        motor commands written while resynchronising are not tracked, so an ack may belong to
-        one of them, and dropping telemetry requests on its word would let their replies, when
-        they come, pass for a later burst's.
-        """
-        for index, request in enumerate(self._outstanding):
-            if request.burst > newest:
-                return None
-            if request.command == command:
-                if overtaking is None:
-                    del self._outstanding[index]
-                    return request
-                for _ in range(index):
-                    self._outstanding.popleft()
-                self.lost_requests += index
-                overtaking.lost += index
-                return self._outstanding.popleft()
-        return None
+        request, lost = take_reply(self._outstanding, command, newest, overtaking is not None)
+        if overtaking is not None:
+            self.lost_requests += lost
+            overtaking.lost += lost
+        return request
 
     def send_motors(self, motors_us: Iterable[int]) -> None:
         """Write MSP_SET_MOTOR without waiting: the acknowledgement is consumed by the next poll.
@@ -466,7 +414,7 @@ class MspClient:
         errors_before = counters.garbage_bytes + counters.bad_checksums + counters.oversized
         frames = self._frames(data)
         errors_after = counters.garbage_bytes + counters.bad_checksums + counters.oversized
-        return True, errors_after > errors_before or not all(_is_ack(f) for f in frames)
+        return True, errors_after > errors_before or not all(is_ack(f) for f in frames)
 
     def _read_waiting(self) -> bytes:
         """What the link already holds, without blocking (a read of nothing would wait for its timeout)."""
@@ -474,36 +422,9 @@ class MspClient:
         return self.link.read(waiting) if waiting else b""
 
     def _telemetry(self, replies: dict[int, MspFrame], t: float) -> Telemetry:
-        values: dict[str, object] = {}
-
-        def decoded(command: int, decoder: Callable[[bytes], object]) -> object | None:
-            frame = replies.get(command)
-            if frame is None or frame.is_error:
-                return None
-            try:
-                return decoder(frame.payload)
-            except m.PayloadError:
-                self.bad_payloads += 1
-                return None
-
-        rng = decoded(m.MSP_SONAR_ALTITUDE, m.Rangefinder.decode)
-        if isinstance(rng, m.Rangefinder):
-            values["range_m"] = rng.distance_m
-        att = decoded(m.MSP_ATTITUDE, m.Attitude.decode)
-        if isinstance(att, m.Attitude):
-            values.update(heading_deg=att.heading_deg, roll_deg=att.roll_deg, pitch_deg=att.pitch_deg)
-        imu = decoded(m.MSP_RAW_IMU, m.RawImu.decode)
-        if isinstance(imu, m.RawImu):
-            values["yaw_rate_dps"] = float(imu.gyro_dps[2])
-        flow = decoded(m.MSP2_SENSOR_OPTIC_FLOW, m.OpticFlow.decode)
-        if isinstance(flow, m.OpticFlow):
-            values["flow_quality"] = flow.quality
-            if flow.quality > 0:
-                values.update(flow_x_rad_s=flow.x_rad_s, flow_y_rad_s=flow.y_rad_s)
-        analog = decoded(m.MSP_ANALOG, m.Analog.decode)
-        if isinstance(analog, m.Analog):
-            values["battery_v"] = analog.voltage_v
-        return Telemetry(t=t, **values)  # type: ignore[arg-type]
+        telemetry, bad = decode_telemetry(replies, t)
+        self.bad_payloads += bad
+        return telemetry
 
     def telemetry_age_s(self) -> float | None:
         """How old the newest in-time telemetry is (from its burst's write time); None before the first."""
