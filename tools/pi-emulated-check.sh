@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# Emulated check of the blimp's install (docs/deploy.md, section 4) without a Pi.
+#
+# Builds an arm64 Debian Bookworm root with debootstrap, runs it through qemu-user-static, creates the
+# venv exactly as the guide does (--system-site-packages, pip with constraints/pi-bookworm.txt) and
+# imports the system's numpy stack together with OpenCV and Feelium in one interpreter: that is where a
+# numpy 2 pulled in by pip would break the Debian-built camera modules.
+#
+# The Raspberry Pi archive (python3-picamera2, python3-simplejpeg) is added when it is reachable; without
+# it the root has Debian's own python3-numpy 1.24 and the check says what it could not import.
+#
+# Usage (root, network, ~2 GB free, 10-30 min on 2 cores):
+#   sudo tools/pi-emulated-check.sh [WORKDIR]          # WORKDIR defaults to /var/tmp/feelium-pi-root
+# Needs: debootstrap, qemu-user-static, binfmt-support (apt install debootstrap qemu-user-static binfmt-support).
+# Exit status: 0 all imports work, 1 an import failed, 2 the root could not be built.
+set -euo pipefail
+
+SRC=$(cd "$(dirname "$0")/.." && pwd)
+ROOT=${1:-/var/tmp/feelium-pi-root}
+DEBIAN_MIRROR=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
+RPI_ARCHIVE=${RPI_ARCHIVE:-http://archive.raspberrypi.com/debian}
+PACKAGES=python3,python3-venv,python3-pip,python3-numpy,ca-certificates
+
+step() { printf '\n== %s\n' "$*" >&2; }
+die() { printf 'pi-emulated-check: %s\n' "$*" >&2; exit 2; }
+
+[ "$(id -u)" = 0 ] || die "run as root (debootstrap and chroot need it)"
+for tool in debootstrap qemu-aarch64-static update-binfmts; do
+  command -v "$tool" >/dev/null || die "$tool is missing: apt install debootstrap qemu-user-static binfmt-support"
+done
+
+step "binfmt: arm64 binaries run through qemu"
+if [ ! -e /proc/sys/fs/binfmt_misc/register ]; then
+  mount -t binfmt_misc binfmt_misc /proc/sys/fs/binfmt_misc || die "cannot mount binfmt_misc (unprivileged container?)"
+fi
+update-binfmts --enable qemu-aarch64 || die "cannot register qemu-aarch64 with binfmt_misc"
+
+cleanup() {
+  for m in proc dev/pts dev sys; do umount "$ROOT/$m" 2>/dev/null || true; done
+}
+trap cleanup EXIT
+
+if [ ! -x "$ROOT/usr/bin/python3" ]; then
+  step "debootstrap arm64 bookworm into $ROOT (first stage)"
+  rm -rf "$ROOT"
+  debootstrap --arch=arm64 --variant=minbase --foreign --include="$PACKAGES" bookworm "$ROOT" "$DEBIAN_MIRROR" \
+    || die "debootstrap (first stage) failed"
+  # The binfmt entry names an interpreter path without the F flag, so it must exist inside the root.
+  interp=$(sed -n 's/^interpreter //p' /proc/sys/fs/binfmt_misc/qemu-aarch64)
+  mkdir -p "$ROOT$(dirname "$interp")" "$ROOT/usr/bin"
+  cp "$(readlink -f "$interp")" "$ROOT$interp"
+  cp /usr/bin/qemu-aarch64-static "$ROOT/usr/bin/"
+  step "debootstrap second stage (under qemu)"
+  chroot "$ROOT" /debootstrap/debootstrap --second-stage || die "debootstrap (second stage) failed"
+fi
+
+mount -t proc proc "$ROOT/proc"
+mount --bind /dev "$ROOT/dev"
+mount --bind /dev/pts "$ROOT/dev/pts"
+mount --bind /sys "$ROOT/sys"
+cp /etc/resolv.conf "$ROOT/etc/resolv.conf"
+
+camera_stack="numpy"
+step "Raspberry Pi archive: $RPI_ARCHIVE"
+if curl -fsS --max-time 20 "$RPI_ARCHIVE/dists/bookworm/InRelease" -o /dev/null 2>/dev/null; then
+  curl -fsS "$RPI_ARCHIVE/raspberrypi.gpg.key" | gpg --dearmor >"$ROOT/usr/share/keyrings/raspberrypi.gpg"
+  echo "deb [signed-by=/usr/share/keyrings/raspberrypi.gpg] $RPI_ARCHIVE bookworm main" >"$ROOT/etc/apt/sources.list.d/raspi.list"
+  chroot "$ROOT" apt-get update -qq
+  chroot "$ROOT" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+    python3-picamera2 python3-simplejpeg
+  camera_stack="numpy, simplejpeg, picamera2"
+else
+  echo "unreachable: testing Debian's python3-numpy only (no python3-simplejpeg or python3-picamera2 in Debian bookworm)" >&2
+fi
+
+step "the guide's section 4: venv with system site packages, pip with the constraints"
+rm -rf "$ROOT/opt/feelium"
+mkdir -p "$ROOT/opt/feelium/src"
+git -C "$SRC" ls-files -z | (cd "$SRC" && tar --null -T - -cf -) | tar -xf - -C "$ROOT/opt/feelium/src"
+chroot "$ROOT" python3 -m venv --system-site-packages /opt/feelium/venv
+chroot "$ROOT" /opt/feelium/venv/bin/pip install -q -c /opt/feelium/src/constraints/pi-bookworm.txt --upgrade pip
+chroot "$ROOT" /opt/feelium/venv/bin/pip install -q -c /opt/feelium/src/constraints/pi-bookworm.txt /opt/feelium/src
+
+step "imports together: $camera_stack, cv2, feelium"
+check=$(cat <<EOF
+import importlib, platform, sys
+names = [n.strip() for n in "$camera_stack".split(",")] + ["cv2", "feelium", "feelium.daemon.runner"]
+for name in names:
+    module = importlib.import_module(name)
+    print(f"{name:24} {getattr(module, '__version__', '')} {getattr(module, '__file__', '')}")
+import numpy, cv2
+assert numpy.__version__.split(".")[0] == "1", numpy.__version__
+print("ok:", platform.machine(), "Python", platform.python_version(), "numpy", numpy.__version__, "cv2", cv2.__version__)
+EOF
+)
+if chroot "$ROOT" /opt/feelium/venv/bin/python -c "$check"; then
+  echo "pi-emulated-check: all imports work ($camera_stack, cv2, feelium)"
+else
+  echo "pi-emulated-check: an import failed (above)" >&2
+  exit 1
+fi
