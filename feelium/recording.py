@@ -1,6 +1,6 @@
 """Reader and writer of the Feelium recording format, version 1.
 
-The format (``shared/specs/recording-format.md``) is the one contract between
+The format (``docs/recording-format.md``) is the one contract between
 the blimp, the simulator, replay, evaluation and the tests, so the reader is
 strict: anything malformed is a :class:`RecordingError` that names the file
 and what is wrong, before a single frame is handed downstream.

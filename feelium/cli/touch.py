@@ -18,7 +18,7 @@ def register(registry: CommandRegistry) -> None:
     replay.add_argument("--config", help="TOML config file (its [touch] section is used)")
     replay.add_argument("--annotate", metavar="OUT", help="write an annotated video (a directory for datasets)")
 
-    ev = registry.command("eval", "Score the touch pipeline on a labelled dataset (shared/specs/evaluation.md).", _eval)
+    ev = registry.command("eval", "Score the touch pipeline on a labelled dataset (docs/evaluation.md).", _eval)
     ev.add_argument("dataset", help="dataset directory")
     ev.add_argument("--json", metavar="REPORT", help="write the version-1 report as JSON here")
     ev.add_argument("--figure", metavar="PNG", help="anchoring figure (default: beside the report, or ./touch-anchoring.png)")
