@@ -12,6 +12,8 @@
 # Usage (root, network, ~2 GB free, 10-30 min on 2 cores):
 #   sudo tools/pi-emulated-check.sh [WORKDIR]          # WORKDIR defaults to /var/tmp/feelium-pi-root
 # Needs: debootstrap, qemu-user-static, binfmt-support (apt install debootstrap qemu-user-static binfmt-support).
+# Behind a TLS-intercepting proxy, the host's PIP_CERT (a CA bundle) is copied into the root for pip;
+# nothing else of the host's pip settings goes in (commands in the root run with a clean environment).
 # Exit status: 0 all imports work, 1 an import failed, 2 the root could not be built.
 set -euo pipefail
 
@@ -54,6 +56,14 @@ if [ ! -x "$ROOT/usr/bin/python3" ]; then
   chroot "$ROOT" /debootstrap/debootstrap --second-stage || die "debootstrap (second stage) failed"
 fi
 
+# Commands in the root see a Pi's environment, not the host's (no PIP_* settings, no host paths).
+in_root() { chroot "$ROOT" env -i PATH=/usr/local/bin:/usr/bin:/bin HOME=/root LANG=C.UTF-8 ${ROOT_PIP_CERT:+PIP_CERT=$ROOT_PIP_CERT} "$@"; }
+ROOT_PIP_CERT=
+if [ -n "${PIP_CERT:-}" ] && [ -f "$PIP_CERT" ]; then
+  cp "$PIP_CERT" "$ROOT/etc/ssl/certs/host-ca-bundle.crt"
+  ROOT_PIP_CERT=/etc/ssl/certs/host-ca-bundle.crt
+fi
+
 mount -t proc proc "$ROOT/proc"
 mount --bind /dev "$ROOT/dev"
 mount --bind /dev/pts "$ROOT/dev/pts"
@@ -65,8 +75,8 @@ step "Raspberry Pi archive: $RPI_ARCHIVE"
 if curl -fsS --max-time 20 "$RPI_ARCHIVE/dists/bookworm/InRelease" -o /dev/null 2>/dev/null; then
   curl -fsS "$RPI_ARCHIVE/raspberrypi.gpg.key" | gpg --dearmor >"$ROOT/usr/share/keyrings/raspberrypi.gpg"
   echo "deb [signed-by=/usr/share/keyrings/raspberrypi.gpg] $RPI_ARCHIVE bookworm main" >"$ROOT/etc/apt/sources.list.d/raspi.list"
-  chroot "$ROOT" apt-get update -qq
-  chroot "$ROOT" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+  in_root apt-get update -qq
+  in_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
     python3-picamera2 python3-simplejpeg
   camera_stack="numpy, simplejpeg, picamera2"
 else
@@ -77,9 +87,9 @@ step "the guide's section 4: venv with system site packages, pip with the constr
 rm -rf "$ROOT/opt/feelium"
 mkdir -p "$ROOT/opt/feelium/src"
 git -C "$SRC" ls-files -z | (cd "$SRC" && tar --null -T - -cf -) | tar -xf - -C "$ROOT/opt/feelium/src"
-chroot "$ROOT" python3 -m venv --system-site-packages /opt/feelium/venv
-chroot "$ROOT" /opt/feelium/venv/bin/pip install -q -c /opt/feelium/src/constraints/pi-bookworm.txt --upgrade pip
-chroot "$ROOT" /opt/feelium/venv/bin/pip install -q -c /opt/feelium/src/constraints/pi-bookworm.txt /opt/feelium/src
+in_root python3 -m venv --system-site-packages /opt/feelium/venv
+in_root /opt/feelium/venv/bin/pip install -q -c /opt/feelium/src/constraints/pi-bookworm.txt --upgrade pip
+in_root /opt/feelium/venv/bin/pip install -q -c /opt/feelium/src/constraints/pi-bookworm.txt /opt/feelium/src
 
 step "imports together: $camera_stack, cv2, feelium"
 check=$(cat <<EOF
@@ -93,7 +103,7 @@ assert numpy.__version__.split(".")[0] == "1", numpy.__version__
 print("ok:", platform.machine(), "Python", platform.python_version(), "numpy", numpy.__version__, "cv2", cv2.__version__)
 EOF
 )
-if chroot "$ROOT" /opt/feelium/venv/bin/python -c "$check"; then
+if in_root /opt/feelium/venv/bin/python -c "$check"; then
   echo "pi-emulated-check: all imports work ($camera_stack, cv2, feelium)"
 else
   echo "pi-emulated-check: an import failed (above)" >&2
