@@ -127,9 +127,8 @@ def record(
             else:
                 try:
                     writer.add_frame(t, frame.image)
-                except DiskFull as exc:
+                except DiskFull as exc:  # the caller reports it, with the take it still gets
                     ended, problem = "disk full", exc.strerror or "disk full"
-                    log.error("%s: %s; finishing the take with %d frames", exc.filename, problem, writer.frames_written)
                     break
                 last_t = t
                 if thermal is not None:
