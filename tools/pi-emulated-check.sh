@@ -6,8 +6,10 @@
 # imports the system's numpy stack together with OpenCV and Feelium in one interpreter: that is where a
 # numpy 2 pulled in by pip would break the Debian-built camera modules.
 #
-# The Raspberry Pi archive (python3-picamera2, python3-simplejpeg) is added when it is reachable; without
-# it the root has Debian's own python3-numpy 1.24 and the check says what it could not import.
+# The Raspberry Pi archive (python3-picamera2, python3-simplejpeg) is added when it is reachable. Without
+# it, Debian's python3-bottleneck stands in for simplejpeg: a C extension Debian compiled against its numpy
+# 1.24, which must import beside the venv's numpy and OpenCV. A negative control then puts numpy 2 in front
+# and expects that same module to fail, so the check can tell a good install from a bad one.
 #
 # Usage (root, network, ~2 GB free, 10-30 min on 2 cores):
 #   sudo tools/pi-emulated-check.sh [WORKDIR]          # WORKDIR defaults to /var/tmp/feelium-pi-root
@@ -80,7 +82,9 @@ if curl -fsS --max-time 20 "$RPI_ARCHIVE/dists/bookworm/InRelease" -o /dev/null 
     python3-picamera2 python3-simplejpeg
   camera_stack="numpy, simplejpeg, picamera2"
 else
-  echo "unreachable: testing Debian's python3-numpy only (no python3-simplejpeg or python3-picamera2 in Debian bookworm)" >&2
+  echo "unreachable: Debian's python3-bottleneck (built against numpy 1.24) stands in for simplejpeg and picamera2" >&2
+  in_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends python3-bottleneck
+  camera_stack="numpy, bottleneck"
 fi
 
 step "the guide's section 4: venv with system site packages, pip with the constraints"
@@ -103,9 +107,17 @@ assert numpy.__version__.split(".")[0] == "1", numpy.__version__
 print("ok:", platform.machine(), "Python", platform.python_version(), "numpy", numpy.__version__, "cv2", cv2.__version__)
 EOF
 )
-if in_root /opt/feelium/venv/bin/python -c "$check"; then
-  echo "pi-emulated-check: all imports work ($camera_stack, cv2, feelium)"
-else
+if ! in_root /opt/feelium/venv/bin/python -c "$check"; then
   echo "pi-emulated-check: an import failed (above)" >&2
   exit 1
 fi
+echo "pi-emulated-check: all imports work ($camera_stack, cv2, feelium)"
+
+step "negative control: the same imports with numpy 2 in front (what an unconstrained install gives)"
+compiled=$(echo "$camera_stack" | tr -d ' ' | tr ',' '\n' | grep -v '^numpy$' | head -1)
+in_root /opt/feelium/venv/bin/pip install -q --target /tmp/numpy2 "numpy>=2"
+if in_root env PYTHONPATH=/tmp/numpy2 /opt/feelium/venv/bin/python -c "import numpy, $compiled; print(numpy.__version__)"; then
+  echo "pi-emulated-check: $compiled imported beside numpy 2: this check cannot tell a bad install" >&2
+  exit 1
+fi
+echo "pi-emulated-check: as expected, $compiled fails beside numpy 2 and works with the constrained install"
