@@ -1,6 +1,6 @@
 """The event objects that flow from the sensing cores to the bus, the headset and the projector.
 
-Their JSON form is fixed by ``shared/specs/evaluation.md`` (touch) and is what
+Their JSON form is fixed by ``docs/evaluation.md`` (touch) and is what
 `feelium replay` prints, what the HTTP API delivers and what `feelium eval`
 scores, so there is exactly one definition of each here.
 """

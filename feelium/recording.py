@@ -1,6 +1,6 @@
 """Reader and writer of the Feelium recording format, version 1.
 
-The format (``shared/specs/recording-format.md``) is the one contract between
+The format (``docs/recording-format.md``) is the one contract between
 the blimp, the simulator, replay, evaluation and the tests, so the reader is
 strict: anything malformed is a :class:`RecordingError` that names the file
 and what is wrong, before a single frame is handed downstream.
@@ -8,12 +8,14 @@ and what is wrong, before a single frame is handed downstream.
 
 from __future__ import annotations
 
+import errno
+import io
 import json
 import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -141,28 +143,48 @@ def _parse_meta(path: Path) -> Meta:
         raise _fail(path, f"camera.pixel_format must be one of {PIXEL_FORMATS}, got {camera.pixel_format!r}")
     if camera.width <= 0 or camera.height <= 0:
         raise _fail(path, "camera width and height must be positive")
-    roi_raw = obj.get("roi")
-    roi: tuple[int, int, int, int] | None = None
-    if roi_raw is not None:
-        if not (isinstance(roi_raw, list) and len(roi_raw) == 4):
-            raise _fail(path, "roi: expected [x, y, w, h] or null")
-        x, y, w, h = (int(v) for v in roi_raw)
-        if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > camera.width or y + h > camera.height:
-            raise _fail(path, f"roi {roi_raw} does not fit the {camera.width}x{camera.height} frame")
-        roi = (x, y, w, h)
+    if not (math.isfinite(camera.fps) and camera.fps > 0):
+        raise _fail(path, f"camera.fps must be a positive number, got {cam['fps']!r}")
     return Meta(
         name=str(obj.get("name", path.parent.name)),
         session=str(obj.get("session", "")),
         source=str(obj.get("source", "device")),
         camera=camera,
-        roi=roi,
+        roi=_parse_roi(path, obj.get("roi"), camera),
         thermal=obj.get("thermal"),
         raw=obj,
     )
 
 
+def _parse_roi(path: Path, raw: Any, camera: CameraInfo) -> tuple[int, int, int, int] | None:
+    """``[x, y, w, h]`` of whole pixels inside the frame, or ``None`` for the whole frame."""
+    if raw is None:
+        return None
+    if not (isinstance(raw, list) and len(raw) == 4 and all(_is_whole(v) for v in raw)):
+        raise _fail(path, f"roi: expected [x, y, w, h] of whole pixels or null, got {raw!r}")
+    x, y, w, h = (int(v) for v in raw)
+    if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > camera.width or y + h > camera.height:
+        raise _fail(path, f"roi {raw} does not fit the {camera.width}x{camera.height} frame")
+    return x, y, w, h
+
+
+def _is_whole(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value == int(value)
+
+
+def _number(value: Any) -> float | None:
+    """``value`` as a finite float, or ``None`` when it is not a finite number (JSON true is not one)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
 def read_timestamps(path: Path) -> np.ndarray:
-    """Frame times from a ``*_ts.txt`` file; rejects non-numbers and backwards steps."""
+    """Frame times from a ``*_ts.txt`` file; rejects non-numbers and times that do not advance.
+
+    The spec says times never go backwards; a repeated time is rejected as well, because one camera
+    cannot capture two frames at the same instant and downstream rates and latencies divide by the step.
+    """
     if not path.is_file():
         raise _fail(path, "missing file")
     values = []
@@ -179,10 +201,11 @@ def read_timestamps(path: Path) -> np.ndarray:
         values.append(value)
     ts = np.asarray(values, dtype=np.float64)
     if len(ts) > 1:
-        back = np.flatnonzero(np.diff(ts) < 0)
-        if len(back):
-            i = int(back[0]) + 1
-            raise _fail(path, f"line {i + 1}: time goes backwards ({ts[i - 1]} then {ts[i]})")
+        stuck = np.flatnonzero(np.diff(ts) <= 0)
+        if len(stuck):
+            i = int(stuck[0]) + 1
+            how = "goes backwards" if ts[i] < ts[i - 1] else "repeats"
+            raise _fail(path, f"line {i + 1}: time {how} ({ts[i - 1]} then {ts[i]})")
     return ts
 
 
@@ -195,27 +218,36 @@ def _parse_labels(path: Path) -> Labels:
     allowed = CLIP_LABELS if clip else TOUCH_LABELS + NEGATIVE_LABELS
     if label not in allowed:
         raise _fail(path, f"label {label!r} is not one of {allowed}")
-    target = obj.get("target")
-    if target is not None:
-        if not (isinstance(target, list) and len(target) == 2):
-            raise _fail(path, "target: expected [x, y] or null")
-        target = (float(target[0]), float(target[1]))
+    raw_target = obj.get("target")
+    target = None
+    if raw_target is not None:
+        xy = [_number(v) for v in raw_target] if isinstance(raw_target, list) else []
+        if len(xy) != 2 or None in xy:
+            raise _fail(path, f"target: expected [x, y] numbers or null, got {raw_target!r}")
+        target = (float(xy[0]), float(xy[1]))  # type: ignore[arg-type]
+    raw_contacts = obj.get("contacts", [])
+    if not isinstance(raw_contacts, list):
+        raise _fail(path, "contacts: expected a list")
     contacts = []
-    for i, c in enumerate(obj.get("contacts", [])):
-        try:
-            t_on, t_off = float(c["t_on"]), float(c["t_off"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise _fail(path, f"contacts[{i}]: needs numeric t_on and t_off") from exc
+    for i, c in enumerate(raw_contacts):
+        t_on = _number(c.get("t_on")) if isinstance(c, dict) else None
+        t_off = _number(c.get("t_off")) if isinstance(c, dict) else None
+        if t_on is None or t_off is None:
+            raise _fail(path, f"contacts[{i}]: needs numeric t_on and t_off")
         if t_off < t_on:
             raise _fail(path, f"contacts[{i}]: t_off {t_off} is before t_on {t_on}")
-        contact_path = None
-        if c.get("path") is not None:
-            arr = np.asarray(c["path"], dtype=np.float64)
-            if arr.ndim != 2 or arr.shape[1] != 3:
-                raise _fail(path, f"contacts[{i}].path: expected rows of [t, x, y]")
-            contact_path = arr
-        contacts.append(Contact(t_on, t_off, contact_path))
+        contacts.append(Contact(t_on, t_off, _parse_path(path, i, c.get("path"))))
     return Labels(label=label, clip=clip, target=target, contacts=tuple(contacts))
+
+
+def _parse_path(path: Path, i: int, raw: Any) -> np.ndarray | None:
+    """A contact's ``[t, x, y]`` rows as an (K, 3) float array, or ``None`` when absent."""
+    if raw is None:
+        return None
+    rows = raw if isinstance(raw, list) else [None]
+    if not all(isinstance(r, list) and len(r) == 3 and None not in map(_number, r) for r in rows):
+        raise _fail(path, f"contacts[{i}].path: expected rows of three numbers [t, x, y]")
+    return np.asarray(rows, dtype=np.float64).reshape(-1, 3)
 
 
 class Recording:
@@ -230,11 +262,17 @@ class Recording:
         video = self.path / "camera.mkv"
         if not video.is_file():
             raise _fail(video, "missing file")
-        count = _frame_count(video)
+        count, size = _probe_video(video)
         if count != len(self.timestamps):
             raise _fail(
                 self.path / "camera_ts.txt",
                 f"{len(self.timestamps)} timestamps but camera.mkv has {count} frames",
+            )
+        declared = (self.meta.camera.width, self.meta.camera.height)
+        if size is not None and size != declared:
+            raise _fail(
+                self.path / "meta.json",
+                f"camera is {declared[0]}x{declared[1]} but camera.mkv holds {size[0]}x{size[1]} frames",
             )
         labels_path = self.path / "labels.json"
         self.labels: Labels | None = _parse_labels(labels_path) if labels_path.exists() else None
@@ -283,19 +321,27 @@ class Recording:
         return ThermalData(t=t, celsius=celsius, eeprom=eeprom, ram=ram)
 
 
-def _frame_count(video: Path) -> int:
-    """Exact frame count by decoding (container metadata is not trusted for FFV1 in MKV)."""
+def _probe_video(video: Path) -> tuple[int, tuple[int, int] | None]:
+    """Exact frame count and the first frame's (width, height), by decoding.
+
+    Container metadata is not trusted for FFV1 in MKV, so frames are counted one by one; the first is
+    decoded in full to learn the size the pixels really have.
+    """
     cap = cv2.VideoCapture(str(video))
     if not cap.isOpened():
         raise _fail(video, "cannot be decoded")
     cap.set(cv2.CAP_PROP_CONVERT_RGB, 0)
     count = 0
+    size = None
     try:
-        while cap.grab():
-            count += 1
+        ok, first = cap.read()
+        if ok:
+            count, size = 1, (int(first.shape[1]), int(first.shape[0]))
+            while cap.grab():
+                count += 1
     finally:
         cap.release()
-    return count
+    return count, size
 
 
 def _as_pixel_format(frame: np.ndarray, gray: bool) -> np.ndarray:
@@ -323,11 +369,49 @@ def find_recordings(root: str | Path) -> list[Path]:
     return found
 
 
+RESERVE_BYTES = 32 * 1024 * 1024
+"""Free space a take stops at, so the small files that close it still fit (see :class:`DiskFull`)."""
+
+
+class DiskFull(OSError):
+    """The disk is nearly full: the take stops here and can still be closed as a valid, shorter recording."""
+
+    def __init__(self, path: Path, free: int) -> None:
+        super().__init__(errno.ENOSPC, f"disk nearly full ({free / 1e6:.1f} MB free)", str(path))
+
+
+def free_bytes(path: Path) -> int:
+    """Bytes an unprivileged writer may still use on the file system holding ``path``."""
+    return shutil.disk_usage(path).free
+
+
+def write_durably(path: Path, data: bytes) -> None:
+    """Write ``data`` to a new file and fsync it, so a power cut after the rename cannot leave it empty."""
+    with path.open("wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def fsync_path(path: Path) -> None:
+    """fsync an existing file or directory (a directory's fsync makes the names in it durable)."""
+    fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if path.is_dir() else 0))
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
 class RecordingWriter:
-    """Writes one recording atomically: into a temp dir beside the target, renamed on close.
+    """Writes one recording atomically: into a temp dir beside the target, fsynced, renamed on close.
 
     Use as a context manager; an exception inside the block discards the
     partial recording, so a crash never leaves something that looks whole.
+    The video goes to disk as frames come (FFmpeg writes it, where Python
+    cannot see a failed write), so ``add_frame`` refuses a frame with
+    :class:`DiskFull` once less than ``reserve_bytes`` are free; the frame
+    times stay in memory until ``close`` and so always match the frames
+    written. ``free`` is how free space is measured (a test gives a tiny disk).
     """
 
     def __init__(
@@ -344,6 +428,8 @@ class RecordingWriter:
         roi: tuple[int, int, int, int] | None = None,
         extra_meta: dict[str, Any] | None = None,
         overwrite: bool = False,
+        reserve_bytes: int = RESERVE_BYTES,
+        free: Callable[[Path], int] | None = None,
     ) -> None:
         if pixel_format not in PIXEL_FORMATS:
             raise ValueError(f"pixel_format must be one of {PIXEL_FORMATS}")
@@ -373,7 +459,9 @@ class RecordingWriter:
         if not self._video.isOpened():
             shutil.rmtree(self._tmp, ignore_errors=True)
             raise RuntimeError("OpenCV cannot write FFV1/Matroska here (needs its FFmpeg backend)")
-        self._ts = (self._tmp / "camera_ts.txt").open("w", encoding="utf-8")
+        self._times: list[float] = []
+        self._reserve = reserve_bytes
+        self._free = free if free is not None else free_bytes
         self._last_t = -math.inf
         self._labels: Labels | None = None
         self._thermal: ThermalData | None = None
@@ -392,8 +480,10 @@ class RecordingWriter:
             frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
         if not self._gray and frame.ndim == 2:
             frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+        if (free := self._free(self._tmp)) < self._reserve:
+            raise DiskFull(self._tmp, free)
         self._video.write(np.ascontiguousarray(frame))
-        self._ts.write(f"{t:.6f}\n")
+        self._times.append(t)
         self._last_t = t
         self.frames_written += 1
 
@@ -405,27 +495,41 @@ class RecordingWriter:
         self._meta["thermal"] = {"width": 32, "height": 24, "fps": fps}
 
     def close(self) -> Path:
-        """Finish the files and move the recording into place."""
+        """Finish the files, make them durable and move the recording into place.
+
+        If that fails (a full disk, say) the temp dir is removed and the error raised: nothing half is left.
+        """
         self._video.release()
-        self._ts.close()
-        (self._tmp / "meta.json").write_text(json.dumps(self._meta, indent=1) + "\n", encoding="utf-8")
+        try:
+            self._finish_files()
+            if self.path.exists() and self._overwrite:
+                shutil.rmtree(self.path)
+            os.replace(self._tmp, self.path)
+            fsync_path(self.path.parent)
+        except BaseException:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise
+        return self.path
+
+    def _finish_files(self) -> None:
+        write_durably(self._tmp / "camera_ts.txt", "".join(f"{t:.6f}\n" for t in self._times).encode())
+        write_durably(self._tmp / "meta.json", (json.dumps(self._meta, indent=1) + "\n").encode())
         if self._labels is not None:
-            (self._tmp / "labels.json").write_text(json.dumps(self._labels.to_json()) + "\n", encoding="utf-8")
+            write_durably(self._tmp / "labels.json", (json.dumps(self._labels.to_json()) + "\n").encode())
         if self._thermal is not None:
             arrays: dict[str, np.ndarray] = {"t": self._thermal.t, "celsius": self._thermal.celsius}
             if self._thermal.eeprom is not None:
                 arrays["eeprom"] = self._thermal.eeprom
             if self._thermal.ram is not None:
                 arrays["ram"] = self._thermal.ram
-            np.savez_compressed(self._tmp / "thermal.npz", **arrays)
-        if self.path.exists() and self._overwrite:
-            shutil.rmtree(self.path)
-        os.replace(self._tmp, self.path)
-        return self.path
+            buffer = io.BytesIO()
+            np.savez_compressed(buffer, **arrays)
+            write_durably(self._tmp / "thermal.npz", buffer.getvalue())
+        fsync_path(self._tmp / "camera.mkv")
+        fsync_path(self._tmp)
 
     def abort(self) -> None:
         self._video.release()
-        self._ts.close()
         shutil.rmtree(self._tmp, ignore_errors=True)
 
     def __enter__(self) -> "RecordingWriter":

@@ -8,9 +8,14 @@ from feelium.cli import CommandRegistry
 
 
 def register(registry: CommandRegistry) -> None:
-    rec = registry.command("record", "Record the live rear camera (format v1) to collect real data on the blimp.", _record)
+    rec = registry.command(
+        "record",
+        "Record the live rear camera (format v1) to collect real data on the blimp. SIGTERM, SIGINT (Ctrl-C) or "
+        "SIGHUP end the take early and keep it (exit 0); a nearly full disk keeps a shorter take and exits 1.",
+        _record,
+    )
     rec.add_argument("--out", required=True, help="recording directory to create (must not exist)")
-    rec.add_argument("--seconds", type=float, default=None, help="stop after this much camera time (default: Ctrl-C)")
+    rec.add_argument("--seconds", type=float, default=None, help="stop after this much camera time (default: until stopped)")
     rec.add_argument("--config", help="TOML config file ([rear_camera] chooses the camera)")
     rec.add_argument("--sim", action="store_true", help="record the scene simulator instead of the camera")
     rec.add_argument("--name", help="recording name (default: rec-<date>-<time>)")
@@ -21,11 +26,12 @@ def _record(args: argparse.Namespace) -> int:
     import dataclasses
     import logging
     import sys
+    import threading
     import time
     from pathlib import Path
 
     from feelium.cameras.base import CameraUnavailable
-    from feelium.cameras.record import default_name, record
+    from feelium.cameras.record import default_name, record, stop_on_signals
     from feelium.daemon.assembly import rear_camera
     from feelium.daemon.config import load_config
     from feelium.daemon.journal import setup_logging
@@ -58,19 +64,29 @@ def _record(args: argparse.Namespace) -> int:
             shown["at"] = t
             print(f"{frames} frames, {t:.1f} s", file=sys.stderr)
 
+    stop = threading.Event()
     try:
-        path = record(
-            camera,
-            out,
-            seconds=args.seconds,
-            fps=config.rear_camera.fps,
-            name=name,
-            session=args.session,
-            source="device" if source.backend == "picamera2" else "synthetic",
-            extra_meta={"recorder": {"backend": source.backend, "config": dataclasses.asdict(config.rear_camera)}},
-            on_frame=progress,
-        )
+        with stop_on_signals(stop) as caught:
+            take = record(
+                camera,
+                out,
+                seconds=args.seconds,
+                fps=config.rear_camera.fps,
+                name=name,
+                session=args.session,
+                source="device" if source.backend == "picamera2" else "synthetic",
+                extra_meta={"recorder": {"backend": source.backend, "config": dataclasses.asdict(config.rear_camera)}},
+                stop=stop,
+                on_frame=progress,
+            )
+    except OSError as exc:  # the writer removed its temp dir: nothing half is left
+        print(f"feelium record: cannot write {out}: {exc.strerror or exc}; nothing kept", file=sys.stderr)
+        return 1
     finally:
         camera.close()
-    print(f"recorded {path}")
+    summary = f"{take.path} ({take.frames} frames, {take.seconds:.1f} s)"
+    if take.ended == "disk full":
+        print(f"feelium record: {take.problem} in {out.parent}: kept a shorter take {summary}", file=sys.stderr)
+        return 1
+    print(f"recorded {summary}" + (f"; stopped by {caught[0]}" if caught else ""))
     return 0

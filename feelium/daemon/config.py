@@ -7,6 +7,7 @@ through a flight.
 
 from __future__ import annotations
 
+import codecs
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -87,14 +88,25 @@ def parse_config(text: str, source: str = "<string>") -> Config:
 
 
 def load_config(path: str | Path | None) -> Config:
-    """Load and validate a config file; ``None`` gives the documented defaults."""
+    """Load and validate a config file; ``None`` gives the documented defaults.
+
+    TOML is UTF-8. A leading byte-order mark (what some Windows editors write) is accepted and an empty
+    file means every default, as every key is optional; any other undecodable byte is a one-line error
+    naming the file and the byte's offset rather than a traceback.
+    """
     if path is None:
         return Config()
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except OSError as exc:
         raise ConfigError(str(path), "(file)", f"cannot read: {exc.strerror}") from exc
+    bom = len(codecs.BOM_UTF8) if data.startswith(codecs.BOM_UTF8) else 0
+    try:
+        text = data[bom:].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        offset = bom + exc.start
+        raise ConfigError(str(path), "(file)", f"not UTF-8 text: byte 0x{data[offset]:02x} at offset {offset}") from exc
     return parse_config(text, str(path))
 
 

@@ -35,7 +35,7 @@ class ScriptedCamera:
 
 def test_records_until_the_time_limit_with_the_cameras_timestamps(tmp_path):
     camera = ScriptedCamera([10.0, 10.07, 10.13, 10.2, 10.27, 10.33, 10.4])
-    path = record(camera, tmp_path / "r", seconds=0.3, fps=15.0, name="r", session="lab")
+    path = record(camera, tmp_path / "r", seconds=0.3, fps=15.0, name="r", session="lab").path
     rec = Recording(path)
     assert rec.timestamps.tolist() == pytest.approx([0.0, 0.07, 0.13, 0.2, 0.27])
     assert rec.meta.roi == (1, 1, 4, 4) and rec.meta.session == "lab" and rec.meta.source == "device"
@@ -43,14 +43,14 @@ def test_records_until_the_time_limit_with_the_cameras_timestamps(tmp_path):
 
 
 def test_a_repeated_timestamp_is_dropped_so_the_file_stays_valid(tmp_path):
-    path = record(ScriptedCamera([0.0, 0.1, 0.1, 0.2]), tmp_path / "r", seconds=None, fps=10.0, name="r")
+    path = record(ScriptedCamera([0.0, 0.1, 0.1, 0.2]), tmp_path / "r", seconds=None, fps=10.0, name="r").path
     assert Recording(path).timestamps.tolist() == pytest.approx([0.0, 0.1, 0.2])
 
 
 def test_ctrl_c_finishes_the_recording_but_a_crash_leaves_nothing(tmp_path):
     path = record(
         ScriptedCamera([0.0, 0.1, 0.2], fail_at=3, exc=KeyboardInterrupt()), tmp_path / "ok", seconds=None, fps=10.0, name="ok"
-    )
+    ).path
     assert len(Recording(path)) == 2
     with pytest.raises(OSError):
         record(ScriptedCamera([0.0, 0.1, 0.2], fail_at=3, exc=OSError("gone")), tmp_path / "bad", seconds=None, fps=10.0, name="b")
@@ -71,7 +71,7 @@ def test_the_thermal_seam_writes_thermal_npz(tmp_path):
         def result(self):
             return ThermalData(t=np.array(self.t), celsius=np.full((len(self.t), 24, 32), 21.0, np.float32))
 
-    path = record(ScriptedCamera([0.0, 0.1, 0.2]), tmp_path / "r", seconds=None, fps=10.0, name="r", thermal=Thermal())
+    path = record(ScriptedCamera([0.0, 0.1, 0.2]), tmp_path / "r", seconds=None, fps=10.0, name="r", thermal=Thermal()).path
     thermal = Recording(path).thermal()
     assert thermal is not None and thermal.t.tolist() == pytest.approx([0.0, 0.1, 0.2])
 

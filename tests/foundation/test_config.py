@@ -86,3 +86,24 @@ def test_config_show_prints_effective_values(tmp_path, capsys):
     shown = capsys.readouterr().out
     assert "port = 9000" in shown
     assert parse_config(shown).http.port == 9000
+
+
+def test_a_leading_byte_order_mark_is_accepted(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf[http]\nport = 9000\n")
+    assert load_config(path).http.port == 9000
+
+
+def test_an_empty_file_means_every_default(tmp_path):
+    path = tmp_path / "empty.toml"
+    path.write_bytes(b"")
+    assert load_config(path) == Config()
+
+
+def test_non_utf8_is_one_line_naming_the_file_and_the_byte(tmp_path, capsys):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes("[sim]\n# caf\u00e9\n".encode("latin-1"))
+    assert main(["config", "check", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert str(path) in err and "not UTF-8" in err and "0xe9 at offset 11" in err

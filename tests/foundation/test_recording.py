@@ -92,6 +92,10 @@ def test_backwards_timestamps_are_named(tmp_path):
         ({"format": "other"}, "format must be"),
         ({"roi": [0, 0, 999, 10]}, "does not fit"),
         ({"camera": {"width": 64}}, "camera: missing or bad field"),
+        ({"roi": ["a", 0, 10, 10]}, "roi: expected"),
+        ({"roi": [0.5, 0, 10, 10]}, "whole pixels"),
+        ({"camera": {"width": 64, "height": 48, "fps": 0, "pixel_format": "gray8"}}, "camera.fps must be"),
+        ({"camera": {"width": 128, "height": 48, "fps": 15.0, "pixel_format": "gray8"}}, "camera.mkv holds 64x48"),
     ],
 )
 def test_bad_meta_is_named(tmp_path, patch, message):
@@ -137,3 +141,32 @@ def test_thermal_round_trip_and_dataset_discovery(tmp_path):
         find_recordings(tmp_path / "empty")
     with pytest.raises(RecordingError, match="no such file"):
         find_recordings(tmp_path / "absent")
+
+
+def test_repeated_timestamps_are_named(tmp_path):
+    _write(tmp_path / "r")
+    ts = tmp_path / "r" / "camera_ts.txt"
+    lines = ts.read_text().splitlines()
+    lines[3] = lines[2]
+    ts.write_text("\n".join(lines) + "\n")
+    with pytest.raises(RecordingError, match=r"camera_ts.txt: line 4: time repeats"):
+        Recording(tmp_path / "r")
+
+
+@pytest.mark.parametrize(
+    ("labels", "message"),
+    [
+        ({"label": "tap", "target": ["x", 1]}, "target: expected"),
+        ({"label": "tap", "contacts": {"t_on": 1}}, "contacts: expected a list"),
+        ({"label": "tap", "contacts": [3]}, r"contacts\[0\]: needs numeric"),
+        ({"label": "tap", "contacts": [{"t_on": "1", "t_off": 2}]}, r"contacts\[0\]: needs numeric"),
+        ({"label": "tap", "contacts": [{"t_on": 1, "t_off": 2, "path": [[1, 2, 3], [1, 2]]}]}, r"contacts\[0\].path"),
+        ({"label": "tap", "contacts": [{"t_on": 1, "t_off": 2, "path": [[1, "a", 3]]}]}, r"contacts\[0\].path"),
+    ],
+)
+def test_bad_labels_are_named_not_a_traceback(tmp_path, labels, message):
+    _write(tmp_path / "r")
+    (tmp_path / "r" / "labels.json").write_text(json.dumps(labels))
+    with pytest.raises(RecordingError, match=message) as info:
+        Recording(tmp_path / "r")
+    assert "labels.json" in str(info.value)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import sys
 from dataclasses import replace
@@ -14,6 +15,7 @@ import numpy as np
 from feelium.daemon.config import load_config
 from feelium.lab.plot import Series, line_plot
 from feelium.recording import Recording, RecordingError, find_recordings
+from feelium.lab.touch.skips import Skips
 from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
@@ -22,10 +24,6 @@ from feelium.lab.touch.replay import ReplayResult, relative_name, replay_recordi
 
 def _touch_config(path: str | None) -> TouchConfig:
     return load_config(path).touch
-
-
-def _open_all(root: Path) -> list[Recording]:
-    return [Recording(p) for p in find_recordings(root)]
 
 
 # -- replay ------------------------------------------------------------------------------
@@ -38,9 +36,9 @@ def run_replay(args: argparse.Namespace) -> int:
     dataset = not (len(paths) == 1 and paths[0].resolve() == root.resolve())
     annotate = Path(args.annotate) if args.annotate else None
     out = sys.stdout
-    for path in paths:
-        recording = Recording(path)
-        name = relative_name(root, path)
+    skips = Skips("replay")
+    for recording in skips.recordings(root):
+        name = relative_name(root, recording.path)
         writer = None
         on_frame = None
         if annotate is not None:
@@ -48,17 +46,19 @@ def run_replay(args: argparse.Namespace) -> int:
             writer = _VideoOut(target, recording.meta.camera.fps, (recording.meta.camera.width, recording.meta.camera.height))
             on_frame = writer.frame_hook(recording.meta.roi)
         try:
-            result = replay_recording(recording, config, on_frame=on_frame)
+            result = skips.attempt(lambda: replay_recording(recording, config, on_frame=on_frame))
         finally:
             if writer is not None:
                 writer.close()
+        if result is None:
+            continue
         for event in result.events:
             obj = event.to_json()
             if dataset:
                 obj["recording"] = name
             out.write(json.dumps(obj) + "\n")
         out.flush()
-    return 0
+    return skips.finish()
 
 
 class _VideoOut:
@@ -101,20 +101,29 @@ def _clip_series(result: ReplayResult) -> ClipSeries:
     return ClipSeries(labels.label, result.t, result.anchor, result.core_depth, result.edge, contact)
 
 
-def fit_on_clips(recordings: list[Recording], config: TouchConfig) -> Fit:
-    """Fit the contact edge first, then replay the clips with it and fit the depth thresholds."""
-    clips = [r for r in recordings if r.labels is not None and r.labels.clip and r.labels.label in ("contact", "hover")]
-    if not clips:
+def fit_on_clips(recordings: list[Recording], config: TouchConfig, skips: Skips) -> Fit:
+    """Fit the contact edge first, then replay the clips with it and fit the depth thresholds.
+
+    A clip whose video turns out bad while replaying is reported through ``skips`` and left out.
+    """
+    first: list[tuple[Recording, ReplayResult]] = []
+    for r in recordings:
+        if r.labels is not None and r.labels.clip and r.labels.label in ("contact", "hover"):
+            result = skips.attempt(lambda: replay_recording(r, config))
+            if result is not None:
+                first.append((r, result))
+    if not first:
         raise ValueError("no continuous contact/hover clips in this dataset (labels with \"clip\": true)")
-    edge = fit_edge([_clip_series(replay_recording(r, config)) for r in clips])
+    edge = fit_edge([_clip_series(result) for _, result in first])
     with_edge = replace(config, contact_edge=edge)
-    return fit_gates([_clip_series(replay_recording(r, with_edge)) for r in clips], edge)
+    return fit_gates([_clip_series(replay_recording(r, with_edge)) for r, _ in first], edge)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
     config = _touch_config(args.config)
+    skips = Skips("calibrate touch")
     try:
-        fit = fit_on_clips(_open_all(Path(args.dataset)), config)
+        fit = fit_on_clips(list(skips.recordings(Path(args.dataset))), config, skips)
     except ValueError as exc:
         print(f"feelium calibrate touch: {exc}", file=sys.stderr)
         return 1
@@ -125,7 +134,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         print(f"wrote {args.out}: " + ", ".join(f"{k} = {v}" for k, v in fit.values().items()))
     else:
         sys.stdout.write(text)
-    return 0
+    return skips.finish()
 
 
 # -- eval --------------------------------------------------------------------------------
@@ -146,15 +155,23 @@ def scoring_input(root: Path, result: ReplayResult) -> TrialData | ClipData:
     )
 
 
-def evaluate_dataset(root: Path, config: TouchConfig, *, dataset_name: str | None = None, plain: bool = False):
-    """Replay every labelled recording under ``root`` and build the report; returns (report, clips)."""
+def evaluate_dataset(
+    root: Path, config: TouchConfig, *, dataset_name: str | None = None, plain: bool = False, skips: Skips | None = None
+):
+    """Replay every good labelled recording under ``root`` and build the report; returns (report, clips).
+
+    Bad recordings are reported through ``skips`` and left out (a fresh :class:`Skips` when not given).
+    """
+    skips = skips if skips is not None else Skips("eval")
     trials: list[TrialData] = []
     clips: list[ClipData] = []
     timings = []
-    for recording in _open_all(root):
+    for recording in skips.recordings(root):
         if recording.labels is None:
             continue
-        result = replay_recording(recording, config, plain=plain)
+        result = skips.attempt(lambda: replay_recording(recording, config, plain=plain))
+        if result is None:
+            continue
         timings.append(result.seconds_per_frame)
         item = scoring_input(root, result)
         (clips if isinstance(item, ClipData) else trials).append(item)  # type: ignore[arg-type]
@@ -172,13 +189,16 @@ def run_eval(args: argparse.Namespace) -> int:
     fitted: dict[str, float] | None = None
     if args.fit_on_clips:
         try:
-            fit = fit_on_clips(_open_all(root), config)
+            # quiet: the scoring pass below meets the same bad recordings and reports them once
+            fitting = Skips("eval", err=io.StringIO())
+            fit = fit_on_clips(list(fitting.recordings(root)), config, fitting)
         except ValueError as exc:
             print(f"feelium eval: --fit-on-clips: {exc}", file=sys.stderr)
             return 1
         fitted = fit.values()
         config = replace(config, **fitted)
-    report, clips = evaluate_dataset(root, config, dataset_name=args.dataset)
+    skips = Skips("eval")
+    report, clips = evaluate_dataset(root, config, dataset_name=args.dataset, skips=skips)
     report["touch_config"] = {
         "fitted_on_clips": fitted is not None,
         "contact_edge": config.contact_edge,
@@ -200,7 +220,7 @@ def run_eval(args: argparse.Namespace) -> int:
         print(f"figure: {figure}")
     if args.json:
         print(f"report: {args.json}")
-    return 0
+    return skips.finish()
 
 
 def write_anchoring_figure(path: Path, clips: list[ClipData], threshold: float | None) -> bool:

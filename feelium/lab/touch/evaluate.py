@@ -1,4 +1,4 @@
-"""Scoring of `feelium eval`: `shared/specs/evaluation.md`, version 1, exactly.
+"""Scoring of `feelium eval`: `docs/evaluation.md`, version 1, exactly.
 
 Pure functions over what the pipeline emitted (events and per-frame series)
 and the labels; labels are only read to score. Every key of the report is

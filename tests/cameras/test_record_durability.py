@@ -1,0 +1,124 @@
+"""`feelium record` never loses a take or leaves half of one: signals, a full disk, a failing final write."""
+
+from __future__ import annotations
+
+import errno
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from feelium import recording
+from feelium.cameras.record import record
+from feelium.cli import main
+from feelium.recording import Recording
+from tests.cameras.test_record import ScriptedCamera
+
+ROOT = Path(__file__).resolve().parents[2]
+MB = 1_000_000
+
+
+class FillingDisk:
+    """A disk that loses ``per_frame`` bytes with every frame written, starting with ``free`` bytes."""
+
+    def __init__(self, free: int, per_frame: int) -> None:
+        self.free, self.per_frame = free, per_frame
+
+    def __call__(self, path: Path) -> int:
+        left = self.free
+        self.free -= self.per_frame
+        return left
+
+
+def _leftovers(directory: Path) -> list[str]:
+    return sorted(p.name for p in directory.iterdir())
+
+
+def test_a_filling_disk_ends_the_take_short_and_valid(tmp_path):
+    disk = FillingDisk(free=recording.RESERVE_BYTES + 3 * MB + 1, per_frame=MB)  # room for four frames
+    take = record(ScriptedCamera([i / 10 for i in range(20)]), tmp_path / "r", seconds=None, fps=10.0, name="r",
+                  writer_options={"free": disk})  # fmt: skip
+    assert take.ended == "disk full" and "disk nearly full" in take.problem
+    assert take.frames == 4 and len(Recording(take.path)) == 4
+    assert _leftovers(tmp_path) == ["r"]
+
+
+def test_the_record_command_says_so_in_one_line_and_keeps_the_take(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(recording, "free_bytes", FillingDisk(free=recording.RESERVE_BYTES + 5 * MB, per_frame=MB))
+    out = tmp_path / "r"
+    assert main(["record", "--sim", "--out", str(out), "--seconds", "5"]) == 1
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("feelium record:")]
+    free = (recording.RESERVE_BYTES - MB) / 1e6  # six frames fit above the reserve, the seventh does not
+    assert err == [f"feelium record: disk nearly full ({free:.1f} MB free) in {tmp_path}: kept a shorter take {out} (6 frames, 0.3 s)"]
+    assert len(Recording(out)) == 6 and _leftovers(tmp_path) == ["r"]
+
+
+def _enospc_after(limit: int):
+    """``write_durably`` on a disk that takes ``limit`` more bytes, then fails like a full one."""
+    real = recording.write_durably
+    room = {"left": limit}
+
+    def write(path: Path, data: bytes) -> None:
+        if len(data) > room["left"]:
+            path.write_bytes(data[: room["left"]])
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        room["left"] -= len(data)
+        real(path, data)
+
+    return write
+
+
+def test_no_room_for_the_closing_files_leaves_nothing_and_one_line(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(recording, "write_durably", _enospc_after(40))  # the times fit, meta.json does not
+    out = tmp_path / "r"
+    assert main(["record", "--sim", "--out", str(out), "--seconds", "0.3"]) == 1
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("feelium record:")]
+    assert err == [f"feelium record: cannot write {out}: No space left on device; nothing kept"]
+    assert _leftovers(tmp_path) == []  # neither the take nor its temp dir
+
+
+def test_close_fsyncs_every_file_and_both_directories(tmp_path, monkeypatch):
+    synced: list[str] = []
+    real = os.fsync
+
+    def fsync(fd: int) -> None:
+        synced.append(os.readlink(f"/proc/self/fd/{fd}"))
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    take = record(ScriptedCamera([0.0, 0.1]), tmp_path / "r", seconds=None, fps=10.0, name="r")
+    names = [Path(p).name for p in synced]
+    assert {"camera_ts.txt", "meta.json", "camera.mkv"} <= set(names)
+    assert any(n.startswith(".r.") for n in names)  # the temp dir, before the rename
+    assert synced[-1] == str(tmp_path)  # the parent, after it: the new name is durable
+    assert take.path == tmp_path / "r"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
+def test_a_stop_signal_finishes_a_valid_shorter_take(tmp_path, sig):
+    out = tmp_path / "r"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "feelium", "record", "--sim", "--out", str(out), "--seconds", "60"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 30
+        while not any(p.name.startswith(".r.") for p in tmp_path.iterdir()):
+            assert proc.poll() is None and time.monotonic() < deadline, "the take never started"
+            time.sleep(0.05)
+        time.sleep(0.5)  # a few frames
+        proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=20)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, stderr
+    assert f"stopped by {sig.name}" in stdout
+    rec = Recording(out)
+    assert len(rec) >= 2 and np.all(np.diff(rec.timestamps) > 0)
+    assert _leftovers(tmp_path) == ["r"]
