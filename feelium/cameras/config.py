@@ -42,7 +42,7 @@ class RearCameraConfig:
         5.0, "Rate of annotated rear frames (touch overlay) published for the debug view; 0 = none.", min=0.0, max=60.0
     )
     stale_after_s: float = setting(
-        2.0, "The touch pipeline counts as dead (watchdog not fed) when no frame was processed for this long.",
+        2.0, "Health reports the touch pipeline degraded when no rear frame was processed for this long.",
         min=0.1, max=60.0,
     )
     projection_compensation: Literal["auto", "on", "off"] = setting(

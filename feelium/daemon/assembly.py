@@ -64,6 +64,7 @@ def build_touch(config: Config, hub: Hub) -> Service | None:
         debug_video_fps=config.rear_camera.debug_video_fps,
         annotation=load_projector_annotation(config),
         backlight=load_projected_backlight(config, hub, source.backend),
+        stale_after_s=config.rear_camera.stale_after_s,
     )
 
 

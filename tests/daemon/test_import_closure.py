@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -31,6 +33,7 @@ def test_the_running_daemon_loads_no_lab_or_cli_module(tmp_path):
     done = subprocess.run(
         [sys.executable, "-c", RUN_AND_LIST, str(tmp_path / "token")],
         capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
+        env=dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2])),  # this checkout's feelium
     )
     assert done.returncode == 0, done.stderr[-2000:]
     report = json.loads(done.stdout.strip().splitlines()[-1])
