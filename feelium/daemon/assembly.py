@@ -183,22 +183,22 @@ class Built:
 
 
 def build_services(config: Config, hub: Hub, builders: tuple[tuple[str, ServiceBuilder], ...] = SERVICES) -> Built:
-    """Build every part; a part that fails is logged with its traceback and reported, and the rest still start."""
+    """Build every part; a part that fails is logged with its traceback and reported (and retried), the rest still start."""
     built = Built()
     for part, build in builders:
         try:
             service = build(config, hub)
             if service is not None and not isinstance(service, Service):
                 raise TypeError(f"{part} built {service!r}, which is not a Service (name, stop_order, run, stop, health)")
-        except Exception as exc:
-            log.error("cannot start %s: %s", part, exc, exc_info=True)
+        except Exception as exc:  # the traceback here; health reports the part failed (and logs that, once)
+            log.warning("cannot build %s: %s", part, exc, exc_info=True)
             built.failures[part] = f"{type(exc).__name__}: {exc}"
             continue
         if service is None:
             log.debug("%s: off in the config", part)
         elif any(s.name == service.name for s in built.services):
             built.failures[part] = f"duplicate service name {service.name!r}"
-            log.error("cannot start %s: duplicate service name %r", part, service.name)
+            log.warning("cannot build %s: duplicate service name %r", part, service.name)
         else:
             built.services.append(service)
             log.debug("%s: %s", part, service.name)

@@ -235,6 +235,9 @@ class Supervisor:
             entry: dict[str, Any] = _safe_health(record.service)
             retry_in = None if record.restart_at is None else max(0.0, record.restart_at - now)
             state, reason = judge(record.state, entry, self.simulated.get(name), record.last_crash, retry_in)
+            current = self.tracker.parts.get(name)
+            if state == "starting" and current is not None and current.state == "failed":
+                state, reason = "failed", current.reason  # a restart is no recovery until the part works again
             if "health_error" in entry and state in ("ok", "simulated"):
                 state, reason = "degraded", f"health() failed: {entry['health_error']}"
             self.tracker.update(name, state, reason)
@@ -255,7 +258,7 @@ class Supervisor:
             retry_at = self.rebuild_at.get(part)
             retry = "" if retry_at is None else f"; retrying in {max(0.0, retry_at - now):.1f} s"
             self.tracker.update(part, "failed", f"cannot build: {error}{retry}")
-            services[part] = {**self.tracker.entry(part), "task": "unbuilt", "last_error": error}
+            services[part] = {**self.tracker.entry(part), "task": "unbuilt", "simulated": part in self.simulated, "last_error": error}
         phase = self.phase
         report: dict[str, Any] = {
             "status": phase if phase != "running" else overall([s["state"] for s in services.values()]),

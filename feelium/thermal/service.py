@@ -173,7 +173,7 @@ class ThermalService:
     def _condition(self) -> dict[str, str]:
         """Failing reads are the part's health: a missing or dead sensor must not read as ok."""
         if self._consecutive_failures >= FAILED_AFTER or (self._consecutive_failures and not self.frames):
-            return {"condition": "failed", "reason": f"{self._consecutive_failures} attempts failed: {self.last_error}"}
+            return {"condition": "failed", "reason": f"sensor failed {self._consecutive_failures} times in a row: {self.last_error}"}
         if self._consecutive_failures:
             return {"condition": "degraded", "reason": f"read failed, retrying: {self.last_error}"}
         if not self.frames:

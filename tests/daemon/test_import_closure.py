@@ -19,8 +19,15 @@ async def main():
     config = with_overrides(Config(), sim=True)
     config = dataclasses.replace(config, http=dataclasses.replace(config.http, port=0, token_file=sys.argv[1]))
     stop = asyncio.Event()
-    asyncio.get_running_loop().call_later(2.5, stop.set)
-    supervisor = await run_daemon(config, stop=stop)
+    asyncio.get_running_loop().call_later(30.0, stop.set)
+
+    async def until_touch_ran(supervisor):  # the first processed frame, however loaded the machine is
+        while supervisor.records["touch"].service.frames < 1:
+            await asyncio.sleep(0.05)
+        stop.set()
+
+    watch = []
+    supervisor = await run_daemon(config, stop=stop, on_started=lambda hub, s: watch.append(asyncio.ensure_future(until_touch_ran(s))))
     return sorted(supervisor.records)
 
 services = asyncio.run(main())
