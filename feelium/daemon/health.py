@@ -24,7 +24,8 @@ log = logging.getLogger(__name__)
 STATES = ("ok", "simulated", "degraded", "failed", "starting", "stopped")
 BAD_STATES = ("degraded", "failed")
 OWN_CONDITIONS = ("ok", "degraded", "failed", "starting")
-LOG_LEVELS = {"failed": logging.ERROR, "degraded": logging.WARNING}
+# stopped: the supervisor already logs each service it stops, so the change is only worth a debug line
+LOG_LEVELS = {"failed": logging.ERROR, "degraded": logging.WARNING, "stopped": logging.DEBUG}
 
 
 def judge(task: str, own: dict[str, Any], simulated: str | None, crash: str | None, retry_in_s: float | None) -> tuple[str, str | None]:
@@ -86,7 +87,8 @@ class HealthTracker:
             current = self.parts[part] = fresh
             if previous is not None or state != "starting":
                 detail = f": {reason}" if reason else ""
-                log.log(LOG_LEVELS.get(state, logging.INFO), "%s: %s%s (was %s)", part, state, detail, previous or "new")
+                was = f" (was {previous})" if previous else ""
+                log.log(LOG_LEVELS.get(state, logging.INFO), "%s: %s%s%s", part, state, detail, was)
         else:
             current.reason = reason
         if state in BAD_STATES:
