@@ -8,9 +8,10 @@ Read this file to know every part that runs and what feeds what::
     microphone --SpeechOut--> bus --> http;   http --SpeechIn--> bus --> audio (speaker)
     headset --http--> hub.motion (dead man) --> flight --MSP--> motor board
 
-Each ``build_*`` function chooses a backend from the config (hardware when it
-is there, the simulated part otherwise) and returns the service, or ``None``
-when the config switches the part off. Services meet only in the
+Each ``build_*`` function builds the backend the config names (``auto`` is
+already resolved by ``feelium.daemon.backends``: the hardware on a Raspberry
+Pi, the simulated part elsewhere) and returns the service, or ``None`` when
+the config switches the part off. Services meet only in the
 :class:`~feelium.hub.Hub`; the wiring between parts that must share
 something (the projector calibration the touch service annotates with)
 happens here, so no service imports another. Adding a service is one line in
@@ -90,7 +91,7 @@ def build_thermal(config: Config, hub: Hub) -> Service | None:
 
 
 def build_audio(config: Config, hub: Hub) -> Service | None:
-    """Microphone -> ``SpeechOut`` on the bus; ``SpeechIn`` from the bus -> speaker (ALSA, else simulated)."""
+    """Microphone -> ``SpeechOut`` on the bus; ``SpeechIn`` from the bus -> speaker (ALSA or simulated)."""
     from feelium.audio.backends import AlsaMicrophone, AlsaSpeaker, Microphone, SimMicrophone, SimSpeaker, Speaker
     from feelium.audio.backends import alsa_available
     from feelium.audio.service import AudioService
