@@ -3,6 +3,7 @@
 SIGTERM, SIGINT, SIGHUP and SIGQUIT: the daemon's last word to the board is
 neutral (1500 us on all four motors), sent after the signal. SIGKILL and
 SIGABRT cannot be caught: the board's own 300 ms watchdog must set neutral.
+An exception escaping the daemon's loop: neutral, then exit 1.
 """
 
 from __future__ import annotations
@@ -104,3 +105,40 @@ def test_an_uncatchable_end_leaves_it_to_the_board_watchdog(tmp_path, board, sig
     assert board.motors_us() == NEUTRAL_MOTORS_US
     assert board.board.watchdog_trips >= 1
     assert died - arrived < 0.5  # the last command really was the dying daemon's
+
+
+CRASH_IN_THE_LOOP = """
+import logging
+import sys
+from feelium.daemon import runner
+from feelium.daemon.config import load_config
+from feelium.daemon.journal import setup_logging
+
+calls = []
+
+def status_line(report):  # a bug that shows only once the blimp flies: the daemon's own loop raises
+    calls.append(1)
+    if len(calls) > 3:
+        raise RuntimeError("a bug in the daemon's loop")
+    return "ok"
+
+runner.status_line = status_line
+setup_logging(logging.INFO)
+sys.exit(runner.run_process(load_config(sys.argv[1])))
+"""
+
+
+@pytest.mark.slow
+def test_an_unhandled_exception_sends_neutral_then_exits_1(tmp_path, board):
+    config = _config(tmp_path, board)
+    config.write_text(config.read_text() + "[daemon]\nstatus_interval_s = 0.5\n")
+    env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=os.getcwd())
+    env.pop("NOTIFY_SOCKET", None)
+    done = subprocess.run(
+        [sys.executable, "-c", CRASH_IN_THE_LOOP, str(config)], capture_output=True, text=True, timeout=60, env=env
+    )
+    out = done.stdout + done.stderr
+    assert done.returncode == 1, out
+    assert "the daemon failed; the motors were set neutral on the way out" in out and "a bug in the daemon's loop" in out
+    assert len(board.commands) > 25, out  # it flew before the bug struck
+    assert board.last_command()[1] == NEUTRAL_MOTORS_US
