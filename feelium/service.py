@@ -20,6 +20,13 @@ class Service(Protocol):
       ascending ``stop_order`` (flight is 0, so the motors are safe first);
       it must return quickly (well under a second).
     - ``health()`` is cheap and never raises: counters, rates, last error.
+      It may say how the part itself is doing, which the supervisor cannot
+      see from the task alone: ``condition`` (``ok``, ``degraded``,
+      ``failed`` or ``starting``) and ``reason``; a running service that
+      says nothing counts as ok.
+    - A service with ``vital = True`` (the flight loop) reports
+      ``heartbeat_at`` (the hub's clock at its newest cycle); the systemd
+      watchdog is fed only while that is fresh.
     """
 
     name: str

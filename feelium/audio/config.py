@@ -13,7 +13,7 @@ class AudioConfig:
     """Speech playback and capture on the blimp."""
 
     backend: Literal["auto", "alsa", "sim", "off"] = setting(
-        "auto", "Audio device; auto uses ALSA when a sound card is found, else the simulated speaker and microphone."
+        "auto", "Audio device; auto is ALSA on a Raspberry Pi and the simulated speaker and microphone elsewhere."
     )
     sample_rate: int = setting(16000, "Sample rate of speech both ways (PCM16 mono); uploads at other rates are resampled.",
                                min=8000, max=48000)

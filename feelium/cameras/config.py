@@ -24,7 +24,7 @@ class RearCameraConfig:
     """The rear (touch) camera inside the envelope."""
 
     backend: Literal["auto", "picamera2", "replay", "sim", "off"] = setting(
-        "auto", "Frame source; auto uses picamera2 when a camera is found, else sim; off runs no touch sensing."
+        "auto", "Frame source; auto is picamera2 on a Raspberry Pi (a missing camera fails loudly) and sim elsewhere; off runs no touch sensing."
     )
     replay_path: str = setting("", "Recording (or dataset directory) for the replay backend.")
     replay_realtime: bool = setting(True, "Replay at the recording's own pace; false = as fast as the pipeline runs.")
@@ -42,7 +42,7 @@ class RearCameraConfig:
         5.0, "Rate of annotated rear frames (touch overlay) published for the debug view; 0 = none.", min=0.0, max=60.0
     )
     stale_after_s: float = setting(
-        2.0, "The touch pipeline counts as dead (watchdog not fed) when no frame was processed for this long.",
+        2.0, "Health reports the touch pipeline degraded when no rear frame was processed for this long.",
         min=0.1, max=60.0,
     )
     projection_compensation: Literal["auto", "on", "off"] = setting(
@@ -62,7 +62,7 @@ class FrontCameraConfig:
     """The front fisheye camera: the wearer's eyes."""
 
     backend: Literal["auto", "picamera2", "v4l2", "replay", "sim", "off"] = setting(
-        "auto", "Frame source; auto uses picamera2 or a USB (v4l2) camera when found, else sim."
+        "auto", "Frame source; auto on a Raspberry Pi is picamera2 or a USB (v4l2) camera, never sim; elsewhere sim."
     )
     camera_index: int = setting(1, "picamera2 camera number of the front (fisheye) camera.", min=0, max=7)
     device: str = setting("/dev/video0", "V4L2 device of a USB front camera.")

@@ -59,7 +59,7 @@ def camera_count(module: ModuleType | None = None) -> int:
             return 0
         try:
             module = importlib.import_module("picamera2")
-        except Exception:  # a broken libcamera install counts as no camera: auto falls back to sim
+        except Exception:  # a broken libcamera install counts as no camera
             return 0
     try:
         return len(module.Picamera2.global_camera_info())

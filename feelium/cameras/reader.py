@@ -34,18 +34,54 @@ class Worker:
 
 
 class RateMeter:
-    """Frames per second over the last ``window`` timestamps (time is an input)."""
+    """Events per second over the last ``window_s`` seconds, read at a given time (time is an input).
 
-    def __init__(self, window: int = 30) -> None:
-        self._times: deque[float] = deque(maxlen=window)
+    Time-based so that it decays: a source that stops reads 0 once ``window_s``
+    has passed without a tick, and reads lower as soon as the gap since its last
+    tick grows beyond a usual interval. A count-based window would keep showing
+    the last rate of a stalled camera forever.
+    """
+
+    def __init__(self, window_s: float = 1.0) -> None:
+        self.window_s = window_s
+        self._times: deque[float] = deque()
 
     def tick(self, t: float) -> None:
         self._times.append(t)
+        self._forget(t)
 
-    def rate(self) -> float:
-        if len(self._times) < 2 or self._times[-1] <= self._times[0]:
+    def rate(self, now: float) -> float:
+        """The rate at ``now``: intervals seen in the window over the time they span, the open gap counted once it is late."""
+        self._forget(now)
+        times = self._times
+        if len(times) < 2:
             return 0.0
-        return (len(self._times) - 1) / (self._times[-1] - self._times[0])
+        intervals = len(times) - 1
+        span = times[-1] - times[0]
+        if span <= 0:
+            return 0.0
+        mean = span / intervals
+        # the gap since the newest tick counts only beyond one usual interval: a steady source reads its true rate
+        late = max(0.0, now - times[-1] - mean)
+        return intervals / (span + late)
+
+    def _forget(self, now: float) -> None:
+        while self._times and self._times[0] <= now - self.window_s:
+            self._times.popleft()
+
+
+def frame_condition(last_frame_at: float | None, now: float, stale_after_s: float, what: str) -> dict[str, str]:
+    """A camera-fed service's own view of its health, for the supervisor (``feelium.service``: condition, reason).
+
+    Starting until the first frame; degraded while frames have stopped coming, so
+    health never reports a camera as fine when it is silent.
+    """
+    if last_frame_at is None:
+        return {"condition": "starting", "reason": f"waiting for the first {what} frame"}
+    age = now - last_frame_at
+    if age > stale_after_s:
+        return {"condition": "degraded", "reason": f"no {what} frame for {age:.1f} s"}
+    return {"condition": "ok"}
 
 
 class FrameSlot:

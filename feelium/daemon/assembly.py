@@ -8,9 +8,10 @@ Read this file to know every part that runs and what feeds what::
     microphone --SpeechOut--> bus --> http;   http --SpeechIn--> bus --> audio (speaker)
     headset --http--> hub.motion (dead man) --> flight --MSP--> motor board
 
-Each ``build_*`` function chooses a backend from the config (hardware when it
-is there, the simulated part otherwise) and returns the service, or ``None``
-when the config switches the part off. Services meet only in the
+Each ``build_*`` function builds the backend the config names (``auto`` is
+already resolved by ``feelium.daemon.backends``: the hardware on a Raspberry
+Pi, the simulated part elsewhere) and returns the service, or ``None`` when
+the config switches the part off. Services meet only in the
 :class:`~feelium.hub.Hub`; the wiring between parts that must share
 something (the projector calibration the touch service annotates with)
 happens here, so no service imports another. Adding a service is one line in
@@ -65,6 +66,7 @@ def build_touch(config: Config, hub: Hub) -> Service | None:
         debug_video_fps=config.rear_camera.debug_video_fps,
         annotation=load_projector_annotation(config),
         backlight=load_projected_backlight(config, hub, source.backend),
+        stale_after_s=config.rear_camera.stale_after_s,
     )
 
 
@@ -90,7 +92,7 @@ def build_thermal(config: Config, hub: Hub) -> Service | None:
 
 
 def build_audio(config: Config, hub: Hub) -> Service | None:
-    """Microphone -> ``SpeechOut`` on the bus; ``SpeechIn`` from the bus -> speaker (ALSA, else simulated)."""
+    """Microphone -> ``SpeechOut`` on the bus; ``SpeechIn`` from the bus -> speaker (ALSA or simulated)."""
     from feelium.audio.backends import AlsaMicrophone, AlsaSpeaker, Microphone, SimMicrophone, SimSpeaker, Speaker
     from feelium.audio.backends import alsa_available
     from feelium.audio.service import AudioService
@@ -183,7 +185,7 @@ class Built:
 
 
 def build_services(config: Config, hub: Hub, builders: tuple[tuple[str, ServiceBuilder], ...] = SERVICES) -> Built:
-    """Build every part; a part that fails is logged with its traceback and reported, and the rest still start."""
+    """Build every part; a part that fails is logged with its traceback and reported (and retried), the rest still start."""
     built = Built()
     for part, build in builders:
         try:
@@ -192,15 +194,15 @@ def build_services(config: Config, hub: Hub, builders: tuple[tuple[str, ServiceB
                 raise TypeError(f"{part} built {service!r}, which is not a Service (name, stop_order, run, stop, health)")
         except ConfigError:
             raise  # a wrong setting (e.g. an unreadable TLS pair) stops the daemon: running without the part would hide it
-        except Exception as exc:
-            log.error("cannot start %s: %s", part, exc, exc_info=True)
+        except Exception as exc:  # the traceback here; health reports the part failed (and logs that, once)
+            log.warning("cannot build %s: %s", part, exc, exc_info=True)
             built.failures[part] = f"{type(exc).__name__}: {exc}"
             continue
         if service is None:
             log.debug("%s: off in the config", part)
         elif any(s.name == service.name for s in built.services):
             built.failures[part] = f"duplicate service name {service.name!r}"
-            log.error("cannot start %s: duplicate service name %r", part, service.name)
+            log.warning("cannot build %s: duplicate service name %r", part, service.name)
         else:
             built.services.append(service)
             log.debug("%s: %s", part, service.name)

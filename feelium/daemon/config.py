@@ -46,6 +46,13 @@ class DaemonConfig:
     shutdown_budget_s: float = setting(
         1.6, "Whole shutdown budget (stops, then cancels); systemd and tests expect exit within 2 s.", min=0.1, max=30.0
     )
+    flight_heartbeat_s: float = setting(
+        1.0,
+        "The systemd watchdog is fed only while the flight loop completed a cycle within this long (and the event "
+        "loop runs); a stuck flight loop then gets the daemon restarted, a camera or sensor fault never does.",
+        min=0.05,
+        max=30.0,
+    )
     status_interval_s: float = setting(
         10.0, "How often a one-line status goes to the log and to systemd (STATUS=).", min=0.5, max=3600.0
     )

@@ -1,4 +1,13 @@
-"""``feelium run``: build the services, supervise them, talk to systemd, stop cleanly on a signal."""
+"""``feelium run``: build the services, supervise them, talk to systemd, stop cleanly on a signal.
+
+Every way the process can end on its own terms goes through the supervisor's
+shutdown, which sets the motors neutral first: SIGTERM, SIGINT, SIGHUP and
+SIGQUIT (all four mean "stop": a reload would have to rebuild half the
+daemon, and ``systemctl restart`` already does that with the motors
+neutral), and an exception escaping the daemon's own loop. SIGKILL and
+SIGABRT cannot be caught (SIGABRT is also what systemd's watchdog sends):
+the motor board's own 300 ms watchdog sets the motors neutral then.
+"""
 
 from __future__ import annotations
 
@@ -11,20 +20,25 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, get_args, get_type_hints
 
 from feelium.daemon.config import Config
 from feelium.daemon.assembly import SERVICES, ServiceBuilder, build_services
+from feelium.daemon.backends import backend_names, on_raspberry_pi, resolve_auto, simulated_parts
 from feelium.daemon.memory import tune_malloc
 from feelium.daemon.sdnotify import Notifier
 from feelium.daemon.supervisor import Supervisor
 from feelium.hub import Hub
+from feelium.service import Service
+from feelium.settings import ConfigError
 
 log = logging.getLogger(__name__)
 
 SIM_BACKEND = "sim"  # every section's no-hardware backend (docs/architecture.md: Backends and sims)
 WORKER_THREADS = 8  # camera reads, the touch pipeline, overlays, other services' blocking calls
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGQUIT)
 
 
 def _has_sim_backend(section: Any) -> bool:
@@ -56,6 +70,10 @@ def status_line(report: dict[str, Any]) -> str:
     for name, entry in report.get("services", {}).items():
         if not entry.get("healthy", False):
             parts.append(f"{name} {entry.get('state')}")
+        elif entry.get("state") == "simulated" and isinstance(entry.get("fps"), (int, float)):
+            parts.append(f"{name} {entry['fps']:.1f} fps (simulated)")
+        elif entry.get("state") == "simulated":
+            parts.append(f"{name} simulated")
         elif isinstance(entry.get("fps"), (int, float)):
             parts.append(f"{name} {entry['fps']:.1f} fps")
     return f"{report.get('status', '?')}: " + (", ".join(parts) if parts else "no services")
@@ -69,26 +87,59 @@ async def run_daemon(
     notifier: Notifier | None = None,
     builders: tuple[tuple[str, ServiceBuilder], ...] = SERVICES,
     on_started: Any = None,
+    on_pi: bool | None = None,
 ) -> Supervisor:
-    """Run every service until ``stop`` is set, then shut down within the configured budget."""
+    """Run every service until ``stop`` is set, then shut down within the configured budget.
+
+    ``on_pi`` says whether this is the blimp (``auto`` = hardware) or not
+    (``auto`` = sim); ``None`` asks the device tree.
+    """
     hub = hub if hub is not None else Hub()
     stop = stop if stop is not None else asyncio.Event()
     notifier = notifier if notifier is not None else Notifier()
+    config = resolve_auto(config, on_raspberry_pi() if on_pi is None else on_pi)
     built = build_services(config, hub, builders)
+    rebuilders = {part: _builder_for(build, config, hub) for part, build in builders if part in built.failures}
+    simulated = simulated_parts(config)
     supervisor = Supervisor(
         built.services,
         config.daemon,
         clock=hub.clock,
         build_failures=built.failures,
+        rebuilders=rebuilders,
+        simulated=simulated,
         extra_health=lambda: {"bus": hub.bus.health(), "systemd": {"notify": notifier.enabled, "sent": notifier.sent}},
     )
     hub.health = supervisor.report
     supervisor.start()
     names = ", ".join(sorted(supervisor.records)) or "none"
     log.info("feelium running: %s", names)
+    backends = backend_names(config)
+    for part in sorted(set(supervisor.records) | set(built.failures)):
+        if part in simulated:
+            log.info("%s: simulated (%s)", part, simulated[part])
+        elif part in backends:
+            log.info("%s: %s backend", part, backends[part])
     notifier.ready(f"starting: {names}")
     if on_started is not None:
         on_started(hub, supervisor)
+    try:
+        await _watch(config, supervisor, notifier, stop, hub)
+    finally:  # an exception here must still leave the motors neutral: shutdown stops flight first
+        log.info("shutting down")
+        notifier.stopping()
+        await supervisor.shutdown()
+    log.info("stopped: %s", status_line(supervisor.report()))
+    return supervisor
+
+
+def _builder_for(build: ServiceBuilder, config: Config, hub: Hub) -> Callable[[], Service | None]:
+    """A part's build, ready for the supervisor to retry."""
+    return lambda: build(config, hub)
+
+
+async def _watch(config: Config, supervisor: Supervisor, notifier: Notifier, stop: asyncio.Event, hub: Hub) -> None:
+    """Until ``stop``: feed the watchdog while the flight loop lives, follow health, send the status line."""
     tick = min(config.daemon.status_interval_s, notifier.watchdog_interval or 1.0, 1.0)
     next_status = hub.clock() + config.daemon.status_interval_s
     fed = True
@@ -98,30 +149,34 @@ async def run_daemon(
         except asyncio.TimeoutError:
             pass
         now = hub.clock()
+        report = supervisor.report()  # every tick: state changes reach the log within a tick
         if notifier.watchdog_interval is not None:
-            alive = supervisor.pipeline_alive(now, config.rear_camera.stale_after_s)
+            alive = supervisor.vital_alive(now, config.daemon.flight_heartbeat_s)
             if alive:
                 notifier.watchdog()
+                if not fed:
+                    log.info("flight loop alive again: feeding the systemd watchdog")
             elif fed:
-                log.error("touch pipeline stalled: not feeding the systemd watchdog")
+                log.error("flight loop stalled: not feeding the systemd watchdog")
             fed = alive
         if now >= next_status:
-            report = supervisor.report()
             line = status_line(report)
             log.info("%s", line)
             log.debug("health: %s", json.dumps(report, default=str, separators=(",", ":")))
             notifier.status(line)
             next_status = now + config.daemon.status_interval_s
-    log.info("shutting down")
-    notifier.stopping()
-    await supervisor.shutdown()
-    log.info("stopped: %s", status_line(supervisor.report()))
-    return supervisor
 
 
 def _install_signals(loop: asyncio.AbstractEventLoop, stop: asyncio.Event) -> None:
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        loop.add_signal_handler(sig, stop.set)
+    """Each stop signal ends the daemon the same orderly way, motors neutral first."""
+
+    def on_signal(sig: signal.Signals) -> None:
+        if not stop.is_set():
+            log.info("%s received: motors to neutral, stopping", sig.name)
+        stop.set()
+
+    for sig in STOP_SIGNALS:
+        loop.add_signal_handler(sig, on_signal, sig)
 
 
 def run_process(config: Config) -> int:
@@ -146,6 +201,11 @@ def run_process(config: Config) -> int:
 
     try:
         supervisor = loop.run_until_complete(main())
+    except ConfigError:
+        raise  # a wrong setting found while building: the CLI reports it in one line (nothing was flying yet)
+    except Exception:
+        log.critical("the daemon failed; the motors were set neutral on the way out", exc_info=True)
+        return 1
     finally:
         executor.shutdown(wait=False, cancel_futures=True)
         loop.run_until_complete(loop.shutdown_asyncgens())

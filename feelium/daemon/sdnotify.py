@@ -49,7 +49,8 @@ class Notifier:
         self.errors = 0
         self._socket: socket.socket | None = None
         if self.address is not None:
-            self._socket = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM | socket.SOCK_CLOEXEC)
+            # non-blocking: a listener that stops reading must never stall the event loop (and the flight loop on it)
+            self._socket = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM | socket.SOCK_CLOEXEC | socket.SOCK_NONBLOCK)
 
     @property
     def enabled(self) -> bool:

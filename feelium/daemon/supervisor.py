@@ -1,9 +1,11 @@
 """Keeps every service running: restarts crashes with backoff, reports health, shuts down in order.
 
 Each service's ``run()`` is one task. An exception is logged with its
-traceback, the service is reported unhealthy and restarted after a delay that
+traceback (once per kind of crash: a device that stays missing does not fill
+the journal), the service is reported failed and restarted after a delay that
 doubles on each crash in a row (capped; reset after a long healthy run); the
-other services never notice. Shutdown calls ``stop()`` in ascending
+other services never notice. A part that could not even be built is retried
+the same way, shown as failed meanwhile. Shutdown calls ``stop()`` in ascending
 ``stop_order`` (flight first, so the motors are safe before anything else
 goes), each with a timeout, then cancels whatever is still running, all
 within a fixed budget.
@@ -19,9 +21,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from feelium.daemon.config import DaemonConfig
+from feelium.daemon.health import HealthTracker, judge, overall
 from feelium.service import Service
 
 log = logging.getLogger(__name__)
+
+
+ServiceFactory = Callable[[], "Service | None"]
 
 
 def backoff_delay(failures: int, initial: float, maximum: float) -> float:
@@ -40,8 +46,8 @@ class ServiceRecord:
     starts: int = 0
     crashes: int = 0
     streak: int = 0
-    last_error: str | None = None
-    last_error_at: float | None = None
+    last_crash: str | None = None
+    last_crash_at: float | None = None
     started_at: float | None = None
     restart_at: float | None = None
     task: asyncio.Task[None] | None = None
@@ -57,21 +63,69 @@ class Supervisor:
         *,
         clock: Callable[[], float] = time.monotonic,
         build_failures: dict[str, str] | None = None,
+        rebuilders: dict[str, ServiceFactory] | None = None,
+        simulated: dict[str, str] | None = None,
         extra_health: Callable[[], dict[str, Any]] | None = None,
     ) -> None:
+        """``rebuilders``: per part that failed to build, how to try again; ``simulated``: part -> which simulator."""
         self.config = config
         self.clock = clock
         self.records = {s.name: ServiceRecord(s) for s in services}
         self.build_failures = dict(build_failures or {})
+        self.rebuilders = dict(rebuilders or {})
+        self.rebuild_at: dict[str, float] = {}
+        self.simulated = dict(simulated or {})
         self.extra_health = extra_health
+        self.tracker = HealthTracker(clock)
         self.started_at = clock()
         self.phase = "starting"  # starting | running | stopping | stopped
+        self._rebuild_tasks: list[asyncio.Task[None]] = []
 
     def start(self) -> None:
-        """Start every service's task (call on the running loop)."""
+        """Start every service's task and the retries of parts that failed to build (call on the running loop)."""
         for record in self.records.values():
-            record.task = asyncio.create_task(self._supervise(record), name=f"service:{record.service.name}")
+            self._launch(record)
+        for part, build in self.rebuilders.items():
+            if part in self.build_failures:
+                self._schedule_rebuild(part, 1)
+                self._rebuild_tasks.append(asyncio.create_task(self._rebuild(part, build), name=f"rebuild:{part}"))
         self.phase = "running"
+
+    def _launch(self, record: ServiceRecord) -> None:
+        record.task = asyncio.create_task(self._supervise(record), name=f"service:{record.service.name}")
+
+    def _schedule_rebuild(self, part: str, attempt: int) -> None:
+        self.rebuild_at[part] = self.clock() + backoff_delay(attempt, self.config.restart_initial_s, self.config.restart_max_s)
+
+    async def _rebuild(self, part: str, build: ServiceFactory) -> None:
+        """Build a part again after a doubling delay until it builds; it is reported failed meanwhile."""
+        attempt = 1
+        while True:
+            await asyncio.sleep(max(0.0, self.rebuild_at[part] - self.clock()))
+            if self.phase != "running":
+                return
+            previous = self.build_failures.get(part)
+            try:
+                # in a thread: a first import or a device probe on the Pi must not hold the flight loop up
+                service = await asyncio.to_thread(build)
+            except Exception as exc:
+                error = f"{type(exc).__name__}: {exc}"
+                self.build_failures[part] = error
+                log.log(logging.DEBUG if error == previous else logging.WARNING, "cannot build %s again: %s", part, error)
+                attempt += 1
+                self._schedule_rebuild(part, attempt)
+                continue
+            del self.build_failures[part]
+            self.rebuild_at.pop(part, None)
+            if service is None or self.phase != "running":
+                return
+            if service.name in self.records:
+                self.build_failures[part] = f"duplicate service name {service.name!r}"
+                return
+            log.info("%s built at attempt %d", part, attempt + 1)
+            record = self.records[service.name] = ServiceRecord(service)
+            self._launch(record)
+            return
 
     async def _supervise(self, record: ServiceRecord) -> None:
         cfg = self.config
@@ -87,9 +141,11 @@ class Supervisor:
                 raise
             except Exception as exc:
                 now = self.clock()
+                error = f"{type(exc).__name__}: {exc}"
+                repeated = error == record.last_crash
                 record.crashes += 1
-                record.last_error = f"{type(exc).__name__}: {exc}"
-                record.last_error_at = now
+                record.last_crash = error
+                record.last_crash_at = now
                 if record.started_at is not None and now - record.started_at >= cfg.healthy_after_s:
                     record.streak = 0
                 record.streak += 1
@@ -103,7 +159,9 @@ class Supervisor:
                 delay = backoff_delay(record.streak, cfg.restart_initial_s, cfg.restart_max_s)
                 record.state = "backoff"
                 record.restart_at = now + delay
-                log.error("service %s crashed (restart in %.2f s)", service.name, delay, exc_info=exc)
+                # the traceback once per kind of crash; the part's change to failed is logged by the health tracker
+                level = logging.DEBUG if repeated else logging.WARNING
+                log.log(level, "service %s crashed (restart in %.2f s)", service.name, delay, exc_info=exc)
                 await asyncio.sleep(delay)
                 continue
             record.state = "finished" if self.phase == "running" else "stopped"
@@ -115,6 +173,8 @@ class Supervisor:
         if self.phase in ("stopping", "stopped"):
             return
         self.phase = "stopping"
+        for rebuild in self._rebuild_tasks:
+            rebuild.cancel()
         cfg = self.config
         loop = asyncio.get_running_loop()
         deadline = loop.time() + cfg.shutdown_budget_s
@@ -150,43 +210,58 @@ class Supervisor:
                     log.error("service %s ended with %s", record.service.name, exc)
         self.phase = "stopped"
 
-    def pipeline_alive(self, now: float, max_age_s: float) -> bool:
-        """True while every critical service (the touch pipeline) has processed a frame within ``max_age_s``.
+    def vital_alive(self, now: float, max_age_s: float) -> bool:
+        """True while every vital service (the flight loop) runs and its heartbeat is at most ``max_age_s`` old.
 
-        With no critical service configured, the daemon's own loop being alive is enough.
+        This is what feeds the systemd watchdog: the daemon is restarted for a
+        stuck flight loop (or a stuck event loop, which stops this check from
+        running at all), never for a camera, thermal, audio or projector fault.
         """
         for record in self.records.values():
-            if not getattr(record.service, "critical", False):
+            if not getattr(record.service, "vital", False):
                 continue
             if record.state != "running":
                 return False
-            last = _safe_health(record.service).get("last_frame_at")
-            if not isinstance(last, (int, float)) or now - last > max_age_s:
+            beat = _safe_health(record.service).get("heartbeat_at")
+            if not isinstance(beat, (int, float)) or now - beat > max_age_s:
                 return False
         return True
 
     def report(self) -> dict[str, Any]:
-        """Per-service state, counters, rates and last error; ``ok`` when everything runs."""
+        """Per part: its state (ok, simulated, degraded, failed, starting, stopped), why, since when, and counters."""
         now = self.clock()
         services: dict[str, Any] = {}
         for name, record in self.records.items():
             entry: dict[str, Any] = _safe_health(record.service)
+            retry_in = None if record.restart_at is None else max(0.0, record.restart_at - now)
+            state, reason = judge(record.state, entry, self.simulated.get(name), record.last_crash, retry_in)
+            current = self.tracker.parts.get(name)
+            if state == "starting" and current is not None and current.state == "failed":
+                state, reason = "failed", current.reason  # a restart is no recovery until the part works again
+            if "health_error" in entry and state in ("ok", "simulated"):
+                state, reason = "degraded", f"health() failed: {entry['health_error']}"
+            self.tracker.update(name, state, reason)
+            entry.pop("condition", None)
+            entry.update(self.tracker.entry(name))
             entry.update({
-                "state": record.state,
-                "healthy": record.state in ("running", "finished"),
+                "task": record.state,
+                "simulated": name in self.simulated,
                 "starts": record.starts,
                 "restarts": max(0, record.starts - 1),
                 "crashes": record.crashes,
-                "last_error": record.last_error,
-                "last_error_age_s": None if record.last_error_at is None else round(now - record.last_error_at, 3),
-                "restart_in_s": None if record.restart_at is None else round(max(0.0, record.restart_at - now), 3),
+                "last_crash": record.last_crash,
+                "last_crash_age_s": None if record.last_crash_at is None else round(now - record.last_crash_at, 3),
+                "restart_in_s": None if retry_in is None else round(retry_in, 3),
             })
             services[name] = entry
-        for module, error in self.build_failures.items():
-            services[module] = {"state": "failed", "healthy": False, "last_error": error}
-        healthy = all(s["healthy"] for s in services.values())
+        for part, error in self.build_failures.items():
+            retry_at = self.rebuild_at.get(part)
+            retry = "" if retry_at is None else f"; retrying in {max(0.0, retry_at - now):.1f} s"
+            self.tracker.update(part, "failed", f"cannot build: {error}{retry}")
+            services[part] = {**self.tracker.entry(part), "task": "unbuilt", "simulated": part in self.simulated, "last_error": error}
+        phase = self.phase
         report: dict[str, Any] = {
-            "status": self.phase if self.phase != "running" else ("ok" if healthy else "degraded"),
+            "status": phase if phase != "running" else overall([s["state"] for s in services.values()]),
             "uptime_s": round(now - self.started_at, 3),
             "services": services,
         }

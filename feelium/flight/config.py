@@ -23,7 +23,7 @@ class FlightConfig:
     """Motor board link and the closed-loop controller."""
 
     backend: Literal["auto", "serial", "sim", "off"] = setting(
-        "auto", "Motor board: a serial port, the blimp simulator, or off; auto picks sim without hardware."
+        "auto", "Motor board: a serial port, the blimp simulator, or off; auto is the serial port on a Raspberry Pi (no board: failed) and sim elsewhere."
     )
     port: str = setting("/dev/ttyAMA0", "Serial device or pyserial URL (socket://host:port, loop://) of the motor board.")
     baudrate: int = setting(115200, "Serial speed of the MSP link.", min=9600, max=2000000)

@@ -129,6 +129,7 @@ class FlightService:
 
     name = "flight"
     stop_order = 0
+    vital = True  # the supervisor feeds the systemd watchdog only while this loop's heartbeat is fresh
 
     def __init__(self, config: FlightConfig, hub: Hub, opener: LinkOpener) -> None:
         self.config = config
@@ -144,6 +145,7 @@ class FlightService:
         self._telemetry_t: float | None = None
         self.stopping = False
         self.cycles = 0
+        self.heartbeat_at: float | None = None  # hub time at the end of the newest control cycle
         self.overruns = 0
         self.link_losses = 0
         self.reconnects = 0
@@ -210,7 +212,9 @@ class FlightService:
     def health(self) -> dict[str, Any]:
         out = self.last
         report: dict[str, Any] = {
+            **self._condition(),
             "backend": self.opener.description,
+            "heartbeat_at": self.heartbeat_at,
             "link": self.link_state,
             "telemetry_age_s": None if self._telemetry_t is None else round(self.hub.clock() - self._telemetry_t, 3),
             **self._link_counts(),
@@ -235,6 +239,17 @@ class FlightService:
         if board is not None:
             report["sim_watchdog_trips"] = board.watchdog_trips
         return report
+
+    def _condition(self) -> dict[str, str]:
+        """The motor board link as the part's health: without a board answering, flight is not ok."""
+        state = self.link_state
+        if state == "up":
+            return {"condition": "ok"}
+        if state in LINK_REASONS:
+            return {"condition": "degraded", "reason": f"motor board link {state}: {LINK_REASONS[state]}"}
+        if self.last_error is None:
+            return {"condition": "starting", "reason": f"opening {self.opener.description}"}
+        return {"condition": "failed", "reason": f"no motor board: {self.last_error}"}
 
     def _link_counts(self) -> dict[str, int]:
         """Stalls, resyncs and late replies of this service's life, the live client's included."""
@@ -285,6 +300,7 @@ class FlightService:
         out = self.controller.step(now, telemetry, setpoint)
         self.last = out
         self.cycles += 1
+        self.heartbeat_at = now
         if self.client is not None and not self.stopping:
             try:
                 await self._on_serial_thread(self.client.send_motors, out.motors_us)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from feelium.cameras.reader import RateMeter, Worker, close_camera
+from feelium.cameras.reader import RateMeter, Worker, close_camera, frame_condition
 from feelium.cameras.select import CameraSource
 from feelium.hub import Hub
 
@@ -18,8 +18,9 @@ class FrontCameraService:
     name = "front_camera"
     stop_order = 50
 
-    def __init__(self, source: CameraSource, hub: Hub) -> None:
+    def __init__(self, source: CameraSource, hub: Hub, stale_after_s: float = 2.0) -> None:
         self.source = source
+        self.stale_after_s = stale_after_s
         self.hub = hub
         self.frames = 0
         self.bad_frames = 0
@@ -60,10 +61,12 @@ class FrontCameraService:
         self._stopping = True
 
     def health(self) -> dict[str, Any]:
+        now = self.hub.clock()
         return {
+            **frame_condition(self.last_frame_at, now, self.stale_after_s, "front camera"),
             "backend": self.source.backend,
             "frames": self.frames,
-            "fps": round(self._rate.rate(), 2),
+            "fps": round(self._rate.rate(now), 2),
             "bad_frames": self.bad_frames,
             "opens": self.opens,
             "last_frame_at": self.last_frame_at,

@@ -39,7 +39,7 @@ class ProjectorConfig:
 
     backend: Literal["auto", "fbdev", "window", "sim"] = setting(
         "auto",
-        "Display output; auto uses the framebuffer when /dev/fb0 exists and sim elsewhere; window needs a GUI build of OpenCV.",
+        "Display output; auto is the framebuffer on a Raspberry Pi and sim elsewhere; window needs a GUI build of OpenCV.",
     )
     width: int = setting(1280, "Projector native width (Ultimems HD309: 1280).", min=16, max=7680)
     height: int = setting(720, "Projector native height (Ultimems HD309: 720).", min=16, max=4320)

@@ -42,7 +42,7 @@ class ThermalConfig:
     """MLX90640 thermal camera and the presence detector."""
 
     backend: Literal["auto", "smbus2", "sim", "off"] = setting(
-        "auto", "Where frames come from; auto uses the sensor when /dev/i2c-<i2c_bus> exists, else the simulated sensor."
+        "auto", "Where frames come from; auto is the sensor on /dev/i2c-<i2c_bus> on a Raspberry Pi (missing: failed) and the simulated sensor elsewhere."
     )
     i2c_bus: int = setting(1, "Linux I2C bus number (/dev/i2c-N) the sensor is on.", min=0, max=255)
     i2c_address: int = setting(0x33, "7-bit I2C address of the sensor (factory default 0x33 = 51).", min=0x08, max=0x77)

@@ -32,6 +32,7 @@ from feelium.thermal.driver import Mlx90640Driver
 from feelium.thermal.presence import PresenceDetector
 
 MAX_BACKOFF_FACTOR = 8
+FAILED_AFTER = 3  # attempts in a row that raised before health calls the sensor failed (one can be a glitch)
 
 
 def control_settings(config: ThermalConfig) -> reg.ControlSettings:
@@ -169,8 +170,19 @@ class ThermalService:
             except OSError:
                 pass
 
+    def _condition(self) -> dict[str, str]:
+        """Failing reads are the part's health: a missing or dead sensor must not read as ok."""
+        if self._consecutive_failures >= FAILED_AFTER or (self._consecutive_failures and not self.frames):
+            return {"condition": "failed", "reason": f"sensor failed {self._consecutive_failures} times in a row: {self.last_error}"}
+        if self._consecutive_failures:
+            return {"condition": "degraded", "reason": f"read failed, retrying: {self.last_error}"}
+        if not self.frames:
+            return {"condition": "starting", "reason": "waiting for the first thermal frame"}
+        return {"condition": "ok"}
+
     def health(self) -> dict[str, Any]:
         out: dict[str, Any] = {
+            **self._condition(),
             "source": self.source,
             "frames": self.frames,
             "events": self.events,

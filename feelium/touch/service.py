@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from feelium.cameras.base import Frame
-from feelium.cameras.reader import FrameSlot, RateMeter, Worker, close_camera, pump
+from feelium.cameras.reader import FrameSlot, RateMeter, Worker, close_camera, frame_condition, pump
 from feelium.cameras.select import CameraSource
 from feelium.events import TouchEvent
 from feelium.hub import Hub
@@ -72,7 +72,6 @@ class TouchService:
 
     name = "touch"
     stop_order = 40
-    critical = True  # the systemd watchdog is fed only while this service processes frames
 
     def __init__(
         self,
@@ -85,6 +84,7 @@ class TouchService:
         overlay: Overlay = _default_overlay,
         annotation: ProjectorAnnotation | None = None,
         backlight: BacklightFactory | None = None,
+        stale_after_s: float = 2.0,
     ) -> None:
         self.source = source
         self.hub = hub
@@ -94,6 +94,7 @@ class TouchService:
         self.overlay = overlay
         self.annotation = annotation
         self.backlight = backlight
+        self.stale_after_s = stale_after_s
         self._backlight_gain: Callable[[], np.ndarray | None] | None = None
         self.backlight_errors = 0
         self.last_backlight_error: str | None = None
@@ -253,10 +254,12 @@ class TouchService:
 
     def health(self) -> dict[str, Any]:
         slot_drops = self._slot.dropped if self._slot is not None else 0
+        now = self.hub.clock()
         return {
+            **frame_condition(self.last_frame_at, now, self.stale_after_s, "rear camera"),
             "backend": self.source.backend,
             "frames": self.frames,
-            "fps": round(self._rate.rate(), 2),
+            "fps": round(self._rate.rate(now), 2),
             "events": self.events,
             "dropped_frames": self.dropped_frames + slot_drops,
             "bad_frames": self.bad_frames,

@@ -48,11 +48,25 @@ def test_pacer_rejects_a_zero_rate():
 
 
 def test_rate_meter_measures_frames_per_second():
-    meter = RateMeter(window=5)
-    assert meter.rate() == 0.0
-    for i in range(10):
+    meter = RateMeter(window_s=1.0)
+    assert meter.rate(0.0) == 0.0
+    for i in range(40):
         meter.tick(i * 0.05)
-    assert meter.rate() == pytest.approx(20.0)
+    last = 39 * 0.05
+    assert meter.rate(last) == pytest.approx(20.0)
+    assert meter.rate(last + 0.04) == pytest.approx(20.0)  # inside the usual interval: still the true rate
+
+
+def test_rate_meter_decays_to_zero_when_ticks_stop():
+    """A stalled camera must not keep showing its last rate (it read 15 fps forever when the meter counted ticks)."""
+    meter = RateMeter(window_s=1.0)
+    for i in range(30):
+        meter.tick(i / 15)
+    last = 29 / 15
+    assert meter.rate(last) == pytest.approx(15.0)
+    rates = [meter.rate(last + dt) for dt in (0.2, 0.5, 0.8)]
+    assert rates[0] < 15.0 and rates == sorted(rates, reverse=True)  # falls as the gap grows
+    assert meter.rate(last + 1.0) == 0.0
 
 
 def _frame(i: int) -> Frame:

@@ -1,4 +1,4 @@
-"""Small services for supervisor tests: one that ticks, one that crashes, one that will not stop."""
+"""Small services for supervisor tests: one that ticks, one that crashes, one that will not stop, one with a heartbeat."""
 
 from __future__ import annotations
 
@@ -51,22 +51,22 @@ class StubbornService(TickingService):
         await asyncio.sleep(3600)
 
 
-class FrameClockService(TickingService):
-    """A critical (camera-pipeline-like) service whose frames stop while ``frozen`` is set."""
+class HeartbeatService(TickingService):
+    """A vital (flight-loop-like) service whose heartbeat stops while ``frozen`` is set."""
 
-    critical = True
+    vital = True
 
     def __init__(self, clock: Any, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.clock = clock
         self.frozen = False
-        self.last_frame_at: float | None = None
+        self.heartbeat_at: float | None = None
 
     async def run(self) -> None:
         while not self._stopping.is_set():
             if not self.frozen:
-                self.last_frame_at = self.clock()
+                self.heartbeat_at = self.clock()
             await asyncio.sleep(0.005)
 
     def health(self) -> dict[str, Any]:
-        return {"last_frame_at": self.last_frame_at}
+        return {"heartbeat_at": self.heartbeat_at}

@@ -17,7 +17,7 @@ from feelium.daemon.sdnotify import Notifier
 from feelium.events import TouchEvent
 from feelium.hub import Hub
 
-from .fakes import CrashingService, FrameClockService
+from .fakes import CrashingService, HeartbeatService
 from .synthetic import PRESS_OFF, PRESS_ON, PRESS_XY, write_press_recording
 
 REAR_ONLY = (("touch", build_touch),)
@@ -53,6 +53,7 @@ async def _run_until(config, condition, *, hub=None, builders=REAR_ONLY, notifie
         hub=hub,
         builders=builders,
         notifier=notifier or Notifier({}),
+        on_pi=False,
         on_started=lambda h, s: holder.setdefault("supervisor", s),
     )
     await watcher
@@ -128,16 +129,12 @@ async def test_ready_status_and_watchdog_reach_systemd_while_frames_flow(tmp_pat
     assert messages[0].startswith(b"READY=1\nSTATUS=starting: touch")
 
 
-async def test_the_watchdog_is_fed_only_while_the_camera_pipeline_delivers_frames(monkeypatch, caplog):
-    """A stalled pipeline stops the WATCHDOG=1 pings (systemd then restarts us); fresh frames resume them."""
+async def test_the_watchdog_is_fed_only_while_the_vital_loop_beats(monkeypatch, caplog):
+    """A stalled vital loop stops the WATCHDOG=1 pings (systemd then restarts us); a fresh heartbeat resumes them."""
     base = Config()
-    config = dataclasses.replace(
-        base,
-        rear_camera=dataclasses.replace(base.rear_camera, stale_after_s=0.15),
-        daemon=dataclasses.replace(base.daemon, status_interval_s=60.0),
-    )
+    config = dataclasses.replace(base, daemon=dataclasses.replace(base.daemon, status_interval_s=60.0, flight_heartbeat_s=0.15))
     hub = Hub()
-    camera = FrameClockService(hub.clock, name="camera")
+    camera = HeartbeatService(hub.clock, name="camera")
     listener = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     listener.bind("\0feelium-test-watchdog-%d" % id(camera))
     listener.setblocking(False)
@@ -170,9 +167,9 @@ async def test_the_watchdog_is_fed_only_while_the_camera_pipeline_delivers_frame
     listener.close()
     frozen = [t for p, t in pings if p == "frozen"]
     phase_frozen_at = phase["frozen_at"]
-    # at most the pings within stale_after_s (+ one tick) of the freeze; none in the rest of the frozen phase
+    # at most the pings within flight_heartbeat_s (+ one tick) of the freeze; none in the rest of the frozen phase
     assert len(frozen) <= 4 and all(t - phase_frozen_at < 0.3 for t in frozen)
-    assert "touch pipeline stalled" in caplog.text
+    assert caplog.text.count("flight loop stalled") == 1
 
 
 @pytest.mark.slow

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -17,8 +19,15 @@ async def main():
     config = with_overrides(Config(), sim=True)
     config = dataclasses.replace(config, http=dataclasses.replace(config.http, port=0, token_file=sys.argv[1]))
     stop = asyncio.Event()
-    asyncio.get_running_loop().call_later(2.5, stop.set)
-    supervisor = await run_daemon(config, stop=stop)
+    asyncio.get_running_loop().call_later(30.0, stop.set)
+
+    async def until_touch_ran(supervisor):  # the first processed frame, however loaded the machine is
+        while supervisor.records["touch"].service.frames < 1:
+            await asyncio.sleep(0.05)
+        stop.set()
+
+    watch = []
+    supervisor = await run_daemon(config, stop=stop, on_started=lambda hub, s: watch.append(asyncio.ensure_future(until_touch_ran(s))))
     return sorted(supervisor.records)
 
 services = asyncio.run(main())
@@ -31,6 +40,7 @@ def test_the_running_daemon_loads_no_lab_or_cli_module(tmp_path):
     done = subprocess.run(
         [sys.executable, "-c", RUN_AND_LIST, str(tmp_path / "token")],
         capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
+        env=dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2])),  # this checkout's feelium
     )
     assert done.returncode == 0, done.stderr[-2000:]
     report = json.loads(done.stdout.strip().splitlines()[-1])

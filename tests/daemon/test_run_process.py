@@ -9,14 +9,18 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
 from .synthetic import write_press_recording
 
 
+CHECKOUT = str(Path(__file__).resolve().parents[2])  # this checkout's feelium, not whichever one is installed
+
+
 def _start(args, tmp_path, extra_env=None):
-    env = dict(os.environ, PYTHONUNBUFFERED="1", **(extra_env or {}))
+    env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=CHECKOUT, **(extra_env or {}))
     env.pop("NOTIFY_SOCKET", None)
     return subprocess.Popen(
         [sys.executable, "-m", "feelium", "run", *args],

@@ -43,21 +43,83 @@ async def test_a_crashing_service_is_restarted_and_the_others_keep_running(caplo
     steady = TickingService("steady")
     flaky = CrashingService(3, name="flaky")
     supervisor = Supervisor([steady, flaky], FAST)
-    with caplog.at_level(logging.ERROR):
+    with caplog.at_level(logging.DEBUG):
         supervisor.start()
         await _until(lambda: supervisor.records["flaky"].crashes >= 1)
         report = supervisor.report()
-        assert report["services"]["flaky"]["healthy"] is False or report["services"]["flaky"]["state"] == "running"
+        assert report["services"]["flaky"]["healthy"] is False or report["services"]["flaky"]["task"] == "running"
         await _until(lambda: flaky.runs == 4 and flaky.ticks > 3)
     report = supervisor.report()
     assert report["status"] == "ok"
     entry = report["services"]["flaky"]
-    assert entry["crashes"] == 3 and entry["restarts"] == 3 and entry["last_error"] == "RuntimeError: boom 3"
+    assert entry["crashes"] == 3 and entry["restarts"] == 3 and entry["last_crash"] == "RuntimeError: boom 3"
     assert entry["ticks"] > 0  # the service's own health is merged in
     ticks_during = steady.ticks
     assert ticks_during > 10  # kept ticking through the crashes
     crash_logs = [r for r in caplog.records if "flaky crashed" in r.getMessage()]
     assert len(crash_logs) == 3 and all(r.exc_info for r in crash_logs)  # logged with the traceback
+    await supervisor.shutdown()
+
+
+async def test_a_repeated_crash_logs_its_traceback_once_and_the_failure_once(caplog):
+    """A camera that stays missing crashes its service every backoff: one warning with the traceback, one error."""
+
+    class Missing(TickingService):
+        async def run(self) -> None:
+            raise OSError("no camera on CSI port 0")
+
+    supervisor = Supervisor([Missing("touch"), TickingService("steady")], FAST)
+    with caplog.at_level(logging.INFO):
+        supervisor.start()
+        await _until(lambda: supervisor.records["touch"].crashes >= 4 and supervisor.report() is not None)
+    warnings = [r for r in caplog.records if r.levelno == logging.WARNING and "touch crashed" in r.getMessage()]
+    errors = [r for r in caplog.records if r.levelno >= logging.ERROR]
+    assert len(warnings) == 1 and warnings[0].exc_info
+    assert [r.getMessage() for r in errors] == [errors[0].getMessage()] and "touch: failed" in errors[0].getMessage()
+    entry = supervisor.report()["services"]["touch"]
+    assert entry["state"] == "failed" and "OSError: no camera on CSI port 0" in entry["reason"]
+    assert entry["last_problem"] == entry["reason"]
+    await supervisor.shutdown()
+
+
+async def test_a_service_s_own_condition_and_last_error_are_kept():
+    """The supervisor adds its fields beside the service's own; a running service that says it failed is failed."""
+
+    class NoBoard(TickingService):
+        def health(self):
+            return {"condition": "failed", "reason": "no motor board", "last_error": "open /dev/ttyAMA0: gone"}
+
+    supervisor = Supervisor([NoBoard("flight")], FAST, simulated={"flight": "flight on its simulator"})
+    supervisor.start()
+    await asyncio.sleep(0.02)
+    entry = supervisor.report()["services"]["flight"]
+    assert entry["state"] == "failed" and entry["reason"] == "no motor board"  # trouble beats "simulated"
+    assert entry["last_error"] == "open /dev/ttyAMA0: gone" and entry["last_crash"] is None
+    assert entry["simulated"] is True and entry["task"] == "running" and "condition" not in entry
+    await supervisor.shutdown()
+
+
+async def test_a_part_that_fails_to_build_is_retried_with_backoff_and_shown_failed_meanwhile():
+    attempts: list[float] = []
+
+    def build():
+        attempts.append(time.monotonic())
+        if len(attempts) < 3:
+            raise OSError("no /dev/fb0")
+        return TickingService("projector")
+
+    supervisor = Supervisor(
+        [TickingService("steady")], FAST, build_failures={"projector": "OSError: no /dev/fb0"}, rebuilders={"projector": build}
+    )
+    supervisor.start()
+    entry = supervisor.report()["services"]["projector"]
+    assert entry["state"] == "failed" and "no /dev/fb0" in entry["reason"] and "retrying in" in entry["reason"]
+    await _until(lambda: "projector" in supervisor.records and supervisor.records["projector"].service.ticks > 0)
+    gaps = [b - a for a, b in zip(attempts, attempts[1:])]
+    assert len(attempts) == 3 and gaps[1] > gaps[0] * 1.5  # the delay doubles
+    report = supervisor.report()
+    assert report["services"]["projector"]["state"] == "ok" and report["status"] == "ok"
+    assert report["services"]["projector"]["last_problem"].startswith("cannot build: OSError: no /dev/fb0")
     await supervisor.shutdown()
 
 
@@ -122,30 +184,34 @@ async def test_health_that_raises_and_build_failures_are_reported_without_raisin
             raise KeyError("oops")
 
     supervisor = Supervisor([BadHealth("bad")], FAST, build_failures={"feelium.x.service": "ImportError: nope"})
+    supervisor.records["bad"].state = "running"
     report = supervisor.report()
     assert "KeyError" in report["services"]["bad"]["health_error"]
-    assert report["services"]["feelium.x.service"] == {"state": "failed", "healthy": False, "last_error": "ImportError: nope"}
+    assert report["services"]["bad"]["state"] == "degraded"
+    built = report["services"]["feelium.x.service"]
+    assert built["state"] == "failed" and built["healthy"] is False and built["last_error"] == "ImportError: nope"
     assert report["status"] != "ok"
 
 
-def test_pipeline_alive_follows_the_critical_services_last_frame():
-    class Camera(TickingService):
-        critical = True
+def test_vital_alive_follows_the_flight_loop_heartbeat():
+    class Flight(TickingService):
+        vital = True
 
         def __init__(self):
-            super().__init__("touch")
-            self.last = None
+            super().__init__("flight")
+            self.beat = None
 
         def health(self):
-            return {"last_frame_at": self.last}
+            return {"heartbeat_at": self.beat}
 
-    camera = Camera()
-    supervisor = Supervisor([camera, TickingService("other")], FAST, clock=lambda: 100.0)
-    supervisor.records["touch"].state = "running"
-    assert not supervisor.pipeline_alive(100.0, 2.0)  # no frame yet
-    camera.last = 99.0
-    assert supervisor.pipeline_alive(100.0, 2.0)
-    assert not supervisor.pipeline_alive(102.5, 2.0)
-    supervisor.records["touch"].state = "backoff"
-    assert not supervisor.pipeline_alive(99.5, 2.0)
-    assert Supervisor([TickingService()], FAST).pipeline_alive(0.0, 1.0)  # nothing critical: alive
+    flight = Flight()
+    supervisor = Supervisor([flight, TickingService("touch")], FAST, clock=lambda: 100.0)
+    supervisor.records["flight"].state = "running"
+    assert not supervisor.vital_alive(100.0, 1.0)  # no cycle yet
+    flight.beat = 99.5
+    assert supervisor.vital_alive(100.0, 1.0)
+    assert not supervisor.vital_alive(100.6, 1.0)
+    supervisor.records["flight"].state = "backoff"
+    assert not supervisor.vital_alive(99.6, 1.0)
+    supervisor.records["touch"].state = "backoff"  # a camera fault is not the watchdog's business
+    assert Supervisor([TickingService("touch")], FAST).vital_alive(0.0, 1.0)  # nothing vital: the loop is enough

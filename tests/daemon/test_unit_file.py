@@ -47,11 +47,11 @@ def seconds(value: str) -> float:
     return float(number) * units[value[len(number):]]
 
 
-def test_notify_with_a_watchdog_longer_than_the_pipeline_stall_limit(unit):
+def test_notify_with_a_watchdog_longer_than_the_flight_heartbeat_limit(unit):
     assert one(unit, "Service", "Type") == "notify"
     assert one(unit, "Service", "NotifyAccess") == "main"
     watchdog = seconds(one(unit, "Service", "WatchdogSec"))
-    assert watchdog > 2 * Config().rear_camera.stale_after_s  # a healthy pipeline is never killed by its own limit
+    assert watchdog > 2 * Config().daemon.flight_heartbeat_s  # a healthy flight loop is never killed by its own limit
     assert seconds(one(unit, "Service", "TimeoutStopSec")) > Config().daemon.shutdown_budget_s
 
 
