@@ -35,6 +35,7 @@ def register(registry: CommandRegistry) -> None:
     board.add_argument("--config", help="TOML config file (sim backends forced; cameras preloaded; board out of process)")
     board.add_argument("--front-fps", type=float, help="front camera and MJPEG rate (default: [front_camera] fps)")
     board.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
+    board.add_argument("--cgroup", metavar="DIR", help="join this existing cgroup (a CPU quota) for the measured window")
 
 
 def _run(args: argparse.Namespace) -> int:

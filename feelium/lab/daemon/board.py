@@ -27,6 +27,7 @@ import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -41,6 +42,7 @@ from feelium.lab.daemon.attribution import ChargingExecutor, Ledger, charge, cha
 from feelium.lab.daemon.bench import memory_mb
 from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_frames
 from feelium.lab.daemon.projection import project
+from feelium.lab.daemon.quota import join
 from feelium.lab.report import emit_report
 from feelium.service import Service
 
@@ -121,7 +123,7 @@ def _start_headset(port: int, seconds: float) -> subprocess.Popen[str]:
     )
 
 
-async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: float) -> dict[str, Any]:
+async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: float, cgroup: Path | None) -> dict[str, Any]:
     """Run the daemon; measure over ``seconds`` after the warm-up while the headset process drives it."""
     ledger = Ledger()
     loop = asyncio.get_running_loop()
@@ -138,6 +140,8 @@ async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: f
         while not isinstance(port := hub.health()["services"]["http"].get("port"), int):
             await asyncio.sleep(0.05)  # bound once the http service has started
         headset = _start_headset(port, seconds + warmup_s)
+        if cgroup is not None:
+            out["cpu_quota"] = {"cgroup": str(cgroup), "quota_period_us": join(cgroup)}  # after the children started
         await asyncio.sleep(warmup_s)
         first, threads_before, cpu_before = hub.health(), thread_cpu(), os.times()
         lags.clear()
@@ -222,7 +226,13 @@ def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, fro
 
 
 def bench_board(
-    config: Config, minutes: float, *, front_fps: float | None = None, rear_fps: float = 30.0, warmup_s: float = WARMUP_S
+    config: Config,
+    minutes: float,
+    *,
+    front_fps: float | None = None,
+    rear_fps: float = 30.0,
+    warmup_s: float = WARMUP_S,
+    cgroup: Path | None = None,
 ) -> dict[str, Any]:
     """Start the board process, run and measure the daemon for ``minutes``, project; every number in one dict."""
     board = subprocess.Popen([sys.executable, "-m", "feelium.lab.daemon.board_server"], stdout=subprocess.PIPE, text=True)
@@ -233,7 +243,7 @@ def bench_board(
         malloc = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
         cameras = prepare(config, front_fps)
         load_before = os.getloadavg()[0]
-        measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s))
+        measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup))
         load_after = os.getloadavg()[0]
     finally:
         board.kill()
@@ -257,6 +267,7 @@ def bench_board(
         "preloaded_frames_mb": round(preload_mb, 1),
         "rss_mb": round(statistics.median(window[len(window) // 2 :]) - preload_mb, 1),
         "rss_peak_mb": round(max(mb for _, mb in measured["rss"]) - preload_mb, 1),
+        "cpu_quota": measured.get("cpu_quota"),
         "services": rows,
         "headset": measured["headset"],
     }
@@ -265,9 +276,11 @@ def bench_board(
 
 
 def format_table(result: dict[str, Any]) -> str:
+    quota = result["cpu_quota"]
     lines = [
         f"feelium bench board: {result['seconds']} s on {result['cpus']} CPUs (1 min load before / after "
-        f"{result['load_average_1min_before_after']}); rear {result['rear']}, front {result['front']}",
+        f"{result['load_average_1min_before_after']}); rear {result['rear']}, front {result['front']}"
+        + (f"; CPU quota {quota['quota_period_us']} us in {quota['cgroup']}" if quota else ""),
         f"  {'service':<20} {'rate/target Hz':>16} {'miss %':>7} {'CPU ms/s':>9} {'Pi ms/s':>8}",
     ]
     for name, row in result["services"].items():
@@ -296,6 +309,7 @@ def bench_board_command(args: argparse.Namespace) -> int:
     if not args.minutes > 0:
         print("feelium bench board: --minutes must be positive", file=sys.stderr)
         return 2
-    result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps)
+    cgroup = Path(args.cgroup) if args.cgroup else None
+    result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps, cgroup=cgroup)
     emit_report(format_table(result), result, args.json)
     return 0
