@@ -7,14 +7,7 @@ a precomputed fixed-point map then carries the canvas to the projector's
 native resolution, so what is meant for a spot on the skin lands there through
 the fisheye, and a circle drawn on the canvas is a circle on the skin.
 
-The remap is nine tenths of a frame's cost and the canvas often does not change
-between frames (a still face, a face video at 12 fps under a 30 fps projector,
-no answer showing), so a canvas equal to the last one returns the last frame
-instead of warping it again (``feelium bench board`` measured the projector as
-the largest part of the daemon's CPU, docs/performance.md).
-
-Time, face image and answers in, a BGR frame out; the only state is that last
-frame, which callers must not modify.
+Pure: time, face image and answers in, a BGR frame out.
 """
 
 from __future__ import annotations
@@ -64,8 +57,6 @@ class Renderer:
         self._blank[...] = self._border
         self.avatar = Avatar(cw, ch)
         self.skipped: dict[str, int] = {}
-        self.reused = 0  # frames whose canvas equalled the last one: not warped again
-        self._last: tuple[np.ndarray, np.ndarray] | None = None  # (canvas, frame)
         floor = 255.0 * config.sensing_floor
         self._floor_lut = np.clip(np.round(floor + np.arange(256) * (1.0 - config.sensing_floor)), 0, 255).astype(np.uint8)
 
@@ -110,11 +101,4 @@ class Renderer:
         return frame
 
     def render(self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False) -> np.ndarray:
-        """The frame at ``now``: the last one again (the same array) when the canvas has not changed."""
-        canvas = self.canvas(now, face, answers, talking)
-        if self._last is not None and np.array_equal(canvas, self._last[0]):
-            self.reused += 1
-            return self._last[1]
-        frame = self.warp(canvas)
-        self._last = (canvas, frame)
-        return frame
+        return self.warp(self.canvas(now, face, answers, talking))

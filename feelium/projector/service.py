@@ -69,7 +69,6 @@ class ProjectorService:
         self.engine = InteractionEngine(interactions, Regions.from_config(interactions)) if interactions.enabled else None
         self._face: np.ndarray | None = None
         self._face_seq = 0
-        self._shown: np.ndarray | None = None
         self._stopping = False
         self.counters: dict[str, Any] = {
             "frames": 0, "touch_events": 0, "actions": 0, "interaction_events": 0, "motions_sent": 0,
@@ -137,9 +136,7 @@ class ProjectorService:
     def _render_and_show(self, now: float, face: np.ndarray | None, answers: tuple) -> np.ndarray:
         start = time.perf_counter()
         frame = self.renderer.render(now, face, answers)
-        if frame is not self._shown:  # an unchanged frame stays on the display as it is
-            self.display.show(frame)
-            self._shown = frame
+        self.display.show(frame)
         self.counters["render_ms"] = round((time.perf_counter() - start) * 1000.0, 2)
         return frame
 
@@ -167,7 +164,6 @@ class ProjectorService:
 
     def health(self) -> dict[str, Any]:
         report = dict(self.counters)
-        report["frames_reused"] = self.renderer.reused
         report["display"] = self.display.name
         report["calibration"] = self.calibration.source
         if self.engine is not None:
