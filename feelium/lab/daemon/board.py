@@ -38,7 +38,7 @@ from feelium.daemon.memory import tune_malloc
 from feelium.daemon.runner import WORKER_THREADS, run_daemon, with_overrides
 from feelium.daemon.sdnotify import Notifier
 from feelium.hub import Hub
-from feelium.lab.daemon.attribution import ChargingExecutor, Ledger, charge, charge_loop_callbacks, thread_cpu
+from feelium.lab.daemon.attribution import ChargingExecutor, Ledger, callback_overhead_s, charge, charge_loop_callbacks, thread_cpu
 from feelium.lab.daemon.bench import memory_mb
 from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_frames
 from feelium.lab.daemon.projection import project
@@ -129,6 +129,7 @@ async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: f
     loop = asyncio.get_running_loop()
     loop.set_default_executor(ChargingExecutor(ledger, WORKER_THREADS))
     undo = charge_loop_callbacks(ledger)
+    overhead_s = callback_overhead_s(loop, ledger)
     hub, stop, lag_stop = Hub(), asyncio.Event(), asyncio.Event()
     lags: list[float] = []
     rss: list[tuple[float, float]] = []
@@ -156,6 +157,8 @@ async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: f
             wall=time.monotonic() - start, first=first, last=hub.health(),
             cpu_s=(cpu_after.user + cpu_after.system) - (cpu_before.user + cpu_before.system),
             charged=charge(threads_before, threads_after, ledger),
+            callbacks=ledger.callbacks,
+            callback_overhead_s=overhead_s,
             loop_thread_s=threads_after.get("MainThread", 0.0) - threads_before.get("MainThread", 0.0),
             headset=json.loads((await asyncio.to_thread(headset.communicate, None, 30.0))[0].strip().splitlines()[-1]),
         )
@@ -261,6 +264,8 @@ def bench_board(
         "front": {"size": [config.front_camera.width, config.front_camera.height], "fps": front_fps},
         "process_cpu_ms_per_s": round(1000.0 * measured["cpu_s"] / wall, 1),
         "loop_thread_ms_per_s": round(1000.0 * measured["loop_thread_s"] / wall, 1),
+        "loop_callbacks_per_s": round(measured["callbacks"] / wall),
+        "bench_overhead_ms_per_s": round(1000.0 * measured["callbacks"] * measured["callback_overhead_s"] / wall, 1),
         "loop_lag_p50_ms": round(_percentile(measured["lags_ms"], 50), 2),
         "loop_lag_p99_ms": round(_percentile(measured["lags_ms"], 99), 2),
         "loop_lag_max_ms": round(max(measured["lags_ms"], default=float("nan")), 2),
@@ -290,6 +295,8 @@ def format_table(result: dict[str, Any]) -> str:
     lines += [
         f"  process CPU ms/s {result['process_cpu_ms_per_s']}; loop lag p50 / p99 / max "
         f"{result['loop_lag_p50_ms']} / {result['loop_lag_p99_ms']} / {result['loop_lag_max_ms']} ms",
+        f"  the bench's own timing of {result['loop_callbacks_per_s']} loop callbacks/s costs ~"
+        f"{result['bench_overhead_ms_per_s']} ms/s of that (charged to the services, not subtracted)",
         f"  RSS steady / peak {result['rss_mb']} / {result['rss_peak_mb']} MB (preloaded frames, "
         f"{result['preloaded_frames_mb']} MB, taken out)",
         f"  projected onto the Pi (x{result['pi_factor']}): {result['pi_cores']} of 4 cores used, "
