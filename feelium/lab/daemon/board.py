@@ -215,6 +215,7 @@ def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, fro
         "http": row(headset["mjpeg"]["frames"] * wall / headset["seconds"], front_fps),
     }
     rows["front_camera"]["late_frames_total"] = cameras.front.late
+    rows["flight"]["link_losses"] = int(_delta(first, last, "flight", "link_losses"))  # a starved board process shows here
     moves = headset["motion"]
     rows["headset_motion"] = {"rate_hz": moves["rate_hz"], "target_hz": moves["target_hz"], "miss_kind": "counted",
                               "miss_pct": round(100.0 * moves["late"] / max(moves["sent"], 1), 2),
