@@ -71,6 +71,7 @@ def _awaited(coro: Any) -> Iterator[Any]:
 
 
 def _service_of_callback(callback: Any) -> str:
+    """A task step: the first service coroutine in the task's await chain; else the callback's owner's module."""
     owner = getattr(callback, "__self__", None)
     if isinstance(owner, asyncio.Task):
         for coro in _awaited(owner.get_coro()):
@@ -79,10 +80,10 @@ def _service_of_callback(callback: Any) -> str:
             if service is not None:
                 return service
         return LOOP_OTHER
+    if owner is None:
+        return service_of_module(getattr(callback, "__module__", None)) or LOOP_OTHER
     protocol = getattr(owner, "_protocol", None)  # a transport's read/write callback: charge its protocol
-    target = protocol if protocol is not None else owner if owner is not None else callback
-    module = getattr(type(target), "__module__", None) if owner is not None else getattr(callback, "__module__", None)
-    return service_of_module(module) or LOOP_OTHER
+    return service_of_module(type(protocol if protocol is not None else owner).__module__) or LOOP_OTHER
 
 
 class Ledger:

@@ -141,28 +141,32 @@ async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: f
         while not isinstance(port := hub.health()["services"]["http"].get("port"), int):
             await asyncio.sleep(0.05)  # bound once the http service has started
         headset = _start_headset(port, seconds + warmup_s)
-        if cgroup is not None:
-            out["cpu_quota"] = {"cgroup": str(cgroup), "quota_period_us": join(cgroup)}  # after the children started
-        await asyncio.sleep(warmup_s)
-        first, threads_before, cpu_before = hub.health(), thread_cpu(), os.times()
-        lags.clear()
-        ledger.counting = True
-        start = time.monotonic()
-        while (elapsed := time.monotonic() - start) < seconds:
-            rss.append((elapsed, memory_mb()["rss"]))
-            await asyncio.sleep(min(0.5, seconds - elapsed))
-        ledger.counting = False
-        cpu_after, threads_after = os.times(), thread_cpu()
-        out.update(
-            wall=time.monotonic() - start, first=first, last=hub.health(),
-            cpu_s=(cpu_after.user + cpu_after.system) - (cpu_before.user + cpu_before.system),
-            charged=charge(threads_before, threads_after, ledger),
-            callbacks=ledger.callbacks,
-            callback_overhead_s=overhead_s,
-            loop_thread_s=threads_after.get("MainThread", 0.0) - threads_before.get("MainThread", 0.0),
-            headset=json.loads((await asyncio.to_thread(headset.communicate, None, 30.0))[0].strip().splitlines()[-1]),
-        )
-        stop.set()
+        try:
+            if cgroup is not None:
+                out["cpu_quota"] = {"cgroup": str(cgroup), "quota_period_us": join(cgroup)}  # after the children started
+            await asyncio.sleep(warmup_s)
+            first, threads_before, cpu_before = hub.health(), thread_cpu(), os.times()
+            lags.clear()
+            ledger.counting = True
+            start = time.monotonic()
+            while (elapsed := time.monotonic() - start) < seconds:
+                rss.append((elapsed, memory_mb()["rss"]))
+                await asyncio.sleep(min(0.5, seconds - elapsed))
+            ledger.counting = False
+            cpu_after, threads_after = os.times(), thread_cpu()
+            out.update(
+                wall=time.monotonic() - start, first=first, last=hub.health(),
+                cpu_s=(cpu_after.user + cpu_after.system) - (cpu_before.user + cpu_before.system),
+                charged=charge(threads_before, threads_after, ledger),
+                callbacks=ledger.callbacks,
+                callback_overhead_s=overhead_s,
+                loop_thread_s=threads_after.get("MainThread", 0.0) - threads_before.get("MainThread", 0.0),
+                headset=json.loads((await asyncio.to_thread(headset.communicate, None, 30.0))[0].strip().splitlines()[-1]),
+            )
+        finally:
+            if headset.poll() is None:
+                headset.kill()
+            stop.set()  # a failed measurement stops the daemon too; its error surfaces below
 
     async def peak() -> None:
         while not stop.is_set():
@@ -174,9 +178,14 @@ async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: f
         await run_daemon(config, stop=stop, hub=hub, notifier=Notifier({}), builders=builders(cameras),
                          on_started=lambda h, s: started.set())
     finally:
+        if not tasks[0].done():
+            tasks[0].cancel()  # the daemon ended before the window did (it failed): stop measuring
+        stop.set()
         lag_stop.set()
         undo()
-        await asyncio.gather(*tasks, return_exceptions=True)
+        done = await asyncio.gather(*tasks, return_exceptions=True)
+    if isinstance(done[0], Exception):
+        raise done[0]  # the measurement failed (e.g. the headset process): not a report with holes
     out["lags_ms"] = list(lags)
     out["rss"] = rss
     return out
