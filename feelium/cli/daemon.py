@@ -1,4 +1,4 @@
-"""``feelium run`` and ``feelium bench daemon``."""
+"""``feelium run``, ``feelium bench daemon`` and ``feelium bench board``."""
 
 from __future__ import annotations
 
@@ -27,6 +27,15 @@ def register(registry: CommandRegistry) -> None:
         default=10.0,
         help="then run each service alone this long in a fresh process, for its memory (0 = skip; default 10)",
     )
+    board = registry.subcommand(
+        "bench", "board", "The daemon on its real data path at real rates, projected onto a Pi Zero 2 W (docs/performance.md).",
+        _bench_board,
+    )
+    board.add_argument("--minutes", type=float, default=5.0, help="measured window after a 3 s warm-up (default 5)")
+    board.add_argument("--config", help="TOML config file (sim backends forced; cameras preloaded; board out of process)")
+    board.add_argument("--front-fps", type=float, help="front camera and MJPEG rate (default: [front_camera] fps)")
+    board.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
+    board.add_argument("--cgroup", metavar="DIR", help="join this existing cgroup (a CPU quota) for the measured window")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -43,3 +52,9 @@ def _bench(args: argparse.Namespace) -> int:
     from feelium.lab.daemon.bench import bench_daemon_command
 
     return bench_daemon_command(args)
+
+
+def _bench_board(args: argparse.Namespace) -> int:
+    from feelium.lab.daemon.board import bench_board_command
+
+    return bench_board_command(args)

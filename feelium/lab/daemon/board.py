@@ -1,0 +1,332 @@
+"""``feelium bench board``: the real daemon on its real data path at real rates, projected onto a Pi Zero 2 W.
+
+What runs, and what does not count:
+
+- the daemon's own services as ``feelium run`` assembles them, on the sim
+  backends where hardware would be (thermal's I2C-level device, the audio
+  devices, the projector's display), with two exceptions that keep the
+  simulator's own cost out of the figures: both cameras play frames rendered
+  once before the run (:mod:`feelium.lab.daemon.preloaded`), and the motor
+  board runs in another process behind ``socket://`` (:mod:`feelium.lab.daemon.board_server`);
+- three headset clients in a third process (:mod:`feelium.lab.daemon.headset`).
+
+Per service it reports the rate against its target, deadline misses and CPU
+milliseconds per second of thread CPU time (:mod:`feelium.lab.daemon.attribution`),
+then the process total, the event loop's lag, resident memory, and the
+projection onto the board (:mod:`feelium.lab.daemon.projection`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import dataclasses
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from feelium.daemon.assembly import SERVICES, load_projector_annotation
+from feelium.daemon.config import Config, load_config
+from feelium.daemon.memory import tune_malloc
+from feelium.daemon.runner import WORKER_THREADS, run_daemon, with_overrides
+from feelium.daemon.sdnotify import Notifier
+from feelium.hub import Hub
+from feelium.lab.daemon.attribution import ChargingExecutor, Ledger, callback_overhead_s, charge, charge_loop_callbacks, thread_cpu
+from feelium.lab.daemon.bench import memory_mb
+from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_frames
+from feelium.lab.daemon.projection import project
+from feelium.lab.daemon.quota import join
+from feelium.lab.report import emit_report
+from feelium.service import Service
+
+TOKEN = "bench-board-token"
+WARMUP_S = 3.0  # devices open, caches warm, the headset clients connect
+LAG_PROBE_S = 0.01
+REAR_LOOP_S = 6.0  # seconds of rear frames preloaded (touches every ~1.5 s); longer only costs memory
+FRONT_LOOP_S = 1.0
+
+
+@dataclasses.dataclass
+class Cameras:
+    """Both preloaded cameras, kept for their late counts and the bytes to take out of resident memory."""
+
+    rear: PreloadedSource
+    front: PreloadedSource
+
+    @property
+    def nbytes(self) -> int:
+        return self.rear.nbytes + self.front.nbytes
+
+
+def prepare(config: Config, front_fps: float) -> Cameras:
+    """Render both cameras' frames once, before anything is measured."""
+    size = (config.touch.width, config.touch.height)
+    rear, roi = rear_frames(config.sim, size, config.rear_camera.fps, REAR_LOOP_S)
+    front = front_frames((config.front_camera.width, config.front_camera.height), front_fps, FRONT_LOOP_S, config.sim.seed)
+    return Cameras(PreloadedSource(rear, config.rear_camera.fps, roi), PreloadedSource(front, front_fps))
+
+
+def builders(cameras: Cameras) -> tuple[tuple[str, Any], ...]:
+    """The daemon's assembly with both cameras on the preloaded frames; every other part as ``feelium run`` builds it."""
+
+    def touch(config: Config, hub: Hub) -> Service:
+        from feelium.touch.service import TouchService
+
+        return TouchService(
+            cameras.rear.source(), hub, config.touch,
+            debug_video_fps=config.rear_camera.debug_video_fps, annotation=load_projector_annotation(config),
+        )
+
+    def front_camera(config: Config, hub: Hub) -> Service:
+        from feelium.front_camera.service import FrontCameraService
+
+        return FrontCameraService(cameras.front.source(), hub)
+
+    replaced = {"touch": touch, "front_camera": front_camera}
+    return tuple((name, replaced.get(name, build)) for name, build in SERVICES)
+
+
+def bench_config(config: Config, rear_fps: float, board_port: str) -> Config:
+    """Sim backends, the rear camera at ``rear_fps``, flight over the board process's pty, HTTP on a free port."""
+    config = with_overrides(config, sim=True)
+    return dataclasses.replace(
+        config,
+        rear_camera=dataclasses.replace(config.rear_camera, fps=rear_fps),
+        flight=dataclasses.replace(config.flight, backend="serial", port=board_port),
+        http=dataclasses.replace(config.http, port=0, token=TOKEN, host="127.0.0.1"),
+    )
+
+
+def _percentile(values: list[float], q: float) -> float:
+    return float(np.percentile(np.asarray(values, dtype=np.float64), q)) if values else float("nan")
+
+
+async def _lag_probe(lags_ms: list[float], stop: asyncio.Event) -> None:
+    """How late the loop wakes a 10 ms sleeper: what any callback waits behind the others."""
+    while not stop.is_set():
+        due = time.perf_counter() + LAG_PROBE_S
+        await asyncio.sleep(LAG_PROBE_S)
+        lags_ms.append(1000.0 * max(0.0, time.perf_counter() - due))
+
+
+def _start_headset(port: int, seconds: float) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "feelium.lab.daemon.headset", f"http://127.0.0.1:{port}/api/v1", TOKEN, str(seconds)],
+        stdout=subprocess.PIPE, text=True,
+    )
+
+
+async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: float, cgroup: Path | None) -> dict[str, Any]:
+    """Run the daemon; measure over ``seconds`` after the warm-up while the headset process drives it."""
+    ledger = Ledger()
+    loop = asyncio.get_running_loop()
+    loop.set_default_executor(ChargingExecutor(ledger, WORKER_THREADS))
+    undo = charge_loop_callbacks(ledger)
+    overhead_s = callback_overhead_s(loop, ledger)
+    hub, stop, lag_stop = Hub(), asyncio.Event(), asyncio.Event()
+    lags: list[float] = []
+    rss: list[tuple[float, float]] = []
+    out: dict[str, Any] = {}
+    started = asyncio.Event()
+
+    async def window() -> None:
+        await started.wait()
+        while not isinstance(port := hub.health()["services"]["http"].get("port"), int):
+            await asyncio.sleep(0.05)  # bound once the http service has started
+        headset = _start_headset(port, seconds + warmup_s)
+        try:
+            if cgroup is not None:
+                out["cpu_quota"] = {"cgroup": str(cgroup), "quota_period_us": join(cgroup)}  # after the children started
+            await asyncio.sleep(warmup_s)
+            first, threads_before, cpu_before = hub.health(), thread_cpu(), os.times()
+            lags.clear()
+            ledger.counting = True
+            start = time.monotonic()
+            while (elapsed := time.monotonic() - start) < seconds:
+                rss.append((elapsed, memory_mb()["rss"]))
+                await asyncio.sleep(min(0.5, seconds - elapsed))
+            ledger.counting = False
+            cpu_after, threads_after = os.times(), thread_cpu()
+            out.update(
+                wall=time.monotonic() - start, first=first, last=hub.health(),
+                cpu_s=(cpu_after.user + cpu_after.system) - (cpu_before.user + cpu_before.system),
+                charged=charge(threads_before, threads_after, ledger),
+                callbacks=ledger.callbacks,
+                callback_overhead_s=overhead_s,
+                loop_thread_s=threads_after.get("MainThread", 0.0) - threads_before.get("MainThread", 0.0),
+                headset=json.loads((await asyncio.to_thread(headset.communicate, None, 30.0))[0].strip().splitlines()[-1]),
+            )
+        finally:
+            if headset.poll() is None:
+                headset.kill()
+            stop.set()  # a failed measurement stops the daemon too; its error surfaces below
+
+    async def peak() -> None:
+        while not stop.is_set():
+            rss.append((-1.0, memory_mb()["rss"]))  # start-up included in the peak, not in the steady figure
+            await asyncio.sleep(0.5)
+
+    tasks = [asyncio.create_task(window()), asyncio.create_task(_lag_probe(lags, lag_stop)), asyncio.create_task(peak())]
+    try:
+        await run_daemon(config, stop=stop, hub=hub, notifier=Notifier({}), builders=builders(cameras),
+                         on_started=lambda h, s: started.set())
+    finally:
+        if not tasks[0].done():
+            tasks[0].cancel()  # the daemon ended before the window did (it failed): stop measuring
+        stop.set()
+        lag_stop.set()
+        undo()
+        done = await asyncio.gather(*tasks, return_exceptions=True)
+    if isinstance(done[0], Exception):
+        raise done[0]  # the measurement failed (e.g. the headset process): not a report with holes
+    out["lags_ms"] = list(lags)
+    out["rss"] = rss
+    return out
+
+
+def _delta(first: dict[str, Any], last: dict[str, Any], service: str, key: str) -> float:
+    a, b = first["services"].get(service, {}).get(key), last["services"].get(service, {}).get(key)
+    return float(b) - float(a) if isinstance(a, (int, float)) and isinstance(b, (int, float)) else 0.0
+
+
+def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, front_fps: float) -> dict[str, dict[str, Any]]:
+    """Rate, target and misses per service over the window, and the CPU ms per second charged to it.
+
+    A miss is a frame or cycle due that was not done in time: the touch service's dropped frames, the
+    front camera's frames its reader fetched late, flight's overruns, late motion requests; where a
+    service keeps no such count (thermal, audio capture, projector, MJPEG delivery) it is the shortfall
+    of work done against the target.
+    """
+    first, last, wall = measured["first"], measured["last"], measured["wall"]
+    headset = measured["headset"]
+
+    def row(done: float, target: float, missed: float | None = None) -> dict[str, Any]:
+        shortfall = max(0.0, 1.0 - done / (target * wall)) if target > 0 else 0.0
+        miss = missed / max(done + missed, 1.0) if missed is not None else shortfall
+        return {"rate_hz": round(done / wall, 2), "target_hz": target, "miss_pct": round(100.0 * miss, 2),
+                "miss_kind": "counted" if missed is not None else "shortfall"}
+
+    touch_frames = _delta(first, last, "touch", "frames")
+    rows = {
+        "touch": row(touch_frames, config.rear_camera.fps, _delta(first, last, "touch", "dropped_frames")),
+        "front_camera": row(_delta(first, last, "front_camera", "frames"), front_fps),
+        "thermal": row(_delta(first, last, "thermal", "frames"), config.thermal.refresh_hz),  # one per sub-page
+        "audio": row(_delta(first, last, "audio", "captured_chunks"), 1000.0 / config.audio.chunk_ms),
+        "projector": row(_delta(first, last, "projector", "frames"), config.projector.fps),
+        "flight": row(_delta(first, last, "flight", "cycles"), config.flight.rate_hz, _delta(first, last, "flight", "overruns")),
+        "http": row(headset["mjpeg"]["frames"] * wall / headset["seconds"], front_fps),
+    }
+    rows["front_camera"]["late_frames_total"] = cameras.front.late
+    rows["flight"]["link_losses"] = int(_delta(first, last, "flight", "link_losses"))  # a starved board process shows here
+    moves = headset["motion"]
+    rows["headset_motion"] = {"rate_hz": moves["rate_hz"], "target_hz": moves["target_hz"], "miss_kind": "counted",
+                              "miss_pct": round(100.0 * moves["late"] / max(moves["sent"], 1), 2),
+                              "rtt_ms_p50": moves["rtt_ms_p50"], "rtt_ms_p99": moves["rtt_ms_p99"]}
+    for name, kinds in measured["charged"].items():
+        entry = rows.setdefault(name, {"rate_hz": None, "target_hz": None, "miss_pct": None})
+        entry["cpu_ms_per_s"] = round(1000.0 * sum(kinds.values()) / wall, 2)
+        entry["cpu_ms_per_s_by_kind"] = {kind: round(1000.0 * s / wall, 2) for kind, s in sorted(kinds.items())}
+    for entry in rows.values():
+        entry.setdefault("cpu_ms_per_s", 0.0)
+    return rows
+
+
+def bench_board(
+    config: Config,
+    minutes: float,
+    *,
+    front_fps: float | None = None,
+    rear_fps: float = 30.0,
+    warmup_s: float = WARMUP_S,
+    cgroup: Path | None = None,
+) -> dict[str, Any]:
+    """Start the board process, run and measure the daemon for ``minutes``, project; every number in one dict."""
+    board = subprocess.Popen([sys.executable, "-m", "feelium.lab.daemon.board_server"], stdout=subprocess.PIPE, text=True)
+    try:
+        port = board.stdout.readline().strip() if board.stdout else ""
+        config = bench_config(config, rear_fps, port)
+        front_fps = front_fps or config.front_camera.fps
+        malloc = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
+        cameras = prepare(config, front_fps)
+        load_before = os.getloadavg()[0]
+        measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup))
+        load_after = os.getloadavg()[0]
+    finally:
+        board.kill()
+        board.wait()
+    wall = measured["wall"]
+    preload_mb = cameras.nbytes / 2**20
+    window = [mb for t, mb in measured["rss"] if t >= 0]
+    rows = service_rows(measured, config, cameras, front_fps)
+    result: dict[str, Any] = {
+        "seconds": round(wall, 2),
+        "cpus": os.cpu_count(),
+        "load_average_1min_before_after": [round(load_before, 2), round(load_after, 2)],
+        "malloc": malloc or "glibc defaults",
+        "rear": {"size": [config.touch.width, config.touch.height], "fps": config.rear_camera.fps},
+        "front": {"size": [config.front_camera.width, config.front_camera.height], "fps": front_fps},
+        "process_cpu_ms_per_s": round(1000.0 * measured["cpu_s"] / wall, 1),
+        "loop_thread_ms_per_s": round(1000.0 * measured["loop_thread_s"] / wall, 1),
+        "loop_callbacks_per_s": round(measured["callbacks"] / wall),
+        "bench_overhead_ms_per_s": round(1000.0 * measured["callbacks"] * measured["callback_overhead_s"] / wall, 1),
+        "loop_lag_p50_ms": round(_percentile(measured["lags_ms"], 50), 2),
+        "loop_lag_p99_ms": round(_percentile(measured["lags_ms"], 99), 2),
+        "loop_lag_max_ms": round(max(measured["lags_ms"], default=float("nan")), 2),
+        "preloaded_frames_mb": round(preload_mb, 1),
+        "rss_mb": round(statistics.median(window[len(window) // 2 :]) - preload_mb, 1),
+        "rss_peak_mb": round(max(mb for _, mb in measured["rss"]) - preload_mb, 1),
+        "cpu_quota": measured.get("cpu_quota"),
+        "services": rows,
+        "headset": measured["headset"],
+    }
+    result.update(project(result))
+    return result
+
+
+def format_table(result: dict[str, Any]) -> str:
+    quota = result["cpu_quota"]
+    lines = [
+        f"feelium bench board: {result['seconds']} s on {result['cpus']} CPUs (1 min load before / after "
+        f"{result['load_average_1min_before_after']}); rear {result['rear']}, front {result['front']}"
+        + (f"; CPU quota {quota['quota_period_us']} us in {quota['cgroup']}" if quota else ""),
+        f"  {'service':<20} {'rate/target Hz':>16} {'miss %':>7} {'CPU ms/s':>9} {'Pi ms/s':>8}",
+    ]
+    for name, row in result["services"].items():
+        rate = f"{row['rate_hz']}/{row['target_hz']}" if row["rate_hz"] is not None else "-"
+        miss = "-" if row["miss_pct"] is None else f"{row['miss_pct']}"
+        lines.append(f"  {name:<20} {rate:>16} {miss:>7} {row['cpu_ms_per_s']:>9} {row['pi_ms_per_s']:>8}")
+    lines += [
+        f"  process CPU ms/s {result['process_cpu_ms_per_s']}; loop lag p50 / p99 / max "
+        f"{result['loop_lag_p50_ms']} / {result['loop_lag_p99_ms']} / {result['loop_lag_max_ms']} ms",
+        f"  the bench's own timing of {result['loop_callbacks_per_s']} loop callbacks/s costs ~"
+        f"{result['bench_overhead_ms_per_s']} ms/s of that (charged to the services, not subtracted)",
+        f"  RSS steady / peak {result['rss_mb']} / {result['rss_peak_mb']} MB (preloaded frames, "
+        f"{result['preloaded_frames_mb']} MB, taken out)",
+        f"  projected onto the Pi (x{result['pi_factor']}): {result['pi_cores']} of 4 cores used, "
+        f"{result['pi_cores_left']} left (at x6: {result['pi_cores_at_6x']}); event loop thread "
+        f"{result['pi_loop_thread_cores']} of its one core",
+        "  budget: " + ", ".join(f"{k} {'ok' if v else 'MISSED'}" for k, v in result["budget"].items()),
+    ]
+    return "\n".join(lines)
+
+
+def bench_board_command(args: argparse.Namespace) -> int:
+    import logging
+
+    from feelium.daemon.journal import setup_logging
+
+    setup_logging(logging.WARNING)
+    if not args.minutes > 0:
+        print("feelium bench board: --minutes must be positive", file=sys.stderr)
+        return 2
+    cgroup = Path(args.cgroup) if args.cgroup else None
+    result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps, cgroup=cgroup)
+    emit_report(format_table(result), result, args.json)
+    return 0

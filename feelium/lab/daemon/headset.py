@@ -1,0 +1,137 @@
+"""Three headset clients over loopback, in their own process so their CPU is not charged to the daemon.
+
+- ``mjpeg``: reads ``front.mjpeg`` (what the wearer sees) and counts frames;
+- ``events``: an SSE stream (touches, presence, answers) and the room audio long-poll (speech out);
+- ``motion``: ``POST /motion`` at 20 Hz on an absolute schedule, speech chunks in (200 ms, 5 per second),
+  a wearer action every 2 s, and once at the start a looping face video (``PUT /face``, 12 fps avatar).
+
+``python -m feelium.lab.daemon.headset BASE_URL TOKEN SECONDS`` prints one JSON line of counts and rates.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import sys
+import time
+from typing import Any
+
+import aiohttp
+import cv2
+import numpy as np
+
+from feelium.wav import encode_wav
+
+MOTION_HZ = 20.0
+SPEECH_CHUNK_S = 0.2
+ACTION_EVERY_S = 2.0
+FACE_FRAMES = 24
+FACE_FPS = 12
+
+
+async def mjpeg(session: aiohttp.ClientSession, base: str, until: float) -> dict[str, Any]:
+    """Frames of the front stream received before ``until`` (each part carries one ``X-Frame-Seq`` header)."""
+    frames, tail = 0, b""
+    async with session.get(f"{base}/video/front.mjpeg") as response:
+        async for chunk in response.content.iter_any():
+            data = tail + chunk
+            frames += data.count(b"X-Frame-Seq")
+            tail = data[-16:]
+            frames -= tail.count(b"X-Frame-Seq")  # counted again with the next chunk
+            if time.monotonic() >= until:
+                break
+    return {"frames": frames}
+
+
+async def events(session: aiohttp.ClientSession, base: str, until: float) -> dict[str, Any]:
+    """Events from the SSE stream, by type."""
+    counts: dict[str, int] = {}
+    async with session.get(f"{base}/events/stream") as response:
+        while time.monotonic() < until:
+            try:
+                line = await asyncio.wait_for(response.content.readline(), max(0.01, until - time.monotonic()))
+            except asyncio.TimeoutError:
+                break
+            if line.startswith(b"event:"):
+                kind = line[6:].strip().decode()
+                counts[kind] = counts.get(kind, 0) + 1
+    return {"by_type": counts, "events": sum(counts.values())}
+
+
+async def speech_out(session: aiohttp.ClientSession, base: str, until: float) -> dict[str, Any]:
+    """Room audio chunks fetched with the long-poll, as the headset plays them."""
+    after, wavs, data = 0, 0, 0
+    while time.monotonic() < until:
+        async with session.get(f"{base}/speech", params={"after": after, "timeout": 1}) as response:
+            after = int(response.headers.get("X-Speech-Seq", after))
+            if response.status == 200:
+                wavs += 1
+                data += len(await response.read())
+    return {"responses": wavs, "bytes": data}
+
+
+def _face_video() -> aiohttp.FormData:
+    form = aiohttp.FormData()
+    for i in range(FACE_FRAMES):
+        image = np.full((360, 480, 3), 60, np.uint8)
+        cv2.circle(image, (240, 180), 80 + 4 * (i % 6), (90, 140, 220), -1)
+        form.add_field(f"f{i}", cv2.imencode(".jpg", image)[1].tobytes(), content_type="image/jpeg", filename=f"f{i}.jpg")
+    return form
+
+
+async def motion(session: aiohttp.ClientSession, base: str, until: float) -> dict[str, Any]:
+    """Motion at 20 Hz; a request that starts more than one period after it was due is late."""
+    async with session.put(f"{base}/face", params={"fps": FACE_FPS}, data=_face_video()) as response:
+        face_status = response.status
+    period = 1.0 / MOTION_HZ
+    pcm = (1000 * np.sin(np.arange(int(16000 * SPEECH_CHUNK_S)) / 5.0)).astype("<i2").tobytes()
+    wav = encode_wav(pcm, 16000)
+    start = time.monotonic()
+    sent = late = refused = speech = actions = 0
+    rtts: list[float] = []
+    while (now := time.monotonic()) < until:
+        due = start + sent * period
+        if now > due + period:
+            late += 1
+        began = time.monotonic()
+        async with session.post(f"{base}/motion", json={"command": "turn_left", "hold_ms": 300}) as response:
+            refused += response.status != 200
+        rtts.append(time.monotonic() - began)
+        sent += 1
+        if sent % round(MOTION_HZ * SPEECH_CHUNK_S) == 0:
+            async with session.post(f"{base}/speech", data=wav, headers={"Content-Type": "audio/wav"}) as response:
+                speech += response.status == 202
+        if sent % round(MOTION_HZ * ACTION_EVERY_S) == 0:
+            async with session.post(f"{base}/actions/heart") as response:
+                actions += response.status == 202
+        await asyncio.sleep(max(0.0, start + sent * period - time.monotonic()))
+    elapsed = time.monotonic() - start
+    return {
+        "sent": sent, "late": late, "refused": refused, "rate_hz": round(sent / elapsed, 2), "target_hz": MOTION_HZ,
+        "rtt_ms_p50": round(1000 * float(np.percentile(rtts, 50)), 2) if rtts else None,
+        "rtt_ms_p99": round(1000 * float(np.percentile(rtts, 99)), 2) if rtts else None,
+        "speech_chunks_in": speech, "actions": actions, "face_status": face_status,
+    }
+
+
+async def run(base: str, token: str, seconds: float) -> dict[str, Any]:
+    until = time.monotonic() + seconds
+    headers = {"Authorization": f"Bearer {token}"}
+    timeout = aiohttp.ClientTimeout(total=None, sock_read=seconds + 5)
+    async with aiohttp.ClientSession(headers=headers, timeout=timeout) as session:
+        start = time.monotonic()
+        video, stream, audio, moves = await asyncio.gather(
+            mjpeg(session, base, until), events(session, base, until), speech_out(session, base, until), motion(session, base, until)
+        )
+        elapsed = time.monotonic() - start
+    video["fps"] = round(video["frames"] / elapsed, 2)
+    return {"seconds": round(elapsed, 2), "mjpeg": video, "events": stream, "speech_out": audio, "motion": moves}
+
+
+def main() -> None:
+    base, token, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+    print(json.dumps(asyncio.run(run(base, token, seconds))), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,46 @@
+"""``feelium bench board`` runs the whole data path and writes finite figures; CPU is charged to the right service.
+
+Speed claims live in the benchmark (docs/performance.md), not here: nothing below asserts a timing.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from feelium.daemon.config import Config
+from feelium.lab.daemon.attribution import LOOP_OTHER, OTHER_THREADS, Ledger, charge, service_of_module
+from feelium.lab.daemon.board import bench_board, format_table
+
+
+def test_modules_and_threads_are_charged_to_their_service():
+    assert service_of_module("feelium.projector.renderer") == "projector"
+    assert service_of_module("aiohttp.web_protocol") == "http"
+    assert service_of_module("feelium.cameras.base") is None  # shared: the caller decides
+    ledger = Ledger()
+    ledger.counting = True
+    ledger.add("projector", "pool", 0.5)
+    ledger.add("http", "loop", 0.25)
+    before = {"MainThread": 1.0, "touch-pipeline_0": 2.0, "bench-pool_0": 0.0}
+    after = {"MainThread": 1.5, "touch-pipeline_0": 3.0, "bench-pool_0": 0.5, "native-7": 0.1}
+    charged = charge(before, after, ledger)
+    assert charged["touch"] == {"thread": pytest.approx(1.0)}
+    assert charged["projector"] == {"pool": 0.5}
+    assert charged[LOOP_OTHER]["loop"] == pytest.approx(0.25)  # main + pool time no callback or job accounts for
+    assert charged[OTHER_THREADS] == {"native-7": pytest.approx(0.1)}
+
+
+@pytest.mark.slow
+def test_bench_board_runs_every_service_and_writes_finite_json():
+    result = bench_board(Config(), 2.0 / 60.0, warmup_s=1.0)
+    text = json.dumps(result, allow_nan=False)  # raises on NaN or infinity
+    assert {"pi_cores", "rss_mb", "rss_peak_mb", "loop_lag_p99_ms", "services"} <= json.loads(text).keys()
+    for name in ("touch", "front_camera", "thermal", "audio", "projector", "flight", "http"):
+        row = result["services"][name]
+        assert {"rate_hz", "target_hz", "miss_pct", "cpu_ms_per_s"} <= row.keys()
+        assert all(math.isfinite(row[key]) for key in ("rate_hz", "target_hz", "miss_pct", "cpu_ms_per_s")), name
+        assert row["rate_hz"] > 0, name
+    assert 0 < result["rss_mb"] <= result["rss_peak_mb"]
+    assert "pi_cores" in format_table(result)
