@@ -94,7 +94,7 @@ class AltitudeObserver:
 
     def accel(self, up_force_n: float) -> float:
         c = self.c
-        return (up_force_n + c.net_buoyancy_n - air_drag(self.vz, c.quadratic_drag)) / c.mass_kg + self.disturbance
+        return (up_force_n + c.net_buoyancy_n - air_drag(self.vz, c.quadratic_drag)) / c.heave_mass + self.disturbance
 
     def predict(self, up_force_n: float, dt: float) -> None:
         """Propagate with the modelled forces (thrust, buoyancy, drag)."""

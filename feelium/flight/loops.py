@@ -148,7 +148,7 @@ class AltitudeLoop:
         rate_ref = rate_ahead if climb else ref.rate
         predicted = obs.vz + obs.accel(thrust.vertical) * THRUST_LAG_S
         accel = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - predicted)) + ref.accel - obs.disturbance
-        up_n = c.mass_kg * accel - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
+        up_n = c.heave_mass * accel - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
         lo, hi = self.mixer.limits_up_n()
         saturated = up_n >= hi or up_n <= lo
         # Anti-windup: the disturbance (the integral) learns only while the loop is in charge: not
@@ -172,8 +172,8 @@ class AltitudeLoop:
         c = self.c
         lo, hi = self.mixer.limits_up_n()
         drag = air_drag(rate, c.quadratic_drag)
-        return ((lo + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance,
-                (hi + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance)
+        return ((lo + c.net_buoyancy_n - drag) / c.heave_mass + obs.disturbance,
+                (hi + c.net_buoyancy_n - drag) / c.heave_mass + obs.disturbance)
 
 
 class HeadingLoop:

@@ -1,0 +1,460 @@
+"""System identification of the blimp's flight plant from a logged flight: the pure core of `calibrate flight`.
+
+Fed arrays (the control ticks, the four motor commands sent at each tick and
+held until the next, and the board's rangefinder, gyro and optical-flow
+readings), it fits the model ``blimp_model.py`` simulates and the controller
+assumes, per axis:
+
+    m a = thrust(commands) + known force - c1 v - c2 v|v|
+
+where a motor's thrust is zero within its deadband, grows with the square of
+the command beyond it up to ``max_thrust`` at full command (times the reverse
+ratio below 1500 us), and follows the command through a first-order lag.
+
+Method (``docs/calibrate-flight.md``): equation error on rates. Each measured
+rate (climb rate from the rangefinder's altitude, forward speed from flow x
+height, yaw rate from the gyro) is smoothed with a zero-phase Gaussian and
+differentiated; every regressor is smoothed by the same kernel, so the filter
+cancels on both sides. For a given lag and deadband the model is linear in
+its unknowns and is solved by least squares; lag and deadband, the nonlinear
+two, are found by a coordinate search on the residual. Standard errors come
+from the residual and the normal matrix, inflated for the residual's
+correlation (the smoothing makes neighbouring samples dependent).
+
+Identifiability: without a force sensor only ratios (thrust / mass, drag /
+mass) are observable. Two known things give them a scale: the weighed net
+buoyancy (heave: mass, vertical thrust and drag in newtons) and the body's
+drag, which the model takes as the same on every translational axis (a
+near-spherical envelope); so the surge mass is the one that makes the surge
+deceleration match that drag, the horizontal thrust follows, and the yaw
+inertia follows from that thrust and the measured motor arm.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+LAG_RANGE_S = (0.02, 0.25)
+DEADBAND_RANGE = (0.0, 0.3)
+# Gaussian sigma per measured rate, set by the sensor's noise: the rangefinder's altitude (1-2 cm a
+# reading) is differentiated twice, the flow speed (about 3 cm/s a frame) and the gyro (0.3 deg/s plus
+# whole-degree steps) once. Wider loses the lag's detail, narrower drowns the fit in noise.
+SMOOTH_S = {"heave": 0.2, "surge": 0.12, "yaw": 0.07}
+# A measurement's age when the controller gets it, on average (the simulated board: a new range every 20 ms,
+# a flow frame every 10 ms, the gyro read at the request); the fit compares each with the body at that age.
+RANGE_LATENCY_S = 0.010
+FLOW_LATENCY_S = 0.005
+NEAR_LIMIT_M = 0.12  # samples this close to the floor/ceiling limits are dropped (contact, ground effect)
+
+
+@dataclass(frozen=True)
+class FlightRecord:
+    """One logged flight, sampled at the control ticks; NaN marks a missing reading.
+
+    ``commands[k]`` (N x 4, each in [-1, 1]: left, right, front vertical, rear
+    vertical) is what was sent at ``t[k]`` and held until ``t[k + 1]``.
+    """
+
+    t: np.ndarray
+    commands: np.ndarray
+    range_m: np.ndarray
+    yaw_rate_dps: np.ndarray
+    flow_x_rad_s: np.ndarray
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One fitted value with its standard error."""
+
+    value: float
+    stderr: float
+
+    @property
+    def relative(self) -> float:
+        return abs(self.stderr / self.value) if self.value else math.inf
+
+
+@dataclass
+class AxisFit:
+    """The linear least squares of one axis at the chosen lag and deadband."""
+
+    names: tuple[str, ...]
+    coef: np.ndarray
+    cov: np.ndarray
+    residual_rms: float  # of the rate derivative, in the axis's units per second
+    rate_rms: float  # of the rate derivative itself, for scale
+    samples: int
+
+    def estimate(self, name: str) -> Estimate:
+        i = self.names.index(name)
+        return Estimate(float(self.coef[i]), float(math.sqrt(max(self.cov[i, i], 0.0))))
+
+
+@dataclass
+class PlantFit:
+    """The fitted plant in physical units, what the controller's config needs, and how well it fits."""
+
+    values: dict[str, Estimate] = field(default_factory=dict)
+    residuals: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def value(self, name: str) -> float:
+        return self.values[name].value
+
+
+# ---------------------------------------------------------------- signal helpers
+def _gaussian_kernel(sigma_samples: float) -> np.ndarray:
+    half = max(1, int(math.ceil(3.0 * sigma_samples)))
+    x = np.arange(-half, half + 1, dtype=float)
+    kernel = np.exp(-0.5 * (x / sigma_samples) ** 2)
+    return kernel / kernel.sum()
+
+
+def smooth(values: np.ndarray, sigma_samples: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-phase Gaussian smoothing that skips NaNs; returns the smoothed values and whether each is trusted
+    (at least 90 % of the kernel's weight fell on real samples)."""
+    kernel = _gaussian_kernel(sigma_samples)
+    valid = np.isfinite(values)
+    filled = np.where(valid, values, 0.0)
+    weight = np.convolve(valid.astype(float), kernel, mode="same")
+    total = np.convolve(filled, kernel, mode="same")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = total / weight
+    return out, weight >= 0.9
+
+
+def motor_shape(commands: np.ndarray, deadband: float) -> tuple[np.ndarray, np.ndarray]:
+    """Thrust per full thrust of each command, split by direction: (forward part >= 0, reverse part >= 0)."""
+    magnitude = np.clip((np.abs(commands) - deadband) / (1.0 - deadband), 0.0, 1.0) ** 2
+    return np.where(commands > 0, magnitude, 0.0), np.where(commands < 0, magnitude, 0.0)
+
+
+def lagged_mean(steady: np.ndarray, lag_s: float, dt: float) -> np.ndarray:
+    """Mean over each control period of a first-order lag driven by ``steady`` held over that period.
+
+    Exact for a zero-order hold: the motor starts period k at T_k and relaxes toward S_k.
+    """
+    decay = math.exp(-dt / lag_s)
+    taps = max(2, int(math.ceil(8.0 * lag_s / dt)))
+    kernel = (1.0 - decay) * decay ** np.arange(taps)
+    start = np.concatenate(([0.0], np.convolve(steady, kernel)[: steady.size - 1]))  # T_k
+    return steady + (start - steady) * lag_s / dt * (1.0 - decay)
+
+
+def _on_grid(record: FlightRecord, values: np.ndarray, latency_s: float, grid: np.ndarray) -> np.ndarray:
+    """Readings placed at the time they describe (``t - latency``) and interpolated onto the grid; NaN where a
+    gap is longer than two periods."""
+    t = record.t - latency_s
+    valid = np.isfinite(values)
+    if valid.sum() < 2:
+        return np.full(grid.size, np.nan)
+    tv, vv = t[valid], values[valid]
+    out = np.interp(grid, tv, vv)
+    idx = np.clip(np.searchsorted(tv, grid), 1, tv.size - 1)
+    gap = tv[idx] - tv[idx - 1]
+    dt = float(np.median(np.diff(record.t)))
+    out[(gap > 2.5 * dt) | (grid < tv[0]) | (grid > tv[-1])] = np.nan
+    return out
+
+
+@dataclass(frozen=True)
+class Signals:
+    """The record on a uniform grid: rates at the period mid-points, their derivative, the commands."""
+
+    dt: float
+    commands: np.ndarray  # N x 4, held over [t_k, t_k+1)
+    rate: dict[str, np.ndarray]  # at the mid-points t_k + dt/2, length N - 1: heave m/s, surge m/s, yaw rad/s
+    accel: dict[str, np.ndarray]  # d rate / dt over each period, length N - 1
+    trusted: dict[str, np.ndarray]
+    sigma: dict[str, float]  # smoothing in samples, applied to the regressors as well
+
+
+def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: float = math.inf) -> Signals:
+    """Resample, smooth and differentiate the three measured rates."""
+    t = np.asarray(record.t, float)
+    dt = float(np.median(np.diff(t)))
+    grid = t[0] + dt * np.arange(t.size)
+    held = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, t.size - 1)
+    commands = np.asarray(record.commands, float)[held]
+    rate: dict[str, np.ndarray] = {}
+    accel: dict[str, np.ndarray] = {}
+    trusted: dict[str, np.ndarray] = {}
+    sigma: dict[str, float] = {}
+
+    z_raw = _on_grid(record, np.asarray(record.range_m, float), RANGE_LATENCY_S, grid)
+    sigma["heave"] = SMOOTH_S["heave"] / dt
+    z, ok = smooth(z_raw, sigma["heave"])
+    w = np.gradient(z, dt)
+    mid_w = 0.5 * (w[1:] + w[:-1])
+    rate["heave"], accel["heave"] = mid_w, np.diff(w) / dt
+    inside = (z[1:] > floor_limit_m + NEAR_LIMIT_M) & (z[1:] < ceiling_limit_m - NEAR_LIMIT_M)
+    trusted["heave"] = ok[1:] & ok[:-1] & inside & np.isfinite(mid_w)
+
+    height = np.interp(grid, grid[np.isfinite(z)], z[np.isfinite(z)]) if np.isfinite(z).any() else np.full(grid.size, np.nan)
+    flow_u = _on_grid(record, np.asarray(record.flow_x_rad_s, float), FLOW_LATENCY_S, grid) * height
+    gyro = np.radians(_on_grid(record, np.asarray(record.yaw_rate_dps, float), 0.0, grid))
+    for axis, raw in (("surge", flow_u), ("yaw", gyro)):
+        sigma[axis] = SMOOTH_S[axis] / dt
+        value, ok = smooth(raw, sigma[axis])
+        rate[axis] = 0.5 * (value[1:] + value[:-1])
+        accel[axis] = np.diff(value) / dt
+        trusted[axis] = ok[1:] & ok[:-1] & np.isfinite(rate[axis])
+    return Signals(dt, commands, rate, accel, trusted, sigma)
+
+
+# ---------------------------------------------------------------- least squares
+def least_squares(columns: dict[str, np.ndarray], target: np.ndarray, mask: np.ndarray, sigma_samples: float) -> AxisFit:
+    """Ordinary least squares on the trusted samples, with standard errors for a smoothed (correlated) residual.
+
+    The Gaussian smoothing leaves about ``2 sqrt(pi) sigma`` samples per independent one, so the
+    covariance is scaled by that factor.
+    """
+    names = tuple(columns)
+    x = np.stack([columns[n][mask] for n in names], axis=1)
+    y = target[mask]
+    scale = np.maximum(np.sqrt(np.mean(x * x, axis=0)), 1e-12)
+    coef_scaled, *_ = np.linalg.lstsq(x / scale, y, rcond=None)
+    coef = coef_scaled / scale
+    residual = y - x @ coef
+    dof = max(1, y.size - len(names))
+    variance = float(residual @ residual) / dof
+    normal = (x / scale).T @ (x / scale)
+    inflation = 2.0 * math.sqrt(math.pi) * sigma_samples
+    cov = np.linalg.pinv(normal) * variance * inflation / np.outer(scale, scale)
+    return AxisFit(names, coef, cov, math.sqrt(variance), float(np.sqrt(np.mean(y * y))), int(y.size))
+
+
+def _smoothed(values: np.ndarray, sigma: float) -> np.ndarray:
+    return smooth(values, sigma)[0]
+
+
+def _pair_columns(sig: Signals, motors: Sequence[int], lag_s: float, deadband: float, axis: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per motor: its lagged forward and reverse thrust shapes, period means, smoothed like the rates."""
+    out = []
+    for i in motors:
+        fwd, rev = motor_shape(sig.commands[:, i], deadband)
+        fwd_l = _smoothed(lagged_mean(fwd, lag_s, sig.dt), sig.sigma[axis])[:-1]
+        rev_l = _smoothed(lagged_mean(rev, lag_s, sig.dt), sig.sigma[axis])[:-1]
+        out.append((fwd_l, rev_l))
+    return out
+
+
+def heave_fit(sig: Signals, lag_s: float, deadband: float) -> AxisFit:
+    """Up acceleration = B/m - Tv/m (down pushes) + Tv rv/m (up pushes) - c1/m w - c2/m w|w|."""
+    (f3, r3), (f4, r4) = _pair_columns(sig, (2, 3), lag_s, deadband, "heave")
+    w = sig.rate["heave"]
+    columns = {"buoyancy_per_mass": np.ones_like(w), "thrust_per_mass": -(f3 + f4), "reverse_thrust_per_mass": r3 + r4,
+               "linear_drag_per_mass": -w, "quadratic_drag_per_mass": -w * np.abs(w)}
+    return least_squares(columns, sig.accel["heave"], sig.trusted["heave"], sig.sigma["heave"])
+
+
+def surge_fit(sig: Signals, lag_s: float, deadband: float, drag: Callable[[np.ndarray], np.ndarray]) -> AxisFit:
+    """Forward acceleration = Th/m (pushes) - Th rh/m (reverse pushes) - drag(u)/m, ``drag`` in newtons (heave's)."""
+    (f1, r1), (f2, r2) = _pair_columns(sig, (0, 1), lag_s, deadband, "surge")
+    u = sig.rate["surge"]
+    columns = {"thrust_per_mass": f1 + f2, "reverse_thrust_per_mass": -(r1 + r2), "inverse_mass": -drag(u)}
+    return least_squares(columns, sig.accel["surge"], sig.trusted["surge"], sig.sigma["surge"])
+
+
+def yaw_fit(sig: Signals, lag_s: float, deadband: float) -> AxisFit:
+    """Yaw acceleration = Th arm/I (left - right forward) - Th rh arm/I (left - right reverse) - d1/I r - d2/I r|r|."""
+    (f1, r1), (f2, r2) = _pair_columns(sig, (0, 1), lag_s, deadband, "yaw")
+    r = sig.rate["yaw"]
+    columns = {"torque_per_inertia": f1 - f2, "reverse_torque_per_inertia": -(r1 - r2),
+               "linear_drag_per_inertia": -r, "quadratic_drag_per_inertia": -r * np.abs(r)}
+    return least_squares(columns, sig.accel["yaw"], sig.trusted["yaw"], sig.sigma["yaw"])
+
+
+def _relative_sse(fit: AxisFit) -> float:
+    return (fit.residual_rms / max(fit.rate_rms, 1e-12)) ** 2
+
+
+def search_lag_deadband(cost: Callable[[float, float], float], rounds: int = 3) -> tuple[float, float]:
+    """Minimise ``cost(lag, deadband)``: a coarse grid, then alternating golden-section searches around its best."""
+    lags = np.geomspace(*LAG_RANGE_S, 9)
+    bands = np.linspace(*DEADBAND_RANGE, 7)
+    best = min(((cost(float(lag), float(band)), float(lag), float(band)) for lag in lags for band in bands))
+    _, lag, band = best
+    lag_step, band_step = lags[1] / lags[0], bands[1] - bands[0]
+    for _ in range(rounds):
+        lag = _golden(lambda x: cost(x, band), max(LAG_RANGE_S[0], lag / lag_step), min(LAG_RANGE_S[1], lag * lag_step))
+        band = _golden(lambda x: cost(lag, x), max(DEADBAND_RANGE[0], band - band_step), min(DEADBAND_RANGE[1], band + band_step))
+        lag_step, band_step = math.sqrt(lag_step), band_step / 2.0
+    return lag, band
+
+
+def _golden(f: Callable[[float], float], lo: float, hi: float, iterations: int = 14) -> float:
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+    a, b = lo + (1 - ratio) * (hi - lo), lo + ratio * (hi - lo)
+    fa, fb = f(a), f(b)
+    for _ in range(iterations):
+        if fa <= fb:
+            hi, b, fb = b, a, fa
+            a = lo + (1 - ratio) * (hi - lo)
+            fa = f(a)
+        else:
+            lo, a, fa = a, b, fb
+            b = lo + ratio * (hi - lo)
+            fb = f(b)
+    return a if fa <= fb else b
+
+
+# ---------------------------------------------------------------- the plant
+def _ratio(num: Estimate, den: Estimate) -> Estimate:
+    value = num.value / den.value
+    return Estimate(value, abs(value) * math.hypot(num.relative, den.relative))
+
+
+def _product(a: Estimate, b: Estimate) -> Estimate:
+    value = a.value * b.value
+    return Estimate(value, abs(value) * math.hypot(a.relative, b.relative))
+
+
+def _scaled(a: Estimate, factor: float) -> Estimate:
+    return Estimate(a.value * factor, abs(a.stderr * factor))
+
+
+@dataclass(frozen=True)
+class AxisFits:
+    """The three axis fits at their chosen lags and deadbands (the plots replay them)."""
+
+    heave: AxisFit
+    surge: AxisFit
+    yaw: AxisFit
+    vertical_lag_s: float
+    vertical_deadband: float
+    horizontal_lag_s: float
+    horizontal_deadband: float
+
+
+def fit_axes(sig: Signals) -> AxisFits:
+    """Lag and deadband per motor pair (vertical from heave; horizontal from surge and yaw together), then the fits."""
+    v_lag, v_band = search_lag_deadband(lambda lag, band: _relative_sse(heave_fit(sig, lag, band)))
+    heave = heave_fit(sig, v_lag, v_band)
+    drag = _drag_newtons(heave)
+
+    def horizontal_cost(lag: float, band: float) -> float:
+        return _relative_sse(surge_fit(sig, lag, band, drag)) + _relative_sse(yaw_fit(sig, lag, band))
+
+    h_lag, h_band = search_lag_deadband(horizontal_cost)
+    return AxisFits(heave, surge_fit(sig, h_lag, h_band, drag), yaw_fit(sig, h_lag, h_band), v_lag, v_band, h_lag, h_band)
+
+
+def _drag_newtons(heave: AxisFit) -> Callable[[np.ndarray], np.ndarray]:
+    """The body's drag force (N) at a speed, from the heave fit scaled by its mass (buoyancy per mass is B/m)."""
+    per_mass = heave.estimate("buoyancy_per_mass").value
+    c1 = heave.estimate("linear_drag_per_mass").value / per_mass
+    c2 = heave.estimate("quadratic_drag_per_mass").value / per_mass
+
+    def drag(v: np.ndarray) -> np.ndarray:
+        return c1 * v + c2 * v * np.abs(v)
+
+    return drag
+
+
+def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
+             floor_limit_m: float = 0.0, ceiling_limit_m: float = math.inf) -> tuple[PlantFit, AxisFits, Signals]:
+    """The plant in physical units from one logged flight; ``net_buoyancy_n`` (weighed) and ``arm_m`` (measured)
+    give the scale."""
+    sig = prepare(record, floor_limit_m, ceiling_limit_m)
+    fits = fit_axes(sig)
+    heave, surge, yaw = fits.heave, fits.surge, fits.yaw
+    b_per_m = heave.estimate("buoyancy_per_mass")
+    heave_mass = Estimate(net_buoyancy_n / b_per_m.value, net_buoyancy_n / b_per_m.value * b_per_m.relative)
+    values: dict[str, Estimate] = {"heave_mass_kg": heave_mass}
+    values["vertical_thrust_n"] = _scaled(_ratio(heave.estimate("thrust_per_mass"), b_per_m), net_buoyancy_n)  # per motor
+    values["vertical_reverse_ratio"] = _ratio(heave.estimate("reverse_thrust_per_mass"), heave.estimate("thrust_per_mass"))
+    values["linear_drag_n_per_m_s"] = _scaled(_ratio(heave.estimate("linear_drag_per_mass"), b_per_m), net_buoyancy_n)
+    values["quadratic_drag"] = _scaled(_ratio(heave.estimate("quadratic_drag_per_mass"), b_per_m), net_buoyancy_n)
+
+    inverse_mass = surge.estimate("inverse_mass")
+    surge_mass = Estimate(1.0 / inverse_mass.value, inverse_mass.relative / abs(inverse_mass.value))
+    values["surge_mass_kg"] = surge_mass
+    thrust_per_mass = surge.estimate("thrust_per_mass")
+    values["horizontal_thrust_n"] = _product(thrust_per_mass, surge_mass)  # per motor
+    reverse_surge = _ratio(surge.estimate("reverse_thrust_per_mass"), thrust_per_mass)
+    reverse_yaw = _ratio(yaw.estimate("reverse_torque_per_inertia"), yaw.estimate("torque_per_inertia"))
+    values["horizontal_reverse_ratio"] = _inverse_variance_mean(reverse_surge, reverse_yaw)
+
+    torque_per_inertia = yaw.estimate("torque_per_inertia")
+    inertia = _ratio(_scaled(values["horizontal_thrust_n"], arm_m), torque_per_inertia)
+    values["yaw_inertia_kg_m2"] = inertia
+    values["yaw_linear_drag"] = _product(yaw.estimate("linear_drag_per_inertia"), inertia)
+    values["yaw_quadratic_drag"] = _product(yaw.estimate("quadratic_drag_per_inertia"), inertia)
+    values["vertical_lag_s"] = Estimate(fits.vertical_lag_s, _curvature_stderr(sig, fits, "vertical_lag"))
+    values["horizontal_lag_s"] = Estimate(fits.horizontal_lag_s, _curvature_stderr(sig, fits, "horizontal_lag"))
+    values["vertical_deadband"] = Estimate(fits.vertical_deadband, _curvature_stderr(sig, fits, "vertical_deadband"))
+    values["horizontal_deadband"] = Estimate(fits.horizontal_deadband, _curvature_stderr(sig, fits, "horizontal_deadband"))
+    residuals = {axis: {"residual_rms": fit.residual_rms, "relative_residual": fit.residual_rms / max(fit.rate_rms, 1e-12),
+                        "samples": float(fit.samples)}
+                 for axis, fit in (("heave", heave), ("surge", surge), ("yaw", yaw))}
+    return PlantFit(values, residuals), fits, sig
+
+
+def _inverse_variance_mean(a: Estimate, b: Estimate) -> Estimate:
+    wa, wb = 1.0 / max(a.stderr, 1e-12) ** 2, 1.0 / max(b.stderr, 1e-12) ** 2
+    return Estimate((a.value * wa + b.value * wb) / (wa + wb), 1.0 / math.sqrt(wa + wb))
+
+
+def _curvature_stderr(sig: Signals, fits: AxisFits, which: str) -> float:
+    """Standard error of a searched parameter from the residual's curvature around its minimum.
+
+    With ``n`` effective samples and residual variance s^2 at the optimum, the sum of squares grows by
+    about s^2 when the parameter moves one standard error: se = sqrt(2 s^2 / (n S'')).
+    """
+    if which.startswith("vertical"):
+        def cost(lag: float, band: float) -> float:
+            fit = heave_fit(sig, lag, band)
+            return fit.residual_rms**2 * fit.samples
+        lag, band, sigma, base = fits.vertical_lag_s, fits.vertical_deadband, sig.sigma["heave"], fits.heave
+    else:
+        drag = _drag_newtons(fits.heave)
+
+        def cost(lag: float, band: float) -> float:
+            fit = surge_fit(sig, lag, band, drag)
+            return fit.residual_rms**2 * fit.samples
+        lag, band, sigma, base = fits.horizontal_lag_s, fits.horizontal_deadband, sig.sigma["surge"], fits.surge
+    step = 0.1 * lag if which.endswith("lag") else 0.01
+    x0 = lag if which.endswith("lag") else band
+
+    def at(x: float) -> float:
+        return cost(x, band) if which.endswith("lag") else cost(lag, x)
+
+    curvature = (at(x0 + step) - 2.0 * at(x0) + at(max(x0 - step, 0.0) if x0 - step >= 0 else x0 + 2 * step)) / step**2
+    effective = base.samples / (2.0 * math.sqrt(math.pi) * sigma)
+    if curvature <= 0 or effective <= 0:
+        return math.inf
+    variance = base.residual_rms**2 * base.samples / effective
+    return math.sqrt(2.0 * variance / curvature)
+
+
+def predict_rates(sig: Signals, fits: AxisFits, axis: str, start: int, stop: int) -> np.ndarray:
+    """The fitted model's rate over periods ``start..stop``, started from the measured rate and driven by the
+    commands alone (a free-run, not one-step-ahead: what the plots compare with the measurement)."""
+    if axis == "heave":
+        fit, motors, lag, band = fits.heave, (2, 3), fits.vertical_lag_s, fits.vertical_deadband
+    else:
+        fit, motors, lag, band = (fits.surge if axis == "surge" else fits.yaw), (0, 1), fits.horizontal_lag_s, fits.horizontal_deadband
+    shapes = [tuple(lagged_mean(s, lag, sig.dt) for s in motor_shape(sig.commands[:, i], band)) for i in motors]
+    (f_a, r_a), (f_b, r_b) = shapes
+    c = dict(zip(fit.names, fit.coef))
+    drag = _drag_newtons(fits.heave) if axis == "surge" else None
+    rates = np.empty(stop - start)
+    v = float(np.nan_to_num(sig.rate[axis][start]))
+    for j, k in enumerate(range(start, stop)):
+        rates[j] = v
+        if axis == "heave":
+            a = (c["buoyancy_per_mass"] - c["thrust_per_mass"] * (f_a[k] + f_b[k]) + c["reverse_thrust_per_mass"] * (r_a[k] + r_b[k])
+                 - c["linear_drag_per_mass"] * v - c["quadratic_drag_per_mass"] * v * abs(v))
+        elif axis == "surge":
+            assert drag is not None
+            a = (c["thrust_per_mass"] * (f_a[k] + f_b[k]) - c["reverse_thrust_per_mass"] * (r_a[k] + r_b[k])
+                 - c["inverse_mass"] * float(drag(np.asarray(v))))
+        else:
+            a = (c["torque_per_inertia"] * (f_a[k] - f_b[k]) - c["reverse_torque_per_inertia"] * (r_a[k] - r_b[k])
+                 - c["linear_drag_per_inertia"] * v - c["quadratic_drag_per_inertia"] * v * abs(v))
+        v += a * sig.dt
+    return rates
