@@ -40,6 +40,8 @@ def register(registry: CommandRegistry) -> None:
     bench.add_argument("--json", help="with --plants: write the report here (default: print it)")
     bench.add_argument("--workers", type=int, default=1, help="with --plants: processes flying plants in parallel")
     bench.add_argument("--no-flow", action="store_true", help="with --plants: a board without the optical-flow sensor")
+    bench.add_argument("--calibrated", action="store_true",
+                       help="with --plants: also calibrate each plant (calibrate flight) and fly it with the fitted config: before and after")
 
 
 def _probe(args: argparse.Namespace) -> int:
@@ -62,7 +64,10 @@ def _calibrate(args: argparse.Namespace) -> int:
 
     full = load_config(args.config)
     if args.sim:
-        calibration = calibrate_sim(full.flight, plant_index=args.plant, seed=args.seed)
+        from feelium.lab.flight.plants import plant_set
+
+        blimp = None if args.plant is None else plant_set(args.plant + 1)[args.plant].blimp
+        calibration = calibrate_sim(full.flight, blimp, seed=args.seed)
     else:
         calibration = calibrate_board(full.flight, args.port)
     out = Path(args.out)
@@ -89,7 +94,7 @@ def _bench(args: argparse.Namespace) -> int:
         from feelium.lab.flight.plant_bench import format_plant_table, run_plant_bench
         from feelium.lab.report import emit_report
 
-        report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow)
+        report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow, calibrated=args.calibrated)
         emit_report(format_plant_table(report), report, args.json)
         return 0
     results = run_bench(config, Path(args.out), seed=args.seed)

@@ -44,9 +44,11 @@ DEADBAND_RANGE = (0.0, 0.3)
 # reading) is differentiated twice, the flow speed (about 3 cm/s a frame) and the gyro (0.3 deg/s plus
 # whole-degree steps) once. Wider loses the lag's detail, narrower drowns the fit in noise.
 SMOOTH_S = {"heave": 0.2, "surge": 0.12, "yaw": 0.07}
-# A measurement's age when the controller gets it, on average (the simulated board: a new range every 20 ms,
-# a flow frame every 10 ms, the gyro read at the request); the fit compares each with the body at that age.
-RANGE_LATENCY_S = 0.010
+# A measurement's age when the Pi gets it: the fit compares each reading with the body at that age. A flow
+# frame every 10 ms is about 5 ms old, the gyro is read at the request. The rangefinder's age matters most
+# (the heave drag, small against the thrust, trades against it: 5 ms is 6 % of the mass ratio) and depends
+# on the sensor's timing, so it is fitted, within this range.
+RANGE_LATENCY_RANGE_S = (0.0, 0.04)
 FLOW_LATENCY_S = 0.005
 NEAR_LIMIT_M = 0.12  # samples this close to the floor/ceiling limits are dropped (contact, ground effect)
 
@@ -138,7 +140,7 @@ def lagged_mean(steady: np.ndarray, lag_s: float, dt: float) -> np.ndarray:
     Exact for a zero-order hold: the motor starts period k at T_k and relaxes toward S_k.
     """
     decay = math.exp(-dt / lag_s)
-    taps = max(2, int(math.ceil(8.0 * lag_s / dt)))
+    taps = max(2, int(math.ceil(14.0 * lag_s / dt)))  # the tail left off is under 1e-6
     kernel = (1.0 - decay) * decay ** np.arange(taps)
     start = np.concatenate(([0.0], np.convolve(steady, kernel)[: steady.size - 1]))  # T_k
     return steady + (start - steady) * lag_s / dt * (1.0 - decay)
@@ -172,7 +174,8 @@ class Signals:
     sigma: dict[str, float]  # smoothing in samples, applied to the regressors as well
 
 
-def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: float = math.inf) -> Signals:
+def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: float = math.inf,
+            range_latency_s: float = 0.01) -> Signals:
     """Resample, smooth and differentiate the three measured rates."""
     t = np.asarray(record.t, float)
     dt = float(np.median(np.diff(t)))
@@ -184,7 +187,7 @@ def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: f
     trusted: dict[str, np.ndarray] = {}
     sigma: dict[str, float] = {}
 
-    z_raw = _on_grid(record, np.asarray(record.range_m, float), RANGE_LATENCY_S, grid)
+    z_raw = _on_grid(record, np.asarray(record.range_m, float), range_latency_s, grid)
     sigma["heave"] = SMOOTH_S["heave"] / dt
     z, ok = smooth(z_raw, sigma["heave"])
     w = np.gradient(z, dt)
@@ -251,11 +254,12 @@ def heave_fit(sig: Signals, lag_s: float, deadband: float) -> AxisFit:
     return least_squares(columns, sig.accel["heave"], sig.trusted["heave"], sig.sigma["heave"])
 
 
-def surge_fit(sig: Signals, lag_s: float, deadband: float, drag: Callable[[np.ndarray], np.ndarray]) -> AxisFit:
-    """Forward acceleration = Th/m (pushes) - Th rh/m (reverse pushes) - drag(u)/m, ``drag`` in newtons (heave's)."""
+def surge_fit(sig: Signals, lag_s: float, deadband: float) -> AxisFit:
+    """Forward acceleration = Th/m (pushes) - Th rh/m (reverse pushes) - c1/m u - c2/m u|u|."""
     (f1, r1), (f2, r2) = _pair_columns(sig, (0, 1), lag_s, deadband, "surge")
     u = sig.rate["surge"]
-    columns = {"thrust_per_mass": f1 + f2, "reverse_thrust_per_mass": -(r1 + r2), "inverse_mass": -drag(u)}
+    columns = {"thrust_per_mass": f1 + f2, "reverse_thrust_per_mass": -(r1 + r2),
+               "linear_drag_per_mass": -u, "quadratic_drag_per_mass": -u * np.abs(u)}
     return least_squares(columns, sig.accel["surge"], sig.trusted["surge"], sig.sigma["surge"])
 
 
@@ -324,30 +328,45 @@ class AxisFits:
     heave: AxisFit
     surge: AxisFit
     yaw: AxisFit
-    vertical_lag_s: float
+    lag_s: float
     vertical_deadband: float
-    horizontal_lag_s: float
     horizontal_deadband: float
+    net_buoyancy_n: float
+    scaled_heave: AxisFit  # heave with surge's drag shape: the heave values and the mass ratio
 
 
-def fit_axes(sig: Signals) -> AxisFits:
-    """Lag and deadband per motor pair (vertical from heave; horizontal from surge and yaw together), then the fits."""
-    v_lag, v_band = search_lag_deadband(lambda lag, band: _relative_sse(heave_fit(sig, lag, band)))
-    heave = heave_fit(sig, v_lag, v_band)
-    drag = _drag_newtons(heave)
+def fit_axes(sig: Signals, net_buoyancy_n: float) -> AxisFits:
+    """The motor lag and the horizontal deadband from surge and yaw together (the flow and the gyro are the
+    sharpest sensors, and the four motors are one type), the vertical deadband from heave at that lag, then
+    heave once more with the drag's shape taken from surge (``scaled_heave_fit``)."""
 
     def horizontal_cost(lag: float, band: float) -> float:
-        return _relative_sse(surge_fit(sig, lag, band, drag)) + _relative_sse(yaw_fit(sig, lag, band))
+        return _relative_sse(surge_fit(sig, lag, band)) + _relative_sse(yaw_fit(sig, lag, band))
 
-    h_lag, h_band = search_lag_deadband(horizontal_cost)
-    return AxisFits(heave, surge_fit(sig, h_lag, h_band, drag), yaw_fit(sig, h_lag, h_band), v_lag, v_band, h_lag, h_band)
+    lag, h_band = search_lag_deadband(horizontal_cost)
+    bands = np.linspace(*DEADBAND_RANGE, 13)
+    coarse = float(bands[int(np.argmin([_relative_sse(heave_fit(sig, lag, float(b))) for b in bands]))])
+    step = float(bands[1] - bands[0])
+    v_band = _golden(lambda b: _relative_sse(heave_fit(sig, lag, b)), max(0.0, coarse - step), coarse + step)
+    surge = surge_fit(sig, lag, h_band)
+    scaled = scaled_heave_fit(sig, lag, v_band, _drag_per_surge_mass(surge))
+    return AxisFits(heave_fit(sig, lag, v_band), surge, yaw_fit(sig, lag, h_band), lag, v_band, h_band, net_buoyancy_n, scaled)
 
 
-def _drag_newtons(heave: AxisFit) -> Callable[[np.ndarray], np.ndarray]:
-    """The body's drag force (N) at a speed, from the heave fit scaled by its mass (buoyancy per mass is B/m)."""
-    per_mass = heave.estimate("buoyancy_per_mass").value
-    c1 = heave.estimate("linear_drag_per_mass").value / per_mass
-    c2 = heave.estimate("quadratic_drag_per_mass").value / per_mass
+def scaled_heave_fit(sig: Signals, lag_s: float, deadband: float, drag_per_surge_mass: Callable[[np.ndarray], np.ndarray]) -> AxisFit:
+    """Heave with one drag for the body: up acceleration = B/m - Tv/m pushes + Tv rv/m pushes - (ms/mh) D(w)/ms,
+    where D/ms is surge's fitted drag per surge mass. The drag is small against the thrust in heave and the
+    rangefinder is noisy, so heave alone gets its shape wrong; surge sees it cleanly but per an unknown
+    mass. Here surge gives the shape and heave, whose scale the weighed buoyancy fixes, the mass ratio."""
+    (f3, r3), (f4, r4) = _pair_columns(sig, (2, 3), lag_s, deadband, "heave")
+    w = sig.rate["heave"]
+    columns = {"buoyancy_per_mass": np.ones_like(w), "thrust_per_mass": -(f3 + f4), "reverse_thrust_per_mass": r3 + r4,
+               "surge_per_heave_mass": -drag_per_surge_mass(w)}
+    return least_squares(columns, sig.accel["heave"], sig.trusted["heave"], sig.sigma["heave"])
+
+
+def _drag_per_surge_mass(surge: AxisFit) -> Callable[[np.ndarray], np.ndarray]:
+    c1, c2 = surge.estimate("linear_drag_per_mass").value, surge.estimate("quadratic_drag_per_mass").value
 
     def drag(v: np.ndarray) -> np.ndarray:
         return c1 * v + c2 * v * np.abs(v)
@@ -360,19 +379,26 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     """The plant in physical units from one logged flight; ``net_buoyancy_n`` (weighed) and ``arm_m`` (measured)
     give the scale."""
     sig = prepare(record, floor_limit_m, ceiling_limit_m)
-    fits = fit_axes(sig)
-    heave, surge, yaw = fits.heave, fits.surge, fits.yaw
+    fits = fit_axes(sig, net_buoyancy_n)
+    drag_shape = _drag_per_surge_mass(fits.surge)
+
+    def latency_cost(latency: float) -> float:
+        at = prepare(record, floor_limit_m, ceiling_limit_m, latency)
+        return _relative_sse(scaled_heave_fit(at, fits.lag_s, fits.vertical_deadband, drag_shape))
+
+    latency = _golden(latency_cost, *RANGE_LATENCY_RANGE_S, iterations=12)
+    sig = prepare(record, floor_limit_m, ceiling_limit_m, latency)
+    fits = fit_axes(sig, net_buoyancy_n)
+    heave, surge, yaw = fits.scaled_heave, fits.surge, fits.yaw
     b_per_m = heave.estimate("buoyancy_per_mass")
     heave_mass = Estimate(net_buoyancy_n / b_per_m.value, net_buoyancy_n / b_per_m.value * b_per_m.relative)
     values: dict[str, Estimate] = {"heave_mass_kg": heave_mass}
     values["vertical_thrust_n"] = _scaled(_ratio(heave.estimate("thrust_per_mass"), b_per_m), net_buoyancy_n)  # per motor
     values["vertical_reverse_ratio"] = _ratio(heave.estimate("reverse_thrust_per_mass"), heave.estimate("thrust_per_mass"))
-    values["linear_drag_n_per_m_s"] = _scaled(_ratio(heave.estimate("linear_drag_per_mass"), b_per_m), net_buoyancy_n)
-    values["quadratic_drag"] = _scaled(_ratio(heave.estimate("quadratic_drag_per_mass"), b_per_m), net_buoyancy_n)
-
-    inverse_mass = surge.estimate("inverse_mass")
-    surge_mass = Estimate(1.0 / inverse_mass.value, inverse_mass.relative / abs(inverse_mass.value))
+    surge_mass = _product(heave_mass, heave.estimate("surge_per_heave_mass"))
     values["surge_mass_kg"] = surge_mass
+    values["linear_drag_n_per_m_s"] = _product(surge.estimate("linear_drag_per_mass"), surge_mass)
+    values["quadratic_drag"] = _product(surge.estimate("quadratic_drag_per_mass"), surge_mass)
     thrust_per_mass = surge.estimate("thrust_per_mass")
     values["horizontal_thrust_n"] = _product(thrust_per_mass, surge_mass)  # per motor
     reverse_surge = _ratio(surge.estimate("reverse_thrust_per_mass"), thrust_per_mass)
@@ -384,13 +410,18 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     values["yaw_inertia_kg_m2"] = inertia
     values["yaw_linear_drag"] = _product(yaw.estimate("linear_drag_per_inertia"), inertia)
     values["yaw_quadratic_drag"] = _product(yaw.estimate("quadratic_drag_per_inertia"), inertia)
-    values["vertical_lag_s"] = Estimate(fits.vertical_lag_s, _curvature_stderr(sig, fits, "vertical_lag"))
-    values["horizontal_lag_s"] = Estimate(fits.horizontal_lag_s, _curvature_stderr(sig, fits, "horizontal_lag"))
-    values["vertical_deadband"] = Estimate(fits.vertical_deadband, _curvature_stderr(sig, fits, "vertical_deadband"))
-    values["horizontal_deadband"] = Estimate(fits.horizontal_deadband, _curvature_stderr(sig, fits, "horizontal_deadband"))
+    # The ratios the controller's dynamics depend on: every surge and yaw value above scales with the surge
+    # mass (poorly determined: the heave drag), these do not.
+    values["surge_thrust_per_mass"] = thrust_per_mass
+    values["yaw_torque_per_inertia"] = torque_per_inertia
+    values["heave_thrust_per_mass"] = heave.estimate("thrust_per_mass")
+    values["motor_lag_s"] = Estimate(fits.lag_s, _curvature_stderr(sig, fits, "motor_lag_s"))
+    values["range_latency_s"] = Estimate(latency, math.nan)
+    for name in ("vertical_deadband", "horizontal_deadband"):
+        values[name] = Estimate(getattr(fits, name), _curvature_stderr(sig, fits, name))
     residuals = {axis: {"residual_rms": fit.residual_rms, "relative_residual": fit.residual_rms / max(fit.rate_rms, 1e-12),
                         "samples": float(fit.samples)}
-                 for axis, fit in (("heave", heave), ("surge", surge), ("yaw", yaw))}
+                 for axis, fit in (("heave", fits.heave), ("surge", surge), ("yaw", yaw))}
     return PlantFit(values, residuals), fits, sig
 
 
@@ -399,60 +430,53 @@ def _inverse_variance_mean(a: Estimate, b: Estimate) -> Estimate:
     return Estimate((a.value * wa + b.value * wb) / (wa + wb), 1.0 / math.sqrt(wa + wb))
 
 
-def _curvature_stderr(sig: Signals, fits: AxisFits, which: str) -> float:
-    """Standard error of a searched parameter from the residual's curvature around its minimum.
+def _curvature_stderr(sig: Signals, fits: AxisFits, name: str) -> float:
+    """Standard error of a searched parameter (lag or deadband) from the residual's curvature at its minimum.
 
-    With ``n`` effective samples and residual variance s^2 at the optimum, the sum of squares grows by
-    about s^2 when the parameter moves one standard error: se = sqrt(2 s^2 / (n S'')).
+    The sum of squares grows by about one residual variance per independent sample when the parameter
+    moves one standard error: se = sqrt(2 s^2 k / S''), with k samples per independent one (the smoothing).
     """
-    if which.startswith("vertical"):
-        def cost(lag: float, band: float) -> float:
-            fit = heave_fit(sig, lag, band)
-            return fit.residual_rms**2 * fit.samples
-        lag, band, sigma, base = fits.vertical_lag_s, fits.vertical_deadband, sig.sigma["heave"], fits.heave
-    else:
-        drag = _drag_newtons(fits.heave)
-
-        def cost(lag: float, band: float) -> float:
-            fit = surge_fit(sig, lag, band, drag)
-            return fit.residual_rms**2 * fit.samples
-        lag, band, sigma, base = fits.horizontal_lag_s, fits.horizontal_deadband, sig.sigma["surge"], fits.surge
-    step = 0.1 * lag if which.endswith("lag") else 0.01
-    x0 = lag if which.endswith("lag") else band
+    vertical = name == "vertical_deadband"
+    base = fits.heave if vertical else fits.surge
 
     def at(x: float) -> float:
-        return cost(x, band) if which.endswith("lag") else cost(lag, x)
+        if name == "motor_lag_s":
+            fit = surge_fit(sig, x, fits.horizontal_deadband)
+        else:
+            fit = heave_fit(sig, fits.lag_s, x) if vertical else surge_fit(sig, fits.lag_s, x)
+        return fit.residual_rms**2 * fit.samples
 
-    curvature = (at(x0 + step) - 2.0 * at(x0) + at(max(x0 - step, 0.0) if x0 - step >= 0 else x0 + 2 * step)) / step**2
-    effective = base.samples / (2.0 * math.sqrt(math.pi) * sigma)
-    if curvature <= 0 or effective <= 0:
+    x0 = fits.lag_s if name == "motor_lag_s" else (fits.vertical_deadband if vertical else fits.horizontal_deadband)
+    step = 0.1 * x0 if name == "motor_lag_s" else 0.01
+    centre = max(x0, step)
+    curvature = (at(centre + step) - 2.0 * at(centre) + at(centre - step)) / step**2
+    per_independent = 2.0 * math.sqrt(math.pi) * sig.sigma["heave" if vertical else "surge"]
+    if curvature <= 0:
         return math.inf
-    variance = base.residual_rms**2 * base.samples / effective
-    return math.sqrt(2.0 * variance / curvature)
+    return math.sqrt(2.0 * base.residual_rms**2 * per_independent / curvature)
 
 
 def predict_rates(sig: Signals, fits: AxisFits, axis: str, start: int, stop: int) -> np.ndarray:
     """The fitted model's rate over periods ``start..stop``, started from the measured rate and driven by the
     commands alone (a free-run, not one-step-ahead: what the plots compare with the measurement)."""
     if axis == "heave":
-        fit, motors, lag, band = fits.heave, (2, 3), fits.vertical_lag_s, fits.vertical_deadband
+        fit, motors, band = fits.scaled_heave, (2, 3), fits.vertical_deadband
     else:
-        fit, motors, lag, band = (fits.surge if axis == "surge" else fits.yaw), (0, 1), fits.horizontal_lag_s, fits.horizontal_deadband
-    shapes = [tuple(lagged_mean(s, lag, sig.dt) for s in motor_shape(sig.commands[:, i], band)) for i in motors]
+        fit, motors, band = (fits.surge if axis == "surge" else fits.yaw), (0, 1), fits.horizontal_deadband
+    shapes = [tuple(lagged_mean(s, fits.lag_s, sig.dt) for s in motor_shape(sig.commands[:, i], band)) for i in motors]
     (f_a, r_a), (f_b, r_b) = shapes
     c = dict(zip(fit.names, fit.coef))
-    drag = _drag_newtons(fits.heave) if axis == "surge" else None
+    surge_drag = _drag_per_surge_mass(fits.surge)
     rates = np.empty(stop - start)
     v = float(np.nan_to_num(sig.rate[axis][start]))
     for j, k in enumerate(range(start, stop)):
         rates[j] = v
         if axis == "heave":
             a = (c["buoyancy_per_mass"] - c["thrust_per_mass"] * (f_a[k] + f_b[k]) + c["reverse_thrust_per_mass"] * (r_a[k] + r_b[k])
-                 - c["linear_drag_per_mass"] * v - c["quadratic_drag_per_mass"] * v * abs(v))
+                 - c["surge_per_heave_mass"] * float(surge_drag(np.asarray(v))))
         elif axis == "surge":
-            assert drag is not None
             a = (c["thrust_per_mass"] * (f_a[k] + f_b[k]) - c["reverse_thrust_per_mass"] * (r_a[k] + r_b[k])
-                 - c["inverse_mass"] * float(drag(np.asarray(v))))
+                 - c["linear_drag_per_mass"] * v - c["quadratic_drag_per_mass"] * v * abs(v))
         else:
             a = (c["torque_per_inertia"] * (f_a[k] - f_b[k]) - c["reverse_torque_per_inertia"] * (r_a[k] - r_b[k])
                  - c["linear_drag_per_inertia"] * v - c["quadratic_drag_per_inertia"] * v * abs(v))

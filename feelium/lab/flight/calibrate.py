@@ -22,7 +22,7 @@ import numpy as np
 from feelium.flight.client import MspClient
 from feelium.flight.config import FlightConfig
 from feelium.flight.mixer import command_for_thrust, to_microseconds
-from feelium.flight.sim_board import BoardParams, SimMotorBoard, SimSerial, board_with
+from feelium.flight.sim_board import BoardParams, SensorParams, SimMotorBoard, SimSerial, board_with
 from feelium.flight.sysid import FlightRecord, PlantFit, identify
 from feelium.flight.telemetry import Telemetry
 from feelium.flight.transport import ByteLink
@@ -114,6 +114,20 @@ def calibrate_from(log: FlightLogRecorder, pilot: CalibrationPilot, config: Flig
     return Calibration(fit, fitted_config(config, fit), record, pilot, (fits, sig))
 
 
+# The controller's drag models are simpler than the fit's: translational drag is a fixed 0.02 N per m/s plus
+# ``quadratic_drag`` v|v| (estimators.air_drag), yaw drag is ``yaw_drag`` r|r| alone. Its quadratic terms are
+# set so that its drag equals the fitted one at a typical speed (the commanded cruise and turn rate); this
+# also keeps a poorly separated linear/quadratic pair from reaching the controller as two wrong halves.
+AIR_LINEAR_DRAG = 0.02
+SPEED_REFERENCE_M_S = 0.15
+YAW_REFERENCE_RAD_S = math.radians(20.0)
+
+
+def equivalent_quadratic(linear: float, quadratic: float, model_linear: float, at: float) -> float:
+    """The quadratic coefficient that, with ``model_linear``, gives the fitted drag at speed ``at``."""
+    return (linear * at + quadratic * at * at - model_linear * at) / (at * at)
+
+
 def fitted_config(config: FlightConfig, fit: PlantFit) -> FlightConfig:
     """``config`` with the fitted plant: what the controller reads, and how much it may now trust it."""
     def v(name: str) -> float:
@@ -124,8 +138,8 @@ def fitted_config(config: FlightConfig, fit: PlantFit) -> FlightConfig:
         mass_kg=round(v("surge_mass_kg"), 4),
         heave_mass_kg=round(v("heave_mass_kg"), 4),
         yaw_inertia_kg_m2=round(v("yaw_inertia_kg_m2"), 5),
-        yaw_drag=round(max(v("yaw_quadratic_drag"), 0.0), 5),
-        quadratic_drag=round(max(v("quadratic_drag"), 0.0), 4),
+        yaw_drag=round(max(equivalent_quadratic(v("yaw_linear_drag"), v("yaw_quadratic_drag"), 0.0, YAW_REFERENCE_RAD_S), 0.0), 5),
+        quadratic_drag=round(max(equivalent_quadratic(v("linear_drag_n_per_m_s"), v("quadratic_drag"), AIR_LINEAR_DRAG, SPEED_REFERENCE_M_S), 0.0), 4),
         horizontal_thrust_n=round(v("horizontal_thrust_n"), 4),
         vertical_thrust_n=round(v("vertical_thrust_n"), 4),
         horizontal_reverse_ratio=round(min(max(v("horizontal_reverse_ratio"), 0.0), 1.0), 3),
@@ -135,11 +149,13 @@ def fitted_config(config: FlightConfig, fit: PlantFit) -> FlightConfig:
     )
 
 
-# What the controller's loops divide by: each thrust-to-inertia ratio and the reverse ratios. Their
-# relative standard errors set how far the fitted model may still be off (3 sigma), so the loops keep
-# a small learning box instead of trusting the model blindly.
-TRUSTED_RATIOS = ("surge_mass_kg", "heave_mass_kg", "horizontal_thrust_n", "vertical_thrust_n",
-                  "horizontal_reverse_ratio", "vertical_reverse_ratio", "yaw_inertia_kg_m2")
+# What the controller's loops divide by: the thrust-to-inertia ratio of each axis and the reverse ratios (the
+# surge mass, thrust and yaw inertia scale together with one poorly determined factor and the loops see only
+# their ratios), and the heave mass (the buoyancy over it is the hover force). Their relative standard errors
+# set how far the fitted model may still be off (3 sigma), so a poor fit keeps a learning box instead of
+# trusting the model blindly.
+TRUSTED_RATIOS = ("surge_thrust_per_mass", "yaw_torque_per_inertia", "heave_thrust_per_mass", "heave_mass_kg",
+                  "horizontal_reverse_ratio", "vertical_reverse_ratio")
 
 
 def plant_uncertainty(fit: PlantFit) -> float:
@@ -216,20 +232,45 @@ def plot_steps(calibration: Calibration, out_dir: Path) -> list[Path]:
     return paths
 
 
-def calibrate_sim(config: FlightConfig, plant_index: int | None = None, seed: int = 1, drafts: bool = True) -> Calibration:
-    """Calibrate on the simulated board: the paper's blimp, or plant ``plant_index`` of the randomised set.
+def calibrate_sim(config: FlightConfig, blimp: Any = None, seed: int = 1, drafts: bool = True,
+                  sensors: SensorParams | None = None) -> Calibration:
+    """Calibrate on the simulated board flying ``blimp`` (default the paper's), in mild drafts.
 
     The net buoyancy is weighed on a real blimp, so the simulated one's true value stands in for the scale.
     """
     from feelium.flight.blimp_model import BlimpParams
-    from feelium.lab.flight.plants import MILD_DRAFTS, plant_set
+    from feelium.lab.flight.plants import MILD_DRAFTS
 
-    blimp = BlimpParams() if plant_index is None else plant_set(plant_index + 1)[plant_index].blimp
+    blimp = blimp or BlimpParams()
     config = replace(config, net_buoyancy_n=round(blimp.net_buoyancy_n, 4))
-    run = sim_run(BoardParams(blimp=blimp, drafts=MILD_DRAFTS if drafts else None), seed=seed)
+    run = sim_run(BoardParams(blimp=blimp, drafts=MILD_DRAFTS if drafts else None, sensors=sensors or SensorParams()), seed=seed)
     pilot = CalibrationPilot(hover_command=hover_guess(config))
     log = fly(run.client, pilot, run.clock, run.wait_until, 1.0 / config.rate_hz)
     return calibrate_from(log, pilot, config)
+
+
+def true_values(blimp: Any) -> dict[str, float]:
+    """What the fit should find on a simulated ``blimp``, in ``PlantFit`` names.
+
+    The simulator's motor lag is an Euler step of ``PHYSICS_DT`` that applies the updated thrust over the
+    whole step: it acts as a continuous lag ``PHYSICS_DT`` shorter than its parameter (the delay of its step
+    response's integral), and that is what a fit of the continuous model can find.
+    """
+    from feelium.flight.sim_board import PHYSICS_DT
+
+    mass = blimp.inertial_mass_kg
+    return {"heave_mass_kg": mass * blimp.heave_mass_factor, "surge_mass_kg": mass * blimp.surge_mass_factor,
+            "vertical_thrust_n": blimp.vertical_motor.max_thrust_n, "horizontal_thrust_n": blimp.horizontal_motor.max_thrust_n,
+            "vertical_reverse_ratio": blimp.vertical_motor.reverse_ratio, "horizontal_reverse_ratio": blimp.horizontal_motor.reverse_ratio,
+            "linear_drag_n_per_m_s": blimp.linear_drag_n_per_m_s, "quadratic_drag": blimp.quadratic_drag,
+            "yaw_inertia_kg_m2": blimp.yaw_inertia_kg_m2, "yaw_linear_drag": blimp.yaw_linear_drag,
+            "yaw_quadratic_drag": blimp.yaw_quadratic_drag, "motor_lag_s": blimp.horizontal_motor.time_constant_s - PHYSICS_DT,
+            "vertical_deadband": blimp.vertical_motor.deadband, "horizontal_deadband": blimp.horizontal_motor.deadband}
+
+
+def recovery_errors(fit: PlantFit, blimp: Any) -> dict[str, float]:
+    """Per parameter, the fit's relative error against the simulated truth (absolute for a zero deadband)."""
+    return {name: (fit.value(name) - truth) / truth if truth else fit.value(name) for name, truth in true_values(blimp).items()}
 
 
 def calibrate_board(config: FlightConfig, port: str) -> Calibration:
@@ -265,3 +306,15 @@ def calibrate_board(config: FlightConfig, port: str) -> Calibration:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return calibrate_from(log, pilot, config)
+
+
+def tight_goals(config: FlightConfig, blimp: Any, seed: int = 1) -> dict[str, float]:
+    """The nominal controller's tight figures flown with ``config`` on ``blimp``: hold in still air (altitude
+    and heading RMS) and the cruise speed of a held ``forward`` as a fraction of the commanded one."""
+    from feelium.lab.flight import scenarios as sc
+
+    held = sc.hold(config, drafts=False, seed=seed, seconds=15.0, blimp=blimp)
+    forward = sc.motion(config, "forward", hold_s=5.0, seed=seed, blimp=blimp)
+    cruising = (forward.t >= forward.expired_s - 0.5 - 2.0) & (forward.t <= forward.expired_s - 0.5)
+    return {"altitude_rms_m": held.altitude_rms_m, "heading_rms_deg": held.heading_rms_deg,
+            "cruise_fraction": float(np.mean(forward.fraction[cruising])), "forward_latency_s": forward.latency_s}

@@ -50,16 +50,19 @@ class Step:
 
 
 def default_script() -> list[Step]:
-    """About two and a half minutes: three sizes each way on each axis, plus a free rise with the vertical motors off."""
+    """About four minutes: three sizes each way on surge and yaw; on heave steps around the hover command
+    (two of them long and gentle, for the drag at steadier speeds), then absolute commands through the
+    deadband and into reverse, short, from low down (the body rises fast: buoyancy helps them)."""
     steps: list[Step] = []
     for level in (0.25, 0.45, 0.65):
         steps += [Step("surge", level, 3.0), Step("surge", -level, 3.0)]
     for level in (0.2, 0.35, 0.55):
         steps += [Step("yaw", level, 2.5), Step("yaw", -level, 2.5)]
-    for delta in (0.12, 0.25):
-        steps += [Step("heave", delta, 2.5, start_z=1.9), Step("heave", -delta, 2.0, start_z=1.0)]
-    steps += [Step("heave", 0.0, 1.2, start_z=0.9, absolute=True), Step("heave", -0.45, 0.7, start_z=0.9, absolute=True),
-              Step("heave", 0.9, 1.5, start_z=2.0, absolute=True)]
+    for delta, seconds in ((0.12, 2.5), (0.25, 2.0), (0.06, 4.0)):
+        steps += [Step("heave", delta, seconds, start_z=1.9), Step("heave", -delta, seconds, start_z=1.0)]
+    for level, seconds in ((0.0, 1.2), (0.15, 1.2), (0.3, 1.5), (-0.3, 0.8), (-0.6, 0.6), (-0.9, 0.5)):
+        steps.append(Step("heave", level, seconds, start_z=0.9, absolute=True))
+    steps.append(Step("heave", 0.95, 1.5, start_z=2.0, absolute=True))
     return steps
 
 
@@ -99,7 +102,6 @@ class CalibrationPilot:
     _last_telemetry_t: float | None = None
     _integral: float = 0.0
     _z_ref: float = 1.45
-    _last: tuple[float, float, float, float] = NEUTRAL
 
     def abort(self, reason: str) -> None:
         """Stop the script at once: motors neutral from the next step on."""
@@ -122,14 +124,14 @@ class CalibrationPilot:
         if self.phase == "settle":
             if self._settled(t):
                 self._next_step(t)
-            return self._out(hold)
+            return hold
         step = self.script[self.index]
         if t - self._phase_t >= step.seconds or self._outside(step):
             self.segments.append((self.index, self._phase_t, t))
             self.phase, self._phase_t = "settle", t
             self._z_ref = self._next_start_z()
-            return self._out(hold)
-        return self._out(self._excite(step, hold))
+            return hold
+        return self._excite(step, hold)
 
     # ---- sensing ----
     def _absorb(self, t: float, dt: float, tel: Telemetry | None) -> None:
@@ -156,7 +158,6 @@ class CalibrationPilot:
     # ---- the hold ----
     def _hold(self, dt: float) -> tuple[float, float, float, float]:
         g = self.gains
-        assert self.z is not None or self._last_telemetry_t is not None
         z = self.z if self.z is not None else self._z_ref
         error = float(np.clip(z - self._z_ref, -0.3, 0.3))
         self._integral = float(np.clip(self._integral + g.altitude_i * error * dt, -0.3, 0.3))
@@ -210,6 +211,3 @@ class CalibrationPilot:
             return abs(self.u) > e.speed_m_s
         return abs(math.degrees(self.r)) > e.turn_dps
 
-    def _out(self, commands: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
-        self._last = commands
-        return commands
