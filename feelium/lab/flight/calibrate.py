@@ -270,7 +270,7 @@ def true_values(blimp: Any) -> dict[str, float]:
 
 def recovery_errors(fit: PlantFit, blimp: Any) -> dict[str, float]:
     """Per parameter, the fit's relative error against the simulated truth (absolute for a zero deadband)."""
-    return {name: (fit.value(name) - truth) / truth if truth else fit.value(name) for name, truth in true_values(blimp).items()}
+    return {name: float((fit.value(name) - truth) / truth if truth else fit.value(name)) for name, truth in true_values(blimp).items()}
 
 
 def calibrate_board(config: FlightConfig, port: str) -> Calibration:
