@@ -23,11 +23,13 @@ correlation (the smoothing makes neighbouring samples dependent).
 
 Identifiability: without a force sensor only ratios (thrust / mass, drag /
 mass) are observable. Two known things give them a scale: the weighed net
-buoyancy (heave: mass, vertical thrust and drag in newtons) and the body's
-drag, which the model takes as the same on every translational axis (a
-near-spherical envelope); so the surge mass is the one that makes the surge
-deceleration match that drag, the horizontal thrust follows, and the yaw
-inertia follows from that thrust and the measured motor arm.
+buoyancy (heave: mass, vertical thrust in newtons) and the body's drag, which
+the model takes as the same on every translational axis (a near-spherical
+envelope). Surge, through the clean flow sensor, gives the drag's shape per
+surge mass; heave fitted with that shape gives the ratio of the two masses;
+the surge mass, horizontal thrust, drags and (through the measured arm) yaw
+inertia follow. That ratio is the weak link (the heave drag is small against
+the thrust); the ratios the controller uses do not depend on it.
 """
 
 from __future__ import annotations
@@ -331,11 +333,10 @@ class AxisFits:
     lag_s: float
     vertical_deadband: float
     horizontal_deadband: float
-    net_buoyancy_n: float
     scaled_heave: AxisFit  # heave with surge's drag shape: the heave values and the mass ratio
 
 
-def fit_axes(sig: Signals, net_buoyancy_n: float) -> AxisFits:
+def fit_axes(sig: Signals) -> AxisFits:
     """The motor lag and the horizontal deadband from surge and yaw together (the flow and the gyro are the
     sharpest sensors, and the four motors are one type), the vertical deadband from heave at that lag, then
     heave once more with the drag's shape taken from surge (``scaled_heave_fit``)."""
@@ -350,7 +351,7 @@ def fit_axes(sig: Signals, net_buoyancy_n: float) -> AxisFits:
     v_band = _golden(lambda b: _relative_sse(heave_fit(sig, lag, b)), max(0.0, coarse - step), coarse + step)
     surge = surge_fit(sig, lag, h_band)
     scaled = scaled_heave_fit(sig, lag, v_band, _drag_per_surge_mass(surge))
-    return AxisFits(heave_fit(sig, lag, v_band), surge, yaw_fit(sig, lag, h_band), lag, v_band, h_band, net_buoyancy_n, scaled)
+    return AxisFits(heave_fit(sig, lag, v_band), surge, yaw_fit(sig, lag, h_band), lag, v_band, h_band, scaled)
 
 
 def scaled_heave_fit(sig: Signals, lag_s: float, deadband: float, drag_per_surge_mass: Callable[[np.ndarray], np.ndarray]) -> AxisFit:
@@ -379,7 +380,7 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     """The plant in physical units from one logged flight; ``net_buoyancy_n`` (weighed) and ``arm_m`` (measured)
     give the scale."""
     sig = prepare(record, floor_limit_m, ceiling_limit_m)
-    fits = fit_axes(sig, net_buoyancy_n)
+    fits = fit_axes(sig)
     drag_shape = _drag_per_surge_mass(fits.surge)
 
     def latency_cost(latency: float) -> float:
@@ -388,7 +389,7 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
 
     latency = _golden(latency_cost, *RANGE_LATENCY_RANGE_S, iterations=12)
     sig = prepare(record, floor_limit_m, ceiling_limit_m, latency)
-    fits = fit_axes(sig, net_buoyancy_n)
+    fits = fit_axes(sig)
     heave, surge, yaw = fits.scaled_heave, fits.surge, fits.yaw
     b_per_m = heave.estimate("buoyancy_per_mass")
     heave_mass = Estimate(net_buoyancy_n / b_per_m.value, net_buoyancy_n / b_per_m.value * b_per_m.relative)
