@@ -163,11 +163,16 @@ def plant_uncertainty(fit: PlantFit) -> float:
     return round(min(4.0, 1.0 + 3.0 * worst), 2) if math.isfinite(worst) else 2.0
 
 
-# The config keys the fit sets, and the fitted value each one comes from (for the uncertainty comment).
+# The config keys the fit sets directly, and the fitted value each one is (for the uncertainty comment);
+# the others are derived, and say from what.
 CONFIG_SOURCES = {"mass_kg": "surge_mass_kg", "heave_mass_kg": "heave_mass_kg", "yaw_inertia_kg_m2": "yaw_inertia_kg_m2",
-                  "yaw_drag": "yaw_quadratic_drag", "quadratic_drag": "quadratic_drag", "horizontal_thrust_n": "horizontal_thrust_n",
-                  "vertical_thrust_n": "vertical_thrust_n", "horizontal_reverse_ratio": "horizontal_reverse_ratio",
-                  "vertical_reverse_ratio": "vertical_reverse_ratio", "motor_deadband": "horizontal_deadband"}
+                  "horizontal_thrust_n": "horizontal_thrust_n", "vertical_thrust_n": "vertical_thrust_n",
+                  "horizontal_reverse_ratio": "horizontal_reverse_ratio", "vertical_reverse_ratio": "vertical_reverse_ratio"}
+DERIVED_NOTES = {"quadratic_drag": "the fitted drag at 0.15 m/s as this model's quadratic term (fitted terms above)",
+                 "yaw_drag": "the fitted yaw drag at 20 deg/s as a quadratic term (fitted terms above)",
+                 "motor_deadband": "mean of the two pairs' fitted deadbands (above)",
+                 "plant_uncertainty": "1 + 3 x the worst relative standard error of the ratios the loops use",
+                 "net_buoyancy_n": "weighed, not fitted: the fit's scale"}
 
 
 def render_calibrated(full_config: Any, calibration: Calibration) -> str:
@@ -188,6 +193,8 @@ def render_calibrated(full_config: Any, calibration: Calibration) -> str:
         if section == "[flight]" and key in CONFIG_SOURCES:
             e = fit.values[CONFIG_SOURCES[key]]
             line += f"  # fitted: +- {e.stderr:.3g} (1 sigma, {100 * e.relative:.1f} %)"
+        elif section == "[flight]" and key in DERIVED_NOTES:
+            line += f"  # {DERIVED_NOTES[key]}"
         lines.append(line)
     header = ["# Fitted by `feelium calibrate flight` (docs/calibrate-flight.md). Value +- standard error:"]
     header += [f"#   {name} = {e.value:.5g} +- {e.stderr:.3g}" for name, e in fit.values.items()]
