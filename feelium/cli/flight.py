@@ -1,4 +1,4 @@
-"""``feelium flight probe`` and ``feelium bench flight``."""
+"""``feelium flight probe``, ``feelium calibrate flight`` and ``feelium bench flight``."""
 
 from __future__ import annotations
 
@@ -22,6 +22,16 @@ def register(registry: CommandRegistry) -> None:
     probe.add_argument("--baud", type=int, default=115200, help="serial speed (default 115200)")
     probe.add_argument("--timeout", type=float, default=0.5, help="seconds to wait for each reply (default 0.5)")
     probe.set_defaults(handler=_probe)
+    calibrate = registry.subcommand(
+        "calibrate", "flight", "Fly a short scripted flight (about 3 min) and fit this blimp's plant; type stop or Ctrl-C to abort.", _calibrate
+    )
+    where = calibrate.add_mutually_exclusive_group(required=True)
+    where.add_argument("--port", help="the motor board's serial device or pyserial URL")
+    where.add_argument("--sim", action="store_true", help="the simulated board (fast, simulated time)")
+    calibrate.add_argument("--config", help="TOML config file: its [flight] net_buoyancy_n (weighed) and arm_m give the scale")
+    calibrate.add_argument("--out", default="bench-out/calibrate-flight", help="directory for the fitted config, JSON and plots")
+    calibrate.add_argument("--plant", type=int, help="with --sim: fly randomised plant N of the plant set (0-15 are the box's corners)")
+    calibrate.add_argument("--seed", type=int, default=1, help="with --sim: simulation seed")
     bench = registry.subcommand("bench", "flight", "Fly the simulator: hold, climb, commands, quietness against an untuned PID.", _bench)
     bench.add_argument("--out", default="bench-out/flight", help="directory for the JSON and PNG plots")
     bench.add_argument("--seed", type=int, default=1, help="simulation seed")
@@ -30,6 +40,8 @@ def register(registry: CommandRegistry) -> None:
     bench.add_argument("--json", help="with --plants: write the report here (default: print it)")
     bench.add_argument("--workers", type=int, default=1, help="with --plants: processes flying plants in parallel")
     bench.add_argument("--no-flow", action="store_true", help="with --plants: a board without the optical-flow sensor")
+    bench.add_argument("--calibrated", action="store_true",
+                       help="with --plants: also calibrate each plant (calibrate flight) and fly it with the fitted config: before and after")
 
 
 def _probe(args: argparse.Namespace) -> int:
@@ -44,6 +56,33 @@ def _probe(args: argparse.Namespace) -> int:
     return 0
 
 
+def _calibrate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from feelium.daemon.config import load_config
+    from feelium.lab.flight.calibrate import calibrate_board, calibrate_sim, render_calibrated, summary
+
+    full = load_config(args.config)
+    if args.sim:
+        from feelium.lab.flight.plants import plant_set
+
+        blimp = None if args.plant is None else plant_set(args.plant + 1)[args.plant].blimp
+        calibration = calibrate_sim(full.flight, blimp, seed=args.seed)
+    else:
+        calibration = calibrate_board(full.flight, args.port)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    from feelium.lab.flight.calibrate import plot_steps
+
+    (out / "flight-calibrated.toml").write_text(render_calibrated(full, calibration), encoding="utf-8")
+    report = summary(calibration)
+    report["plots"] = [str(p) for p in plot_steps(calibration, out)]
+    (out / "calibration.json").write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+    print(json.dumps(report, indent=1))
+    print(f"fitted config: {out / 'flight-calibrated.toml'} (use it with --config, or copy its [flight] section)")
+    return 1 if calibration.pilot.aborted else 0
+
+
 def _bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -55,7 +94,7 @@ def _bench(args: argparse.Namespace) -> int:
         from feelium.lab.flight.plant_bench import format_plant_table, run_plant_bench
         from feelium.lab.report import emit_report
 
-        report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow)
+        report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow, calibrated=args.calibrated)
         emit_report(format_plant_table(report), report, args.json)
         return 0
     results = run_bench(config, Path(args.out), seed=args.seed)

@@ -35,7 +35,10 @@ class FlightConfig:
 
     # What the controller knows about the body (feed-forward and the mixer).
     net_buoyancy_n: float = setting(0.356, "Upward force with motors off: (360 g lift - 323.7 g body) x g.", min=0.0, max=5.0)
-    mass_kg: float = setting(0.59, "Inertial mass: body, helium and added air mass.", min=0.05, max=10.0)
+    mass_kg: float = setting(0.59, "Inertial mass: body, helium and added air mass (surge; heave too unless heave_mass_kg is set).", min=0.05, max=10.0)
+    heave_mass_kg: float = setting(
+        0.0, "Inertial mass in heave when the added air mass differs up and down (calibrate flight fits it); 0: mass_kg.", min=0.0, max=10.0
+    )
     yaw_inertia_kg_m2: float = setting(0.055, "Yaw moment of inertia.", min=0.001, max=10.0)
     yaw_drag: float = setting(0.02, "Quadratic yaw drag, N m per (rad/s)^2, for feed-forward and rate prediction.", min=0.0, max=10.0)
     arm_m: float = setting(0.25, "Lateral distance of each horizontal motor from the centre line.", min=0.02, max=2.0)
@@ -120,3 +123,8 @@ class FlightConfig:
     battery_critical_v: float = setting(3.35, "Battery voltage reported as critical.", min=0.0, max=60.0)
 
     sim: FlightSimConfig = section(FlightSimConfig)
+
+    @property
+    def heave_mass(self) -> float:
+        """The mass the altitude loop and observer accelerate: the fitted heave mass, else ``mass_kg``."""
+        return self.heave_mass_kg or self.mass_kg

@@ -151,7 +151,7 @@ class AltitudeObserver:
     def push(self, up_force_n: float) -> float:
         """The modelled net vertical acceleration of ``up_force_n``: thrust, buoyancy and drag over the mass."""
         c = self.c
-        return (up_force_n + c.net_buoyancy_n - air_drag(self.vz, c.quadratic_drag)) / c.mass_kg
+        return (up_force_n + c.net_buoyancy_n - air_drag(self.vz, c.quadratic_drag)) / c.heave_mass
 
     def accel(self, up_force_n: float) -> float:
         """The body's acceleration: the learned effectiveness times the push beyond the hover push.

@@ -156,7 +156,7 @@ class AltitudeLoop:
         predicted = obs.vz + obs.accel(thrust.vertical) * THRUST_LAG_S
         wanted = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - predicted)) + ref.accel
         push = wanted / obs.effectiveness.value(wanted) - obs.disturbance
-        up_n = c.mass_kg * push - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
+        up_n = c.heave_mass * push - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
         lo, hi = self.mixer.limits_up_n()
         saturated = up_n >= hi or up_n <= lo
         # Anti-windup: the disturbance (the integral) learns only while the loop is in charge: not
@@ -188,7 +188,7 @@ class AltitudeLoop:
         c = self.c
         lo, hi = self.mixer.limits_up_n()
         toward = -1.0 if climb > 0 else 1.0
-        headroom = ((lo if climb > 0 else hi) - self.hover_up_n) / c.mass_kg
+        headroom = ((lo if climb > 0 else hi) - self.hover_up_n) / c.heave_mass
         shown = toward * obs.effectiveness.assured(toward) * headroom
         return max(min(0.25 * c.brake_climb_m_s2, LIMIT_BRAKE_SHARE * shown), MIN_CLIMB_BRAKE_M_S2)
 
@@ -197,8 +197,8 @@ class AltitudeLoop:
         lo, hi = self.mixer.limits_up_n()
         drag = air_drag(rate, c.quadratic_drag)
         e = obs.effectiveness
-        down = (lo + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance
-        up = (hi + c.net_buoyancy_n - drag) / c.mass_kg + obs.disturbance
+        down = (lo + c.net_buoyancy_n - drag) / c.heave_mass + obs.disturbance
+        up = (hi + c.net_buoyancy_n - drag) / c.heave_mass + obs.disturbance
         return e.value(down) * down, e.value(up) * up
 
 

@@ -111,6 +111,7 @@ def line_plot(
             cv2.line(img, (x0, y), (min(x0 + 7, left + pw), y), (80, 80, 80), 1, cv2.LINE_AA)
         cv2.putText(img, label, (left + pw - 8 * len(label) - 10, y - 6), _FONT, 0.45, (80, 80, 80), 1, cv2.LINE_AA)
 
+    legend_entries = 0
     for index, s in enumerate(series):
         color = s.color or PALETTE[index % len(PALETTE)]
         x, y = np.asarray(s.x, float), np.asarray(s.y, float)
@@ -124,9 +125,11 @@ def line_plot(
             if len(run) >= 2:
                 cv2.polylines(img, [np.round(run * 16).astype(np.int32)], False, color, 2, cv2.LINE_AA, shift=4)
             start = stop + 1
-        ly = top + 18 + 20 * index
-        cv2.line(img, (left + 12, ly - 4), (left + 36, ly - 4), color, 3)
-        cv2.putText(img, s.label, (left + 42, ly), _FONT, 0.5, (30, 30, 30), 1, cv2.LINE_AA)
+        if s.label:  # an unlabelled series (one of many of a kind) draws no legend entry
+            ly = top + 18 + 20 * legend_entries
+            cv2.line(img, (left + 12, ly - 4), (left + 36, ly - 4), color, 3)
+            cv2.putText(img, s.label, (left + 42, ly), _FONT, 0.5, (30, 30, 30), 1, cv2.LINE_AA)
+            legend_entries += 1
 
     cv2.putText(img, title, (left, 30), _FONT, 0.65, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.putText(img, xlabel, (left + pw // 2 - 4 * len(xlabel), height - 15), _FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)

@@ -5,8 +5,12 @@ the whole safety flight (``safety.py``) twice in the same run: with the
 config as shipped (``plant_uncertainty`` 2: the loops learn the plant and
 count only on what they measured) and with the model trusted
 (``plant_uncertainty`` 1: what the controller did before it learned, every
-force from the config's mass and thrust). The worst plant is what a user
-meets on a blimp nobody tuned; it decides.
+force from the config's mass and thrust). With ``calibrated`` a third
+variant first runs `calibrate flight` on each plant (``calibrate.py``) and
+flies it with the fitted config; it also reports the tight goals (hold RMS,
+cruise) before and after calibration and how far each fitted parameter is
+from the plant's. The worst plant is what a user meets on a blimp nobody
+tuned; it decides.
 """
 
 from __future__ import annotations
@@ -29,6 +33,43 @@ def _fly(job: tuple[FlightConfig, Plant, bool]) -> dict[str, Any]:
     return {"plant": plant.name, "figures": result.figures(), "failures": result.failures(), "manoeuvres": result.manoeuvres}
 
 
+def _fly_calibrated(job: tuple[FlightConfig, Plant, bool]) -> dict[str, Any]:
+    """Calibrate on the plant, then the safety flight and the tight goals with the fitted config (and the
+    tight goals with the shipped one, for the before-and-after)."""
+    from feelium.lab.flight.calibrate import calibrate_sim, recovery_errors, tight_goals
+
+    config, plant, flow = job
+    calibration = calibrate_sim(config, plant.blimp)
+    fitted = calibration.config
+    row = _fly((fitted, plant, flow))
+    weighed = replace(config, net_buoyancy_n=fitted.net_buoyancy_n)
+    row["tight_before"] = tight_goals(weighed, plant.blimp)
+    row["tight_after"] = tight_goals(fitted, plant.blimp)
+    row["tight_after_trusted"] = tight_goals(replace(fitted, plant_uncertainty=1.0), plant.blimp)
+    row["plant_uncertainty"] = fitted.plant_uncertainty
+    row["recovery_error"] = {k: round(v, 4) for k, v in recovery_errors(calibration.fit, plant.blimp).items()}
+    return row
+
+
+TIGHT_GOALS = {"altitude_rms_m": 0.03, "heading_rms_deg": 3.0}
+
+
+def _tight_summary(rows: list[dict[str, Any]], key: str) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for goal in ("altitude_rms_m", "heading_rms_deg", "cruise_fraction"):
+        values = [row[key][goal] for row in rows]
+        misses = [abs(v - 1.0) > 0.1 for v in values] if goal == "cruise_fraction" else [not v <= TIGHT_GOALS[goal] for v in values]
+        worst = max(values, key=lambda v: abs(v - 1.0)) if goal == "cruise_fraction" else max(values)
+        out[goal] = {"median": statistics.median(values), "worst": worst, "plants_missing_goal": sum(misses)}
+    return out
+
+
+def _recovery_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    names = rows[0]["recovery_error"].keys()
+    return {name: {"within_10_percent": sum(abs(row["recovery_error"][name]) <= 0.1 for row in rows),
+                   "worst_error": max(abs(row["recovery_error"][name]) for row in rows)} for name in names}
+
+
 def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for goal, limit in GOALS.items():
@@ -40,20 +81,29 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def run_plant_bench(config: FlightConfig, count: int, seed: int = 2026, workers: int = 1, flow: bool = True) -> dict[str, Any]:
+def _run(fly: Any, jobs: list[tuple[FlightConfig, Plant, bool]], workers: int) -> list[dict[str, Any]]:
+    if workers > 1:
+        with ProcessPoolExecutor(workers) as pool:
+            return list(pool.map(fly, jobs))
+    return [fly(job) for job in jobs]
+
+
+def run_plant_bench(config: FlightConfig, count: int, seed: int = 2026, workers: int = 1, flow: bool = True,
+                    calibrated: bool = False) -> dict[str, Any]:
     """Every plant under every variant; per goal the median, the worst and which plant it was."""
     plants = plant_set(count, seed)
     report: dict[str, Any] = {"plants": count, "seed": seed, "optical_flow": flow,
                               "plant_list": {plant.name: describe(plant) for plant in plants}}
     for variant, uncertainty in VARIANTS.items():
         variant_config = config if uncertainty is None else replace(config, plant_uncertainty=uncertainty)
-        jobs = [(variant_config, plant, flow) for plant in plants]
-        if workers > 1:
-            with ProcessPoolExecutor(workers) as pool:
-                rows = list(pool.map(_fly, jobs))
-        else:
-            rows = [_fly(job) for job in jobs]
+        rows = _run(_fly, [(variant_config, plant, flow) for plant in plants], workers)
         report[variant] = {"plant_uncertainty": variant_config.plant_uncertainty, "summary": _summary(rows), "per_plant": rows}
+    if calibrated:
+        rows = _run(_fly_calibrated, [(config, plant, flow) for plant in plants], workers)
+        report["calibrated"] = {"summary": _summary(rows), "tight_before": _tight_summary(rows, "tight_before"),
+                                "tight_after": _tight_summary(rows, "tight_after"),
+                                "tight_after_trusted": _tight_summary(rows, "tight_after_trusted"), "recovery": _recovery_summary(rows),
+                                "per_plant": rows}
     return report
 
 
@@ -69,4 +119,23 @@ def format_plant_table(report: dict[str, Any]) -> str:
         lines.append(f"{goal:28s} {limit:7.2f} | " + " | ".join(cells))
     lines.append(f"{'plants meeting every goal':28s} {'':>7s} | " + " | ".join(
         f"{report[v]['summary']['plants_meeting_every_goal']:>34d}" for v in VARIANTS))
+    if "calibrated" in report:
+        lines.append(_calibrated_table(report["calibrated"]))
+    return "\n".join(lines)
+
+
+def _calibrated_table(cal: dict[str, Any]) -> str:
+    lines = ["", "after `calibrate flight` on each plant: safety goals with the fitted config",
+             f"{'goal':28s} {'limit':>7s} | {'median':>9s} {'worst':>9s} {'missed':>6s}"]
+    for goal, limit in GOALS.items():
+        s = cal["summary"][goal]
+        lines.append(f"{goal:28s} {limit:7.2f} | {s['median']:9.3f} {s['worst']:9.3f} {s['plants_missing_goal']:6d}")
+    lines += ["", "tight goals (still air hold, held forward): shipped config, fitted config, fitted with plant_uncertainty 1",
+              f"{'goal':20s} | " + " | ".join(f"{name:>8s} {'worst':>7s} {'missed':>6s}" for name in ("before", "after", "trusted"))]
+    for goal in ("altitude_rms_m", "heading_rms_deg", "cruise_fraction"):
+        cells = [cal[key][goal] for key in ("tight_before", "tight_after", "tight_after_trusted")]
+        lines.append(f"{goal:20s} | " + " | ".join(f"{c['median']:8.3f} {c['worst']:7.3f} {c['plants_missing_goal']:6d}" for c in cells))
+    lines += ["", "parameter recovery", f"{'parameter':28s} {'within 10 %':>12s} {'worst error':>12s}"]
+    for name, r in cal["recovery"].items():
+        lines.append(f"{name:28s} {r['within_10_percent']:12d} {100 * r['worst_error']:11.0f}%")
     return "\n".join(lines)

@@ -52,9 +52,10 @@ def roughness(log: FlightLog, start: int = 0) -> float:
     return float(np.sum(np.diff(commands, axis=1) ** 2) / max(seconds, 1e-9))
 
 
-def hold(config: FlightConfig, drafts: bool, seed: int = 1, controller: Controller | None = None, seconds: float = HOLD_S) -> HoldResult:
+def hold(config: FlightConfig, drafts: bool, seed: int = 1, controller: Controller | None = None, seconds: float = HOLD_S,
+         blimp: BlimpParams | None = None) -> HoldResult:
     """Station keeping at the start altitude and heading; RMS errors after settling."""
-    flight = new_flight(config, drafts, seed, controller)
+    flight = new_flight(config, drafts, seed, controller, blimp)
     target = Setpoint(altitude_m=START_ALTITUDE_M, heading_deg=0.0)
     flight.run(SETTLE_S + seconds, target)
     start = int(SETTLE_S * config.rate_hz)

@@ -1,0 +1,149 @@
+"""`feelium calibrate flight`: the fit's pieces on exact data, the scripted flight's safety, the CLI end to end."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.daemon.config import Config, load_config
+from feelium.flight import messages as m
+from feelium.flight.sim_board import BoardParams, SensorParams
+from feelium.flight.sysid import lagged_mean, least_squares, motor_shape, smooth
+from feelium.flight.blimp_model import BlimpParams
+from feelium.lab.flight.calibrate import MAX_FLIGHT_S, calibrate_sim, fly, hover_guess, recovery_errors, sim_run, tight_goals
+from feelium.lab.flight.plants import describe, plant_set
+from feelium.lab.flight.calibration_pilot import CalibrationPilot
+
+CONFIG = Config().flight
+
+
+@given(lag=st.floats(0.03, 0.2), level=st.floats(-1.0, 1.0))
+def test_lagged_mean_is_the_exact_period_mean_of_a_first_order_lag(lag: float, level: float) -> None:
+    dt = 0.02
+    steady = np.full(40, level)
+    steady[:5] = 0.0
+    means = lagged_mean(steady, lag, dt)
+    fine = 200  # integrate the lag finely: the mean over period k of a lag started at 0 at t = 5 dt
+    for k in (5, 6, 10, 30):
+        tt = (np.arange(fine) + 0.5) / fine * dt + (k - 5) * dt
+        assert means[k] == pytest.approx(level * np.mean(1.0 - np.exp(-tt / lag)), abs=1e-6)
+
+
+def test_motor_shape_is_zero_in_the_deadband_and_quadratic_beyond_it() -> None:
+    fwd, rev = motor_shape(np.array([0.05, 0.1, 0.55, 1.0, -0.55, -1.2]), 0.1)
+    assert list(fwd[:4]) == pytest.approx([0.0, 0.0, 0.25, 1.0])
+    assert list(rev[4:]) == pytest.approx([0.25, 1.0])
+    assert fwd[4:].sum() == 0.0 and rev[:4].sum() == 0.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(a=st.floats(0.2, 3.0), b=st.floats(0.2, 3.0), seed=st.integers(0, 2**16))
+def test_least_squares_recovers_coefficients_and_honest_errors(a: float, b: float, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    x1, x2 = rng.normal(size=4000), rng.normal(size=4000)
+    noise = smooth(rng.normal(scale=0.05, size=4000), 3.0)[0]
+    fit = least_squares({"a": x1, "b": x2}, a * x1 + b * x2 + noise, np.ones(4000, bool), 3.0)
+    for name, truth in (("a", a), ("b", b)):
+        e = fit.estimate(name)
+        assert abs(e.value - truth) < 5.0 * e.stderr + 1e-9
+
+
+EXACT_SENSORS = SensorParams(range_noise_m=0.0, range_noise_fraction=0.0, range_dropout_probability=0.0, gyro_noise_dps=0.0,
+                             gyro_bias_dps=0.0, flow_noise_rad_s=0.0)
+
+
+def test_the_scripted_flight_ends_neutral_and_stays_in_its_envelope() -> None:
+    run = sim_run(BoardParams(sensors=EXACT_SENSORS), seed=3)
+    pilot = CalibrationPilot(hover_command=hover_guess(CONFIG))
+    heights: list[float] = []
+
+    def wait(t: float) -> None:
+        run.wait_until(t)
+        heights.append(run.board.state.z)
+
+    log = fly(run.client, pilot, run.clock, wait, 0.02)
+    assert pilot.done and pilot.aborted is None
+    assert len(pilot.segments) == len(pilot.script)
+    assert 60.0 < log.rows[-1][0] < MAX_FLIGHT_S  # a few minutes of flight
+    assert run.board.motors_us[:4] == m.NEUTRAL_MOTORS_US[:4]
+    # The steps end at 0.7 and 2.2 m; the hold catches them inside the altitude limits a user may fly to.
+    assert CONFIG.altitude_min_m < min(heights) and max(heights) < CONFIG.altitude_max_m
+
+
+@pytest.mark.parametrize("how", ["stop", "exception"])
+def test_an_aborted_flight_leaves_the_motors_neutral(how: str) -> None:
+    run = sim_run(BoardParams(), seed=2)
+    pilot = CalibrationPilot(hover_command=hover_guess(CONFIG))
+
+    def should_stop() -> str | None:
+        if run.clock.t >= 12.0:  # inside the first surge step: horizontal motors running
+            assert run.board.motors_us[0] != m.MOTOR_NEUTRAL_US
+            if how == "exception":
+                raise KeyboardInterrupt
+            return "stop"
+        return None
+
+    if how == "exception":
+        with pytest.raises(KeyboardInterrupt):
+            fly(run.client, pilot, run.clock, run.wait_until, 0.02, should_stop=should_stop)
+    else:
+        fly(run.client, pilot, run.clock, run.wait_until, 0.02, should_stop=should_stop)
+        assert pilot.aborted == "stop"
+    run.board.advance_to(run.clock.t + 0.01)
+    assert run.board.motors_us[:4] == m.NEUTRAL_MOTORS_US[:4]
+
+
+def test_on_noise_free_sensors_in_still_air_every_parameter_but_the_drags_split_is_within_10_percent() -> None:
+    """The paper's blimp, sensors without noise (the rangefinder still reports whole cm, the gyro whole deg/s),
+    no drafts: the method itself is unbiased to 10 %. The linear drag, a few percent of the force at these
+    speeds, is the exception (its quadratic partner and the drag at cruise are checked instead)."""
+    cal = calibrate_sim(CONFIG, drafts=False, sensors=EXACT_SENSORS)
+    errors = recovery_errors(cal.fit, BlimpParams())
+    assert {k: round(e, 3) for k, e in errors.items() if abs(e) > 0.10 and k not in ("linear_drag_n_per_m_s", "yaw_linear_drag")} == {}
+
+
+# The first two random plants of the set (16 and 17; the corners are the box's extremes, the bench reports all).
+# Measured on the set's first 20 plants (docs/calibrate-flight.md): these two are within 10 % on 19 of them
+# (worst 13 %, a heavy slow corner); the others are not, and the bench reports them.
+RECOVERED = ("heave_mass_kg", "vertical_thrust_n")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index", [
+    pytest.param(16, marks=pytest.mark.xfail(strict=True, reason=(
+        "goal not met since the stop margin counts on 55 % of the reverse authority (BRAKE_SHARE, chosen so all"
+        " 50 plants stop within 1 s): with plant_uncertainty 1.31 from the fit the speed cap gives cruise 0.82"
+        " of the commanded speed (0.93 at 70 %)"))),
+    pytest.param(17, marks=pytest.mark.xfail(strict=True, reason=(
+        "goal not met: the fit's own uncertainty (vertical reverse ratio +-17 %) sets plant_uncertainty 1.5, which keeps"
+        " the learned speed cap: cruise 0.59 of the commanded speed (1.01 with plant_uncertainty 1)"))),
+])
+def test_on_randomised_plants_the_buoyancy_scaled_parameters_are_recovered_and_the_tight_goals_met(index: int) -> None:
+    plant = plant_set(index + 1)[index]
+    cal = calibrate_sim(CONFIG, plant.blimp)
+    errors = recovery_errors(cal.fit, plant.blimp)
+    assert {k: round(errors[k], 3) for k in RECOVERED if abs(errors[k]) > 0.10} == {}, describe(plant)
+    goals = tight_goals(cal.config, plant.blimp)
+    assert goals["altitude_rms_m"] <= 0.03 and goals["heading_rms_deg"] <= 3.0
+    assert abs(goals["cruise_fraction"] - 1.0) <= 0.10, (goals, cal.config.plant_uncertainty)
+
+
+@pytest.mark.slow
+def test_cli_on_the_simulator_writes_a_loadable_config_a_report_and_plots(tmp_path: Path) -> None:
+    from feelium.cli import main
+
+    assert main(["calibrate", "flight", "--sim", "--out", str(tmp_path)]) == 0
+    fitted = load_config(tmp_path / "flight-calibrated.toml").flight
+    assert fitted.heave_mass_kg > 0.0 and fitted.plant_uncertainty >= 1.0
+    text = (tmp_path / "flight-calibrated.toml").read_text()
+    assert "# fitted: +-" in text and "residual heave" in text
+    for axis in ("heave", "surge", "yaw"):
+        assert (tmp_path / f"calibrate-{axis}.png").stat().st_size > 1000
+    assert tomllib.loads(text)["flight"]["mass_kg"] == fitted.mass_kg
+    assert math.isfinite(fitted.vertical_thrust_n)
