@@ -272,16 +272,17 @@ class TouchPipeline:
         work[unusable] = float(self.config.saturation_level)
         return work, unusable
 
-
     def _cut_light(self, projected_light: np.ndarray) -> np.ndarray:
         """The predicted light over the ROI at working resolution; unknown (NaN, inf, negative) becomes 0."""
         fw, fh = self.geometry.frame_size
         if projected_light.shape != (fh, fw):
             raise ValueError(f"projected_light shape {projected_light.shape} does not match the camera's {fw}x{fh}")
         x, y, w, h = self.geometry.roi
-        part = np.nan_to_num(projected_light[y : y + h, x : x + w].astype(np.float32), nan=0.0, posinf=0.0, neginf=0.0)
-        np.clip(part, 0.0, LIGHT_MAX, out=part)
-        return self.geometry.cut_roi(part)
+        # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
+        light = self.geometry.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False))
+        np.nan_to_num(light, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        np.clip(light, 0.0, LIGHT_MAX, out=light)
+        return light
 
 
 SHARE_REBASE = 0.05  # change of the learned projector share that re-bases the reference

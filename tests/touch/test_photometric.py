@@ -9,7 +9,7 @@ from hypothesis.extra.numpy import arrays
 
 from feelium.touch.photometric import INITIAL_SHARE, ProjectorResponse
 
-SHAPE = (24, 32)
+SHAPE = (40, 48)
 
 
 def _response() -> ProjectorResponse:
