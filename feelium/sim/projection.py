@@ -118,6 +118,52 @@ def projected_hook(light: ProjectedLight, source: FrameSource) -> Callable[[floa
     return hook
 
 
+def exposure_weights(t: float, exposure_s: float, fps: float, latency_s: float) -> list[tuple[int, float]]:
+    """Projector frame indices lit during the camera exposure centred on ``t``, with their share of it.
+
+    Projector frame ``k`` is on the membrane during ``[k / fps + latency, (k + 1) / fps + latency)``;
+    light adds linearly, so the camera integrates each frame in proportion to its overlap with the exposure.
+    A zero exposure samples the frame on screen at ``t``.
+    """
+    start = t - latency_s - exposure_s / 2.0
+    if exposure_s <= 0.0:
+        return [(int(math.floor(start * fps + 1e-9)), 1.0)]
+    end = start + exposure_s
+    out = []
+    k = int(math.floor(start * fps + 1e-9))
+    while k / fps < end:
+        overlap = min(end, (k + 1) / fps) - max(start, k / fps)
+        if overlap > 0.0:
+            out.append((k, overlap / exposure_s))
+        k += 1
+    return out
+
+
+def timed_hook(
+    light: ProjectedLight, frame_at: Callable[[int], np.ndarray], fps: float, latency_s: float, exposure_s: float
+) -> Callable[[float], np.ndarray]:
+    """The ``projected`` hook for a projector running at ``fps`` with ``latency_s`` behind its frame clock.
+
+    ``frame_at(k)`` is projector frame ``k`` (shown from ``k / fps``); each camera frame gets the
+    exposure-weighted mix of the frames lit while it integrated, so a cut or a fade straddles exposures
+    as it does on a real sensor.
+    """
+    cache: dict[int, np.ndarray] = {}
+
+    def hook(t: float) -> np.ndarray:
+        mix: np.ndarray | None = None
+        for k, w in exposure_weights(t, exposure_s, fps, latency_s):
+            if k not in cache:
+                if len(cache) > 8:
+                    cache.pop(min(cache))
+                cache[k] = light.factor(frame_at(k))
+            mix = cache[k] * np.float32(w) if mix is None else mix + cache[k] * np.float32(w)
+        assert mix is not None
+        return mix
+
+    return hook
+
+
 class SimPatternCapture:
     """Shows patterns on a simulated projector and captures the rear camera through the scene simulator.
 

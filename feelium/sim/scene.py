@@ -75,11 +75,16 @@ class SceneRenderer:
         roi: tuple[int, int, int, int] = ROI,
         projected: Projected | None = None,
         gain_phase: float | None = None,
+        projected_share_only: bool = False,
     ) -> None:
+        """``projected_share_only``: the projected factor scales only the projector's share of the membrane's
+        light (``1 - outside_share``), not the room light coming in through it (the physical model; the
+        default scales both, as the projector experiments were built on)."""
         self.session = session
         self.width, self.height, self.roi = width, height, roi
         self._rng = rng
         self._projected = projected
+        self._share_only = projected_share_only
         self.backlight = backlight(session.optics, width, height, roi)
         self.membrane = membrane_transmission(
             session.optics, width, height, roi, np.random.default_rng(session.membrane_seed)
@@ -109,22 +114,28 @@ class SceneRenderer:
         mid = states[len(states) // 2]
         gain = gain_at(s.sensor, t, self._gain_phase) * mid.exposure
         image = self._lit * laser_banding(s.optics, self.height, t)
-        if self._projected is not None:
-            factor = self._projected(t)
-            if factor is not None:
-                if factor.shape != (self.height, self.width):
-                    raise ValueError(f"projected factor is {factor.shape}, camera is {(self.height, self.width)}")
-                image = image * factor.astype(np.float32, copy=False)
+        factor = self._projected(t) if self._projected is not None else None
+        if factor is not None:
+            if factor.shape != (self.height, self.width):
+                raise ValueError(f"projected factor is {factor.shape}, camera is {(self.height, self.width)}")
+            factor = factor.astype(np.float32, copy=False)
+        lit: float | np.ndarray = 1.0
+        if factor is not None and self._share_only:
+            lit = factor
+        elif factor is not None:
+            image = image * factor
         transmission: np.ndarray | None = None
         for sub in states:
             parts, contacts = self.parts(sub)
             if not (parts or contacts or sub.room != 1.0):
                 continue
-            shadow = render_shadow(parts, contacts, s.shadow, self.width, self.height).transmission(s.shadow, sub.room)
+            shadow = render_shadow(parts, contacts, s.shadow, self.width, self.height).lit_by(s.shadow, sub.room, lit)
             transmission = shadow if transmission is None else transmission + shadow
-        if transmission is not None:
-            unshadowed = len(states) - sum(1 for sub in states if sub.hands or sub.blobs or sub.room != 1.0)
-            image = image * ((transmission + unshadowed) / len(states))
+        unshadowed = len(states) - sum(1 for sub in states if sub.hands or sub.blobs or sub.room != 1.0)
+        if transmission is not None or not isinstance(lit, float):
+            clear = s.shadow.outside_share + (1.0 - s.shadow.outside_share) * lit
+            total = clear * unshadowed if transmission is None else transmission + clear * unshadowed
+            image = image * (total / len(states))
         return image * np.float32(gain)
 
     def frame(self, t: float, state: SceneState | Sequence[SceneState]) -> np.ndarray:

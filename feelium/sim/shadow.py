@@ -148,8 +148,17 @@ class Shadow:
 
     def transmission(self, params: ShadowParams, room: float = 1.0) -> np.ndarray:
         """``S``: the factor the shadow multiplies the back-lit membrane by (room = outside light level)."""
+        return self.lit_by(params, room, 1.0)
+
+    def lit_by(self, params: ShadowParams, room: float, projected: float | np.ndarray) -> np.ndarray:
+        """``S`` when the projector's share of the light is scaled by ``projected`` and the room's is not.
+
+        The room light that comes in through the membrane does not follow what
+        the projector shows, so a dark projected pixel leaves it unchanged.
+        """
         outside = params.outside_share * room * (1.0 - self.occlusion)
-        return ((1.0 - params.outside_share) + outside) * (1.0 - params.contact_depth * self.contact)
+        inside = (1.0 - params.outside_share) * projected
+        return (inside + outside) * (1.0 - params.contact_depth * self.contact)
 
 
 def render_shadow(

@@ -158,3 +158,27 @@ class TouchConfig:
     path_deadband_px: float = setting(
         3.0, "Fingertip jitter below this (camera px) does not add to the path length.", min=0.0, max=1000.0
     )
+
+    # Projected content (the face on the skin), see docs/touch.md "Projected content".
+    projected_response_tau_s: float = setting(
+        20.0,
+        "Time constant of the per-pixel projector-to-camera response learned online from frames without hands.",
+        min=0.5,
+        max=3600.0,
+    )
+    projected_prior_var: float = setting(
+        0.01,
+        "Variance of the predicted light a pixel must have seen before its own gain outweighs the global one.",
+        min=1e-6,
+        max=10.0,
+    )
+    projected_cut_change: float = setting(
+        0.04,
+        "Mean change of the predicted light over the ROI between two camera frames that makes a frame uncertain "
+        "(a scene cut, a fade): no new touch is raised and nothing is learned until it settles.",
+        min=0.0,
+        max=10.0,
+    )
+    projected_settle_s: float = setting(
+        0.25, "Camera time after the last uncertain frame before the prediction counts as settled.", min=0.0, max=10.0
+    )

@@ -21,7 +21,9 @@ from feelium.touch.candidates import find_candidates
 from feelium.touch.config import TouchConfig
 from feelium.touch.depth import MaskCounts, relative_depth
 from feelium.touch.geometry import WorkingGeometry
+from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import AdaptiveReference
+from feelium.touch.settle import PredictionSettle
 from feelium.touch.tracker import Contact, Observation, Tracker
 from feelium.skin.coords import inside_roi, skin_uv
 
@@ -80,6 +82,10 @@ class TouchPipeline:
             row_clip=config.row_gain_clip,
         )
         self.tracker = Tracker(config)
+        self.response = ProjectorResponse(tau_s=config.projected_response_tau_s, prior_var=config.projected_prior_var)
+        self.settle = PredictionSettle(cut_change=config.projected_cut_change, settle_s=config.projected_settle_s)
+        self.settled = True
+        self._reference_share = self.response.share
         self.masked = MaskCounts()
         self.frames = 0
         self.noise = 0.0
@@ -105,6 +111,10 @@ class TouchPipeline:
         """Forget the reference, tracks and time (a new recording or a camera restart)."""
         self.reference.reset()
         self.tracker.reset()
+        self.response.reset()
+        self.settle.reset()
+        self.settled = True
+        self._reference_share = self.response.share
         self._last_t = None
         self._shadow = None
         self._deep = None
@@ -115,14 +125,36 @@ class TouchPipeline:
             return ()
         return tuple(self.tracker.finish(self._last_t))
 
-    def process(self, t: float, frame: np.ndarray, backlight_gain: np.ndarray | None = None) -> FrameResult:
-        """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing)."""
+    def process(
+        self,
+        t: float,
+        frame: np.ndarray,
+        backlight_gain: np.ndarray | None = None,
+        *,
+        projected_light: np.ndarray | None = None,
+    ) -> FrameResult:
+        """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing).
+
+        ``projected_light`` (camera frame size, float): the projector light predicted for the exposure of this
+        frame, relative to the flat grey (1.0); it is compensated through the per-pixel response learned online
+        (:mod:`feelium.touch.photometric`) and gates new touches while it is unsettled
+        (:mod:`feelium.touch.settle`). ``backlight_gain`` is the older multiplicative model (divide it out).
+        """
         t = float(t)
         if not math.isfinite(t):
             raise ValueError(f"frame time {t} is not finite")
         if self._last_t is not None and t <= self._last_t:
             raise ValueError(f"frame time {t} does not follow the previous frame time {self._last_t}")
         work, unusable = self._prepare(frame, backlight_gain)
+        light = None if projected_light is None else self._cut_light(projected_light)
+        raw = work
+        steady = True
+        if light is not None:
+            # Until the response is learned nothing is settled: the compensation is only a guess.
+            steady = self.settle.observe(t, light)
+            self.settled = steady and self.response.share is not None
+            work = self.response.compensate(raw, light)
+            np.copyto(work, np.float32(self.config.saturation_level), where=raw >= self.config.saturation_level)
         self._last_t = t
         self.frames += 1
         ref = self.reference
@@ -133,7 +165,8 @@ class TouchPipeline:
             return FrameResult(t, (), False, 0.0, 0.0, 0, (), 0.0)
         cfg = self.config
         gain = ref.measure_gain(work, self._shadow)
-        ref.observe_gain(gain, work, self._shadow)
+        if self.settled:
+            ref.observe_gain(gain, work, self._shadow)
         ref.measure_rows(work, self._deep)
         depth = relative_depth(
             work,
@@ -176,13 +209,24 @@ class TouchPipeline:
             edge = cand.edge * self._per_camera_px
             observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge))
             kept.append(cand)
-        step = self.tracker.step(t, observations)
+        step = self.tracker.step(t, observations, settled=self.settled)
         if self._margin_kernel is not None and darkened:
             shadow = cv2.dilate(shadow.view(np.uint8), self._margin_kernel).view(bool)
         seeds = [(c.x, c.y) for c, p in zip(kept, step.protected) if p]
         anchored = _regions_containing(shadow, seeds) if seeds else None
         frozen = shadow if unusable is None else (shadow | unusable)
-        ref.update(t, work, frozen, anchored)
+        if self.settled:
+            ref.update(t, work, frozen, anchored)
+        else:
+            ref.hold(t)
+        if light is not None and steady:
+            self.response.learn(t, raw, light, ~frozen & (raw < self.config.saturation_level))
+            share, based = self.response.share, self._reference_share
+            if share is not None and (based is None or abs(share - based) > SHARE_REBASE):
+                # The model of what the flat membrane looks like changed (first fit, a new room light):
+                # the reference was built on the old one, so it starts again from the next frame.
+                ref.reset()
+                self._reference_share = share
         self._shadow = frozen
         self._deep = (smooth > cfg.candidate_depth) if candidates else None
         deepest = max(observations, key=lambda o: o.depth, default=None)
@@ -228,7 +272,20 @@ class TouchPipeline:
         work[unusable] = float(self.config.saturation_level)
         return work, unusable
 
+    def _cut_light(self, projected_light: np.ndarray) -> np.ndarray:
+        """The predicted light over the ROI at working resolution; unknown (NaN, inf, negative) becomes 0."""
+        fw, fh = self.geometry.frame_size
+        if projected_light.shape != (fh, fw):
+            raise ValueError(f"projected_light shape {projected_light.shape} does not match the camera's {fw}x{fh}")
+        x, y, w, h = self.geometry.roi
+        # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
+        light = self.geometry.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False))
+        np.nan_to_num(light, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        np.clip(light, 0.0, LIGHT_MAX, out=light)
+        return light
 
+
+SHARE_REBASE = 0.05  # change of the learned projector share that re-bases the reference
 NOISE_TILES = (8, 6)
 _SPECK_KERNEL = np.ones((3, 3), np.uint8)
 

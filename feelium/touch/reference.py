@@ -193,6 +193,10 @@ class AdaptiveReference:
             cv2.accumulateWeighted(target, image, alpha_forced, mask=forced.view(np.uint8))
         np.maximum(image, self._floor, out=image)
 
+    def hold(self, t: float) -> None:
+        """Skip this frame (its prediction is uncertain): nothing is learned, the clock moves on."""
+        self.last_t = t
+
     def _rates(self, dt: float) -> tuple[float, float, float]:
         """Per-update blend factors for a time step (cached: frame intervals repeat)."""
         cached = self._rate_cache

@@ -93,7 +93,13 @@ class Tracker:
     def reset(self) -> None:
         self.tracks = []
 
-    def step(self, t: float, observations: list[Observation]) -> TrackerStep:
+    def step(self, t: float, observations: list[Observation], *, settled: bool = True) -> TrackerStep:
+        """Advance every track by one frame.
+
+        ``settled=False`` (the projected-light prediction is uncertain, see :mod:`feelium.touch.settle`): no
+        new touch is raised and no shadow lands (its anchoring window starts again once settled), while
+        touches already down stay down as long as their shadow is seen.
+        """
         cfg = self.config
         out = TrackerStep()
         matched = self._associate(observations)
@@ -113,6 +119,11 @@ class Tracker:
         survivors = []
         for track in self.tracks:
             depth = track.obs.depth if track.seen else 0.0
+            if not settled and not track.down:
+                track.landed_t, track.landed_depths, track.anchor, track.streak = None, None, 0.0, 0
+                if t - track.last_seen_t <= cfg.release_s:
+                    survivors.append(track)
+                continue
             landed_s = self._land(track, t, depth)
             if track.seen:
                 out.anchor = max(out.anchor, track.anchor)
@@ -129,6 +140,8 @@ class Tracker:
                 edge=track.obs.edge,
                 anchor=track.anchor,
             )
+            if not settled:
+                touching = track.seen
             self._advance(track, t, touching, out.events)
             if track.down or t - track.last_seen_t <= cfg.release_s:
                 survivors.append(track)

@@ -1,0 +1,364 @@
+"""Touch with the face on the skin: the paper's protocol under a moving projected face (issue 17, point 1).
+
+Every protocol trial (taps, holds, swipes, hovers, disturbances, empty scenes;
+the continuous clips are left out) is rendered twice with the same hands,
+session and camera noise: once under the flat back-light (``static``) and once
+with a scripted face video at full brightness (talking avatar, head sway,
+scene cuts, fades to black and back). The face run is replayed three ways:
+
+- ``face_divided``: what the daemon did before: the frame on screen at the
+  camera's timestamp, predicted through the Gray-code calibration, divided out;
+- ``face_compensated``: the frames lit during the exposure (the daemon's
+  latency estimate), compensated through the per-pixel response learned online
+  (:mod:`feelium.touch.photometric`), new touches held while the prediction is
+  unsettled (:mod:`feelium.touch.settle`);
+- ``face_no_settle``: the same without the uncertain-frame rule, to measure it.
+
+The world is physical and its parameters are stated here, chosen from the
+hardware and never from detector scores: projected light scales only the
+projector's share of the membrane's light (room light through the membrane does
+not follow the face, ``projected_share_only``); the projector runs at 30 fps
+with :data:`TRUE_LATENCY_S` behind its frame clock while the daemon assumes
+:data:`ASSUMED_LATENCY_S`; the camera integrates over its exposure window, so a
+cut straddles frames. Before each trial the pipeline has watched
+:data:`WARMUP_S` of the same face without hands (a blimp shows the face all the
+time; every condition gets the same warm-up).
+
+Margins (issue 17, point 5): per condition, the sustained-anchoring score of the
+hardest negative (its largest score anywhere in the trial) and of the hardest
+positive (its largest score inside the widened contact windows), minus the
+anchor threshold; a negative margin on the negative side means a hover at least
+that close passes the gate.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import multiprocessing
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+from typing import Any
+
+import cv2
+import numpy as np
+
+from feelium.events import TouchEvent
+from feelium.lab.projector.facevideo import sim_calibration
+from feelium.lab.sim import protocol
+from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, score_trials
+from feelium.projector.backlight import BacklightPredictor
+from feelium.projector.config import ProjectorConfig
+from feelium.projector.renderer import Renderer
+from feelium.sim.camera import frame_times
+from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics, exposure_weights, timed_hook
+from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, Session, exposure_samples
+from feelium.sim.sessions import session_presets
+from feelium.touch.config import TouchConfig
+from feelium.touch.pipeline import TouchPipeline
+
+CONDITIONS = ("static", "face_divided", "face_compensated", "face_no_settle")
+TRUE_LATENCY_S = 0.040  # projector: frame clock to light on the membrane (the simulated world)
+ASSUMED_LATENCY_S = 0.033  # what the daemon assumes (one projector frame); 7 ms off on purpose
+WARMUP_S = 5.0  # hand-free face seen before each trial
+
+
+@dataclass(frozen=True)
+class FaceScript:
+    """The face video: talking avatar, head sway, scene cuts, fades to black and back (stated, not fitted)."""
+
+    fps: float = 30.0
+    cut_every_s: float = 2.5  # a new scene (framing) every this long
+    fade_every_s: float = 7.0  # one fade to black and back per this long ...
+    fade_at_s: float = 4.0  # ... starting this far into the period
+    fade_s: float = 0.4  # fade down, and fade up again, each this long
+    black_s: float = 0.3  # black between them
+    sway_px: tuple[float, float] = (24.0, 16.0)  # head motion amplitude in projector px (x, y)
+    sway_hz: tuple[float, float] = (0.3, 0.45)
+
+    def brightness(self, ts: float) -> float:
+        """Fade factor (0 = black) at script time ``ts``."""
+        p = ts % self.fade_every_s - self.fade_at_s
+        if p < 0.0 or p >= 2 * self.fade_s + self.black_s:
+            return 1.0
+        if p < self.fade_s:
+            return 1.0 - p / self.fade_s
+        if p < self.fade_s + self.black_s:
+            return 0.0
+        return (p - self.fade_s - self.black_s) / self.fade_s
+
+
+class FaceVideo:
+    """Projector frame ``k`` of the scripted face video, starting ``offset_s`` into the script."""
+
+    def __init__(self, renderer: Renderer, script: FaceScript, offset_s: float) -> None:
+        self.renderer = renderer
+        self.script = script
+        self.offset_s = offset_s
+
+    def frame(self, k: int) -> np.ndarray:
+        s = self.script
+        ts = k / s.fps + self.offset_s
+        image = self.renderer.render(ts, None, [], talking=True)
+        h, w = image.shape[:2]
+        scene = int(math.floor(ts / s.cut_every_s)) % 3
+        zoom = (1.0, 1.3, 0.85)[scene]
+        dx = s.sway_px[0] * math.sin(2 * math.pi * s.sway_hz[0] * ts) + (0.0, -60.0, 80.0)[scene]
+        dy = s.sway_px[1] * math.sin(2 * math.pi * s.sway_hz[1] * ts + 1.0)
+        m = cv2.getRotationMatrix2D((w / 2, h / 2), 0.0, zoom)
+        m[:, 2] += (dx, dy)
+        image = cv2.warpAffine(image, m, (w, h), borderMode=cv2.BORDER_REPLICATE)
+        if scene == 2:
+            image = image[:, ::-1].copy()
+        fade = s.brightness(ts)
+        if fade < 1.0:
+            image = (image.astype(np.float32) * fade).astype(np.uint8)
+        return image
+
+
+class _Cache:
+    """Per projector frame index, something costly (frames, factors, predictions); a small window kept."""
+
+    def __init__(self, make: Callable[[int], np.ndarray]) -> None:
+        self.make = make
+        self._items: dict[int, np.ndarray] = {}
+
+    def __call__(self, k: int) -> np.ndarray:
+        if k not in self._items:
+            if len(self._items) > 8:
+                self._items.pop(min(self._items))
+            self._items[k] = self.make(k)
+        return self._items[k]
+
+
+@dataclass
+class TrialRun:
+    data: TrialData
+    score_max: float  # hardest-negative side: largest anchoring score in the trial
+    score_in_contact: float | None  # positive side: largest score inside the widened contacts (None if none)
+    uncertain_frames: int
+
+
+@dataclass(frozen=True)
+class _Setup:
+    seed: int
+    projector: ProjectorConfig
+    touch: TouchConfig
+    script: FaceScript
+
+
+class _Experiment:
+    def __init__(self, setup: _Setup) -> None:
+        self.setup = setup
+        warp = FisheyeWarp()
+        optics = ProjectorOptics(flat_level=setup.projector.flat_level)
+        self.calibration, _ = sim_calibration(setup.seed, setup.projector, warp, optics)
+        self.renderer = Renderer(setup.projector, self.calibration)
+        self.light = ProjectedLight(warp, (WIDTH, HEIGHT), optics)
+        self.predictor = BacklightPredictor(setup.projector, self.calibration, (WIDTH, HEIGHT))
+
+    def trial(self, item: protocol.Item) -> dict[str, TrialRun]:
+        seed, fps = self.setup.seed, self.setup.script.fps
+        script = protocol.build_script(item, seed)
+        session = session_presets(seed)[item.session]
+        offset = float(protocol.recording_rng(seed, item.name, 7).uniform(0.0, self.setup.script.fade_every_s))
+        video = FaceVideo(self.renderer, self.setup.script, offset)
+        frames = _Cache(video.frame)
+        exposure = session.sensor.exposure_s
+        hook = timed_hook(self.light, frames, fps, TRUE_LATENCY_S, exposure)
+        gains = _Cache(lambda k: self.predictor.gain(frames(k)))
+
+        def divided(t: float) -> dict[str, np.ndarray]:
+            return {"backlight_gain": gains(int(math.floor(t * fps + 1e-9)))}
+
+        def compensated(t: float) -> dict[str, np.ndarray]:
+            mix = sum(gains(k) * np.float32(w) for k, w in exposure_weights(t, exposure, fps, ASSUMED_LATENCY_S))
+            return {"projected_light": mix}
+
+        cfg = self.setup.touch
+        no_settle = replace(cfg, projected_cut_change=10.0)
+        static = self._render(script, session, item, None)
+        face = self._render(script, session, item, hook)
+        runs = {
+            "static": self._replay(static, script, item, cfg, lambda t: {}),
+            "face_divided": self._replay(face, script, item, cfg, divided),
+            "face_compensated": self._replay(face, script, item, cfg, compensated),
+            "face_no_settle": self._replay(face, script, item, no_settle, compensated),
+        }
+        return runs
+
+    def _render(self, script: Any, session: Session, item: protocol.Item, hook: Any) -> list[tuple[float, np.ndarray]]:
+        """Warm-up (hand-free) frames before 0, then the trial's frames, as the camera captures them."""
+        rng = protocol.recording_rng(self.setup.seed, item.name, 1)
+        scene = SceneRenderer(session, rng, width=WIDTH, height=HEIGHT, roi=ROI, projected=hook, projected_share_only=True)
+        warmup = np.arange(-WARMUP_S, -0.25, 1.0 / session.sensor.fps)
+        out = [(float(t), scene.frame(float(t), SceneState())) for t in warmup]
+        for t in frame_times(session.sensor, script.duration, rng):
+            out.append((float(t), scene.frame(float(t), exposure_samples(script.state, float(t), session.sensor.exposure_s))))
+        return out
+
+    def _replay(
+        self,
+        frames: list[tuple[float, np.ndarray]],
+        script: Any,
+        item: protocol.Item,
+        config: TouchConfig,
+        inputs: Callable[[float], dict[str, np.ndarray]],
+    ) -> TrialRun:
+        pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
+        labels = script.labels()
+        windows = [(c.t_on - WIDEN_BEFORE_S, c.t_off + WIDEN_AFTER_S) for c in labels.contacts]
+        events: list[TouchEvent] = []
+        activity, max_area, score_max = False, 0.0, 0.0
+        in_contact: float | None = None
+        for t, frame in frames:
+            result = pipeline.process(t, frame, **inputs(t))
+            if t < 0.0:
+                continue  # warm-up: nothing in the scene, nothing scored
+            events.extend(result.events)
+            activity |= result.activity
+            max_area = max(max_area, float(result.area))
+            score_max = max(score_max, result.anchor)
+            if any(w0 <= t <= w1 for w0, w1 in windows):
+                in_contact = max(in_contact or 0.0, result.anchor)
+        events.extend(pipeline.finish())
+        data = TrialData(item.name, labels, events, activity, max_area)
+        return TrialRun(data, score_max, in_contact, pipeline.settle.uncertain_frames)
+
+
+_WORKER: _Experiment | None = None
+
+
+def _init_worker(setup: _Setup) -> None:
+    global _WORKER
+    cv2.setNumThreads(1)
+    _WORKER = _Experiment(setup)
+
+
+def _worker_trial(item: protocol.Item) -> dict[str, TrialRun]:
+    assert _WORKER is not None
+    return _WORKER.trial(item)
+
+
+def margins(runs: list[TrialRun], threshold: float) -> dict[str, float | None]:
+    """Hardest negative's and hardest positive's anchoring score, and their distance to ``threshold``."""
+    negatives = [r.score_max for r in runs if not r.data.labels.contacts]
+    positives = [r.score_in_contact for r in runs if r.data.labels.contacts and r.score_in_contact is not None]
+    hardest_neg = max(negatives) if negatives else None
+    hardest_pos = min(positives) if positives else None
+    return {
+        "threshold": threshold,
+        "hardest_negative": hardest_neg,
+        "hardest_positive": hardest_pos,
+        "negative_margin": None if hardest_neg is None else round(threshold - hardest_neg, 4),
+        "positive_margin": None if hardest_pos is None else round(hardest_pos - threshold, 4),
+    }
+
+
+def summarise(runs: list[TrialRun], threshold: float) -> dict[str, Any]:
+    scored = score_trials([r.data for r in runs])
+    trials = scored["trials"]
+    return {
+        "recall": trials["recall"],
+        "precision": trials["precision"],
+        "tp": trials["tp"],
+        "fn": trials["fn"],
+        "negatives_fired": trials["fp"],
+        "negatives": trials["fp"] + trials["tn"],
+        "localisation_error_px": scored["localisation"]["error_px"],
+        "uncertain_frames": sum(r.uncertain_frames for r in runs),
+        "margins": margins(runs, threshold),
+        "by_label": trials["by_label"],
+    }
+
+
+def run_experiment(
+    *,
+    scale: float = 0.3,
+    seed: int = 1,
+    projector: ProjectorConfig = ProjectorConfig(),
+    touch: TouchConfig = TouchConfig(),
+    script: FaceScript = FaceScript(),
+    labels: tuple[str, ...] | None = None,
+    jobs: int = 1,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> dict[str, Any]:
+    """Score every condition over the protocol's trials at ``scale``."""
+    setup = _Setup(seed, projector, touch, script)
+    items = [i for i in protocol.plan(scale) if not i.clip and (labels is None or i.label in labels)]
+    per: dict[str, list[TrialRun]] = {name: [] for name in CONDITIONS}
+
+    def collect(stream: Iterator[dict[str, TrialRun]]) -> None:
+        for n, (item, runs) in enumerate(zip(items, stream), start=1):
+            for name in CONDITIONS:
+                per[name].append(runs[name])
+            if progress is not None:
+                progress(n, len(items), item.name)
+
+    if jobs <= 1:
+        collect(map(_Experiment(setup).trial, items))
+    else:
+        spawn = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker, initargs=(setup,), mp_context=spawn) as pool:
+            collect(pool.map(_worker_trial, items))
+    return {
+        "scale": scale,
+        "seed": seed,
+        "trials": len(items),
+        "latency_s": {"true": TRUE_LATENCY_S, "assumed": ASSUMED_LATENCY_S},
+        "warmup_s": WARMUP_S,
+        "conditions": {name: summarise(runs, touch.anchor_threshold) for name, runs in per.items()},
+    }
+
+
+def format_table(report: dict[str, Any]) -> str:
+    lines = [
+        f"face on the skin: {report['trials']} trials (scale {report['scale']}, seed {report['seed']})",
+        f"{'condition':<18}{'recall':>8}{'neg fired':>11}{'loc med px':>12}{'uncertain':>11}"
+        f"{'hardest neg':>13}{'margin':>8}{'hardest pos':>13}{'margin':>8}",
+    ]
+
+    def num(v: float | None, fmt: str = ".3f") -> str:
+        return "-" if v is None else format(v, fmt)
+
+    for name, c in report["conditions"].items():
+        m = c["margins"]
+        loc = c["localisation_error_px"]
+        lines.append(
+            f"{name:<18}{num(c['recall']):>8}{c['negatives_fired']:>6} / {c['negatives']:<3}"
+            f"{num(loc['median'] if loc else None, '.2f'):>12}{c['uncertain_frames']:>11}"
+            f"{num(m['hardest_negative']):>13}{num(m['negative_margin'], '+.3f'):>8}"
+            f"{num(m['hardest_positive']):>13}{num(m['positive_margin'], '+.3f'):>8}"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m feelium.lab.touch.faceon [--scale S] [--jobs N] [--json FILE]``: the table, and the report."""
+    import argparse
+    import json
+    import sys
+
+    parser = argparse.ArgumentParser(prog="python -m feelium.lab.touch.faceon", description=__doc__.splitlines()[0])
+    parser.add_argument("--scale", type=float, default=0.3, help="share of the paper's 228 trials (default 0.3)")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--json", help="write the report here")
+    args = parser.parse_args(argv)
+    report = run_experiment(
+        scale=args.scale,
+        seed=args.seed,
+        jobs=args.jobs,
+        progress=lambda n, total, name: print(f"\r{n}/{total} {name:<30}", end="", file=sys.stderr, flush=True),
+    )
+    print(file=sys.stderr)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(report, f, indent=1)
+    print(format_table(report))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

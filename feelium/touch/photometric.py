@@ -1,0 +1,135 @@
+"""What projected light does to the camera, per pixel, learned online from frames without hands.
+
+The projector is the membrane's back-light, but not all of the light the rear
+camera sees comes from it: room light coming in through the membrane does not
+follow what the projector shows. Per pixel the camera sees
+
+    frame = a * light + c
+
+where ``light`` is the predicted projector light relative to the flat grey
+(the calibration's map, gamma and blur, mixed over the camera's exposure),
+``a`` the pixel's gain for projected light and ``c`` what does not follow the
+projector (room light, the projector's black). Dividing a frame by ``light``
+(the multiplicative model) over-corrects wherever ``c`` matters: a dark mouth
+turns the room light behind it into a deep "shadow".
+
+The compensation adds back exactly the projected light the flat grey would have
+given, ``frame + a * (1 - light)``, so a shadow is measured as the share of the
+*flat* membrane's light it takes away, the same scale the reference and the
+gates were calibrated on. Only ``a`` is needed for that, and ``a`` is the slope
+of frame against light: a per-pixel least-squares fit over exponentially
+weighted sums, pulled towards the pixel's own ``mean(frame) / mean(light)``
+(the multiplicative model, ``c = 0``) by ``prior_var`` where it has seen too
+little change of light to tell the two apart.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+LIGHT_MIN = 0.05  # predicted light (relative to flat) below which frame / light says nothing
+LIGHT_MAX = 16.0  # predicted light above which a prediction is not believed
+FRAME_MAX = 1e4  # grey levels (any camera depth, any working dtype) above which a value is not a frame
+SHARE_SAMPLE_STEP = 4
+MIN_INFORMATIVE = 50  # pixels whose light varied, needed to pool the projector's share
+SHARE_LIMITS = (0.05, 1.0)
+INITIAL_SHARE = 0.5  # the projector's share of the light assumed before it is learned  # the projector's share of the light, as far as it is believed
+
+
+class ProjectorResponse:
+    """Per-pixel slope ``a`` of camera value against predicted projected light, learned online."""
+
+    def __init__(self, *, tau_s: float, prior_var: float) -> None:
+        self.tau_s = tau_s
+        self.prior_var = prior_var
+        self.slope: np.ndarray | None = None
+        self.updates = 0
+        self.share: float | None = None  # projector's share of a pixel's light under flat grey, once learned
+        self._sums: list[np.ndarray] | None = None  # weights, light, light^2, frame, frame * light
+        self._last_t: float | None = None
+
+    def reset(self) -> None:
+        self.slope = None
+        self.updates = 0
+        self.share = None
+        self._sums = None
+        self._last_t = None
+
+    def compensate(self, frame: np.ndarray, light: np.ndarray) -> np.ndarray:
+        """``frame + a * (1 - light)``: the frame as the flat grey would have lit it (new array, float32).
+
+        Before anything was learned the projector's share is taken as :data:`INITIAL_SHARE`, which keeps the
+        slope within twice the frame even where the prediction is near black (``frame / light``, the
+        multiplicative model, would multiply a black pixel's room light by 25).
+        """
+        if self.slope is None:
+            share = np.float32(INITIAL_SHARE)
+            slope = share * frame / (share * np.maximum(light, np.float32(0.0)) + (np.float32(1.0) - share))
+            self.slope = np.nan_to_num(slope, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
+        return frame + self.slope * (np.float32(1.0) - light)
+
+    def learn(self, t: float, frame: np.ndarray, light: np.ndarray, usable: np.ndarray) -> None:
+        """Add one hand-free frame (``usable``: unshadowed, unsaturated, finite pixels) to the fit."""
+        # Values outside what a camera and a prediction can give (NaN, inf, negative, absurdly large) teach nothing.
+        usable = usable & (frame >= 0.0) & (frame <= FRAME_MAX) & (light >= 0.0) & (light <= LIGHT_MAX)
+        if not usable.any():
+            return
+        dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
+        self._last_t = t
+        keep = np.float32(math.exp(-dt / self.tau_s))
+        w = usable.astype(np.float32)
+        if self.slope is None:
+            self.compensate(frame, light)
+        f = np.where(usable, frame, 0.0).astype(np.float32)
+        x = np.where(usable, light, 0.0).astype(np.float32)
+        fresh = [w, x, x * x, f, f * x]
+        if self._sums is None:
+            self._sums = fresh
+        else:
+            for total, add in zip(self._sums, fresh):
+                total *= keep
+                total += add
+        self.updates += 1
+        self._fit()
+
+    def _fit(self) -> None:
+        """Ridge slope per pixel: (cov(light, frame) + prior_var * prior) / (var(light) + prior_var).
+
+        The prior is what the pixel's mean says under the projector's share of the light, ``share``, pooled
+        (median) over the pixels that have seen the light change: ``a = share * mean(frame) /
+        (share * mean(light) + 1 - share)``. Pooling matters where the face stays dark: there
+        ``mean(frame) / mean(light)`` (share = 1, the multiplicative model) would multiply every small
+        prediction error by the room light over the projector's black. Pixels never seen keep their slope.
+        """
+        assert self._sums is not None and self.slope is not None
+        n, sx, sxx, sf, sfx = self._sums
+        seen = n > np.float32(1e-3)
+        n = np.maximum(n, np.float32(1e-3))
+        mx = sx / n
+        mf = sf / n
+        var = np.maximum(sxx / n - mx * mx, np.float32(0.0))
+        cov = sfx / n - mx * mf
+        self.share = self._pooled_share(var, cov, mx, mf, seen)
+        share = np.float32(INITIAL_SHARE if self.share is None else self.share)
+        prior = share * mf / np.maximum(share * mx + (np.float32(1.0) - share), np.float32(LIGHT_MIN))
+        slope = (cov + np.float32(self.prior_var) * prior) / (var + np.float32(self.prior_var))
+        slope = np.nan_to_num(slope, nan=0.0, posinf=0.0, neginf=0.0)
+        np.copyto(self.slope, slope.astype(np.float32), where=seen)
+
+    def _pooled_share(
+        self, var: np.ndarray, cov: np.ndarray, mx: np.ndarray, mf: np.ndarray, seen: np.ndarray
+    ) -> float | None:
+        """Median share of projected light ``a / (a + c)`` over pixels whose light varied (else the last one)."""
+        k = SHARE_SAMPLE_STEP  # a median over every k-th pixel in both directions is as good and k^2 cheaper
+        var, cov, mx, mf = var[::k, ::k], cov[::k, ::k], mx[::k, ::k], mf[::k, ::k]
+        informative = seen[::k, ::k] & (var > np.float32(self.prior_var))
+        if np.count_nonzero(informative) < MIN_INFORMATIVE:
+            return self.share
+        a = cov[informative] / var[informative]
+        flat = mf[informative] + a * (np.float32(1.0) - mx[informative])  # a + c: the value under flat grey
+        ok = np.isfinite(a) & np.isfinite(flat) & (flat > 0.0)
+        if np.count_nonzero(ok) < MIN_INFORMATIVE:
+            return self.share
+        return float(np.clip(np.median(a[ok] / flat[ok]), SHARE_LIMITS[0], SHARE_LIMITS[1]))
