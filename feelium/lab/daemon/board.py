@@ -282,12 +282,22 @@ def bench_board(
         "preloaded_frames_mb": round(preload_mb, 1),
         "rss_mb": round(statistics.median(window[len(window) // 2 :]) - preload_mb, 1),
         "rss_peak_mb": round(max(mb for _, mb in measured["rss"]) - preload_mb, 1),
+        "rss_growth_mb": _growth_mb(window),
         "cpu_quota": measured.get("cpu_quota"),
         "services": rows,
         "headset": measured["headset"],
     }
     result.update(project(result))
     return result
+
+
+def _growth_mb(window: list[float]) -> float | None:
+    """Resident memory growth after warm-up (a leak over a long run): the median of the run's last fifth
+    minus that of its second fifth (the first fifth is warm-up: caches and pools filling)."""
+    fifth = len(window) // 5
+    if fifth < 1:
+        return None  # too short a run to tell
+    return round(statistics.median(window[-fifth:]) - statistics.median(window[fifth : 2 * fifth]), 1)
 
 
 def format_table(result: dict[str, Any]) -> str:
@@ -308,7 +318,7 @@ def format_table(result: dict[str, Any]) -> str:
         f"  the bench's own timing of {result['loop_callbacks_per_s']} loop callbacks/s costs ~"
         f"{result['bench_overhead_ms_per_s']} ms/s of that (charged to the services, not subtracted)",
         f"  RSS steady / peak {result['rss_mb']} / {result['rss_peak_mb']} MB (preloaded frames, "
-        f"{result['preloaded_frames_mb']} MB, taken out)",
+        f"{result['preloaded_frames_mb']} MB, taken out); growth after warm-up {result['rss_growth_mb']} MB",
         f"  projected onto the Pi (x{result['pi_factor']}): {result['pi_cores']} of 4 cores used, "
         f"{result['pi_cores_left']} left (at x6: {result['pi_cores_at_6x']}); event loop thread "
         f"{result['pi_loop_thread_cores']} of its one core",
