@@ -1,4 +1,4 @@
-"""``feelium run``, ``feelium bench daemon`` and ``feelium bench board``."""
+"""``feelium run``, ``feelium bench daemon``, ``feelium bench board`` and ``feelium bench soak``."""
 
 from __future__ import annotations
 
@@ -36,6 +36,13 @@ def register(registry: CommandRegistry) -> None:
     board.add_argument("--front-fps", type=float, help="front camera and MJPEG rate (default: [front_camera] fps)")
     board.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
     board.add_argument("--cgroup", metavar="DIR", help="join this existing cgroup (a CPU quota) for the measured window")
+    soak = registry.subcommand(
+        "bench", "soak", "The board bench run long (30 min): RSS, growth after warm-up, rates held (docs/daemon.md).",
+        _bench_soak,
+    )
+    soak.add_argument("--minutes", type=float, default=30.0, help="measured window after a 3 s warm-up (default 30)")
+    soak.add_argument("--config", help="TOML config file (sim backends forced; cameras preloaded; board out of process)")
+    soak.add_argument("--json", metavar="FILE", help="also write the results and the verdict as JSON here")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -58,3 +65,9 @@ def _bench_board(args: argparse.Namespace) -> int:
     from feelium.lab.daemon.board import bench_board_command
 
     return bench_board_command(args)
+
+
+def _bench_soak(args: argparse.Namespace) -> int:
+    from feelium.lab.daemon.soak import bench_soak_command
+
+    return bench_soak_command(args)
