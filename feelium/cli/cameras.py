@@ -33,6 +33,7 @@ def _record(args: argparse.Namespace) -> int:
     from feelium.cameras.base import CameraUnavailable
     from feelium.cameras.record import default_name, record, stop_on_signals
     from feelium.daemon.assembly import rear_camera
+    from feelium.daemon.backends import for_this_machine
     from feelium.daemon.config import load_config
     from feelium.daemon.journal import setup_logging
 
@@ -40,6 +41,7 @@ def _record(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     if args.sim:
         config = dataclasses.replace(config, rear_camera=dataclasses.replace(config.rear_camera, backend="sim"))
+    config = for_this_machine(config)
     if args.seconds is not None and not args.seconds > 0:
         print("feelium record: --seconds must be positive", file=sys.stderr)
         return 2
@@ -56,6 +58,8 @@ def _record(args: argparse.Namespace) -> int:
     except CameraUnavailable as exc:
         print(f"feelium record: {exc}", file=sys.stderr)
         return 1
+    if source.backend == "sim":
+        print("feelium record: recording the scene simulator (--sim, or `auto` off a Raspberry Pi)", file=sys.stderr)
     name = args.name or default_name(time.time())
     shown = {"at": 0.0}
 

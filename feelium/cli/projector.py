@@ -120,9 +120,10 @@ def _device_capture(config) -> _DeviceCapture:
     import time
 
     from feelium.daemon.assembly import rear_camera
+    from feelium.daemon.backends import for_this_machine
     from feelium.projector.display import FbdevDisplay
 
-    source = rear_camera(config, time.monotonic)
+    source = rear_camera(for_this_machine(config), time.monotonic)
     if source is None or source.backend != "picamera2":
         print(
             "feelium: calibrate projector needs the real rear camera and projector (use --sim to run against the simulator)",

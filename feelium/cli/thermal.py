@@ -78,9 +78,13 @@ def _read(args: argparse.Namespace) -> int:
     from feelium.thermal.heatmap import render
     from feelium.thermal.service import sim_driver, smbus2_driver
 
-    config = load_config(args.config)
+    from feelium.daemon.backends import for_this_machine
+
+    config = for_this_machine(load_config(args.config))
     cfg = config.thermal
     sim = args.sim or cfg.backend == "sim"
+    if sim:
+        print("feelium thermal read: the simulated sensor (--sim, or `auto` off a Raspberry Pi)", file=sys.stderr)
     try:
         driver = sim_driver(cfg, Hub(), config.sim.seed) if sim else smbus2_driver(cfg)
         calibration = driver.start()

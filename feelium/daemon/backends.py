@@ -54,6 +54,13 @@ def resolve_auto(config: Config, on_pi: bool) -> Config:
     return dataclasses.replace(config, **changes)
 
 
+def for_this_machine(config: Config) -> Config:
+    """``config`` with ``auto`` resolved for the machine this runs on: what every command that opens a
+    device (``record``, ``thermal read``, ``calibrate projector``) applies, so none of them records or
+    calibrates the simulator on the blimp when its camera or sensor is missing."""
+    return resolve_auto(config, on_raspberry_pi())
+
+
 def _front_camera_on_pi(section: Any) -> Any:
     """A second CSI camera, else the first USB camera, else the configured device (whose open then fails, loudly)."""
     from feelium.cameras.select import resolve_front_backend

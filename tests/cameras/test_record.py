@@ -84,3 +84,22 @@ def test_record_command_on_the_simulator(tmp_path):
     assert rec.meta.name == "x" and rec.meta.source == "synthetic" and rec.meta.raw["recorder"]["backend"] == "sim"
     assert 12 <= len(rec) <= 16 and np.all(np.diff(rec.timestamps) > 0)
     assert main(["record", "--sim", "--out", str(out), "--seconds", "1"]) == 1  # never overwrites
+
+
+def test_record_on_a_pi_without_its_camera_fails_instead_of_recording_the_simulator(tmp_path, monkeypatch, capsys):
+    """``auto`` on the blimp means the camera: a missing one is a clear error, never a synthetic take."""
+    import feelium.daemon.backends as backends
+
+    monkeypatch.setattr(backends, "on_raspberry_pi", lambda: True)  # and no picamera2 here: no camera
+    out = tmp_path / "take"
+    assert main(["record", "--out", str(out), "--seconds", "1"]) == 1
+    assert not out.exists()
+    assert "simulator" not in capsys.readouterr().err
+
+
+def test_record_off_a_pi_says_it_records_the_simulator(tmp_path, monkeypatch, capsys):
+    import feelium.daemon.backends as backends
+
+    monkeypatch.setattr(backends, "on_raspberry_pi", lambda: False)
+    assert main(["record", "--out", str(tmp_path / "take"), "--seconds", "0.5"]) == 0
+    assert "recording the scene simulator" in capsys.readouterr().err

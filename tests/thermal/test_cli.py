@@ -81,3 +81,14 @@ def test_read_without_a_bus_says_what_to_do(tmp_path, capsys):
     assert main(["thermal", "read", "--frames", "1", "--config", str(config)]) == 1
     err = capsys.readouterr().err
     assert "/dev/i2c-250" in err and "i2c_arm=on" in err and "--sim" in err
+
+
+def test_read_on_a_pi_with_auto_reads_the_bus_never_the_simulator(tmp_path, monkeypatch, capsys):
+    import feelium.daemon.backends as backends
+
+    monkeypatch.setattr(backends, "on_raspberry_pi", lambda: True)
+    config = tmp_path / "feelium.toml"
+    config.write_text("[thermal]\ni2c_bus = 250\n")  # backend auto (the default); no /dev/i2c-250 anywhere
+    assert main(["thermal", "read", "--frames", "1", "--config", str(config)]) == 1
+    err = capsys.readouterr().err
+    assert "/dev/i2c-250" in err and "simulated" not in err
