@@ -13,6 +13,7 @@ from typing import Any
 from feelium.http.clients import CLIENT_HEADER, CLIENT_ID_PATTERN
 from feelium.http.control import MAX_CAMERA_PX, MAX_WORD
 from feelium.http.events_api import MAX_SEQ
+from feelium.http.lens_api import LENS_SCHEMA, openapi_paths as lens_paths
 from feelium.http.video import MAX_FPS, MIN_FPS
 from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
@@ -367,7 +368,7 @@ def openapi_document() -> dict[str, Any]:
         "security": [{"bearer": []}],
         "components": {
             "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer"}},
-            "schemas": schemas,
+            "schemas": schemas | {"Lens": LENS_SCHEMA},
         },
-        "paths": paths,
+        "paths": paths | lens_paths(),
     }
