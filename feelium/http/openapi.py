@@ -19,6 +19,12 @@ from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
 CAPTURE_T = {"description": "When it was captured (the last sample, for speech): daemon clock, s; see /clock.", "schema": {"type": "number"}}
 RESUME_PATTERN = "^([^:]{1,32}:)?[0-9]{1,15}$"  # 15 digits stay below 2**53
+SKIN_UV = (
+    "Skin coordinates u, v (touch events): 0..1 across the membrane's sensitive patch, origin at its top-left "
+    "corner as seen from inside the blimp looking forward (the front camera's and the wearer's direction), u "
+    "right, v down (a partner facing the blimp sees u grow to their left); 0 and 1 are the patch's outer edges. "
+    "x, y are rear-camera pixels; neither is a front-camera pixel (GET /lens describes the front camera)."
+)
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
 
 
@@ -362,7 +368,7 @@ def openapi_document() -> dict[str, Any]:
             "title": "Feelium headset API",
             "version": "1.0.0",
             "description": "The link between the wearer's headset and the blimp. Every endpoint but /health "
-            "needs the bearer token; video, SSE and WebSocket also accept ?token=.",
+            "needs the bearer token; video, SSE and WebSocket also accept ?token=. " + SKIN_UV,
         },
         "servers": [{"url": "/api/v1"}],
         "security": [{"bearer": []}],
