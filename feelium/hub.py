@@ -84,5 +84,6 @@ class Hub:
     motion: DeadManCommands = field(default_factory=DeadManCommands)
     state: StateBoard = field(default_factory=StateBoard)
     rear_scene: Any = None  # the simulator's live scene in sim mode (``feelium.sim.live.LiveRearScene``), else None
+    front_lens: dict[str, Any] | None = None  # the front fisheye's lens model as GET /lens serves it; None when off
     clock: Callable[[], float] = time.monotonic
     health: Callable[[], dict[str, Any]] = dict  # replaced by the supervisor with its report

@@ -70,3 +70,9 @@ class FrontCameraConfig:
     width: int = setting(640, "Frame width delivered to the headset.", min=32, max=4096)
     height: int = setting(480, "Frame height delivered to the headset.", min=24, max=4096)
     fps: float = setting(15.0, "Frame rate.", min=1.0, max=120.0)
+    lens_file: str = setting(
+        "front_lens.json",
+        "The fisheye's lens model (OpenCV fisheye K, D) written by `feelium calibrate lens` and served at GET /lens;"
+        " a relative path is taken beside the config file. Missing: an uncalibrated 180-degree stand-in (the sim"
+        " backend always serves its own exact lens).",
+    )

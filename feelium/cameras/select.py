@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import importlib
+import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from feelium.cameras.base import Camera, CameraUnavailable
+from feelium.cameras.lens import FisheyeLens, LensError, load_lens
 from feelium.cameras.picamera2_backend import camera_count
 
 if TYPE_CHECKING:
@@ -15,14 +17,17 @@ if TYPE_CHECKING:
     from feelium.cameras.sim import SharedScene
     from feelium.sim.config import SimConfig
 
+log = logging.getLogger(__name__)
+
 
 @dataclass(frozen=True)
 class CameraSource:
-    """A chosen backend: its name, how to open it (again after a crash), and the sim scene if any."""
+    """A chosen backend: its name, how to open it (again after a crash), the sim scene and the lens if known."""
 
     backend: str
     open: Callable[[], Camera]
     scene: "SharedScene | None" = None
+    lens: FisheyeLens | None = None
 
 
 def resolve_rear_backend(cfg: "RearCameraConfig") -> str:
@@ -94,25 +99,50 @@ def rear_camera_source(
     )
 
 
+def front_lens(cfg: "FrontCameraConfig", backend: str, config_file: str | None = None) -> FisheyeLens:
+    """The lens model of the front frames: the simulator's own, else the calibrated file, else a nominal stand-in.
+
+    A lens file that cannot be read or does not fit the frame size is logged and replaced by the stand-in
+    (``source: "nominal"`` tells the headset) rather than stopping the wearer's video over marker placement.
+    """
+    from feelium.cameras.sim_front import sim_lens
+    from feelium.skin.projector_map import calibration_path
+
+    if backend == "sim":
+        return sim_lens(cfg.width, cfg.height)
+    path = calibration_path(cfg.lens_file, config_file)
+    if path.exists():
+        try:
+            return load_lens(path).scaled(cfg.width, cfg.height)
+        except LensError as exc:
+            log.error("front camera: %s; serving the uncalibrated 180-degree lens instead", exc)
+    else:
+        log.warning("front camera: no lens file %s (feelium calibrate lens); serving an uncalibrated 180-degree lens", path)
+    return replace(sim_lens(cfg.width, cfg.height), source="nominal")
+
+
 def front_camera_source(cfg: "FrontCameraConfig", sim_seed: int) -> CameraSource | None:
     """How to open the front (fisheye) camera, or ``None`` when it is off."""
     backend, device = resolve_front_backend(cfg)
     if backend == "off":
         return None
+    lens = front_lens(cfg, backend)
     if backend == "sim":
         from feelium.cameras.sim import SimFrontCamera
 
-        return CameraSource("sim", lambda: SimFrontCamera(cfg.width, cfg.height, cfg.fps, seed=sim_seed))
+        return CameraSource("sim", lambda: SimFrontCamera(cfg.width, cfg.height, cfg.fps, seed=sim_seed), lens=lens)
     if backend == "v4l2":
         from feelium.cameras.v4l2 import V4l2Camera
 
-        return CameraSource("v4l2", lambda: V4l2Camera(device, cfg.width, cfg.height, cfg.fps))
+        return CameraSource("v4l2", lambda: V4l2Camera(device, cfg.width, cfg.height, cfg.fps), lens=lens)
     if backend == "replay":
         from feelium.cameras.replay import ReplayCamera
 
-        return CameraSource("replay", lambda: ReplayCamera(cfg.replay_path, realtime=True, loop=True, gray=False))
+        return CameraSource("replay", lambda: ReplayCamera(cfg.replay_path, realtime=True, loop=True, gray=False), lens=lens)
     from feelium.cameras.picamera2_backend import Picamera2FrontCamera
 
     return CameraSource(
-        "picamera2", lambda: Picamera2FrontCamera(index=cfg.camera_index, width=cfg.width, height=cfg.height, fps=cfg.fps)
+        "picamera2",
+        lambda: Picamera2FrontCamera(index=cfg.camera_index, width=cfg.width, height=cfg.height, fps=cfg.fps),
+        lens=lens,
     )

@@ -13,6 +13,8 @@ import math
 import cv2
 import numpy as np
 
+from feelium.cameras.lens import FisheyeLens
+
 PANORAMA_WIDTH = 1024
 PANORAMA_HEIGHT = 512
 
@@ -47,10 +49,21 @@ def _room_panorama(rng: np.random.Generator) -> np.ndarray:
     return pano
 
 
+def sim_lens(width: int, height: int, fov_deg: float = 180.0) -> FisheyeLens:
+    """The lens :class:`SimFisheyeRoom` renders through, in OpenCV's fisheye model (what ``GET /lens`` serves in sim).
+
+    The sim is equidistant (radius proportional to the angle off axis), which is OpenCV's model with
+    ``D = 0`` and ``f = radius / half field``, the image circle touching the frame's shorter sides.
+    """
+    radius = min(width, height) / 2.0
+    f = radius / math.radians(fov_deg / 2.0)
+    return FisheyeLens(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0, source="sim")
+
+
 def _fisheye_rays(width: int, height: int, fov_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Azimuth and elevation (radians) of every output pixel of an equidistant fisheye; NaN outside its circle."""
     ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
-    cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
+    cx, cy = (width - 1) / 2.0, (height - 1) / 2.0  # sim_lens states the same model: keep the two together
     radius = min(width, height) / 2.0
     r = np.hypot(xs - cx, ys - cy) / radius
     theta = r * math.radians(fov_deg) / 2.0  # angle off the optical axis
@@ -84,6 +97,16 @@ class SimFisheyeRoom:
         map_x[outside] = -16.0  # off the panorama: remap's constant border paints the lens's black surround
         self._map1, self._map2 = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
 
+    def render(self, panorama: np.ndarray) -> np.ndarray:
+        """A ``PANORAMA_WIDTH x PANORAMA_HEIGHT`` equirectangular image seen through the lens.
+
+        Panorama column ``i`` is azimuth ``2 pi i / PANORAMA_WIDTH - pi`` (positive right), row ``j``
+        elevation ``pi / 2 - pi j / PANORAMA_HEIGHT`` (positive up); azimuth 0, elevation 0 is the optical axis.
+        """
+        return cv2.remap(
+            panorama, self._map1, self._map2, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0
+        )
+
     def frame(self, t: float) -> np.ndarray:
         """The BGR view at time ``t``: a slow yaw sweep and a person walking around."""
         yaw_px = int(round(math.sin(t * 0.1) * 0.35 * PANORAMA_WIDTH))
@@ -92,8 +115,6 @@ class SimFisheyeRoom:
         px, top = (int(walk) - yaw_px) % PANORAMA_WIDTH, PANORAMA_HEIGHT // 2 - 120
         cv2.ellipse(pano, (px, top + 70), (22, 70), 0, 0, 360, (70, 60, 160), -1)  # body
         cv2.circle(pano, (px, top - 10), 18, (120, 150, 200), -1)  # head
-        view = cv2.remap(
-            pano, self._map1, self._map2, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0
-        )
+        view = self.render(pano)
         cv2.putText(view, f"SIM {t:7.2f}s", (8, self.height - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1)
         return view

@@ -65,7 +65,7 @@ def _missing_subcommand(parser: argparse.ArgumentParser) -> int:
 
 COMMAND_MODULES = (
     "feelium.cli.daemon",  # run, bench daemon
-    "feelium.cli.cameras",  # record
+    "feelium.cli.cameras",  # record, calibrate lens
     "feelium.cli.touch",  # replay, eval, calibrate touch, bench touch
     "feelium.cli.thermal",  # thermal read/decode, bench thermal/presence
     "feelium.cli.flight",  # flight probe, bench flight

@@ -1,4 +1,4 @@
-"""``feelium record``: the live rear camera to a recording in format v1."""
+"""``feelium record`` (the live rear camera to a recording in format v1) and ``feelium calibrate lens``."""
 
 from __future__ import annotations
 
@@ -20,6 +20,23 @@ def register(registry: CommandRegistry) -> None:
     rec.add_argument("--sim", action="store_true", help="record the scene simulator instead of the camera")
     rec.add_argument("--name", help="recording name (default: rec-<date>-<time>)")
     rec.add_argument("--session", default="", help="free text grouping recordings taken under the same conditions")
+    lens = registry.subcommand(
+        "calibrate", "lens",
+        "Fit the front fisheye's lens model (OpenCV fisheye K, D) from views of a printed chessboard and save it where "
+        "the daemon serves it (GET /lens). Show the whole board, tilted, all over the image, edges included.",
+        _calibrate_lens,
+    )  # fmt: skip
+    lens.add_argument("source", nargs="?", help="a folder of images, a video file, or a recording (its camera.mkv)")
+    lens.add_argument("--pattern", default="9x6", help="inner corners of the chessboard, COLSxROWS (default 9x6)")
+    lens.add_argument("--square-mm", type=float, default=25.0, help="printed square size in mm (sets no lens value; default 25)")
+    lens.add_argument("--every", type=int, default=1, help="use every Nth image or frame (default 1)")
+    lens.add_argument("--config", help="TOML config file; the lens is saved beside it ([front_camera] lens_file)")
+    lens.add_argument("--out", help="where to save the lens JSON (default: [front_camera] lens_file; with --synthetic: not saved)")
+    lens.add_argument("--synthetic", type=int, metavar="N",
+                      help="instead of SOURCE, render N views through a known lens and report how well it is recovered")
+    lens.add_argument("--save-views", metavar="DIR", help="with --synthetic: also write the rendered views as PNGs")
+    lens.add_argument("--seed", type=int, default=1, help="with --synthetic: random poses seed")
+    lens.add_argument("--json", action="store_true", help="print a machine-readable summary")
 
 
 def _record(args: argparse.Namespace) -> int:
@@ -94,3 +111,81 @@ def _record(args: argparse.Namespace) -> int:
         return 1
     print(f"recorded {summary}" + (f"; stopped by {caught[0]}" if caught else ""))
     return 0
+
+
+def _calibrate_lens(args: argparse.Namespace) -> int:
+    import json
+    import sys
+    from pathlib import Path
+
+    from feelium.cameras.lens import save_lens
+    from feelium.lab.lens.calibrate import Board, LensCalibrationError, calibrate, read_views
+
+    try:
+        board = Board.parse(args.pattern, args.square_mm)
+        if args.synthetic:
+            from feelium.lab.lens.synthetic import TRUTH, recovery_error, synthetic_views
+
+            views = synthetic_views(TRUTH, board, args.synthetic, seed=args.seed)
+            if args.save_views:
+                _write_views(Path(args.save_views), views)
+            result = calibrate(views, board)
+        elif args.source:
+            result = calibrate(read_views(args.source, max(1, args.every)), board)
+        else:
+            print("feelium calibrate lens: give a SOURCE (images, video or recording) or --synthetic N", file=sys.stderr)
+            return 2
+    except LensCalibrationError as exc:
+        print(f"feelium calibrate lens: {exc}", file=sys.stderr)
+        return 1
+    summary = result.summary()
+    if args.synthetic:
+        summary["truth"] = TRUTH.to_json()
+        summary["recovery_error"] = recovery_error(TRUTH, result.lens)
+    out = _lens_out(args)
+    if out is not None:
+        summary["saved"] = str(save_lens(result.lens, out))
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        _print_lens(summary)
+    return 0
+
+
+def _lens_out(args: argparse.Namespace) -> "Path | None":
+    """Where to save: ``--out``, else (not for a synthetic run) the config's ``[front_camera] lens_file``."""
+    from pathlib import Path
+
+    if args.out:
+        return Path(args.out)
+    if args.synthetic:
+        return None
+    from feelium.daemon.config import load_config
+    from feelium.skin.projector_map import calibration_path
+
+    return calibration_path(load_config(args.config).front_camera.lens_file, args.config)
+
+
+def _write_views(folder: "Path", views: list) -> None:
+    import cv2
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for i, (_, image) in enumerate(views):
+        cv2.imwrite(str(folder / f"view-{i:02d}.png"), image)
+
+
+def _print_lens(summary: dict) -> None:
+    lens = summary["lens"]
+    (fx, _, cx), (_, fy, cy), _ = lens["K"]
+    print(f"views with the whole board: {summary['views_used']} (without: {summary['views_without_board']})")
+    print(f"RMS reprojection error: {summary['rms_px']} px (worst view {summary['worst_view']}: {summary['worst_view_rms_px']} px)")
+    print(f"{lens['width']}x{lens['height']}: fx {fx:.3f} fy {fy:.3f} cx {cx:.3f} cy {cy:.3f} D {[round(k, 6) for k in lens['D']]}")
+    if "recovery_error" in summary:
+        e = summary["recovery_error"]
+        print(
+            f"against the true lens: fx {e['fx_rel'] * 100:.3f} %, fy {e['fy_rel'] * 100:.3f} %, cx {e['cx_px']:.3f} px, "
+            f"cy {e['cy_px']:.3f} px, D max {e['d_abs_max']:.5f}; projection within 80 degrees: "
+            f"RMS {e['projection_px_rms']:.3f} px, max {e['projection_px_max']:.3f} px"
+        )
+    if "saved" in summary:
+        print(f"saved {summary['saved']} (the daemon serves it at GET /lens after a restart)")

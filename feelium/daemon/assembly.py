@@ -75,7 +75,10 @@ def build_front_camera(config: Config, hub: Hub) -> Service | None:
     from feelium.front_camera.service import FrontCameraService
 
     source = front_camera_source(config.front_camera, config.sim.seed)
-    return None if source is None else FrontCameraService(source, hub)
+    if source is None:
+        return None
+    hub.front_lens = source.lens.to_json() if source.lens is not None else None  # for the headset: GET /lens
+    return FrontCameraService(source, hub)
 
 
 def build_thermal(config: Config, hub: Hub) -> Service | None:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from aiohttp import web
 
-from feelium.http import control, events_api, pairing_api, video
+from feelium.http import control, events_api, lens_api, pairing_api, video
 from feelium.http.auth import TokenStore
 from feelium.http.config import HttpConfig
 from feelium.http.context import CONTEXT, LinkContext, SpeechSettings, ctx
@@ -127,6 +127,7 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     app.router.add_post(f"{p}/token/rotate", pairing_api.post_token_rotate)
     app.router.add_post(f"{p}/session", pairing_api.post_session)
     app.router.add_get(f"{p}/state", control.get_state)
+    app.router.add_get(f"{p}/lens", lens_api.get_lens)
     app.router.add_get(f"{p}/video/{{camera}}.mjpeg", video.mjpeg)
     app.router.add_get(f"{p}/video/{{camera}}.jpg", video.jpeg)
     app.router.add_post(f"{p}/motion", control.post_motion)

@@ -13,11 +13,18 @@ from typing import Any
 from feelium.http.clients import CLIENT_HEADER, CLIENT_ID_PATTERN
 from feelium.http.control import MAX_CAMERA_PX, MAX_WORD
 from feelium.http.events_api import MAX_SEQ
+from feelium.http.lens_api import LENS_SCHEMA, openapi_paths as lens_paths
 from feelium.http.video import MAX_FPS, MIN_FPS
 from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
 CAPTURE_T = {"description": "When it was captured (the last sample, for speech): daemon clock, s; see /clock.", "schema": {"type": "number"}}
 RESUME_PATTERN = "^([^:]{1,32}:)?[0-9]{1,15}$"  # 15 digits stay below 2**53
+SKIN_UV = (
+    "Skin coordinates u, v (touch events): 0..1 across the membrane's sensitive patch, origin at its top-left "
+    "corner as seen from inside the blimp looking forward (the front camera's and the wearer's direction), u "
+    "right, v down (a partner facing the blimp sees u grow to their left); 0 and 1 are the patch's outer edges. "
+    "x, y are rear-camera pixels; neither is a front-camera pixel (GET /lens describes the front camera)."
+)
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
 
 
@@ -361,13 +368,13 @@ def openapi_document() -> dict[str, Any]:
             "title": "Feelium headset API",
             "version": "1.0.0",
             "description": "The link between the wearer's headset and the blimp. Every endpoint but /health "
-            "needs the bearer token; video, SSE and WebSocket also accept ?token=.",
+            "needs the bearer token; video, SSE and WebSocket also accept ?token=. " + SKIN_UV,
         },
         "servers": [{"url": "/api/v1"}],
         "security": [{"bearer": []}],
         "components": {
             "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer"}},
-            "schemas": schemas,
+            "schemas": schemas | {"Lens": LENS_SCHEMA},
         },
-        "paths": paths,
+        "paths": paths | lens_paths(),
     }
