@@ -22,6 +22,15 @@ from tests.http.http_support import AUTH, TOKEN
 PATH = "/api/v1/speech/stream"
 
 
+async def until(condition, timeout: float = 3.0) -> bool:  # type: ignore[no-untyped-def]
+    """Wait (bounded) for ``condition()`` to hold: the server side of a close runs on its own schedule."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout
+    while not condition() and loop.time() < deadline:
+        await asyncio.sleep(0.01)
+    return bool(condition())
+
+
 def chunk(i: int, t: float, samples: int = 640) -> SpeechOut:
     return SpeechOut(np.full(samples, i, dtype="<i2").tobytes(), 16000, t)
 
@@ -78,7 +87,7 @@ async def test_frames_carry_seq_capture_time_and_samples(client, hub, clock) -> 
 async def test_resume_after_a_seq_gets_the_held_chunks_after_it(client, hub) -> None:
     for i in range(4):
         hub.bus.publish(chunk(i + 1, 100.0))
-    await asyncio.sleep(0.05)
+    assert await until(lambda: client.link.speech.last_seq == 4)
     async with client.ws_connect(PATH + "?after=2", headers=AUTH) as ws:
         assert (await ws.receive_json(timeout=2))["after"] == 2
         assert [decode_frame((await ws.receive(timeout=2)).data).seq for _ in range(2)] == [3, 4]
@@ -111,12 +120,11 @@ async def test_slots_per_client_and_in_total(aiohttp_client, hub, http_config) -
         await c.ws_connect(PATH, headers=AUTH | {"X-Feelium-Client": "c"})
     assert err.value.status == 429
     await a[0].close()
-    await asyncio.sleep(0.05)
+    assert await until(lambda: link_of(app).speech_streams.held_by("127.0.0.1/a") == 1)
     d = await c.ws_connect(PATH, headers=AUTH | {"X-Feelium-Client": "c"})  # a closed stream frees its slot
     for ws in (*a[1:], b, d):
         await ws.close()
-    await asyncio.sleep(0.05)
-    assert link_of(app).speech_streams.in_use == 0
+    assert await until(lambda: link_of(app).speech_streams.in_use == 0)
 
 
 async def test_a_reader_that_stops_reading_loses_frames_then_its_slot(client, hub) -> None:
@@ -145,8 +153,7 @@ async def test_a_reader_that_stops_reading_loses_frames_then_its_slot(client, hu
             await asyncio.sleep(0.02)
         assert link.counters.get("stalled_clients_dropped", 0) == 1
         assert link.counters.get("speech_frames_sent", 0) <= 3  # never more than the backlog allows in flight
-        await asyncio.sleep(0.05)
-        assert link.speech_streams.in_use == 0
+        assert await until(lambda: link.speech_streams.in_use == 0)
     finally:
         sock.close()
 
