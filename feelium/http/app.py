@@ -10,7 +10,7 @@ from pathlib import Path
 
 from aiohttp import web
 
-from feelium.http import control, events_api, lens_api, pairing_api, video
+from feelium.http import control, events_api, lens_api, pairing_api, speech_api, video
 from feelium.http.auth import TokenStore
 from feelium.http.config import HttpConfig
 from feelium.http.context import CONTEXT, LinkContext, SpeechSettings, ctx
@@ -56,6 +56,7 @@ def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettin
         speech_limit=ClientBuckets(config.speech_rate_per_s, config.speech_burst),
         lease=ControlLease(config.control_lease_s),
         streams=StreamSlots(config.max_stream_clients, config.max_streams_per_client),
+        speech_streams=StreamSlots(config.max_speech_streams, config.max_speech_streams_per_client, "speech streams"),
     )
 
 
@@ -139,6 +140,7 @@ def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings 
     app.router.add_delete(f"{p}/face", control.delete_face)
     app.router.add_post(f"{p}/speech", control.post_speech)
     app.router.add_get(f"{p}/speech", control.get_speech)
+    app.router.add_get(f"{p}/speech/stream", speech_api.stream)
     app.router.add_post(f"{p}/actions/{{action}}", control.post_action)
     app.router.add_get(f"{p}/sim", control.get_sim)
     app.router.add_post(f"{p}/sim/press", control.post_sim_press)

@@ -93,6 +93,17 @@ class HttpConfig:
     max_streams_per_client: int = setting(
         4, "Concurrent MJPEG streams of one client (all cameras); more get 429.", min=1, max=1000
     )
+    max_speech_streams: int = setting(
+        8, "Concurrent speech streams (GET /speech/stream) in total; more get 429.", min=1, max=1000
+    )
+    max_speech_streams_per_client: int = setting(
+        2, "Concurrent speech streams of one client; more get 429.", min=1, max=100
+    )
+    speech_stream_backlog_ms: int = setting(
+        200, "Room audio a speech stream may have unacknowledged on its socket; a frame beyond it is dropped "
+        "(counted in the next frame's header), never queued, so a slow headset hears gaps, not a growing delay.",
+        min=40, max=5000,
+    )
     jpeg_quality: int = setting(80, "JPEG quality of the video streams (encoded once per frame).", min=10, max=100)
     keepalive_s: float = setting(
         15.0, "SSE comment / WebSocket ping interval that keeps idle connections and proxies alive.", min=0.5, max=300.0

@@ -55,6 +55,7 @@ class LinkContext:
     speech_limit: ClientBuckets
     lease: ControlLease  # who may steer
     streams: StreamSlots  # MJPEG streams per client and in total
+    speech_streams: StreamSlots  # GET /speech/stream per client and in total
     counters: dict[str, int] = field(default_factory=dict)
     wall_clock: Callable[[], float] = time.time  # only for GET /clock: every other time is hub.clock
     last_request_at: float | None = None
@@ -74,6 +75,7 @@ class LinkContext:
             "controller": holder.client if (holder := self.lease.holder(now)) is not None else None,
             "video_clients": sum(f.clients for f in self.videos.values()),
             "event_clients": self.counters.get("event_clients", 0),
+            "speech_clients": self.speech_streams.in_use,
         }
 
 

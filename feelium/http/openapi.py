@@ -14,6 +14,7 @@ from feelium.http.clients import CLIENT_HEADER, CLIENT_ID_PATTERN
 from feelium.http.control import MAX_CAMERA_PX, MAX_WORD
 from feelium.http.events_api import MAX_SEQ
 from feelium.http.lens_api import LENS_SCHEMA, openapi_paths as lens_paths
+from feelium.http.openapi_messages import error_schema, event_stream_extensions, message_schemas, speech_stream_path
 from feelium.http.video import MAX_FPS, MIN_FPS
 from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
@@ -66,19 +67,17 @@ CLIENT_ID_HEADER = {
 CLIENT_ID_QUERY = _query("client", _CLIENT_ID, f"The {CLIENT_HEADER} id, for clients that cannot set headers.")
 
 
+def _add_stream_messages(paths: dict[str, Any]) -> None:
+    """The streamed messages' schemas on the event operations, and the speech stream (``openapi_messages.py``)."""
+    by_id = {op["operationId"]: op for item in paths.values() for op in item.values()}
+    for operation_id, extension in event_stream_extensions().items():
+        by_id[operation_id].update(extension)
+    paths["/speech/stream"] = speech_stream_path(_errors(400, 401, 429), [TOKEN_QUERY, CLIENT_ID_HEADER, CLIENT_ID_QUERY])
+
+
 @lru_cache(maxsize=1)
 def openapi_document() -> dict[str, Any]:
     """The whole document (built once)."""
-    event = {
-        "type": "object",
-        "required": ["seq", "epoch", "type", "event"],
-        "properties": {
-            "seq": {"type": "integer", "minimum": 0},
-            "epoch": {"type": "string", "description": "This daemon run's id: sequence numbers restart with it."},
-            "type": {"type": "string", "enum": ["touch", "presence", "interaction", "wearer_action", "reset"]},
-            "event": {"type": "object", "description": "The event's own JSON (TouchEvent.to_json() etc.)."},
-        },
-    }
     motion_state = {
         "type": "object",
         "required": ["command", "active", "remaining_ms"],
@@ -92,14 +91,7 @@ def openapi_document() -> dict[str, Any]:
         },
     }
     schemas: dict[str, Any] = {
-        "Error": {
-            "type": "object",
-            "required": ["error", "message"],
-            "description": "Every 4xx (and any 5xx) body: a machine code and a sentence. Some errors add fields "
-            "(409 not_in_control: see NotInControl).",
-            "properties": {"error": {"type": "string"}, "message": {"type": "string"}},
-        },
-        "Event": event,
+        "Error": error_schema(),
         "EventBatch": {
             "type": "object",
             "required": ["events", "last_seq", "epoch", "resume", "reset"],
@@ -110,7 +102,7 @@ def openapi_document() -> dict[str, Any]:
                 "resume": {"type": "string", "description": "EPOCH:SEQ: the next `after`."},
                 "reset": {"type": "boolean", "description": "Events were lost or the daemon restarted: `state` (included) "
                           "replaces them, `events` is empty; continue from `resume`."},
-                "state": {"type": "object"},
+                "state": _ref("ServicesState"),
             },
         },
         "MotionRequest": {
@@ -147,7 +139,7 @@ def openapi_document() -> dict[str, Any]:
             "required": ["t", "services", "motion_command", "headset_link", "last_seq"],
             "properties": {
                 "t": {"type": "number"},
-                "services": {"type": "object", "description": "Each service's part: touch, presence, flight..."},
+                "services": _ref("ServicesState"),
                 "motion_command": motion_state,
                 "headset_link": {
                     "type": "object",
@@ -177,6 +169,7 @@ def openapi_document() -> dict[str, Any]:
             },
         },
     }
+    schemas |= message_schemas()
     json_body = lambda schema, required=True: {  # noqa: E731
         "required": required,
         "content": {"application/json": {"schema": schema}},
@@ -362,6 +355,7 @@ def openapi_document() -> dict[str, Any]:
             "responses": {"202": _json({"type": "object"}, "Released.")} | _errors(400, 401, 404, 409, 413, 415),
         }},
     }  # fmt: skip
+    _add_stream_messages(paths)
     return {
         "openapi": "3.1.0",
         "info": {

@@ -110,6 +110,7 @@ class HttpService:
             "motion_refused_not_in_control": link.lease.refused,
             "motion_takeovers": link.lease.takeovers,
             "video_streams_refused": link.streams.refused,
+            "speech_streams_refused": link.speech_streams.refused,
             "pairings": link.pairing.paired,
             "pairing_refused": link.pairing.refused,
             "token_rotations": link.tokens.rotations,

@@ -1,4 +1,4 @@
-"""MJPEG stream slots: a bounded number per client and in total.
+"""Stream slots (MJPEG, speech): a bounded number per client and in total.
 
 Each stream holds a coroutine, a socket and up to a send buffer of frames;
 without a per-client cap one headset (or a page reloaded in a loop) could
@@ -17,9 +17,10 @@ class SlotsFull(Exception):
 class StreamSlots:
     """Counts open streams per client; :meth:`acquire` refuses above either limit."""
 
-    def __init__(self, total: int, per_client: int) -> None:
+    def __init__(self, total: int, per_client: int, what: str = "video streams") -> None:
         if total < 1 or per_client < 1:
             raise ValueError("stream limits must be at least 1")
+        self.what = what  # named in the refusal: "video streams", "speech streams"
         self.total = total
         self.per_client = per_client
         self._open: Counter[str] = Counter()
@@ -36,10 +37,10 @@ class StreamSlots:
         """Take a slot for ``client`` or raise :class:`SlotsFull`."""
         if self._open[client] >= self.per_client:
             self.refused += 1
-            raise SlotsFull(f"this client already has {self._open[client]} video streams (at most {self.per_client})")
+            raise SlotsFull(f"this client already has {self._open[client]} {self.what} (at most {self.per_client})")
         if self.in_use >= self.total:
             self.refused += 1
-            raise SlotsFull(f"all {self.total} video streams are in use")
+            raise SlotsFull(f"all {self.total} {self.what} are in use")
         self._open[client] += 1
 
     def release(self, client: str) -> None:

@@ -1,4 +1,4 @@
-"""Blimp-to-wearer speech: the newest captured chunks, numbered, for the headset to fetch as WAV.
+"""Blimp-to-wearer speech: the newest captured chunks, numbered, for the headset to fetch as WAV or stream.
 
 Kept bounded in milliseconds: a headset that polls late skips ahead to the
 newest audio instead of hearing the room with a growing delay.
@@ -37,20 +37,29 @@ class SpeechFeed:
 
     def after(self, seq: int) -> tuple[list[SpeechOut], int]:
         """Chunks numbered above ``seq`` (all held ones when ``seq`` is stale or from the future)."""
+        return [c for _, c in self.numbered_after(seq)], self.last_seq
+
+    def numbered_after(self, seq: int) -> list[tuple[int, SpeechOut]]:
+        """``(number, chunk)`` above ``seq``, as :meth:`after`; the stream puts the numbers in its frames."""
         if seq > self.last_seq:
             seq = 0
-        return [c for s, c in self._chunks if s > seq], self.last_seq
+        return [(s, c) for s, c in self._chunks if s > seq]
 
-    async def wait_after(self, seq: int, timeout: float) -> tuple[list[SpeechOut], int]:
-        chunks, last = self.after(seq)
+    async def wait_numbered_after(self, seq: int, timeout: float) -> list[tuple[int, SpeechOut]]:
+        """:meth:`numbered_after`, waiting up to ``timeout`` seconds for the first chunk."""
+        chunks = self.numbered_after(seq)
         if chunks or timeout <= 0:
-            return chunks, last
+            return chunks
         changed = self._changed
         try:
             await asyncio.wait_for(changed.wait(), timeout)
         except asyncio.TimeoutError:
             pass
-        return self.after(seq)
+        return self.numbered_after(seq)
+
+    async def wait_after(self, seq: int, timeout: float) -> tuple[list[SpeechOut], int]:
+        chunks = await self.wait_numbered_after(seq, timeout)
+        return [c for _, c in chunks], self.last_seq
 
     async def pump(self) -> None:
         if self._sub is None:

@@ -13,7 +13,7 @@ from feelium.lab.http.bench import bench_http_command
 @pytest.mark.slow
 def test_bench_http_runs_small_and_reports_every_key(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     out = tmp_path / "http.json"
-    args = argparse.Namespace(requests=10, seconds=0.3, fps=30.0, json=str(out))
+    args = argparse.Namespace(requests=10, seconds=0.3, fps=30.0, speech_seconds=0.5, json=str(out))
     assert bench_http_command(args) == 0
     result = json.loads(out.read_text())
 
@@ -32,8 +32,14 @@ def test_bench_http_runs_small_and_reports_every_key(tmp_path, capsys) -> None: 
         assert video["slow_reader"][run]["fps"] > 0 and video["slow_reader"][run]["age_median_ms"] > 0
     assert "slow_reader_age_ratio" in video
     assert "ratio_fps_with_stalled_vs_baseline" in video
+    speech = result["speech_stream_vs_long_poll"]
+    for kind in ("bus", "long_poll", "stream"):
+        assert speech[kind]["chunks"] == speech["chunks_published"], kind  # every chunk reached every reader
+        assert speech[kind]["delay_median_ms"] >= 0 and speech[kind]["gap_p50_ms"] > 0
+    assert speech["long_poll"]["requests_per_s"] > 0 and "ratio_delay_median_stream_vs_long_poll" in speech
     table = capsys.readouterr().out
     assert "POST /motion round trip" in table and "3 readers + 1 stalled" in table and "slow reader" in table
+    assert "GET /speech/stream WebSocket" in table
 
 
 def test_bench_http_rejects_a_meaningless_size(capsys) -> None:  # type: ignore[no-untyped-def]

@@ -1,4 +1,5 @@
-"""``feelium bench http``: motion round trip, touch-event latency per transport, MJPEG rate with a stalled client.
+"""``feelium bench http``: motion round trip, touch-event latency per transport, MJPEG rate with a stalled client,
+speech delay and jitter streamed vs long-polled.
 
 The server runs on its own thread and event loop (as in the daemon), the
 clients on this one, both on 127.0.0.1; every number has a baseline measured
@@ -23,10 +24,11 @@ import cv2
 import numpy as np
 from aiohttp import web
 
-from feelium.events import TouchEvent
+from feelium.events import SpeechOut, TouchEvent
 from feelium.http.app import create_app, link_of
 from feelium.http.config import HttpConfig
 from feelium.http.server import JsonErrorAppRunner
+from feelium.http.speech_stream import decode_frame
 from feelium.http.video import BOUNDARY
 from feelium.hub import Hub
 from feelium.motion import DEFAULT_HOLD_S, DeadManCommands, MotionCommand
@@ -377,7 +379,108 @@ async def bench_mjpeg(server: ServerThread, seconds: float, fps: float) -> dict[
     }
 
 
-async def run_bench(n: int, seconds: float, fps: float) -> dict[str, Any]:
+SPEECH_RATE = 16000
+SPEECH_CHUNK_S = 0.040  # the audio service's default chunk ([audio] chunk_ms)
+
+
+def _speech_stats(delays: list[float], arrivals: list[float]) -> dict[str, Any]:
+    """Capture -> receipt delay and inter-arrival gaps (what a jitter buffer must absorb), in ms."""
+    d = np.asarray(delays) * 1000.0
+    gaps = np.diff(np.asarray(arrivals)) * 1000.0
+    pct = lambda a, q: round(float(np.percentile(a, q)), 3) if a.size else float("nan")  # noqa: E731
+    return {
+        "chunks": int(d.size),
+        "delay_median_ms": pct(d, 50), "delay_p95_ms": pct(d, 95), "delay_p99_ms": pct(d, 99),
+        "gap_p50_ms": pct(gaps, 50), "gap_p99_ms": pct(gaps, 99),
+        "gap_dev_p99_ms": pct(np.abs(gaps - 1000.0 * SPEECH_CHUNK_S), 99),
+    }  # fmt: skip
+
+
+async def bench_speech(server: ServerThread, seconds: float) -> dict[str, Any]:
+    """40 ms chunks published on the server's bus at the capture rate, read at once by a long-poll client
+    (``GET /speech``, the old way) and a stream client (``GET /speech/stream``); an in-process bus subscriber
+    is the baseline. Capture times are stamped on the hub clock (``perf_counter`` here, the one clock), so
+    delay = receipt - capture_t needs no offset; a long-polled WAV of k chunks dates its chunks back from
+    ``X-Feelium-Capture-T`` (its last sample) in steps of 40 ms."""
+    hub = server.hub
+    assert hub is not None
+    samples = int(SPEECH_RATE * SPEECH_CHUNK_S)
+    pcm = (np.sin(np.arange(samples) * 2 * np.pi * 440 / SPEECH_RATE) * 3000).astype("<i2").tobytes()
+    n = max(10, int(seconds / SPEECH_CHUNK_S))
+    got: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in ("bus", "long_poll", "stream")}
+    done = threading.Event()
+
+    async def bus_listener() -> None:
+        sub = hub.bus.subscribe([SpeechOut], maxsize=n + 8)
+        while len(got["bus"][0]) < n:
+            chunk = await sub.get()
+            now = time.perf_counter()
+            got["bus"][0].append(now - chunk.t)
+            got["bus"][1].append(now)
+        sub.close()
+        done.set()
+
+    asyncio.run_coroutine_threadsafe(bus_listener(), server.loop)
+    requests = 0
+    stop = asyncio.Event()
+    async with aiohttp.ClientSession(headers=AUTH | {"X-Feelium-Client": "speech-bench"}) as session:
+        async def long_poll() -> None:
+            nonlocal requests
+            after = 0
+            async with session.get(server.api + "/speech", params={"timeout": 0}) as resp:
+                after = int(resp.headers["X-Speech-Seq"])
+            while not stop.is_set():
+                async with session.get(server.api + "/speech", params={"after": after, "timeout": 1}) as resp:
+                    body = await resp.read()
+                    now = time.perf_counter()
+                    requests += 1
+                    after = int(resp.headers["X-Speech-Seq"])
+                    if resp.status != 200:
+                        continue
+                    last_t = float(resp.headers["X-Feelium-Capture-T"])
+                k = round((len(body) - 44) / 2 / samples)  # PCM16 WAV: a 44-byte header, then the chunks' samples
+                for j in range(k):
+                    got["long_poll"][0].append(now - (last_t - (k - 1 - j) * SPEECH_CHUNK_S))
+                    got["long_poll"][1].append(now)
+
+        async def stream() -> None:
+            async with session.ws_connect(server.api.replace("http", "ws", 1) + "/speech/stream") as ws:
+                await ws.receive_json()
+                while not stop.is_set():
+                    try:
+                        msg = await ws.receive(timeout=0.5)
+                    except asyncio.TimeoutError:
+                        continue
+                    if msg.type != aiohttp.WSMsgType.BINARY:
+                        return
+                    now = time.perf_counter()
+                    frame = decode_frame(msg.data)
+                    got["stream"][0].append(now - frame.capture_t)
+                    got["stream"][1].append(now)
+
+        readers = [asyncio.create_task(long_poll()), asyncio.create_task(stream())]
+        await asyncio.sleep(0.3)
+        t0 = time.perf_counter()
+        for k in range(n):  # an absolute schedule, as a sound card delivers chunks
+            await asyncio.sleep(max(0.0, t0 + (k + 1) * SPEECH_CHUNK_S - time.perf_counter()))
+            server.call(hub.bus.publish, SpeechOut(pcm, SPEECH_RATE, time.perf_counter()))
+        await asyncio.sleep(0.5)
+        stop.set()
+        await asyncio.wait_for(asyncio.gather(*readers), 10)
+        span = time.perf_counter() - t0
+    await asyncio.to_thread(done.wait, 10)
+    out: dict[str, Any] = {"chunk_ms": 1000 * SPEECH_CHUNK_S, "chunks_published": n}
+    for kind, (delays, arrivals) in got.items():
+        out[kind] = _speech_stats(delays, arrivals)
+    out["long_poll"]["requests_per_s"] = round(requests / span, 1)
+    out["stream"]["requests_per_s"] = 0.0  # one connection for the whole run
+    lp, st = out["long_poll"], out["stream"]
+    out["ratio_delay_median_stream_vs_long_poll"] = round(st["delay_median_ms"] / max(lp["delay_median_ms"], 1e-9), 3)
+    out["ratio_gap_dev_p99_stream_vs_long_poll"] = round(st["gap_dev_p99_ms"] / max(lp["gap_dev_p99_ms"], 1e-9), 3)
+    return out
+
+
+async def run_bench(n: int, seconds: float, fps: float, speech_seconds: float = 10.0) -> dict[str, Any]:
     config = replace(HttpConfig(), motion_rate_per_s=1000.0, motion_burst=1000, stream_write_timeout_s=1.0,
                      event_ring_size=4096, keepalive_s=5.0)  # fmt: skip
     with ServerThread(config) as server:
@@ -385,6 +488,7 @@ async def run_bench(n: int, seconds: float, fps: float) -> dict[str, Any]:
             "motion_round_trip": await bench_motion(server, n),
             "touch_event_latency": await bench_events(server, n),
             "mjpeg_4_clients_1_stalled": await bench_mjpeg(server, seconds, fps),
+            "speech_stream_vs_long_poll": await bench_speech(server, speech_seconds),
         }
 
 
@@ -427,6 +531,23 @@ def format_table(result: dict[str, Any]) -> str:
         f"stalled client dropped: {v['stalled_dropped']} after {v['stalled_dropped_after_s']} s; "
         f"JPEG encodes / frames published: {v['jpeg_encodes']} / {v['frames_published']}",
     ]
+    sp = result["speech_stream_vs_long_poll"]
+    lines += [
+        "",
+        f"Speech: {sp['chunks_published']} chunks of {sp['chunk_ms']:g} ms, capture (hub clock) -> client receipt",
+        "",
+        "| speech transport | chunks | delay median ms | p95 | p99 | gap p50 ms | gap p99 ms | abs(gap - 40) p99 ms | requests/s |",
+        "|---|---|---|---|---|---|---|---|---|",
+        *(
+            f"| {label} | {r['chunks']} | {r['delay_median_ms']} | {r['delay_p95_ms']} | {r['delay_p99_ms']} "
+            f"| {r['gap_p50_ms']} | {r['gap_p99_ms']} | {r['gap_dev_p99_ms']} | {r.get('requests_per_s', '')} |"
+            for label, r in (("in-process bus (baseline)", sp["bus"]), ("GET /speech long-poll", sp["long_poll"]),
+                             ("GET /speech/stream WebSocket", sp["stream"]))
+        ),
+        "",
+        f"stream / long-poll: delay median {sp['ratio_delay_median_stream_vs_long_poll']}, "
+        f"abs(gap - 40 ms) p99 {sp['ratio_gap_dev_p99_stream_vs_long_poll']}",
+    ]
     return "\n".join(lines)
 
 
@@ -434,6 +555,10 @@ def bench_http_command(args: Any) -> int:
     if args.requests < 10 or args.seconds <= 0 or args.fps <= 0:
         print("feelium bench http: --requests >= 10, --seconds > 0 and --fps > 0 please", file=sys.stderr)
         return 2
-    result = asyncio.run(run_bench(args.requests, args.seconds, args.fps))
+    speech_seconds = getattr(args, "speech_seconds", 10.0)
+    if speech_seconds <= 0:
+        print("feelium bench http: --speech-seconds > 0 please", file=sys.stderr)
+        return 2
+    result = asyncio.run(run_bench(args.requests, args.seconds, args.fps, speech_seconds))
     emit_report(format_table(result), result, args.json)
     return 0
