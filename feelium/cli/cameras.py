@@ -58,6 +58,7 @@ def _record(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     if args.sim:
         config = dataclasses.replace(config, rear_camera=dataclasses.replace(config.rear_camera, backend="sim"))
+    asked_auto = config.rear_camera.backend == "auto"
     config = for_this_machine(config)
     if args.seconds is not None and not args.seconds > 0:
         print("feelium record: --seconds must be positive", file=sys.stderr)
@@ -75,8 +76,8 @@ def _record(args: argparse.Namespace) -> int:
     except CameraUnavailable as exc:
         print(f"feelium record: {exc}", file=sys.stderr)
         return 1
-    if source.backend == "sim":
-        print("feelium record: recording the scene simulator (--sim, or `auto` off a Raspberry Pi)", file=sys.stderr)
+    if source.backend == "sim" and asked_auto:  # asked for the camera, got the simulator: say so
+        print("feelium record: recording the scene simulator (`auto` off a Raspberry Pi)", file=sys.stderr)
     name = args.name or default_name(time.time())
     shown = {"at": 0.0}
 

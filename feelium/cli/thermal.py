@@ -80,11 +80,12 @@ def _read(args: argparse.Namespace) -> int:
 
     from feelium.daemon.backends import for_this_machine
 
-    config = for_this_machine(load_config(args.config))
+    loaded = load_config(args.config)
+    config = for_this_machine(loaded)
     cfg = config.thermal
     sim = args.sim or cfg.backend == "sim"
-    if sim:
-        print("feelium thermal read: the simulated sensor (--sim, or `auto` off a Raspberry Pi)", file=sys.stderr)
+    if sim and not args.sim and loaded.thermal.backend == "auto":  # asked for the sensor, got the simulator: say so
+        print("feelium thermal read: the simulated sensor (`auto` off a Raspberry Pi)", file=sys.stderr)
     try:
         driver = sim_driver(cfg, Hub(), config.sim.seed) if sim else smbus2_driver(cfg)
         calibration = driver.start()
