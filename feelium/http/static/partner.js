@@ -1,5 +1,7 @@
 // The partner page (sim mode): press on the rear camera with the mouse to touch the simulated membrane.
-"use strict";
+
+import { Feelium } from "./api.js";
+
 const rear = document.querySelector("#rear"), mode = document.querySelector("#mode"), plog = document.querySelector("#log");
 Feelium.ready.then(() => { rear.src = Feelium.streamUrl("/video/rear.mjpeg"); });
 let size = null, down = false, lastSent = 0;
