@@ -68,7 +68,7 @@ class FlightController:
         self.altitude_loop = AltitudeLoop(config, self.mixer)
         self.heading_loop = HeadingLoop(config, self.mixer)
         self.surge_loop = SurgeLoop(config, self.mixer)
-        self.reversals = ReversalGuard(config.motor_deadband)
+        self.reversals = ReversalGuard()
         self._last_t: float | None = None
         self._altitude_failsafe = False
         self._telemetry_failsafe = False

@@ -11,7 +11,9 @@ neutral, and the air's drag does the rest. Calm hover means both loops have
 been hovering (no command, brake or settling) for ``SETTLE_S`` and the body
 is still by the stop goal's measure, with a margin. Once it moves faster, or
 at any command, brake or stop, the guard steps aside at once: a correction
-that matters always has full authority.
+that matters always has full authority. (Holding a reversal while the body is
+still moving was tried: holding one motor of the pair at neutral unbalances the
+yaw torque, and a heavy blimp's stop after a lapsed turn took 1.8 s, not 0.9.)
 """
 
 from __future__ import annotations
@@ -33,8 +35,7 @@ def calm(speed_m_s: float, yaw_rate_dps: float) -> bool:
 class ReversalGuard:
     """Per horizontal motor: the direction it last spun and when it took that direction."""
 
-    def __init__(self, deadband: float) -> None:
-        self.deadband = deadband
+    def __init__(self) -> None:
         self._sign = [0.0, 0.0]  # the horizontal pair: the mixer's first two motors
         self._since = [-math.inf, -math.inf]
         self._hovering_since = math.inf
@@ -51,8 +52,10 @@ class ReversalGuard:
         quiet = calm and t - self._hovering_since >= SETTLE_S
         out = list(commands)
         for i in range(2):
-            if abs(commands[i]) <= self.deadband:
-                continue  # not spinning: no direction taken
+            if commands[i] == 0.0:
+                continue  # neutral: no direction taken. Any other command may spin the motor: the real
+                # deadband is unknown and may be far below the config's (a motor inside the config's
+                # deadband flipping every few cycles was most of the reversals on such blimps).
             wanted = math.copysign(1.0, commands[i])
             if wanted == self._sign[i]:
                 continue

@@ -8,12 +8,10 @@ from hypothesis import strategies as st
 
 from feelium.flight.reversal import CALM_SPEED_M_S, CALM_YAW_DPS, MIN_INTERVAL_S, SETTLE_S, ReversalGuard, calm
 
-DEADBAND = 0.06
-
 
 def _settled_guard() -> ReversalGuard:
     """Hovering since 0, the motors last took their direction at SETTLE_S (then 0.3, -0.3)."""
-    guard = ReversalGuard(DEADBAND)
+    guard = ReversalGuard()
     guard.limit(0.0, (-0.3, 0.3, 0.5, 0.5), hovering=True, calm=True)
     assert guard.limit(SETTLE_S, (0.3, -0.3, 0.5, 0.5), hovering=True, calm=True) == (0.3, -0.3, 0.5, 0.5)
     return guard
@@ -37,12 +35,13 @@ def test_a_command_a_moving_body_or_a_fresh_hover_gets_full_authority() -> None:
     assert fresh.limit(t + 0.1, (-0.3, 0.3, 0.5, 0.5), hovering=True, calm=True) == (-0.3, 0.3, 0.5, 0.5)
 
 
-def test_commands_inside_the_deadband_are_no_direction() -> None:
+def test_any_command_but_neutral_takes_a_direction() -> None:
+    """The real deadband is unknown: a command inside the config's may spin the motor, so it counts."""
     guard = _settled_guard()
     t = SETTLE_S + 0.1
-    assert guard.limit(t, (-0.05, 0.04, 0.5, 0.5), hovering=True, calm=True) == (-0.05, 0.04, 0.5, 0.5)
-    assert guard.limit(t + 0.02, (0.2, -0.2, 0.5, 0.5), hovering=True, calm=True) == (0.2, -0.2, 0.5, 0.5)
-    assert guard.held == 0
+    assert guard.limit(t, (-0.05, -0.04, 0.5, 0.5), hovering=True, calm=True) == (0.0, -0.04, 0.5, 0.5)
+    assert guard.limit(t + 0.02, (0.0, 0.0, 0.5, 0.5), hovering=True, calm=True) == (0.0, 0.0, 0.5, 0.5)
+    assert guard.held == 1
 
 
 def test_calm_is_inside_the_stop_goal() -> None:
@@ -55,14 +54,14 @@ def test_calm_is_inside_the_stop_goal() -> None:
 @given(seed=st.integers(0, 2**31 - 1))
 def test_in_calm_hover_no_motor_reverses_more_often_than_the_interval_allows(seed: int) -> None:
     rng = np.random.default_rng(seed)
-    guard = ReversalGuard(DEADBAND)
+    guard = ReversalGuard()
     last_sign, last_t = [0.0, 0.0], [-np.inf, -np.inf]
     for k in range(2000):
         t = 0.02 * k
         wanted = tuple(float(x) for x in rng.uniform(-0.5, 0.5, 2))
         out = guard.limit(t, (wanted[0], wanted[1], 0.5, 0.5), hovering=True, calm=True)
         for i in range(2):
-            if abs(out[i]) > DEADBAND:
+            if out[i] != 0.0:
                 sign = float(np.sign(out[i]))
                 if last_sign[i] and sign != last_sign[i] and t >= SETTLE_S:
                     assert t - last_t[i] >= MIN_INTERVAL_S - 1e-9
