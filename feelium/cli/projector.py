@@ -23,6 +23,7 @@ def register(registry: CommandRegistry) -> None:
     bench = registry.subcommand("bench", "projector", "Render time per frame at the projector's resolution on one core.", _bench)
     bench.add_argument("--config", help="TOML config file")
     bench.add_argument("--frames", type=int, default=90, help="frames per measurement")
+    bench.add_argument("--stream-seconds", type=float, default=10.0, help="seconds of the realistic frame stream, full vs tiled warp")
     bench.add_argument("--json", help="also write the report to this JSON file")
     face = registry.subcommand(
         "bench", "projector-facevideo",
@@ -157,7 +158,7 @@ def _bench(args: argparse.Namespace) -> int:
     px[outside] = np.nan
     py[outside] = np.nan
     calibration = ProjectorMap(camera, (config.width, config.height), roi, px, py, source="sim fisheye warp")
-    report = run_bench(config, calibration, frames=args.frames)
+    report = run_bench(config, calibration, frames=args.frames, stream_s=args.stream_seconds)
     print(format_table(report))
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
