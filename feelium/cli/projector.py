@@ -149,7 +149,11 @@ def _bench(args: argparse.Namespace) -> int:
     from feelium.skin.projector_map import ProjectorMap
     from feelium.sim.projection import FisheyeWarp
 
-    config = load_config(args.config).projector
+    from feelium.daemon.memory import tune_malloc
+
+    whole = load_config(args.config)
+    config = whole.projector
+    tune_malloc(whole.daemon.malloc_arenas, whole.daemon.malloc_mmap_threshold_kb)  # allocations cost what they do in `feelium run`
     camera, roi = (640, 480), (64, 48, 512, 384)
     px, py = FisheyeWarp().truth_map(*camera)
     x, y, w, h = roi

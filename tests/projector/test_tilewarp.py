@@ -77,6 +77,43 @@ def test_single_pixels_on_source_tile_edges_reach_every_destination_pixel_that_r
         assert np.array_equal(warp.warp(canvas), warp.full(canvas))
 
 
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 2**16),
+    steps=st.lists(st.tuples(st.lists(rects, max_size=3), st.booleans(), st.integers(0, 3)), min_size=2, max_size=14),
+)
+def test_reused_buffers_are_brought_up_to_date_and_held_frames_are_never_written(seed, steps):
+    """Consumers keep some frames and let others go: a buffer nobody holds is reused (it must first catch
+    up with what changed while it was out), a held one never changes."""
+    warp = small_warp(seed, (80, 60), (320, 240))
+    rng = np.random.default_rng(seed)
+    canvas = rng.integers(0, 256, (60, 80, 3), np.uint8)
+    held: list[tuple[np.ndarray, np.ndarray]] = []
+    for rect_list, keep, release in steps:
+        for fx, fy, fw, fh in rect_list:
+            x0, y0 = int(fx * 80), int(fy * 60)
+            patch = canvas[y0 : y0 + 1 + int(fw * 80), x0 : x0 + 1 + int(fh * 60)]
+            patch[...] = rng.integers(0, 256, patch.shape, np.uint8)
+        frame = warp.warp(canvas)
+        assert np.array_equal(frame, warp.full(canvas))
+        if keep:
+            held.append((frame, frame.copy()))
+        del held[:release]
+        del frame
+    for frame, copy in held:
+        assert np.array_equal(frame, copy)
+    assert warp.allocated <= len(steps)
+
+
+def test_a_frame_nobody_holds_is_reused_instead_of_allocating():
+    warp = small_warp(5, (64, 48), (320, 240))
+    canvas = np.zeros((48, 64, 3), np.uint8)
+    for i in range(20):
+        canvas[i % 48, (3 * i) % 64] = 200
+        warp.warp(canvas)
+    assert warp.allocated == 2  # the newest frame and the one being drawn
+
+
 def test_a_single_changed_pixel_is_rewarped_and_nothing_else():
     warp = small_warp(3, (64, 48), (320, 240))
     canvas = np.full((48, 64, 3), 100, np.uint8)
