@@ -90,7 +90,7 @@ class TileWarp:
             np.copyto(prev, canvas)
         self.last_dirty_fraction = float(dirty.mean())
         if current is not None and not dirty.any():
-            return current.array  # unchanged, and never written again: shared
+            return current.array  # unchanged: the newest frame again (a pool never writes its newest)
         target = self._free_buffer()
         if current is None or dirty.mean() > FULL_ABOVE:
             self._remap_box(canvas, target.array)
