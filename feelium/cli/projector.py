@@ -23,6 +23,7 @@ def register(registry: CommandRegistry) -> None:
     bench = registry.subcommand("bench", "projector", "Render time per frame at the projector's resolution on one core.", _bench)
     bench.add_argument("--config", help="TOML config file")
     bench.add_argument("--frames", type=int, default=90, help="frames per measurement")
+    bench.add_argument("--stream-seconds", type=float, default=10.0, help="seconds of the realistic frame stream, full vs tiled warp")
     bench.add_argument("--json", help="also write the report to this JSON file")
     face = registry.subcommand(
         "bench", "projector-facevideo",
@@ -149,7 +150,11 @@ def _bench(args: argparse.Namespace) -> int:
     from feelium.skin.projector_map import ProjectorMap
     from feelium.sim.projection import FisheyeWarp
 
-    config = load_config(args.config).projector
+    from feelium.daemon.memory import tune_malloc
+
+    whole = load_config(args.config)
+    config = whole.projector
+    tune_malloc(whole.daemon.malloc_arenas, whole.daemon.malloc_mmap_threshold_kb)  # allocations cost what they do in `feelium run`
     camera, roi = (640, 480), (64, 48, 512, 384)
     px, py = FisheyeWarp().truth_map(*camera)
     x, y, w, h = roi
@@ -158,7 +163,7 @@ def _bench(args: argparse.Namespace) -> int:
     px[outside] = np.nan
     py[outside] = np.nan
     calibration = ProjectorMap(camera, (config.width, config.height), roi, px, py, source="sim fisheye warp")
-    report = run_bench(config, calibration, frames=args.frames)
+    report = run_bench(config, calibration, frames=args.frames, stream_s=args.stream_seconds)
     print(format_table(report))
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=2) + "\n")

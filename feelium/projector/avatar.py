@@ -33,10 +33,15 @@ class Avatar:
             base = cv2.add(base, cv2.GaussianBlur(blush, (0, 0), 0.02 * width))
         self._base = base
 
-    def render(self, t: float, talking: bool = False) -> np.ndarray:
-        """The face at time ``t`` (seconds): blinking every few seconds, mouth moving when ``talking``."""
+    def render(self, t: float, talking: bool = False, out: np.ndarray | None = None) -> np.ndarray:
+        """The face at time ``t`` (seconds): blinking every few seconds, mouth moving when ``talking``; drawn
+        into ``out`` (same size, BGR uint8) when given."""
         w, h = self.width, self.height
-        img = self._base.copy()
+        if out is None:
+            img = self._base.copy()
+        else:
+            img = out
+            np.copyto(img, self._base)
         sway = 0.012 * w * math.sin(2 * math.pi * t / 5.0)
         blink = (t % 4.3) < 0.15
         eye_h = max(1, int(0.008 * h)) if blink else int(0.045 * h)

@@ -7,11 +7,13 @@ a precomputed fixed-point map then carries the canvas to the projector's
 native resolution, so what is meant for a spot on the skin lands there through
 the fisheye, and a circle drawn on the canvas is a circle on the skin.
 
-Pure: time, face image and answers in, a BGR frame out.
+Time, face image and answers in, a BGR frame out; the only state kept between frames is the previous
+canvas and frame, so that only what changed is re-warped (the result is the full warp's).
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterable
 
 import cv2
@@ -22,6 +24,7 @@ from feelium.projector.avatar import BACKGROUND_BGR, Avatar
 from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.layers import DRAWERS
+from feelium.projector.tilewarp import TileWarp
 
 
 class Renderer:
@@ -51,11 +54,14 @@ class Renderer:
             raise ValueError("the calibration covers no projector pixel")
         self._box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
         x0, y0, x1, y1 = self._box
-        self._map1, self._map2 = cv2.convertMaps(map_x[y0:y1, x0:x1], map_y[y0:y1, x0:x1], cv2.CV_16SC2)
-        self._border = tuple(int(c * 0.5) for c in BACKGROUND_BGR)
-        self._blank = np.empty((config.height, config.width, 3), np.uint8)
-        self._blank[...] = self._border
+        map1, map2 = cv2.convertMaps(map_x[y0:y1, x0:x1], map_y[y0:y1, x0:x1], cv2.CV_16SC2)
+        border = tuple(int(c * 0.5) for c in BACKGROUND_BGR)
+        blank = np.empty((config.height, config.width, 3), np.uint8)
+        blank[...] = border
+        self.tiles = TileWarp(map1, map2, self._box, self.canvas_size, blank, border)
         self.avatar = Avatar(cw, ch)
+        self._canvas = np.empty((ch, cw, 3), np.uint8)
+        self._canvas_lock = threading.Lock()  # render() may be called from two threads (the service, a preview)
         self.skipped: dict[str, int] = {}
         floor = 255.0 * config.sensing_floor
         self._floor_lut = np.clip(np.round(floor + np.arange(256) * (1.0 - config.sensing_floor)), 0, 255).astype(np.uint8)
@@ -72,15 +78,19 @@ class Renderer:
         x0 = (resized.shape[1] - cw) // 2
         return np.ascontiguousarray(resized[y0 : y0 + ch, x0 : x0 + cw])
 
-    def canvas(self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False) -> np.ndarray:
-        """The skin canvas at ``now``: ``face`` (already canvas-sized, see :meth:`fit_face`) or the avatar, plus answers."""
+    def canvas(
+        self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False, out: np.ndarray | None = None
+    ) -> np.ndarray:
+        """The skin canvas at ``now``: ``face`` (already canvas-sized, see :meth:`fit_face`) or the avatar, plus
+        answers; drawn into ``out`` (a canvas-sized BGR array) when given, else into a new array."""
         cw, ch = self.canvas_size
+        if face is not None and face.shape[:2] != (ch, cw):
+            raise ValueError(f"face is {face.shape[1]}x{face.shape[0]}, canvas is {cw}x{ch}; use fit_face()")
+        img = out if out is not None else np.empty((ch, cw, 3), np.uint8)
         if face is not None:
-            if face.shape[:2] != (ch, cw):
-                raise ValueError(f"face is {face.shape[1]}x{face.shape[0]}, canvas is {cw}x{ch}; use fit_face()")
-            img = face.copy()
+            np.copyto(img, face)
         else:
-            img = self.avatar.render(now, talking=talking)
+            self.avatar.render(now, talking=talking, out=img)
         for answer in answers:
             drawer = DRAWERS.get(answer.kind)
             if drawer is None:
@@ -92,13 +102,15 @@ class Renderer:
         return img
 
     def warp(self, canvas: np.ndarray) -> np.ndarray:
-        """Carry a canvas to projector pixels (H_p, W_p, 3) through the calibration."""
-        frame = self._blank.copy()
-        x0, y0, x1, y1 = self._box
-        frame[y0:y1, x0:x1] = cv2.remap(
-            canvas, self._map1, self._map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=self._border
-        )
-        return frame
+        """Carry a canvas to projector pixels (H_p, W_p, 3) through the calibration.
+
+        Only what changed since the previous call is re-warped (:class:`TileWarp`); the frame equals the
+        full warp's. The returned frame is not written again while anyone holds it.
+        """
+        return self.tiles.warp(canvas)
 
     def render(self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False) -> np.ndarray:
-        return self.warp(self.canvas(now, face, answers, talking))
+        """The projector frame at ``now``. The canvas is drawn into one reused buffer: a new 0.6 MB array per
+        frame would be an mmap and its page faults under the daemon's malloc settings (``[daemon]``)."""
+        with self._canvas_lock:
+            return self.warp(self.canvas(now, face, answers, talking, out=self._canvas))

@@ -115,3 +115,25 @@ def test_build_projector_without_calibration_uses_the_default_map(tmp_path, monk
     truth_calibration().save(tmp_path / "projector_calibration.npz")
     size = (config.projector.width, config.projector.height)
     assert load_or_default(calibration_path(config.projector.calibration.file), size, None).source == "truth"
+
+
+class _SlowDisplay(SimDisplay):
+    """Takes three frame periods to show a frame."""
+
+    def show(self, frame: np.ndarray) -> None:
+        import time
+
+        time.sleep(0.1)
+        super().show(frame)
+
+
+async def test_a_frame_slower_than_its_period_is_counted_late():
+    hub = Hub()
+    config = dataclasses.replace(Config().projector, fps=30.0)
+    display = _SlowDisplay()
+    service = ProjectorService(config, Config().interactions, hub, display, truth_calibration())
+    task = asyncio.create_task(service.run())
+    await _until(lambda: display.frames >= 3)
+    await service.stop()
+    await asyncio.wait_for(task, 5.0)
+    assert service.counters["late_frames"] >= 2 and service.health()["late_frames"] == service.counters["late_frames"]

@@ -71,11 +71,16 @@ async def speech_out(session: aiohttp.ClientSession, base: str, until: float) ->
 
 
 def _face_video() -> aiohttp.FormData:
+    """A face whose every pixel changes from frame to frame, as a live face video's does (head motion, sensor
+    noise): a drifting texture under a pulsing disc. A flat background would change only around the disc and
+    flatter the projector's tiled warp, which re-warps only what changed."""
     form = aiohttp.FormData()
+    texture = cv2.GaussianBlur(np.random.default_rng(1).integers(0, 80, (400, 520, 3), np.uint8), (0, 0), 3)
     for i in range(FACE_FRAMES):
-        image = np.full((360, 480, 3), 60, np.uint8)
+        dx, dy = int(20 + 15 * np.sin(i / 4)), int(20 + 15 * np.cos(i / 5))
+        image = cv2.add(texture[dy : dy + 360, dx : dx + 480], 40)
         cv2.circle(image, (240, 180), 80 + 4 * (i % 6), (90, 140, 220), -1)
-        form.add_field(f"f{i}", cv2.imencode(".jpg", image)[1].tobytes(), content_type="image/jpeg", filename=f"f{i}.jpg")
+        form.add_field(f"f{i}", cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 80])[1].tobytes(), content_type="image/jpeg", filename=f"f{i}.jpg")
     return form
 
 

@@ -1,10 +1,11 @@
 """`feelium bench projector`: render time per frame at the projector's resolution on one core.
 
 Scenes: the avatar alone, the avatar with a typical exchange's answers, and
-every answer at once (the worst case). The baseline, measured in the same run,
+every answer at once (the worst case), each warped in full. The baseline, measured in the same run,
 is the least any renderer must do: one plain resize of the skin canvas to the
 projector's resolution. The back-light prediction the touch service runs per
-camera frame is measured too.
+camera frame is measured too. Then a realistic frame stream (:mod:`feelium.lab.projector.stream`)
+is warped both in full and by tiles (only what changed), frame by frame in turn.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from feelium.projector.backlight import BacklightPredictor
 from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
+from feelium.lab.projector.stream import FACE_FPS, run_stream
 from feelium.lab.timing import time_calls
 
 _STROKE = ((0.2, 0.3), (0.3, 0.35), (0.4, 0.33), (0.5, 0.45), (0.55, 0.6))
@@ -41,8 +43,9 @@ def _scenes() -> dict[str, list[Answer]]:
     return {"avatar": [], "typical": typical, "everything": everything}
 
 
-def run_bench(config: ProjectorConfig, calibration: ProjectorMap, frames: int = 90) -> dict[str, Any]:
-    """Timings (one OpenCV thread, CPU time per frame) and ratios against the resize baseline."""
+def run_bench(config: ProjectorConfig, calibration: ProjectorMap, frames: int = 90, stream_s: float = 10.0) -> dict[str, Any]:
+    """Timings (one OpenCV thread, CPU time per frame) and ratios against the resize baseline; then
+    ``stream_s`` seconds of a realistic frame stream, full against tiled warp (:mod:`.stream`)."""
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
@@ -51,11 +54,17 @@ def run_bench(config: ProjectorConfig, calibration: ProjectorMap, frames: int = 
         size = (config.width, config.height)
         baseline = time_calls(lambda i: cv2.resize(canvas, size, interpolation=cv2.INTER_LINEAR), frames)
         rows: dict[str, Any] = {"baseline_resize": baseline}
-        for name, answers in _scenes().items():
-            rows[f"render_{name}"] = time_calls(lambda i, a=answers: renderer.render(0.5 + i / config.fps, None, a), frames)
+        for name, answers in _scenes().items():  # every pixel re-warped: the cost of a frame where all changed
+            rows[f"render_{name}"] = time_calls(
+                lambda i, a=answers: renderer.tiles.full(renderer.canvas(0.5 + i / config.fps, None, a)), frames
+            )
         predictor = BacklightPredictor(config, calibration)
         frame = renderer.render(0.5, None, _scenes()["typical"])
         rows["backlight_gain"] = time_calls(lambda i: predictor.gain(frame), frames)
+        streams = {
+            name: run_stream(Renderer(config, calibration), config.fps, stream_s, moving_face=moving)
+            for name, moving in (("face_video", True), ("still_face", False))
+        }
     finally:
         cv2.setNumThreads(threads)
     base = baseline["median_ms"]
@@ -70,6 +79,7 @@ def run_bench(config: ProjectorConfig, calibration: ProjectorMap, frames: int = 
         "frames": frames,
         "rows": rows,
         "meets_target": rows["render_everything"]["median_ms"] <= 1000.0 / config.fps,
+        "streams": streams,
     }
 
 
@@ -86,4 +96,18 @@ def format_table(report: dict[str, Any]) -> str:
             f"{row['wall_median_ms']:>13.2f}{row['wall_p95_ms']:>10.2f}"
         )
     lines.append(f"30 fps worst case met: {report['meets_target']}")
+    lines.append(
+        f"frame streams ({report['projector']['target_fps']:g} fps, face video {FACE_FPS:g} fps, taps and hearts), "
+        "new canvas + full warp vs Renderer.render (tiled), CPU ms of one core, malloc as the daemon's:"
+    )
+    lines.append(
+        f"{'stream':<12}{'frames':>7}{'full med':>10}{'tiled med':>10}{'ratio':>7}"
+        f"{'full ms/s':>11}{'tiled ms/s':>11}{'ratio':>7}{'dirty':>7}{'allocs':>7}{'max diff':>9}"
+    )
+    for name, s in report["streams"].items():
+        lines.append(
+            f"{name:<12}{s['frames']:>7}{s['full']['median_ms']:>10.2f}{s['tiled']['median_ms']:>10.2f}"
+            f"{s['median_ratio']:>7.2f}{s['cpu_ms_per_s_full']:>11.1f}{s['cpu_ms_per_s_tiled']:>11.1f}"
+            f"{s['cpu_ratio']:>7.2f}{s['dirty_fraction_mean']:>7.2f}{s['frames_allocated']:>7}{s['max_abs_difference']:>9}"
+        )
     return "\n".join(lines)

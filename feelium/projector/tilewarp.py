@@ -1,0 +1,222 @@
+"""The canvas-to-projector warp, redone only where the canvas changed since the previous frame.
+
+The projector runs at 30 fps, but between two frames little of the skin canvas
+changes: the wearer's face video updates at ~12 fps and most frames differ
+only where a touch answer animates. The warp (a remap of ~0.5 M projector
+pixels) is most of a frame's cost, so each frame compares the canvas with
+the previous one in source tiles and re-warps only the destination tiles
+that read a changed source tile; the rest of the frame is the previous one.
+
+Which source pixels a destination tile reads is known in advance: the
+fixed-point map (``CV_16SC2``) holds each pixel's integer source position,
+and bilinear interpolation reads it and its right, lower and diagonal
+neighbours. So the result is the full warp's, pixel for pixel.
+
+Frames handed out are never written while anyone holds them: the display,
+the HTTP preview and the back-light predictor can keep one as long as they
+like. A frame buffer is reused only once nothing but the pool refers to it.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+DEST_TILE = (32, 16)  # (w, h) projector pixels re-warped together: a run of these is one remap call
+SOURCE_TILE = 16  # canvas pixels per side of the squares compared between frames
+FULL_ABOVE = 0.5  # above this fraction of dirty destination tiles one full remap is cheaper than the runs
+POOL_SIZE = 3  # frame buffers kept for reuse: the newest (shown, previewed), one being drawn, one held late
+
+
+class TileWarp:
+    """Warps canvases through fixed-point maps covering ``box`` of the frame; keeps the last canvas and frame.
+
+    One caller at a time (a lock serialises callers from several threads).
+    """
+
+    def __init__(
+        self,
+        map1: np.ndarray,
+        map2: np.ndarray,
+        box: tuple[int, int, int, int],
+        canvas_size: tuple[int, int],
+        blank: np.ndarray,
+        border: tuple[int, ...],
+    ) -> None:
+        """``map1``/``map2``: ``cv2.convertMaps(..., CV_16SC2)`` output for the ``box`` (x0, y0, x1, y1) of
+        ``blank`` (the frame outside what the maps cover); ``canvas_size`` (w, h) of the canvases to warp."""
+        self._map1, self._map2, self._box = map1, map2, box
+        self._blank, self._border = blank, border
+        cw, ch = canvas_size
+        self._grid = (-(-ch // SOURCE_TILE), -(-cw // SOURCE_TILE))
+        ny, nx = self._grid
+        # The canvas difference is reduced in a buffer padded to whole source tiles (the padding stays 0).
+        self._diff = np.zeros((ny * SOURCE_TILE, nx * SOURCE_TILE, 3), np.uint8)
+        self._canvas_size = canvas_size
+        self._corners, self._reads = _source_tile_corners(map1, canvas_size, self._grid)
+        self._prev_canvas: np.ndarray | None = None
+        self._frame: _Buffer | None = None
+        self._pool: list[_Buffer] = []
+        self._lock = threading.Lock()
+        self.last_dirty_fraction = 1.0  # of the destination tiles re-warped by the newest call, for the benchmark
+        self.allocated = 0  # frame buffers allocated (the rest of the frames reused one nobody held any more)
+
+    def full(self, canvas: np.ndarray) -> np.ndarray:
+        """The straightforward warp: every covered pixel remapped into a new frame."""
+        frame = self._blank.copy()
+        self._remap_box(canvas, frame)
+        return frame
+
+    def warp(self, canvas: np.ndarray) -> np.ndarray:
+        """The frame of ``canvas``, equal to :meth:`full`'s, re-warping only what changed since the last call."""
+        cw, ch = self._canvas_size
+        if canvas.shape != (ch, cw, 3) or canvas.dtype != np.uint8:
+            raise ValueError(f"canvas must be {cw}x{ch} BGR uint8, got {canvas.shape} {canvas.dtype}")
+        with self._lock:
+            return self._warp(canvas)
+
+    def _warp(self, canvas: np.ndarray) -> np.ndarray:
+        prev, current = self._prev_canvas, self._frame
+        if prev is None or current is None:
+            self._prev_canvas = canvas.copy()  # the caller may reuse its array: keep our own
+            dirty = self._reads
+        else:
+            dirty = self._dirty_tiles(self._changed_source_tiles(canvas, prev))
+            np.copyto(prev, canvas)
+        self.last_dirty_fraction = float(dirty.mean())
+        if current is not None and not dirty.any():
+            return current.array  # unchanged: the newest frame again (a pool never writes its newest)
+        target = self._free_buffer()
+        if current is None or dirty.mean() > FULL_ABOVE:
+            self._remap_box(canvas, target.array)
+        else:
+            # The buffer holds an older frame: bring the tiles that changed since then up to date from the
+            # newest frame (a copy), then re-warp what changed now.
+            behind = target.stale & ~dirty
+            into, newest = self._in_box(target.array), self._in_box(current.array)
+            if behind.mean() > FULL_ABOVE:
+                np.copyto(into, newest)
+            else:
+                for ys, xs in self._runs(behind):
+                    into[ys, xs] = newest[ys, xs]
+            for ys, xs in self._runs(dirty):
+                cv2.remap(canvas, self._map1[ys, xs], self._map2[ys, xs], cv2.INTER_LINEAR, dst=into[ys, xs],
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
+        for buffer in self._pool:
+            buffer.stale |= dirty
+        target.stale[...] = False
+        self._frame = target
+        return target.array
+
+    def _free_buffer(self) -> _Buffer:
+        """A pooled frame buffer nobody else holds (the newest frame excluded), else a new one.
+
+        Frames handed out are read by the display, the HTTP preview and the back-light predictor for as
+        long as they keep a reference; a buffer only the pool references can be written. Reusing them
+        spares a 2.7 MB allocation per frame, which the daemon's malloc settings make an mmap whose
+        page faults cost about as much as the warp itself.
+        """
+        for buffer in self._pool:
+            if buffer is not self._frame and sys.getrefcount(buffer.array) <= 2:  # the pool's and the argument's
+                return buffer
+        fresh = _Buffer(self._blank.copy(), self._reads.copy())
+        self.allocated += 1
+        if len(self._pool) < POOL_SIZE:
+            self._pool.append(fresh)
+        else:  # every pooled frame is still held: hand the oldest over to its holders
+            held = next(b for b in self._pool if b is not self._frame)
+            self._pool[self._pool.index(held)] = fresh
+        return fresh
+
+    def _in_box(self, frame: np.ndarray) -> np.ndarray:
+        x0, y0, x1, y1 = self._box
+        return frame[y0:y1, x0:x1]
+
+    def _remap_box(self, canvas: np.ndarray, frame: np.ndarray) -> None:
+        cv2.remap(canvas, self._map1, self._map2, cv2.INTER_LINEAR, dst=self._in_box(frame),
+                  borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
+
+    def _changed_source_tiles(self, canvas: np.ndarray, prev: np.ndarray) -> np.ndarray:
+        """(ny, nx) bool: source tiles with any channel of any pixel different from ``prev``."""
+        ch, cw = canvas.shape[:2]
+        ny, nx = self._grid
+        cv2.absdiff(canvas, prev, dst=self._diff[:ch, :cw])
+        # Reduce over each band's rows first (long contiguous rows: fast), then within each tile's columns.
+        bands = self._diff.reshape(ny, SOURCE_TILE, -1).max(axis=1)
+        return bands.reshape(ny, nx, SOURCE_TILE * 3).max(axis=2) > 0
+
+    def _dirty_tiles(self, changed: np.ndarray) -> np.ndarray:
+        """(rows, cols) bool over destination tiles: those reading at least one changed source tile."""
+        ny, nx = self._grid
+        table = np.zeros((ny + 1, nx + 1), np.int32)
+        np.cumsum(np.cumsum(changed, axis=0, dtype=np.int32), axis=1, out=table[1:, 1:])
+        flat = table.ravel()
+        i00, i01, i10, i11 = self._corners
+        return (flat[i11] - flat[i01] - flat[i10] + flat[i00] > 0).reshape(self._reads.shape)
+
+    def _runs(self, tiles: np.ndarray) -> Iterator[tuple[slice, slice]]:
+        """Slices (rows, columns) of the box covering each horizontal run of marked destination tiles."""
+        tw, th = DEST_TILE
+        for row in np.flatnonzero(tiles.any(axis=1)).tolist():
+            cols = np.flatnonzero(tiles[row])
+            breaks = np.flatnonzero(np.diff(cols) > 1)
+            starts = np.concatenate(([cols[0]], cols[breaks + 1]))
+            ends = np.concatenate((cols[breaks], [cols[-1]])) + 1
+            ys = slice(row * th, (row + 1) * th)  # slicing clips the last row and column of tiles to the box
+            for c0, c1 in zip(starts.tolist(), ends.tolist()):
+                yield ys, slice(c0 * tw, c1 * tw)
+
+
+@dataclass(eq=False)
+class _Buffer:
+    """A pooled frame and which destination tiles of it are older than the newest frame."""
+
+    array: np.ndarray
+    stale: np.ndarray
+
+
+def _source_tile_corners(
+    map1: np.ndarray, canvas_size: tuple[int, int], grid: tuple[int, int]
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+    """For each destination tile, the four flat indices into a (ny+1, nx+1) summed-area table of changed
+    source tiles that count the changed tiles inside the box of source tiles the destination tile reads;
+    and which destination tiles read the canvas at all (rows, cols).
+
+    A destination pixel whose integer source position is (x, y) reads x..x+1, y..y+1 (bilinear); taps
+    outside the canvas read the border colour, which never changes. A tile reading no canvas pixel gets
+    an empty box (all four indices 0), so it is never dirty.
+    """
+    cw, ch = canvas_size
+    ny, nx = grid
+    tw, th = DEST_TILE
+    h, w = map1.shape[:2]
+    rows, cols = -(-h // th), -(-w // tw)
+    x = map1[:, :, 0].astype(np.int32)
+    y = map1[:, :, 1].astype(np.int32)
+    reads = (x + 1 >= 0) & (x < cw) & (y + 1 >= 0) & (y < ch)
+    lo_x, hi_x = np.clip(x, 0, cw - 1), np.clip(x + 1, 0, cw - 1)
+    lo_y, hi_y = np.clip(y, 0, ch - 1), np.clip(y + 1, 0, ch - 1)
+
+    def per_tile(values: np.ndarray, reduce: np.ufunc, empty: int) -> np.ndarray:
+        padded = np.full((rows * th, cols * tw), empty, np.int32)
+        padded[:h, :w] = np.where(reads, values, empty)
+        return reduce.reduce(reduce.reduce(padded.reshape(rows, th, cols, tw), axis=3), axis=1)
+
+    big = np.iinfo(np.int32).max
+    x0, x1 = per_tile(lo_x, np.minimum, big), per_tile(hi_x, np.maximum, -1)
+    y0, y1 = per_tile(lo_y, np.minimum, big), per_tile(hi_y, np.maximum, -1)
+    empty = x1 < 0
+    sx0, sx1, sy0, sy1 = x0 // SOURCE_TILE, x1 // SOURCE_TILE, y0 // SOURCE_TILE, y1 // SOURCE_TILE
+    stride = nx + 1
+    # Summed-area table T (ny+1, nx+1): tiles in rows sy0..sy1, columns sx0..sx1 count
+    # T[sy1+1, sx1+1] - T[sy0, sx1+1] - T[sy1+1, sx0] + T[sy0, sx0]; an empty box gives 0 - 0 - 0 + 0.
+    i11 = np.where(empty, 0, (sy1 + 1) * stride + sx1 + 1).ravel()
+    i01 = np.where(empty, 0, sy0 * stride + sx1 + 1).ravel()
+    i10 = np.where(empty, 0, (sy1 + 1) * stride + sx0).ravel()
+    i00 = np.where(empty, 0, sy0 * stride + sx0).ravel()
+    return (i00, i01, i10, i11), ~empty
