@@ -1,9 +1,11 @@
 """Three headset clients over loopback, in their own process so their CPU is not charged to the daemon.
 
 - ``mjpeg``: reads ``front.mjpeg`` (what the wearer sees) and counts frames;
-- ``events``: an SSE stream (touches, presence, answers) and the room audio long-poll (speech out);
-- ``motion``: ``POST /motion`` at 20 Hz on an absolute schedule, speech chunks in (200 ms, 5 per second),
-  a wearer action every 2 s, and once at the start a looping face video (``PUT /face``, 12 fps avatar).
+- ``events``: an SSE stream (touches, presence, answers);
+- ``speech``: the speech WebSocket both ways, as the native app uses it (``docs/api.md``): the room audio
+  streamed out as it is captured, the wearer's speech in (200 ms chunks, 5 per second);
+- ``motion``: ``POST /motion`` at 20 Hz on an absolute schedule, a wearer action every 2 s, and once at the
+  start a looping face video (``PUT /face``, 12 fps avatar).
 
 ``python -m feelium.lab.daemon.headset BASE_URL TOKEN SECONDS`` prints one JSON line of counts and rates.
 """
@@ -20,10 +22,10 @@ import aiohttp
 import cv2
 import numpy as np
 
-from feelium.wav import encode_wav
 
 MOTION_HZ = 20.0
 SPEECH_CHUNK_S = 0.2
+SPEECH_RATE = 16000
 ACTION_EVERY_S = 2.0
 FACE_FRAMES = 24
 FACE_FPS = 12
@@ -58,16 +60,36 @@ async def events(session: aiohttp.ClientSession, base: str, until: float) -> dic
     return {"by_type": counts, "events": sum(counts.values())}
 
 
-async def speech_out(session: aiohttp.ClientSession, base: str, until: float) -> dict[str, Any]:
-    """Room audio chunks fetched with the long-poll, as the headset plays them."""
-    after, wavs, data = 0, 0, 0
-    while time.monotonic() < until:
-        async with session.get(f"{base}/speech", params={"after": after, "timeout": 1}) as response:
-            after = int(response.headers.get("X-Speech-Seq", after))
-            if response.status == 200:
-                wavs += 1
-                data += len(await response.read())
-    return {"responses": wavs, "bytes": data}
+async def speech(session: aiohttp.ClientSession, base: str, until: float) -> dict[str, Any]:
+    """Room audio frames received and wearer chunks sent over one ``/speech/stream`` WebSocket."""
+    pcm = (1000 * np.sin(np.arange(int(SPEECH_RATE * SPEECH_CHUNK_S)) / 5.0)).astype("<i2").tobytes()
+    frames = data = sent = 0
+    url = f"{base.replace('http', 'ws', 1)}/speech/stream"
+    async with session.ws_connect(url, params={"rate": SPEECH_RATE}) as ws:
+
+        async def send() -> None:
+            nonlocal sent
+            start = time.monotonic()
+            while time.monotonic() < until:
+                await ws.send_bytes(pcm)
+                sent += 1
+                await asyncio.sleep(max(0.0, start + sent * SPEECH_CHUNK_S - time.monotonic()))
+
+        sender = asyncio.create_task(send())
+        try:
+            while (left := until - time.monotonic()) > 0:
+                try:
+                    message = await ws.receive(timeout=left)
+                except asyncio.TimeoutError:
+                    break
+                if message.type == aiohttp.WSMsgType.BINARY:
+                    frames += 1
+                    data += len(message.data)
+                elif message.type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.ERROR):
+                    break
+        finally:
+            sender.cancel()
+    return {"frames_out": frames, "bytes_out": data, "chunks_in": sent}
 
 
 def _face_video() -> aiohttp.FormData:
@@ -89,10 +111,8 @@ async def motion(session: aiohttp.ClientSession, base: str, until: float) -> dic
     async with session.put(f"{base}/face", params={"fps": FACE_FPS}, data=_face_video()) as response:
         face_status = response.status
     period = 1.0 / MOTION_HZ
-    pcm = (1000 * np.sin(np.arange(int(16000 * SPEECH_CHUNK_S)) / 5.0)).astype("<i2").tobytes()
-    wav = encode_wav(pcm, 16000)
     start = time.monotonic()
-    sent = late = refused = speech = actions = 0
+    sent = late = refused = actions = 0
     rtts: list[float] = []
     while (now := time.monotonic()) < until:
         due = start + sent * period
@@ -103,9 +123,6 @@ async def motion(session: aiohttp.ClientSession, base: str, until: float) -> dic
             refused += response.status != 200
         rtts.append(time.monotonic() - began)
         sent += 1
-        if sent % round(MOTION_HZ * SPEECH_CHUNK_S) == 0:
-            async with session.post(f"{base}/speech", data=wav, headers={"Content-Type": "audio/wav"}) as response:
-                speech += response.status == 202
         if sent % round(MOTION_HZ * ACTION_EVERY_S) == 0:
             async with session.post(f"{base}/actions/heart") as response:
                 actions += response.status == 202
@@ -115,7 +132,7 @@ async def motion(session: aiohttp.ClientSession, base: str, until: float) -> dic
         "sent": sent, "late": late, "refused": refused, "rate_hz": round(sent / elapsed, 2), "target_hz": MOTION_HZ,
         "rtt_ms_p50": round(1000 * float(np.percentile(rtts, 50)), 2) if rtts else None,
         "rtt_ms_p99": round(1000 * float(np.percentile(rtts, 99)), 2) if rtts else None,
-        "speech_chunks_in": speech, "actions": actions, "face_status": face_status,
+        "actions": actions, "face_status": face_status,
     }
 
 
@@ -126,11 +143,11 @@ async def run(base: str, token: str, seconds: float) -> dict[str, Any]:
     async with aiohttp.ClientSession(headers=headers, timeout=timeout) as session:
         start = time.monotonic()
         video, stream, audio, moves = await asyncio.gather(
-            mjpeg(session, base, until), events(session, base, until), speech_out(session, base, until), motion(session, base, until)
+            mjpeg(session, base, until), events(session, base, until), speech(session, base, until), motion(session, base, until)
         )
         elapsed = time.monotonic() - start
     video["fps"] = round(video["frames"] / elapsed, 2)
-    return {"seconds": round(elapsed, 2), "mjpeg": video, "events": stream, "speech_out": audio, "motion": moves}
+    return {"seconds": round(elapsed, 2), "mjpeg": video, "events": stream, "speech": audio, "motion": moves}
 
 
 def main() -> None:
