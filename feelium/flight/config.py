@@ -59,6 +59,13 @@ class FlightConfig:
         max=1.0,
     )
     motor_deadband: float = setting(0.06, "Command below which a motor makes no thrust.", min=0.0, max=0.5)
+    motor_lag_s: float = setting(
+        0.08,
+        "The motors' first-order lag (time constant) the model assumes: a real one is 40-150 ms;"
+        " `feelium calibrate flight` fits it. Stops plan on it times plant_uncertainty.",
+        min=0.01,
+        max=0.5,
+    )
     quadratic_drag: float = setting(0.197, "Air drag coefficient 0.5 rho Cd A in N/(m/s)^2, for the speed observer.", min=0.0, max=10.0)
 
     plant_uncertainty: float = setting(

@@ -61,7 +61,7 @@ class FlightController:
                 slew_per_s=config.slew_per_s,
             )
         )
-        self.thrust = ThrustModel(config.net_buoyancy_n)
+        self.thrust = ThrustModel(config.net_buoyancy_n, config.motor_lag_s)
         self.altitude = AltitudeObserver(config)
         self.yaw = YawEstimate(config)
         self.surge = SurgeEstimate(config)

@@ -16,7 +16,6 @@ from collections import deque
 
 from feelium.flight.config import FlightConfig
 from feelium.flight.effectiveness import Effectiveness
-from feelium.flight.references import THRUST_LAG_S
 
 YAW_RATE_TAU_S = 0.06
 # Age of a rangefinder reading when the controller gets it: a VL53L1X-class sensor ranging at 50 Hz
@@ -65,7 +64,8 @@ class ThrustModel:
     the model holds.
     """
 
-    def __init__(self, net_buoyancy_n: float) -> None:
+    def __init__(self, net_buoyancy_n: float, lag_s: float) -> None:
+        self.lag_s = lag_s
         self.vertical = -net_buoyancy_n
         self.surge = 0.0
         self.yaw = 0.0
@@ -79,8 +79,8 @@ class ThrustModel:
         if targets is None or dt <= 0.0:
             self.vertical_mean, self.surge_mean, self.yaw_mean = self.vertical, self.surge, self.yaw
             return
-        decay = math.exp(-dt / THRUST_LAG_S)
-        mean = 1.0 - THRUST_LAG_S / dt * (1.0 - decay)
+        decay = math.exp(-dt / self.lag_s)
+        mean = 1.0 - self.lag_s / dt * (1.0 - decay)
         vertical, surge, yaw = targets
         self.vertical_mean = self.vertical + (vertical - self.vertical) * mean
         self.surge_mean = self.surge + (surge - self.surge) * mean

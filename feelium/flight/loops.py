@@ -20,7 +20,6 @@ from feelium.flight.estimators import YAW_RATE_TAU_S, AltitudeObserver, SurgeEst
 from feelium.flight.mixer import Mixer
 from feelium.flight.references import (
     HANDOVER_S,
-    THRUST_LAG_S,
     RateOnset,
     Reference,
     ramp_to_zero,
@@ -46,7 +45,7 @@ LIMIT_BRAKE_SHARE = 0.35  # of the vertical authority a climb into a limit plans
 
 def worst_lag_s(config: FlightConfig) -> float:
     """The longest motor lag the box allows, plus a cycle and the flow sensor's frame: what a stop must wait out."""
-    return THRUST_LAG_S * config.plant_uncertainty + 0.1
+    return config.motor_lag_s * config.plant_uncertainty + 0.1
 
 
 class _Band:
@@ -93,7 +92,7 @@ class AltitudeLoop:
         self.target: float | None = None
         self.ref = Reference(2.0 * math.pi * config.reference_hz)
         self.climbing = False
-        self.onset = RateOnset()
+        self.onset = RateOnset(config.motor_lag_s)
         self.braking = False
         self.settle_until: float | None = None
         self.up_n = -config.net_buoyancy_n
@@ -153,7 +152,7 @@ class AltitudeLoop:
             ref.advance(self.target - ref.value, dt)
         error = min(max(ref.value - z, -c.altitude_error_limit_m), c.altitude_error_limit_m)
         rate_ref = rate_ahead if climb else ref.rate
-        predicted = obs.vz + obs.accel(thrust.vertical) * THRUST_LAG_S
+        predicted = obs.vz + obs.accel(thrust.vertical) * c.motor_lag_s
         wanted = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - predicted)) + ref.accel
         push = wanted / obs.effectiveness.value(wanted) - obs.disturbance
         up_n = c.heave_mass * push - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
@@ -174,7 +173,7 @@ class AltitudeLoop:
     def _climb_within_limits(self, z: float, obs: AltitudeObserver, climb: float) -> float:
         """The commanded climb rate, slowed near the altitude limits so that a held up or down stops there."""
         c = self.c
-        z_ahead = z + obs.vz * (HANDOVER_S + THRUST_LAG_S * c.plant_uncertainty)
+        z_ahead = z + obs.vz * (HANDOVER_S + c.motor_lag_s * c.plant_uncertainty)
         room = c.altitude_max_m - z_ahead if climb > 0 else z_ahead - c.altitude_min_m
         allowed = math.sqrt(2.0 * self._braking(obs, climb) * max(room, 0.0))
         return math.copysign(min(abs(climb), allowed), climb)
@@ -210,7 +209,7 @@ class HeadingLoop:
         self.target: float | None = None
         self.ref = Reference(2.0 * math.pi * config.reference_hz)
         self.turning = False
-        self.onset = RateOnset()
+        self.onset = RateOnset(config.motor_lag_s)
         self.braking = False
         self.settle_until: float | None = None
         self.band = _Band()
@@ -277,7 +276,7 @@ class HeadingLoop:
         else:
             self.band.take_over()
         error = math.radians(min(max(error_deg, -45.0), 45.0))
-        predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (YAW_RATE_TAU_S + THRUST_LAG_S)
+        predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (YAW_RATE_TAU_S + c.motor_lag_s)
         rate_error = math.radians(rate_ahead if turn else ref.rate) - predicted
         alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
         r_ref = math.radians(ref.rate)
@@ -311,7 +310,7 @@ class SurgeLoop:
         self.c, self.mixer = config, mixer
         self.ref_speed = 0.0
         self.surging = False
-        self.onset = RateOnset()
+        self.onset = RateOnset(config.motor_lag_s)
         self.band = _Band()
         self.hovering = False  # no command, no brake, no settling: the motors may be kept from reversing
         self.speed_cap = config.forward_speed_m_s
@@ -339,7 +338,7 @@ class SurgeLoop:
         else:
             self.band.take_over()
         v = self.ref_speed
-        predicted = est.speed + est.accel(thrust.surge) * THRUST_LAG_S
+        predicted = est.speed + est.accel(thrust.surge) * c.motor_lag_s
         wanted = accel + gain * c.speed_kp * (v_ahead - predicted)
         force = c.mass_kg * wanted / est.effectiveness.value(wanted) + air_drag(v, c.quadratic_drag)
         return self.band.same_sign(force) if hover else force

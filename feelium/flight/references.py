@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 
-THRUST_LAG_S = 0.08  # the config model's motor lag (a real one is 40-150 ms; the loops are robust to that)
 HANDOVER_S = 0.15  # time constant of the last part of a rate onset, where full thrust hands over to the rate loop
 
 
@@ -44,7 +43,7 @@ class RateOnset:
     short of what the motors can give, so the body got going late. This
     reference instead models the body as the controller's feed-forward will
     move it: its acceleration follows the commanded one through the motor lag
-    (``THRUST_LAG_S``). The command is the largest acceleration the actuators
+    (``lag_s``, the config's ``motor_lag_s``). The command is the largest acceleration the actuators
     allow (``limits``) until the reference's *lag-aware predicted* rate
     (``rate + accel x lag``: where it ends up if the command went to zero now)
     comes within ``HANDOVER_S`` of the commanded rate, then tapers
@@ -53,7 +52,8 @@ class RateOnset:
     which trails it by the lag, does not either.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, lag_s: float) -> None:
+        self.lag_s = lag_s
         self.rate = 0.0
         self.accel = 0.0  # after the motor lag
 
@@ -63,15 +63,15 @@ class RateOnset:
 
     @property
     def predicted(self) -> float:
-        return self.rate + self.accel * THRUST_LAG_S
+        return self.rate + self.accel * self.lag_s
 
     def step(self, target: float, limits: tuple[float, float], dt: float) -> tuple[float, float, float]:
         """This cycle's reference (rate, predicted rate, acceleration command); then advance over ``dt``."""
         rate, predicted = self.rate, self.predicted
         lo, hi = min(limits[0], 0.0), max(limits[1], 0.0)
         command = min(max((target - predicted) / max(HANDOVER_S, dt), lo), hi)
-        decay = math.exp(-dt / THRUST_LAG_S)  # the command held over dt through the lag, exactly
-        self.rate += command * dt + (self.accel - command) * THRUST_LAG_S * (1.0 - decay)
+        decay = math.exp(-dt / self.lag_s)  # the command held over dt through the lag, exactly
+        self.rate += command * dt + (self.accel - command) * self.lag_s * (1.0 - decay)
         self.accel = command + (self.accel - command) * decay
         return rate, predicted, command
 

@@ -106,6 +106,7 @@ def test_on_noise_free_sensors_in_still_air_every_parameter_but_the_drags_split_
     cal = calibrate_sim(CONFIG, drafts=False, sensors=EXACT_SENSORS)
     errors = recovery_errors(cal.fit, BlimpParams())
     assert {k: round(e, 3) for k, e in errors.items() if abs(e) > 0.10 and k not in ("linear_drag_n_per_m_s", "yaw_linear_drag")} == {}
+    assert cal.config.motor_lag_s == pytest.approx(cal.fit.value("motor_lag_s"), abs=1e-4)  # written for the controller
 
 
 # The first two random plants of the set (16 and 17; the corners are the box's extremes, the bench reports all).

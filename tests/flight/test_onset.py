@@ -24,10 +24,12 @@ from feelium.daemon.config import Config
 from feelium.lab.flight import scenarios as sc
 from feelium.flight.blimp_model import BlimpParams
 from feelium.flight.controller import FlightController
-from feelium.flight.references import HANDOVER_S, THRUST_LAG_S, RateOnset as _RateOnset
+from feelium.flight.config import FlightConfig
+from feelium.flight.references import HANDOVER_S, RateOnset as _RateOnset
 from feelium.lab.flight.latency_floor import available_accel, lag_response_time, latency_floor, one_direction_horizontal_propellers
 from feelium.flight.setpoint import setpoint_for_motion
 
+THRUST_LAG_S = FlightConfig().motor_lag_s
 # The tight goals are for a fitted model (what `feelium calibrate flight` writes): the plant is the config.
 CONFIG = replace(Config().flight, plant_uncertainty=1.0)
 COMMANDS = ("forward", "backward", "up", "down", "turn_left", "turn_right")
@@ -35,7 +37,7 @@ COMMANDS = ("forward", "backward", "up", "down", "turn_left", "turn_right")
 
 # ------------------------------------------------------------------ the onset reference
 def test_onset_asks_for_the_full_acceleration_first() -> None:
-    onset = _RateOnset()
+    onset = _RateOnset(THRUST_LAG_S)
     onset.start(0.0, 0.0)
     rate, predicted, command = onset.step(0.25, (-0.75, 1.4), 0.02)
     assert (rate, predicted, command) == (0.0, 0.0, 1.4)
@@ -44,7 +46,7 @@ def test_onset_asks_for_the_full_acceleration_first() -> None:
 
 
 def test_onset_hands_over_smoothly_and_settles_on_the_commanded_rate() -> None:
-    onset = _RateOnset()
+    onset = _RateOnset(THRUST_LAG_S)
     onset.start(0.0, 0.0)
     commands = [onset.step(0.15, (-0.4, 0.68), 0.02)[2] for _ in range(150)]
     assert commands[0] == 0.68
@@ -65,7 +67,7 @@ def test_onset_hands_over_smoothly_and_settles_on_the_commanded_rate() -> None:
 def test_onset_predicted_rate_never_passes_the_commanded_rate(
     target: float, rate: float, accel: float, lo: float, hi: float, dt: float
 ) -> None:
-    onset = _RateOnset()
+    onset = _RateOnset(THRUST_LAG_S)
     onset.start(rate, accel)
     side = math.copysign(1.0, target - onset.predicted)
     for _ in range(100):
@@ -78,7 +80,7 @@ def test_onset_predicted_rate_never_passes_the_commanded_rate(
 @settings(max_examples=300, deadline=None)
 @given(target=st.floats(-2.0, 2.0), lo=st.floats(-3.0, -0.05), hi=st.floats(0.05, 3.0), dt=st.floats(0.005, 0.05))
 def test_onset_from_rest_never_overshoots_and_arrives(target: float, lo: float, hi: float, dt: float) -> None:
-    onset = _RateOnset()
+    onset = _RateOnset(THRUST_LAG_S)
     onset.start(0.0, 0.0)
     limit = hi if target > 0 else -lo
     steps = int((abs(target) / limit + 12 * HANDOVER_S + 12 * THRUST_LAG_S) / dt) + 1

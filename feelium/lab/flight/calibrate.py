@@ -145,6 +145,7 @@ def fitted_config(config: FlightConfig, fit: PlantFit) -> FlightConfig:
         horizontal_reverse_ratio=round(min(max(v("horizontal_reverse_ratio"), 0.0), 1.0), 3),
         vertical_reverse_ratio=round(min(max(v("vertical_reverse_ratio"), 0.0), 1.0), 3),
         motor_deadband=round(float(min(max(0.5 * (v("horizontal_deadband") + v("vertical_deadband")), 0.0), 0.5)), 4),
+        motor_lag_s=round(min(max(v("motor_lag_s"), 0.01), 0.5), 4),
         plant_uncertainty=plant_uncertainty(fit),
     )
 
@@ -167,7 +168,8 @@ def plant_uncertainty(fit: PlantFit) -> float:
 # the others are derived, and say from what.
 CONFIG_SOURCES = {"mass_kg": "surge_mass_kg", "heave_mass_kg": "heave_mass_kg", "yaw_inertia_kg_m2": "yaw_inertia_kg_m2",
                   "horizontal_thrust_n": "horizontal_thrust_n", "vertical_thrust_n": "vertical_thrust_n",
-                  "horizontal_reverse_ratio": "horizontal_reverse_ratio", "vertical_reverse_ratio": "vertical_reverse_ratio"}
+                  "horizontal_reverse_ratio": "horizontal_reverse_ratio", "vertical_reverse_ratio": "vertical_reverse_ratio",
+                  "motor_lag_s": "motor_lag_s"}
 DERIVED_NOTES = {"quadratic_drag": "the fitted drag at 0.15 m/s as this model's quadratic term (fitted terms above)",
                  "yaw_drag": "the fitted yaw drag at 20 deg/s as a quadratic term (fitted terms above)",
                  "motor_deadband": "mean of the two pairs' fitted deadbands (above)",
@@ -177,7 +179,7 @@ DERIVED_NOTES = {"quadratic_drag": "the fitted drag at 0.15 m/s as this model's 
 
 def render_calibrated(full_config: Any, calibration: Calibration) -> str:
     """The whole config as TOML, ``[flight]`` fitted, each fitted key annotated with its standard error, and a
-    header with every fitted value (the lags and linear drags the controller does not read) and the residuals.
+    header with every fitted value (the linear drags the controller does not read) and the residuals.
 
     Annotations are TOML comments: the settings loader rejects unknown keys, so they cannot be a table.
     """
