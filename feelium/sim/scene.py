@@ -22,6 +22,7 @@ import numpy as np
 from feelium.sim.camera import SensorParams, expose, gain_at
 from feelium.sim.hand import Blob, HandPose, hand_parts
 from feelium.sim.optics import OpticsParams, backlight, laser_banding, membrane_transmission
+from feelium.sim.room import AutoExposure, RoomLight, lamp_image
 from feelium.sim.shadow import Ellipse, Part, ShadowParams, render_shadow
 
 WIDTH, HEIGHT = 640, 480
@@ -76,10 +77,13 @@ class SceneRenderer:
         projected: Projected | None = None,
         gain_phase: float | None = None,
         projected_share_only: bool = False,
+        room_light: RoomLight | None = None,
     ) -> None:
         """``projected_share_only``: the projected factor scales only the projector's share of the membrane's
         light (``1 - outside_share``), not the room light coming in through it (the physical model; the
-        default scales both, as the projector experiments were built on)."""
+        default scales both, as the projector experiments were built on). ``room_light``: a lit room's own
+        light through the membrane (:mod:`feelium.sim.room`), with the camera's auto-exposure following it;
+        frames must then be asked for in time order."""
         self.session = session
         self.width, self.height, self.roi = width, height, roi
         self._rng = rng
@@ -91,6 +95,10 @@ class SceneRenderer:
         )
         self._lit = (self.backlight * self.membrane).astype(np.float32)
         self._gain_phase = float(rng.uniform(0, 2 * np.pi)) if gain_phase is None else gain_phase
+        self._room = room_light
+        if room_light is not None:
+            self._lamp = lamp_image(self.backlight, self.membrane, roi, room_light.gradient, room_light.gradient_angle_deg)
+            self._exposure = AutoExposure(room_light, width)
 
     def parts(self, state: SceneState) -> tuple[list[Part], list[Ellipse]]:
         parts: list[Part] = []
@@ -125,18 +133,38 @@ class SceneRenderer:
         elif factor is not None:
             image = image * factor
         transmission: np.ndarray | None = None
+        open_sky: np.ndarray | None = None  # mean over sub-samples of 1 - occlusion (the room light let through)
         for sub in states:
             parts, contacts = self.parts(sub)
             if not (parts or contacts or sub.room != 1.0):
                 continue
-            shadow = render_shadow(parts, contacts, s.shadow, self.width, self.height).lit_by(s.shadow, sub.room, lit)
+            found = render_shadow(parts, contacts, s.shadow, self.width, self.height)
+            shadow = found.lit_by(s.shadow, sub.room, lit)
             transmission = shadow if transmission is None else transmission + shadow
+            if self._room is not None:
+                free = 1.0 - found.occlusion
+                open_sky = free if open_sky is None else open_sky + free
         unshadowed = len(states) - sum(1 for sub in states if sub.hands or sub.blobs or sub.room != 1.0)
         if transmission is not None or not isinstance(lit, float):
             clear = s.shadow.outside_share + (1.0 - s.shadow.outside_share) * lit
             total = clear * unshadowed if transmission is None else transmission + clear * unshadowed
             image = image * (total / len(states))
+        if self._room is not None:
+            image = image + self._room_term(t, open_sky, unshadowed, len(states))
+            gain *= self._exposure.at(t)
         return image * np.float32(gain)
+
+    def _room_term(self, t: float, open_sky: np.ndarray | None, unshadowed: int, samples: int) -> np.ndarray:
+        """The lit room's light reaching the camera at ``t``: level x lamp image x what hands and a passer let through."""
+        assert self._room is not None
+        term = self._lamp * np.float32(self._room.level_at(t))
+        if open_sky is not None:
+            term = term * ((open_sky + np.float32(unshadowed)) / np.float32(samples))
+        if self._room.passer is not None:
+            loss = self._room.passer.occlusion(t, self.width)
+            if loss is not None:
+                term = term * (1.0 - loss)[None, :]
+        return term
 
     def frame(self, t: float, state: SceneState | Sequence[SceneState]) -> np.ndarray:
         """One 8-bit camera frame (H, W) uint8 at camera time ``t``."""

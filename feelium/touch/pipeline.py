@@ -21,8 +21,9 @@ from feelium.touch.candidates import find_candidates
 from feelium.touch.config import TouchConfig
 from feelium.touch.depth import MaskCounts, relative_depth
 from feelium.touch.geometry import WorkingGeometry
+from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
-from feelium.touch.reference import AdaptiveReference
+from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
 from feelium.touch.settle import PredictionSettle
 from feelium.touch.tracker import Contact, Observation, Tracker
 from feelium.skin.coords import inside_roi, skin_uv
@@ -88,6 +89,7 @@ class TouchPipeline:
         self._reference_share = self.response.share
         self.masked = MaskCounts()
         self.frames = 0
+        self.light_changes = 0  # frames on which a membrane-wide change of light re-seeded the reference
         self.noise = 0.0
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
@@ -165,6 +167,8 @@ class TouchPipeline:
             return FrameResult(t, (), False, 0.0, 0.0, 0, (), 0.0)
         cfg = self.config
         gain = ref.measure_gain(work, self._shadow)
+        if self.settled and self._follow_light(work):
+            gain = ref.measure_gain(work, self._shadow)
         if self.settled:
             ref.observe_gain(gain, work, self._shadow)
         ref.measure_rows(work, self._deep)
@@ -241,6 +245,21 @@ class TouchPipeline:
             core_depth=deepest.depth if deepest else 0.0,
             edge=deepest.edge if deepest else 0.0,
         )
+
+    def _follow_light(self, work: np.ndarray) -> bool:
+        """Re-seed the reference on a membrane-wide change of light's shape (:mod:`feelium.touch.illumination`)."""
+        ref, cfg = self.reference, self.config
+        assert ref.image is not None
+        usable = (ref.image * ref.gain >= cfg.dark_reference_level) & (work < cfg.saturation_level)
+        if self._shadow is not None:
+            usable &= ~self._shadow
+        change = illumination_change(work, ref.image, ref.gain, usable, cfg.noise_floor)
+        if change is None:
+            return False
+        self.light_changes += 1
+        image = reseed(ref.image, work * np.float32(1.0 / ref.gain), change, self._shadow)
+        ref.image = np.maximum(image, image.dtype.type(REFERENCE_FLOOR))
+        return True
 
     def _prepare(self, frame: np.ndarray, backlight_gain: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
         """Validate the frame; return the gray working image (back-light divided out) and unusable pixels."""

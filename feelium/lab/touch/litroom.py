@@ -1,0 +1,285 @@
+"""Touch in a lit room: the paper's protocol under room light, switches, daylight and a passer-by (issue 17, point 2).
+
+Every protocol trial (the continuous clips are left out) is rendered under each
+condition with the same hands, session and camera noise, after
+:data:`WARMUP_S` of the same room without hands, and replayed through the touch
+pipeline. The room's light is :mod:`feelium.sim.room`'s model; its parameters
+are stated here, from rooms and lamps, never from detector scores:
+
+- ``dim``: the paper's room (no light of the room's own): the baseline;
+- ``lit``: a lit living room, room light through the membrane as bright as the
+  projector's (:data:`LIT`, level 1.0 of the ROI's mean back-light);
+- ``switch-on`` / ``switch-off``: the lamp switched on (ramp :data:`ON_RAMP_S`,
+  a warm LED or halogen bulb) or off (:data:`OFF_RAMP_S`), at a drawn time; in
+  touch trials between :data:`SWITCH_BEFORE_S` before the first contact, so
+  recall there measures sensitivity within about a second of a switch;
+- ``drift``: daylight at :data:`DRIFT_LEVEL` varying +-:data:`DRIFT_AMP` over
+  :data:`DRIFT_PERIOD_S` (clouds: up to 9 % of the back-light per second);
+- ``passer-by``: the lit room while a person walks between the lamp and the
+  blimp (:class:`feelium.sim.room.Passer`) at a drawn time in the trial.
+
+Per condition: trial recall, negatives fired, false touches (touches outside
+every widened contact, in any trial), localisation error median; for the
+switches, recovery time: a hand-free twin of each trial (same light, same
+noise stream, no hands) is replayed too, and recovery is the time from the
+switch's start until the hand-free membrane's relative depth (99th percentile
+over the ROI of its absolute value, smoothed as the pipeline does) stays
+within ``candidate_depth``: no false shadow deep enough to be a candidate, and
+no true shadow's depth off by that much, anywhere (steady light keeps it at
+0.05-0.08, the noise).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+
+from feelium.events import TouchEvent
+from feelium.lab.sim import protocol
+from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_trials
+from feelium.sim.camera import frame_times
+from feelium.sim.room import Passer, RoomLight
+from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, exposure_samples
+from feelium.sim.sessions import session_presets
+from feelium.touch.config import TouchConfig
+from feelium.touch.pipeline import TouchPipeline
+
+CONDITIONS = ("dim", "lit", "switch-on", "switch-off", "drift", "passer-by")
+SWITCHES = ("switch-on", "switch-off")
+WARMUP_S = 3.0  # hand-free frames in the trial's starting light before it begins
+LIT = 1.0  # a lit living room: room light through the membrane as bright as the projector's
+ON_RAMP_S = 0.1
+OFF_RAMP_S = 0.05
+SWITCH_BEFORE_S = (0.5, 1.5)  # a touch trial's switch comes this long before its first contact
+DRIFT_LEVEL, DRIFT_AMP, DRIFT_PERIOD_S = 0.6, 0.5, 20.0
+RECOVERY_PERCENTILE = 99.0
+
+
+def room_for(condition: str, item: protocol.Item, seed: int, duration: float, first_contact: float | None) -> RoomLight | None:
+    """The room light of one trial under ``condition`` (times drawn from the trial's own RNG stream)."""
+    rng = protocol.recording_rng(seed, item.name, 11)
+    angle = float(rng.uniform(0.0, 360.0))
+    if condition == "dim":
+        return None
+    if condition == "lit":
+        return RoomLight(level=LIT, gradient_angle_deg=angle)
+    if condition in SWITCHES:
+        if first_contact is not None:
+            when = max(0.2, first_contact - float(rng.uniform(*SWITCH_BEFORE_S)))
+        else:
+            when = float(rng.uniform(0.2, 0.8)) * duration
+        if condition == "switch-on":
+            return RoomLight(level=0.0, steps=((when, LIT, ON_RAMP_S),), gradient_angle_deg=angle)
+        return RoomLight(level=LIT, steps=((when, 0.0, OFF_RAMP_S),), gradient_angle_deg=angle)
+    if condition == "drift":
+        return RoomLight(
+            level=DRIFT_LEVEL, drift_amp=DRIFT_AMP, drift_period_s=DRIFT_PERIOD_S,
+            drift_phase=float(rng.uniform(0.0, 2 * np.pi)), gradient_angle_deg=angle,
+        )  # fmt: skip
+    if condition == "passer-by":
+        return RoomLight(level=LIT, gradient_angle_deg=angle, passer=Passer(t0=float(rng.uniform(0.1, 0.7)) * duration))
+    raise ValueError(f"unknown condition {condition!r}; expected one of {', '.join(CONDITIONS)}")
+
+
+@dataclass
+class Run:
+    data: TrialData
+    false_touches: int
+    recovery_s: float | None  # switch conditions only
+
+
+def _false_touches(events: list[TouchEvent], data: TrialData) -> int:
+    windows = [(c.t_on - WIDEN_BEFORE_S, c.t_off + WIDEN_AFTER_S) for c in data.labels.contacts]
+    return sum(1 for t in group_touches(events) if not any(t.t_on <= w1 and t.t_off >= w0 for w0, w1 in windows))
+
+
+def render(
+    script: Any, session: Any, item: protocol.Item, seed: int, room: RoomLight | None, *, hands: bool = True
+) -> list[tuple[float, np.ndarray]]:
+    """Warm-up (hand-free) frames before 0, then the trial's frames; the same noise stream for every condition."""
+    rng = protocol.recording_rng(seed, item.name, 1)
+    scene = SceneRenderer(session, rng, width=WIDTH, height=HEIGHT, roi=ROI, room_light=room)
+    warmup = np.arange(-WARMUP_S, -0.25, 1.0 / session.sensor.fps)
+    out = [(float(t), scene.frame(float(t), SceneState())) for t in warmup]
+    empty = SceneState()
+    for t in frame_times(session.sensor, script.duration, rng):
+        t = float(t)
+        if hands:
+            state = exposure_samples(script.state, t, session.sensor.exposure_s)
+        else:
+            state = SceneState(room=script.room(t), exposure=script.exposure(t)) if script.room_steps else empty
+        out.append((t, scene.frame(t, state)))
+    return out
+
+
+def depth_error(pipeline: TouchPipeline, frame: np.ndarray) -> float | None:
+    """How far the hand-free membrane is from the reference: percentile of |relative depth| (smoothed), or None."""
+    ref = pipeline.reference.image
+    if ref is None:
+        return None
+    work = pipeline.geometry.cut_roi(frame[ROI[1] : ROI[1] + ROI[3], ROI[0] : ROI[0] + ROI[2]])
+    usable = ref >= pipeline.config.dark_reference_level
+    ratio = np.where(usable, work / np.maximum(ref, 1e-3), 1.0).astype(np.float32)
+    ratio /= np.float32(np.median(ratio[usable])) if usable.any() else np.float32(1.0)
+    sigma = pipeline.geometry.px(pipeline.config.blur_sigma_px)
+    smooth = cv2.GaussianBlur(1.0 - ratio, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+    return float(np.percentile(np.abs(smooth[usable]), RECOVERY_PERCENTILE))
+
+
+def recovery(frames: list[tuple[float, np.ndarray]], config: TouchConfig, switch_at: float) -> float:
+    """Seconds from ``switch_at`` until the hand-free twin's depth error stays within ``candidate_depth`` (inf: never)."""
+    pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
+    last_bad: float | None = None
+    for t, frame in frames:
+        err = depth_error(pipeline, frame)
+        pipeline.process(t, frame)
+        if t >= switch_at and err is not None and err > config.candidate_depth:
+            last_bad = t
+    if last_bad is None:
+        return 0.0
+    if last_bad >= frames[-1][0]:
+        return float("inf")
+    after = [t for t, _ in frames if t > last_bad]
+    return after[0] - switch_at
+
+
+def replay(frames: list[tuple[float, np.ndarray]], config: TouchConfig) -> tuple[list[TouchEvent], bool, float]:
+    pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
+    events: list[TouchEvent] = []
+    activity, max_area = False, 0.0
+    for t, frame in frames:
+        result = pipeline.process(t, frame)
+        if t < 0.0:
+            continue
+        events.extend(result.events)
+        activity |= result.activity
+        max_area = max(max_area, float(result.area))
+    events.extend(pipeline.finish())
+    return events, activity, max_area
+
+
+@dataclass(frozen=True)
+class _Setup:
+    seed: int
+    touch: TouchConfig
+    conditions: tuple[str, ...]
+
+
+def trial(setup: _Setup, item: protocol.Item) -> dict[str, Run]:
+    """Every condition of one protocol trial."""
+    script = protocol.build_script(item, setup.seed)
+    session = session_presets(setup.seed)[item.session]
+    labels = script.labels()
+    first = labels.contacts[0].t_on if labels.contacts else None
+    runs = {}
+    for condition in setup.conditions:
+        room = room_for(condition, item, setup.seed, script.duration, first)
+        frames = render(script, session, item, setup.seed, room)
+        events, activity, max_area = replay(frames, setup.touch)
+        data = TrialData(item.name, labels, events, activity, max_area)
+        rec = None
+        if condition in SWITCHES and room is not None:
+            twin = render(script, session, item, setup.seed, room, hands=False)
+            rec = recovery(twin, setup.touch, room.steps[0][0])
+        runs[condition] = Run(data, _false_touches(events, data), rec)
+    return runs
+
+
+_SETUP: _Setup | None = None
+
+
+def _init_worker(setup: _Setup) -> None:
+    global _SETUP
+    cv2.setNumThreads(1)
+    _SETUP = setup
+
+
+def _worker_trial(item: protocol.Item) -> dict[str, Run]:
+    assert _SETUP is not None
+    return trial(_SETUP, item)
+
+
+def summarise(runs: list[Run]) -> dict[str, Any]:
+    scored = score_trials([r.data for r in runs])
+    trials = scored["trials"]
+    recoveries = [r.recovery_s for r in runs if r.recovery_s is not None]
+    return {
+        "recall": trials["recall"],
+        "tp": trials["tp"],
+        "fn": trials["fn"],
+        "negatives_fired": trials["fp"],
+        "negatives": trials["fp"] + trials["tn"],
+        "false_touches": sum(r.false_touches for r in runs),
+        "localisation_error_px": scored["localisation"]["error_px"],
+        "recovery_s": None
+        if not recoveries
+        else {"median": float(np.median(recoveries)), "max": float(max(recoveries)), "n": len(recoveries)},
+        "by_label": trials["by_label"],
+    }
+
+
+def run_experiment(
+    *,
+    scale: float = 0.2,
+    seed: int = 1,
+    touch: TouchConfig = TouchConfig(),
+    conditions: tuple[str, ...] = CONDITIONS,
+    labels: tuple[str, ...] | None = None,
+    jobs: int = 1,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> dict[str, Any]:
+    """Score every condition over the protocol's trials at ``scale``."""
+    unknown = [c for c in conditions if c not in CONDITIONS]
+    if unknown:
+        raise ValueError(f"unknown condition {unknown[0]!r}; expected some of {', '.join(CONDITIONS)}")
+    setup = _Setup(seed, touch, tuple(conditions))
+    items = [i for i in protocol.plan(scale) if not i.clip and (labels is None or i.label in labels)]
+    per: dict[str, list[Run]] = {name: [] for name in setup.conditions}
+
+    def collect(stream: Iterator[dict[str, Run]]) -> None:
+        for n, (item, runs) in enumerate(zip(items, stream), start=1):
+            for name in setup.conditions:
+                per[name].append(runs[name])
+            if progress is not None:
+                progress(n, len(items), item.name)
+
+    if jobs <= 1:
+        collect(trial(setup, item) for item in items)
+    else:
+        spawn = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker, initargs=(setup,), mp_context=spawn) as pool:
+            collect(pool.map(_worker_trial, items))
+    return {
+        "scale": scale,
+        "seed": seed,
+        "trials": len(items),
+        "warmup_s": WARMUP_S,
+        "lit_level": LIT,
+        "conditions": {name: summarise(runs) for name, runs in per.items()},
+    }
+
+
+def format_table(report: dict[str, Any]) -> str:
+    lines = [
+        f"lit room: {report['trials']} trials (scale {report['scale']}, seed {report['seed']})",
+        f"{'condition':<12}{'recall':>8}{'neg fired':>11}{'false touches':>15}{'loc med px':>12}{'recovery s med/max':>20}",
+    ]
+
+    def num(v: float | None, fmt: str = ".3f") -> str:
+        return "-" if v is None else format(v, fmt)
+
+    for name, c in report["conditions"].items():
+        loc = c["localisation_error_px"]
+        rec = c["recovery_s"]
+        recs = "-" if rec is None else f"{rec['median']:.2f} / {rec['max']:.2f}"
+        lines.append(
+            f"{name:<12}{num(c['recall']):>8}{c['negatives_fired']:>6} / {c['negatives']:<3}{c['false_touches']:>15}"
+            f"{num(loc['median'] if loc else None, '.2f'):>12}{recs:>20}"
+        )
+    return "\n".join(lines)
