@@ -75,7 +75,8 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
         projector_cfg, dataclasses.replace(InteractionsConfig(), enabled=False), hub, SimDisplay(), calibration
     )
     source = Renderer(dataclasses.replace(projector_cfg, sensing_floor=0.0), calibration)
-    video = FaceVideo(Renderer(projector_cfg, calibration), source, FaceScript(cut_every_s=1.5, fade_every_s=5.0, fade_at_s=2.0), 0.0)
+    script = FaceScript(cut_every_s=1.5, fade_every_s=5.0, fade_at_s=2.0)
+    video = FaceVideo(Renderer(projector_cfg, calibration), source, script, 0.0)
     events = hub.bus.subscribe([TouchEvent], maxsize=256)
 
     async def world() -> list[TouchEvent]:

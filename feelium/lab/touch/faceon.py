@@ -363,6 +363,80 @@ def format_table(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def frame_cost(*, seed: int = 1, timed: int = 60, repeats: int = 4, touch: TouchConfig = TouchConfig()) -> dict[str, Any]:
+    """CPU time per camera frame (one OpenCV thread, the calling thread's time) of what the face adds.
+
+    One hold trial is rendered under the flat back-light and under the face; the last ``timed`` camera frames
+    of each replay are timed, ``repeats`` times, after the same warm-up. ``exposure_light`` is the daemon's
+    side of the prediction per camera frame at the daemon's working size (``[touch] width x height``): each
+    new projector frame predicted once (:class:`feelium.projector.backlight.BacklightPredictor`), the
+    exposure mix and its spread (:class:`feelium.touch.projected.ExposureLight`). Medians and p95 in ms.
+    """
+    import time
+
+    from feelium.touch.projected import ExposureLight
+
+    cv2.setNumThreads(1)
+    setup = _Setup(seed, ProjectorConfig(), touch, FaceScript())
+    ex = _Experiment(setup)
+    item = next(i for i in protocol.plan(0.1) if i.label == "hold")
+    script = protocol.build_script(item, seed)
+    session = session_presets(seed)[item.session]
+    video = FaceVideo(ex.renderer, ex.source, setup.script, 0.0)
+    frames = _Cache(video.frame)
+    fps = setup.script.fps
+    hook = timed_hook(ex.light, frames, fps, TRUE_LATENCY_S, session.sensor.exposure_s)
+    gains = _Cache(lambda k: ex.predictor.gain(frames(k)))
+    static = ex._render(script, session, item, None)
+    face = ex._render(script, session, item, hook)
+    daemon_size = (touch.width, touch.height)
+    predictor = BacklightPredictor(setup.projector, ex.calibration, daemon_size)
+
+    def inputs(t: float, spread: bool) -> dict[str, np.ndarray]:
+        reach = touch.projector_latency_s + touch.projector_latency_sigma_s + touch.camera_exposure_s / 2.0
+        ks = range(math.floor((t - reach) * fps), math.floor(t * fps) + 2)
+        light, sp = predicted_exposure(
+            [(k / fps, k) for k in ks], gains, t, exposure_s=touch.camera_exposure_s,
+            latency_s=touch.projector_latency_s, latency_sigma_s=touch.projector_latency_sigma_s,
+        )  # fmt: skip
+        return {"projected_light": light, "projected_spread": sp} if spread else {"projected_light": light}
+
+    variants: dict[str, tuple[list[tuple[float, np.ndarray]], Callable[[float], dict[str, np.ndarray]]]] = {
+        "static": (static, lambda t: {}),
+        "face_no_spread": (face, lambda t: inputs(t, False)),
+        "face_compensated": (face, lambda t: inputs(t, True)),
+    }
+    out: dict[str, Any] = {}
+    for name, (clip, feed) in variants.items():
+        fed = [(t, f, feed(t)) for t, f in clip]  # prepared outside the timing
+        samples: list[float] = []
+        for _ in range(repeats):
+            pipeline = TouchPipeline(touch, (WIDTH, HEIGHT), ROI)
+            for n, (t, f, kw) in enumerate(fed):
+                start = time.thread_time()
+                pipeline.process(t, f, **kw)
+                if n >= len(fed) - timed:
+                    samples.append(time.thread_time() - start)
+        out[name] = _ms(samples)
+    samples = []
+    for _ in range(repeats):
+        light = ExposureLight(predictor.gain, touch)
+        for t, _f in face[-timed:]:
+            k = math.floor(t * fps)
+            history = [(j / fps, j, frames(j)) for j in range(k - 4, k + 2)]
+            start = time.thread_time()
+            light(history, t)
+            samples.append(time.thread_time() - start)
+    out["exposure_light"] = _ms(samples)
+    out["timed_frames"], out["repeats"], out["daemon_size"] = timed, repeats, list(daemon_size)
+    return out
+
+
+def _ms(samples: list[float]) -> dict[str, float]:
+    a = np.asarray(samples) * 1000.0
+    return {"median": round(float(np.median(a)), 3), "p95": round(float(np.percentile(a, 95)), 3)}
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m feelium.lab.touch.faceon [--scale S] [--jobs N] [--json FILE]``: the table, and the report."""
     import argparse
@@ -374,7 +448,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--json", help="write the report here")
+    parser.add_argument("--cost", action="store_true", help="only the CPU time per frame of the face's compensation")
     args = parser.parse_args(argv)
+    if args.cost:
+        print(json.dumps(frame_cost(seed=args.seed), indent=1))
+        return 0
     report = run_experiment(
         scale=args.scale,
         seed=args.seed,
