@@ -37,7 +37,7 @@ from feelium.touch.settle import predicted_exposure
 
 SIZE = (320, 240)
 TRUE_LATENCY_S = 0.045
-QUIET_S = 7.0  # face playing, nobody near: no touch may be raised
+QUIET_S = 5.0  # face playing, nobody near: no touch may be raised
 PRESS_S = 1.5
 
 
