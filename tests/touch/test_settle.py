@@ -160,3 +160,19 @@ def test_dividing_the_face_out_fires_on_the_same_hover() -> None:
     """The multiplicative model (divide by the light) turns the room light behind a dark face into shadows."""
     events = _clip(TouchPipeline(CFG, (W, H), ROI), 9.0, hover=True, press_at=None, compensate=False)
     assert any(e.phase == "down" for e in events)
+
+
+def test_an_unknown_spread_hides_every_shadow_and_teaches_nothing() -> None:
+    """NaN spread (the prediction cannot say how good it is) counts as fully uncertain, never as certain."""
+    pipeline = TouchPipeline(CFG, (W, H), ROI)
+    rng = np.random.default_rng(5)
+    flat = np.ones((H, W), np.float32)
+    unknown = np.full((H, W), np.nan, np.float32)
+    for i in range(60):
+        t = i / 15
+        press = (70.0, 55.0) if t >= 3.0 else None
+        frame = face.frame(t, flat, press=press, rng=rng)
+        result = pipeline.process(t, frame, projected_light=flat, projected_spread=unknown if t >= 3.0 else None)
+        assert np.isfinite(result.depth_max)
+        if t >= 3.0:
+            assert result.events == () and result.depth_max == 0.0
