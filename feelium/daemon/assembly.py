@@ -40,7 +40,7 @@ from feelium.skin.regions import Regions
 log = logging.getLogger(__name__)
 
 ServiceBuilder = Callable[[Config, Hub], "Service | None"]
-BacklightFactory = Callable[[tuple[int, int]], Callable[[], "np.ndarray | None"]]
+ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray], np.ndarray]]
 
 
 # --- sensing: cameras and the thermal camera feed the bus -------------------------------------------------------
@@ -65,7 +65,8 @@ def build_touch(config: Config, hub: Hub) -> Service | None:
         config.touch,
         debug_video_fps=config.rear_camera.debug_video_fps,
         annotation=load_projector_annotation(config),
-        backlight=load_projected_backlight(config, hub, source.backend),
+        projected=load_projected_light(config, source.backend),
+        camera_clock_offset_s=getattr(source.scene, "origin", 0.0),  # the simulated camera counts from its start
         stale_after_s=config.rear_camera.stale_after_s,
     )
 
@@ -235,11 +236,12 @@ def load_projector_annotation(config: Config, path: Path | None = None) -> Proje
     return annotation
 
 
-def load_projected_backlight(config: Config, hub: Hub, backend: str, path: Path | None = None) -> BacklightFactory | None:
-    """How to predict the projector's back-light per frame size, or ``None`` when it must not be used.
+def load_projected_light(config: Config, backend: str, path: Path | None = None) -> ProjectedFactory | None:
+    """How to predict each projector frame's light per camera frame size, or ``None`` when it must not be used.
 
     The projector is the rear camera's back-light, so the face it shows dims the membrane like a shadow
-    would; the touch pipeline divides the prediction out. Only frames that contain the projector's light
+    would; the touch service mixes the predicted light of the frames each exposure integrated and the
+    pipeline compensates it (``projected_light``, docs/touch.md). Only frames that contain the projector's light
     may be compensated: the real camera's. Compensating simulated or replayed frames would invent changes
     that are not in them, so ``auto`` keeps it for picamera2 with a calibration file.
     """
@@ -252,15 +254,15 @@ def load_projected_backlight(config: Config, hub: Hub, backend: str, path: Path 
             log.warning("touch: projection_compensation is on but there is no projector calibration at %s", path)
         return None
     try:
-        from feelium.projector.backlight import BacklightPredictor, ProjectedBacklight
+        from feelium.projector.backlight import BacklightPredictor
 
         calibration = load_calibration(path)
     except Exception as exc:
         log.error("touch: projector calibration %s unusable (%s); no projection compensation", path, exc)
         return None
-    log.info("touch: dividing the projected back-light out of rear frames (calibration %s)", path)
+    log.info("touch: compensating the projected light in rear frames (calibration %s)", path)
 
-    def for_frame_size(size: tuple[int, int]) -> Callable[[], np.ndarray | None]:
-        return ProjectedBacklight(BacklightPredictor(config.projector, calibration, size), hub.projector_video).gain
+    def for_frame_size(size: tuple[int, int]) -> Callable[[np.ndarray], np.ndarray]:
+        return BacklightPredictor(config.projector, calibration, size).gain
 
     return for_frame_size

@@ -21,7 +21,7 @@ from feelium.sim.config import SimConfig
 from feelium.sim.hand import HandPose
 from feelium.sim.hand_paths import HOVER_FLOOR_MM, Tremor, min_jerk
 from feelium.sim.sessions import session_presets
-from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, Session
+from feelium.sim.scene import HEIGHT, ROI, WIDTH, Projected, SceneRenderer, SceneState, Session
 from feelium.sim.shadow import ShadowParams
 
 LIVE_HOVER_MM = 3.0
@@ -59,7 +59,12 @@ class _Event:
 class LiveRearScene:
     """The rear camera's view of a membrane that can be pressed at will (pure; time is an input)."""
 
-    def __init__(self, config: SimConfig, *, width: int = WIDTH, height: int = HEIGHT) -> None:
+    def __init__(
+        self, config: SimConfig, *, width: int = WIDTH, height: int = HEIGHT, projected: Projected | None = None
+    ) -> None:
+        """``projected``: camera time to the projected light's factor (the projector's share of the membrane's
+        light only; room light does not follow it), for a scene lit by what the projector shows; ``None``: the
+        flat back-light."""
         if width < 32 or height < 24:
             raise ValueError(f"live scene needs at least 32x24 pixels, got {width}x{height}")
         self.width, self.height = width, height
@@ -72,7 +77,10 @@ class LiveRearScene:
             self.session = _scaled_session(self.session, sx)
         self._config = config
         self._rng = np.random.default_rng([config.seed, 0x11FE])
-        self._renderer = SceneRenderer(self.session, self._rng, width=width, height=height, roi=self.roi)
+        self._renderer = SceneRenderer(
+            self.session, self._rng, width=width, height=height, roi=self.roi, projected=projected,
+            projected_share_only=projected is not None,
+        )  # fmt: skip
         self._tremor = Tremor.draw(self._rng, drift_mm=0.6)
         self._segment: _Segment | None = None  # None: no hand
         self._pressed = False

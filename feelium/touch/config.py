@@ -172,13 +172,19 @@ class TouchConfig:
         min=1e-6,
         max=10.0,
     )
-    projected_cut_change: float = setting(
-        0.04,
-        "Mean change of the predicted light over the ROI between two camera frames that makes a frame uncertain "
-        "(a scene cut, a fade): no new touch is raised and nothing is learned until it settles.",
+    projector_latency_s: float = setting(
+        0.033,
+        "Projector frame clock to light on the membrane (s): which projector frames a camera exposure integrated.",
         min=0.0,
-        max=10.0,
+        max=1.0,
     )
-    projected_settle_s: float = setting(
-        0.25, "Camera time after the last uncertain frame before the prediction counts as settled.", min=0.0, max=10.0
+    projector_latency_sigma_s: float = setting(
+        0.0167,
+        "How far the projector latency may be off (s; half a 30 fps frame, the scan-out phase): the prediction's "
+        "per-pixel spread over it is the depth a prediction error could fake, taken off every shadow.",
+        min=0.0,
+        max=1.0,
+    )
+    camera_exposure_s: float = setting(
+        0.03, "Rear camera exposure time (s) over which the projected light is mixed.", min=0.0, max=1.0
     )

@@ -24,7 +24,7 @@ from feelium.touch.geometry import WorkingGeometry
 from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
-from feelium.touch.settle import PredictionSettle
+from feelium.touch.settle import depth_uncertainty
 from feelium.touch.tracker import Contact, Observation, Tracker
 from feelium.skin.coords import inside_roi, skin_uv
 
@@ -84,8 +84,8 @@ class TouchPipeline:
         )
         self.tracker = Tracker(config)
         self.response = ProjectorResponse(tau_s=config.projected_response_tau_s, prior_var=config.projected_prior_var)
-        self.settle = PredictionSettle(cut_change=config.projected_cut_change, settle_s=config.projected_settle_s)
-        self.settled = True
+        self.settled = True  # False while the projected light's response is not learned: nothing new is raised
+        self.uncertain_frames = 0  # frames in which the prediction's spread could fake a darkened pixel
         self._reference_share = self.response.share
         self.masked = MaskCounts()
         self.frames = 0
@@ -114,7 +114,6 @@ class TouchPipeline:
         self.reference.reset()
         self.tracker.reset()
         self.response.reset()
-        self.settle.reset()
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -134,13 +133,16 @@ class TouchPipeline:
         backlight_gain: np.ndarray | None = None,
         *,
         projected_light: np.ndarray | None = None,
+        projected_spread: np.ndarray | None = None,
     ) -> FrameResult:
         """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing).
 
         ``projected_light`` (camera frame size, float): the projector light predicted for the exposure of this
         frame, relative to the flat grey (1.0); it is compensated through the per-pixel response learned online
-        (:mod:`feelium.touch.photometric`) and gates new touches while it is unsettled
-        (:mod:`feelium.touch.settle`). ``backlight_gain`` is the older multiplicative model (divide it out).
+        (:mod:`feelium.touch.photometric`). ``projected_spread`` (same size): how far that prediction may be off
+        per pixel (:func:`feelium.touch.settle.predicted_exposure`); every shadow is taken at the smallest depth
+        the spread allows and uncertain pixels learn nothing (:mod:`feelium.touch.settle`). ``backlight_gain`` is
+        the older multiplicative model (divide it out).
         """
         t = float(t)
         if not math.isfinite(t):
@@ -149,12 +151,11 @@ class TouchPipeline:
             raise ValueError(f"frame time {t} does not follow the previous frame time {self._last_t}")
         work, unusable = self._prepare(frame, backlight_gain)
         light = None if projected_light is None else self._cut_light(projected_light)
+        spread = None if light is None or projected_spread is None else self._cut_light(projected_spread, unknown=LIGHT_MAX)
         raw = work
-        steady = True
         if light is not None:
             # Until the response is learned nothing is settled: the compensation is only a guess.
-            steady = self.settle.observe(t, light)
-            self.settled = steady and self.response.share is not None
+            self.settled = self.response.share is not None
             work = self.response.compensate(raw, light)
             np.copyto(work, np.float32(self.config.saturation_level), where=raw >= self.config.saturation_level)
         self._last_t = t
@@ -187,6 +188,13 @@ class TouchPipeline:
             smooth = depth
         floor = _noise_floor_map(smooth, cfg.noise_sigmas, cfg.noise_floor)
         self.noise = float(floor.max()) if floor.size else 0.0
+        uncertain = None
+        if spread is not None and self.response.slope is not None:
+            expected = np.maximum(ref.image * ref.expected_gain(), np.float32(cfg.dark_reference_level))
+            bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma)
+            smooth -= bound  # the smallest depth the prediction allows: its error cannot make a shadow
+            uncertain = bound >= cfg.noise_floor
+            self.uncertain_frames += bool(uncertain.any())
         np.maximum(smooth, 0.0, out=smooth)
         shadow = smooth > floor
         # Opening drops isolated specks of noise and keeps the area of real shadows.
@@ -219,11 +227,13 @@ class TouchPipeline:
         seeds = [(c.x, c.y) for c, p in zip(kept, step.protected) if p]
         anchored = _regions_containing(shadow, seeds) if seeds else None
         frozen = shadow if unusable is None else (shadow | unusable)
+        if uncertain is not None:
+            frozen = frozen | uncertain
         if self.settled:
             ref.update(t, work, frozen, anchored)
         else:
             ref.hold(t)
-        if light is not None and steady:
+        if light is not None:
             self.response.learn(t, raw, light, ~frozen & (raw < self.config.saturation_level))
             share, based = self.response.share, self._reference_share
             if share is not None and (based is None or abs(share - based) > SHARE_REBASE):
@@ -291,15 +301,16 @@ class TouchPipeline:
         work[unusable] = float(self.config.saturation_level)
         return work, unusable
 
-    def _cut_light(self, projected_light: np.ndarray) -> np.ndarray:
-        """The predicted light over the ROI at working resolution; unknown (NaN, inf, negative) becomes 0."""
+    def _cut_light(self, projected_light: np.ndarray, *, unknown: float = 0.0) -> np.ndarray:
+        """The predicted light (or its spread) over the ROI at working resolution; NaN and inf become ``unknown`` (no
+        light; for a spread, as uncertain as light can be), negatives 0, the rest is clipped to the range."""
         fw, fh = self.geometry.frame_size
         if projected_light.shape != (fh, fw):
             raise ValueError(f"projected_light shape {projected_light.shape} does not match the camera's {fw}x{fh}")
         x, y, w, h = self.geometry.roi
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
         light = self.geometry.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False))
-        np.nan_to_num(light, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
         np.clip(light, 0.0, LIGHT_MAX, out=light)
         return light
 

@@ -26,11 +26,13 @@ from feelium.events import TouchEvent
 from feelium.hub import Hub
 from feelium.skin.annotation import ProjectorAnnotation
 from feelium.touch.config import TouchConfig
+from feelium.touch.projected import ExposureLight, ProjectorHistory
 
 log = logging.getLogger(__name__)
 
 PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, int] | None"], Any]
-BacklightFactory = Callable[[tuple[int, int]], Callable[[], "np.ndarray | None"]]
+# Per camera frame size (width, height): a projector frame to the light it puts on the membrane, camera frame size.
+ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray], np.ndarray]]
 Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
 
 
@@ -83,9 +85,14 @@ class TouchService:
         pipeline_factory: PipelineFactory = _default_pipeline,
         overlay: Overlay = _default_overlay,
         annotation: ProjectorAnnotation | None = None,
-        backlight: BacklightFactory | None = None,
+        projected: ProjectedFactory | None = None,
+        camera_clock_offset_s: float = 0.0,
         stale_after_s: float = 2.0,
     ) -> None:
+        """``projected``: how to predict the light of each projector frame (``hub.projector_video``), which then
+        goes with every camera frame as ``projected_light`` (see :mod:`feelium.touch.projected`); ``None`` when
+        the camera's frames hold no projection. ``camera_clock_offset_s``: the daemon's clock minus the camera's
+        (the simulated camera counts from its start)."""
         self.source = source
         self.hub = hub
         self.touch_config = touch_config
@@ -93,11 +100,13 @@ class TouchService:
         self.pipeline_factory = pipeline_factory
         self.overlay = overlay
         self.annotation = annotation
-        self.backlight = backlight
+        self.projected = projected
+        self.camera_clock_offset_s = camera_clock_offset_s
         self.stale_after_s = stale_after_s
-        self._backlight_gain: Callable[[], np.ndarray | None] | None = None
-        self.backlight_errors = 0
-        self.last_backlight_error: str | None = None
+        self.projector_history = ProjectorHistory()
+        self._exposure_light: ExposureLight | None = None
+        self.projected_errors = 0
+        self.last_projected_error: str | None = None
         self._frame_size: tuple[int, int] | None = None
         self.frames = 0
         self.events = 0
@@ -129,6 +138,7 @@ class TouchService:
         log.info("touch: rear camera on the %s backend", self.source.backend)
         slot = self._slot = FrameSlot()
         reader = asyncio.create_task(pump(camera, slot, camera_worker), name="touch.camera")
+        follower = asyncio.create_task(self._follow_projector(), name="touch.projector") if self.projected else None
         pipeline_worker = Worker("touch-pipeline")
         try:
             await self._consume(slot, pipeline_worker)
@@ -140,6 +150,10 @@ class TouchService:
             reader.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await reader
+            if follower is not None:
+                follower.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await follower
             pipeline_worker.shutdown()
             await close_camera(camera, camera_worker)
 
@@ -168,13 +182,23 @@ class TouchService:
             self.cpu_s += loop.time() - started
             self._publish(frame, result, debug)
 
+    async def _follow_projector(self) -> None:
+        """Record every frame the projector service shows (newest-wins slot, woken on each publish)."""
+        seq = 0
+        while True:
+            item = await self.hub.projector_video.next_after(seq, timeout=1.0)
+            if item is not None and item.seq > seq:
+                seq = item.seq
+                self.projector_history.record(item.t, item.seq, item.value)
+
     def _step(self, pipeline: Any, frame: Frame, want_debug: bool) -> tuple[Any, np.ndarray | None]:
         """Worker-thread part: the pipeline and, at the debug rate, the overlay."""
-        gain = self._predicted_backlight()
-        if gain is None:
+        projected = self._projected_light(frame.t + self.camera_clock_offset_s)
+        if projected is None:
             result = pipeline.process(frame.t, frame.image)
         else:
-            result = pipeline.process(frame.t, frame.image, backlight_gain=gain)
+            light, spread = projected
+            result = pipeline.process(frame.t, frame.image, projected_light=light, projected_spread=spread)
         debug = None
         if want_debug:
             try:
@@ -184,15 +208,15 @@ class TouchService:
                 self.last_overlay_error = f"{type(exc).__name__}: {exc}"
         return result, debug
 
-    def _predicted_backlight(self) -> np.ndarray | None:
-        """The projector's predicted back-light, or ``None``; a failing prediction costs only the compensation."""
-        if self._backlight_gain is None:
+    def _projected_light(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(light, spread) the exposure at ``t`` saw, or ``None``; a failing prediction costs only the compensation."""
+        if self._exposure_light is None:
             return None
         try:
-            return self._backlight_gain()
+            return self._exposure_light(self.projector_history.frames(), t)
         except Exception as exc:
-            self.backlight_errors += 1
-            self.last_backlight_error = f"{type(exc).__name__}: {exc}"
+            self.projected_errors += 1
+            self.last_projected_error = f"{type(exc).__name__}: {exc}"
             return None
 
     def _pipeline_for(self, frame: Frame) -> Any:
@@ -203,7 +227,9 @@ class TouchService:
             self._pipeline = self.pipeline_factory(self.touch_config, size, frame.roi)
             self._pipeline_key = key
             self._frame_size = size
-            self._backlight_gain = self.backlight(size) if self.backlight is not None else None
+            self._exposure_light = (
+                ExposureLight(self.projected(size), self.touch_config) if self.projected is not None else None
+            )
             self._last_debug = None
         return self._pipeline
 
@@ -269,9 +295,10 @@ class TouchService:
             "last_overlay_error": self.last_overlay_error,
             "ms_per_frame": round(1000.0 * self.cpu_s / self.frames, 2) if self.frames else None,
             "last_frame_at": self.last_frame_at,
-            "projection_compensation": self.backlight is not None,
-            "backlight_errors": self.backlight_errors,
-            "last_backlight_error": self.last_backlight_error,
+            "projection_compensation": self.projected is not None,
+            "projector_frames": self.projector_history.recorded,
+            "projected_errors": self.projected_errors,
+            "last_projected_error": self.last_projected_error,
             "projector_annotation": None
             if self.annotation is None
             else {"errors": self.annotation.errors, "last_error": self.annotation.last_error},

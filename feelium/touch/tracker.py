@@ -96,9 +96,9 @@ class Tracker:
     def step(self, t: float, observations: list[Observation], *, settled: bool = True) -> TrackerStep:
         """Advance every track by one frame.
 
-        ``settled=False`` (the projected-light prediction is uncertain, see :mod:`feelium.touch.settle`): no
-        new touch is raised and no shadow lands (its anchoring window starts again once settled), while
-        touches already down stay down as long as their shadow is seen.
+        ``settled=False`` (the projector's response to projected light is not learned yet, so the compensation
+        is only a guess): no new touch is raised and no shadow lands (its anchoring window starts again once
+        settled), while touches already down stay down as long as their shadow is seen.
         """
         cfg = self.config
         out = TrackerStep()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,11 +71,14 @@ class ScriptedCamera:
     name = "scripted"
     realtime = False
 
-    def __init__(self, frames):
+    def __init__(self, frames, delay=0.0):
         self.frames = list(frames)
         self.closed = False
+        self.delay = delay  # seconds each read takes (lets the event loop run between frames)
 
     def read(self):
+        if self.delay:
+            time.sleep(self.delay)
         return self.frames.pop(0) if self.frames else None
 
     def close(self):
@@ -282,75 +286,84 @@ def test_an_event_the_annotation_cannot_handle_is_published_unannotated():
     assert annotation.errors == 1 and "bad regions" in annotation.last_error
 
 
-class GainRecordingPipeline(FakePipeline):
-    """Records the back-light gain the service hands over with each frame."""
+class LightRecordingPipeline(FakePipeline):
+    """Records the projected light and spread the service hands over with each frame."""
 
-    def process(self, t, frame, backlight_gain=None):
-        self.gains = getattr(self, "gains", []) + [backlight_gain]
+    def process(self, t, frame, projected_light=None, projected_spread=None):
+        self.lights = getattr(self, "lights", []) + [(projected_light, projected_spread)]
         return super().process(t, frame)
 
 
-async def test_the_predicted_backlight_goes_with_each_frame_at_the_frame_size():
+async def test_the_projected_light_of_each_exposure_goes_with_its_frame_at_the_frame_size():
+    """Projector frames shown at 0.0 (light 0.5) and 0.2 s (light 1.0); 33 ms latency, 30 ms exposure."""
     sizes = []
 
-    def backlight(size):
+    def projected(size):
         sizes.append(size)
-        return lambda: np.full((size[1], size[0]), 0.8, np.float32)
+        return lambda frame: np.full((size[1], size[0]), float(frame[0, 0, 0]) / 100.0, np.float32)
 
     hub = Hub()
-    camera = ScriptedCamera([_frame(0.1 * i, size=(16, 12)) for i in range(1, 4)])
+    hub.projector_video.publish(0.0, np.full((4, 4, 3), 50, np.uint8))
+    camera = ScriptedCamera([_frame(0.1 * i, size=(16, 12)) for i in range(1, 4)], delay=0.02)
     service = TouchService(
         CameraSource("scripted", lambda: camera), hub, TouchConfig(),
-        pipeline_factory=GainRecordingPipeline, overlay=_overlay, backlight=backlight,
+        pipeline_factory=LightRecordingPipeline, overlay=_overlay, projected=projected,
     )
-    await service.run()
+
+    async def second_frame():
+        await asyncio.sleep(0.01)
+        hub.projector_video.publish(0.2, np.full((4, 4, 3), 100, np.uint8))
+
+    await asyncio.gather(service.run(), second_frame())
     (pipeline,) = FakePipeline.created
     assert sizes == [(16, 12)]
-    assert len(pipeline.gains) == 3 and all(g.shape == (12, 16) and float(g[0, 0]) == pytest.approx(0.8) for g in pipeline.gains)
-    assert service.health()["projection_compensation"] is True
+    assert all(light.shape == (12, 16) and spread.shape == (12, 16) for light, spread in pipeline.lights)
+    levels = [round(float(light[0, 0]), 3) for light, _ in pipeline.lights]
+    assert levels[-1] == 1.0  # at 0.3 s the exposure (0.252..0.282 on the projector's clock) saw the second frame
+    assert float(pipeline.lights[-1][1].max()) == 0.0  # and no latency error could change that
+    health = service.health()
+    assert health["projection_compensation"] is True and health["projector_frames"] == 2
 
 
 def test_projection_compensation_only_for_frames_that_contain_the_projectors_light(tmp_path):
-    from feelium.daemon.assembly import load_projected_backlight
+    from feelium.daemon.assembly import load_projected_light
 
     path = _calibration(projector_size=(1280, 720)).save(tmp_path / "projector_calibration.npz")
     config = _config_with_calibration_file(path)
     assert (config.projector.width, config.projector.height) == (1280, 720)
-    hub = Hub()
-    assert load_projected_backlight(config, hub, "sim") is None  # auto: simulated frames hold no projection
-    assert load_projected_backlight(config, hub, "replay") is None
-    factory = load_projected_backlight(config, hub, "picamera2")
+    assert load_projected_light(config, "sim") is None  # auto: simulated frames hold no projection
+    assert load_projected_light(config, "replay") is None
+    factory = load_projected_light(config, "picamera2")
     assert factory is not None
-    gain = factory((32, 24))
-    assert gain() is None  # nothing projected yet: the pipeline compares against its reference unchanged
-    hub.projector_video.publish(0.0, np.full((720, 1280, 3), 30, np.uint8))  # a dark frame at the projector's size
-    predicted = gain()
-    assert predicted is not None and predicted.shape == (24, 32) and np.all(np.isfinite(predicted))
+    predict = factory((32, 24))
+    predicted = predict(np.full((720, 1280, 3), 30, np.uint8))  # a dark frame at the projector's size
+    assert predicted.shape == (24, 32) and np.all(np.isfinite(predicted))
     assert float(np.median(predicted[8:16, 8:24])) < 0.9  # a dark projection dims the covered patch
     off = dataclasses.replace(config, rear_camera=dataclasses.replace(config.rear_camera, projection_compensation="off"))
-    assert load_projected_backlight(off, hub, "picamera2") is None
+    assert load_projected_light(off, "picamera2") is None
     on = dataclasses.replace(config, rear_camera=dataclasses.replace(config.rear_camera, projection_compensation="on"))
-    assert load_projected_backlight(on, hub, "sim") is not None
+    assert load_projected_light(on, "sim") is not None
     missing = _config_with_calibration_file(tmp_path / "none.npz")
-    assert load_projected_backlight(missing, hub, "picamera2") is None
+    assert load_projected_light(missing, "picamera2") is None
 
 
-async def test_a_failing_backlight_prediction_costs_only_the_compensation():
-    def backlight(size):
-        def gain():
+async def test_a_failing_light_prediction_costs_only_the_compensation():
+    def projected(size):
+        def predict(frame):
             raise ValueError("projector frame is 64x48, expected 1280x720")
 
-        return gain
+        return predict
 
     hub = Hub()
+    hub.projector_video.publish(0.0, np.zeros((48, 64, 3), np.uint8))
     sub = hub.bus.subscribe([TouchEvent])
-    camera = ScriptedCamera([_frame(0.1 * i) for i in range(1, 4)])
+    camera = ScriptedCamera([_frame(0.1 * i) for i in range(1, 4)], delay=0.02)
     service = TouchService(
         CameraSource("scripted", lambda: camera), hub, TouchConfig(),
-        pipeline_factory=GainRecordingPipeline, overlay=_overlay, backlight=backlight,
+        pipeline_factory=LightRecordingPipeline, overlay=_overlay, projected=projected,
     )
     await service.run()
     (pipeline,) = FakePipeline.created
-    assert pipeline.gains == [None, None, None] and [e.phase for e in sub.drain()] == ["down", "up"]
+    assert pipeline.lights == [(None, None)] * 3 and [e.phase for e in sub.drain()] == ["down", "up"]
     health = service.health()
-    assert health["backlight_errors"] == 3 and "1280x720" in health["last_backlight_error"]
+    assert health["projected_errors"] == 3 and "1280x720" in health["last_projected_error"]

@@ -3,23 +3,27 @@
 Every protocol trial (taps, holds, swipes, hovers, disturbances, empty scenes;
 the continuous clips are left out) is rendered twice with the same hands,
 session and camera noise: once under the flat back-light (``static``) and once
-with a scripted face video at full brightness (talking avatar, head sway,
-scene cuts, fades to black and back). The face run is replayed three ways:
+with a scripted wearer's video at full brightness (talking avatar, head sway,
+scene cuts, fades to black and back) shown the way the daemon shows it: through
+the projector's renderer, whose sensing floor keeps the skin lit
+(``[projector] sensing_floor``), so a fade to black in the wearer's video is a
+fade to the floor on the skin. The face run is replayed three ways:
 
 - ``face_divided``: what the daemon did before: the frame on screen at the
   camera's timestamp, predicted through the Gray-code calibration, divided out;
 - ``face_compensated``: the frames lit during the exposure (the daemon's
-  latency estimate), compensated through the per-pixel response learned online
-  (:mod:`feelium.touch.photometric`), new touches held while the prediction is
-  unsettled (:mod:`feelium.touch.settle`);
-- ``face_no_settle``: the same without the uncertain-frame rule, to measure it.
+  latency estimate) with the prediction's spread over the latency uncertainty
+  (:func:`feelium.touch.settle.predicted_exposure`), compensated through the
+  per-pixel response learned online (:mod:`feelium.touch.photometric`), every
+  shadow taken at the smallest depth the spread allows (:mod:`feelium.touch.settle`);
+- ``face_no_spread``: the same with the spread left out, to measure the rule.
 
 The world is physical and its parameters are stated here, chosen from the
 hardware and never from detector scores: projected light scales only the
 projector's share of the membrane's light (room light through the membrane does
 not follow the face, ``projected_share_only``); the projector runs at 30 fps
 with :data:`TRUE_LATENCY_S` behind its frame clock while the daemon assumes
-:data:`ASSUMED_LATENCY_S`; the camera integrates over its exposure window, so a
+``[touch] projector_latency_s``; the camera integrates over its exposure window, so a
 cut straddles frames. Before each trial the pipeline has watched
 :data:`WARMUP_S` of the same face without hands (a blimp shows the face all the
 time; every condition gets the same warm-up).
@@ -52,15 +56,17 @@ from feelium.projector.backlight import BacklightPredictor
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
 from feelium.sim.camera import frame_times
-from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics, exposure_weights, timed_hook
+from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics, timed_hook
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, Session, exposure_samples
 from feelium.sim.sessions import session_presets
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
+from feelium.touch.settle import predicted_exposure
 
-CONDITIONS = ("static", "face_divided", "face_compensated", "face_no_settle")
+CONDITIONS = ("static", "face_divided", "face_compensated", "face_no_spread")
 TRUE_LATENCY_S = 0.040  # projector: frame clock to light on the membrane (the simulated world)
-ASSUMED_LATENCY_S = 0.033  # what the daemon assumes (one projector frame); 7 ms off on purpose
+# The daemon assumes [touch] projector_latency_s (33 ms, one projector frame: 7 ms off on purpose) within
+# projector_latency_sigma_s, and mixes over [touch] camera_exposure_s (30 ms, the simulated sensor's).
 WARMUP_S = 5.0  # hand-free face seen before each trial
 
 
@@ -74,7 +80,7 @@ class FaceScript:
     fade_at_s: float = 4.0  # ... starting this far into the period
     fade_s: float = 0.4  # fade down, and fade up again, each this long
     black_s: float = 0.3  # black between them
-    sway_px: tuple[float, float] = (24.0, 16.0)  # head motion amplitude in projector px (x, y)
+    sway_px: tuple[float, float] = (24.0, 16.0)  # head motion amplitude in canvas px (x, y)
     sway_hz: tuple[float, float] = (0.3, 0.45)
 
     def brightness(self, ts: float) -> float:
@@ -90,17 +96,28 @@ class FaceScript:
 
 
 class FaceVideo:
-    """Projector frame ``k`` of the scripted face video, starting ``offset_s`` into the script."""
+    """Projector frame ``k`` of the scripted wearer's video, starting ``offset_s`` into the script.
 
-    def __init__(self, renderer: Renderer, script: FaceScript, offset_s: float) -> None:
+    The wearer's video (the talking avatar reframed, cut and faded: ``source`` is a renderer without a
+    sensing floor, used only for its canvas) is shown through the daemon's ``renderer``, sensing floor
+    included, exactly as the projector service shows a wearer's face.
+    """
+
+    def __init__(self, renderer: Renderer, source: Renderer, script: FaceScript, offset_s: float) -> None:
         self.renderer = renderer
+        self.source = source
         self.script = script
         self.offset_s = offset_s
 
     def frame(self, k: int) -> np.ndarray:
         s = self.script
         ts = k / s.fps + self.offset_s
-        image = self.renderer.render(ts, None, [], talking=True)
+        return self.renderer.render(ts, self.wearer(ts), [])
+
+    def wearer(self, ts: float) -> np.ndarray:
+        """The wearer's video frame (canvas size, BGR) at script time ``ts``."""
+        s = self.script
+        image = self.source.canvas(ts, None, [], talking=True)
         h, w = image.shape[:2]
         scene = int(math.floor(ts / s.cut_every_s)) % 3
         zoom = (1.0, 1.3, 0.85)[scene]
@@ -155,6 +172,7 @@ class _Experiment:
         optics = ProjectorOptics(flat_level=setup.projector.flat_level)
         self.calibration, _ = sim_calibration(setup.seed, setup.projector, warp, optics)
         self.renderer = Renderer(setup.projector, self.calibration)
+        self.source = Renderer(replace(setup.projector, sensing_floor=0.0), self.calibration)
         self.light = ProjectedLight(warp, (WIDTH, HEIGHT), optics)
         self.predictor = BacklightPredictor(setup.projector, self.calibration, (WIDTH, HEIGHT))
 
@@ -163,7 +181,7 @@ class _Experiment:
         script = protocol.build_script(item, seed)
         session = session_presets(seed)[item.session]
         offset = float(protocol.recording_rng(seed, item.name, 7).uniform(0.0, self.setup.script.fade_every_s))
-        video = FaceVideo(self.renderer, self.setup.script, offset)
+        video = FaceVideo(self.renderer, self.source, self.setup.script, offset)
         frames = _Cache(video.frame)
         exposure = session.sensor.exposure_s
         hook = timed_hook(self.light, frames, fps, TRUE_LATENCY_S, exposure)
@@ -172,19 +190,30 @@ class _Experiment:
         def divided(t: float) -> dict[str, np.ndarray]:
             return {"backlight_gain": gains(int(math.floor(t * fps + 1e-9)))}
 
-        def compensated(t: float) -> dict[str, np.ndarray]:
-            mix = sum(gains(k) * np.float32(w) for k, w in exposure_weights(t, exposure, fps, ASSUMED_LATENCY_S))
-            return {"projected_light": mix}
-
         cfg = self.setup.touch
-        no_settle = replace(cfg, projected_cut_change=10.0)
+
+        def compensated(t: float) -> dict[str, np.ndarray]:
+            reach = cfg.projector_latency_s + cfg.projector_latency_sigma_s + cfg.camera_exposure_s / 2.0
+            first, last = math.floor((t - reach) * fps), math.floor(t * fps) + 1
+            light, spread = predicted_exposure(
+                [(k / fps, k) for k in range(first, last + 1)],
+                gains,
+                t,
+                exposure_s=cfg.camera_exposure_s,
+                latency_s=cfg.projector_latency_s,
+                latency_sigma_s=cfg.projector_latency_sigma_s,
+            )
+            return {"projected_light": light, "projected_spread": spread}
+
+        def no_spread(t: float) -> dict[str, np.ndarray]:
+            return {"projected_light": compensated(t)["projected_light"]}
         static = self._render(script, session, item, None)
         face = self._render(script, session, item, hook)
         runs = {
             "static": self._replay(static, script, item, cfg, lambda t: {}),
             "face_divided": self._replay(face, script, item, cfg, divided),
             "face_compensated": self._replay(face, script, item, cfg, compensated),
-            "face_no_settle": self._replay(face, script, item, no_settle, compensated),
+            "face_no_spread": self._replay(face, script, item, cfg, no_spread),
         }
         return runs
 
@@ -224,7 +253,7 @@ class _Experiment:
                 in_contact = max(in_contact or 0.0, result.anchor)
         events.extend(pipeline.finish())
         data = TrialData(item.name, labels, events, activity, max_area)
-        return TrialRun(data, score_max, in_contact, pipeline.settle.uncertain_frames)
+        return TrialRun(data, score_max, in_contact, pipeline.uncertain_frames)
 
 
 _WORKER: _Experiment | None = None
@@ -306,7 +335,7 @@ def run_experiment(
         "scale": scale,
         "seed": seed,
         "trials": len(items),
-        "latency_s": {"true": TRUE_LATENCY_S, "assumed": ASSUMED_LATENCY_S},
+        "latency_s": {"true": TRUE_LATENCY_S, "assumed": touch.projector_latency_s, "sigma": touch.projector_latency_sigma_s},
         "warmup_s": WARMUP_S,
         "conditions": {name: summarise(runs, touch.anchor_threshold) for name, runs in per.items()},
     }
@@ -334,6 +363,80 @@ def format_table(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def frame_cost(*, seed: int = 1, timed: int = 60, repeats: int = 4, touch: TouchConfig = TouchConfig()) -> dict[str, Any]:
+    """CPU time per camera frame (one OpenCV thread, the calling thread's time) of what the face adds.
+
+    One hold trial is rendered under the flat back-light and under the face; the last ``timed`` camera frames
+    of each replay are timed, ``repeats`` times, after the same warm-up. ``exposure_light`` is the daemon's
+    side of the prediction per camera frame at the daemon's working size (``[touch] width x height``): each
+    new projector frame predicted once (:class:`feelium.projector.backlight.BacklightPredictor`), the
+    exposure mix and its spread (:class:`feelium.touch.projected.ExposureLight`). Medians and p95 in ms.
+    """
+    import time
+
+    from feelium.touch.projected import ExposureLight
+
+    cv2.setNumThreads(1)
+    setup = _Setup(seed, ProjectorConfig(), touch, FaceScript())
+    ex = _Experiment(setup)
+    item = next(i for i in protocol.plan(0.1) if i.label == "hold")
+    script = protocol.build_script(item, seed)
+    session = session_presets(seed)[item.session]
+    video = FaceVideo(ex.renderer, ex.source, setup.script, 0.0)
+    frames = _Cache(video.frame)
+    fps = setup.script.fps
+    hook = timed_hook(ex.light, frames, fps, TRUE_LATENCY_S, session.sensor.exposure_s)
+    gains = _Cache(lambda k: ex.predictor.gain(frames(k)))
+    static = ex._render(script, session, item, None)
+    face = ex._render(script, session, item, hook)
+    daemon_size = (touch.width, touch.height)
+    predictor = BacklightPredictor(setup.projector, ex.calibration, daemon_size)
+
+    def inputs(t: float, spread: bool) -> dict[str, np.ndarray]:
+        reach = touch.projector_latency_s + touch.projector_latency_sigma_s + touch.camera_exposure_s / 2.0
+        ks = range(math.floor((t - reach) * fps), math.floor(t * fps) + 2)
+        light, sp = predicted_exposure(
+            [(k / fps, k) for k in ks], gains, t, exposure_s=touch.camera_exposure_s,
+            latency_s=touch.projector_latency_s, latency_sigma_s=touch.projector_latency_sigma_s,
+        )  # fmt: skip
+        return {"projected_light": light, "projected_spread": sp} if spread else {"projected_light": light}
+
+    variants: dict[str, tuple[list[tuple[float, np.ndarray]], Callable[[float], dict[str, np.ndarray]]]] = {
+        "static": (static, lambda t: {}),
+        "face_no_spread": (face, lambda t: inputs(t, False)),
+        "face_compensated": (face, lambda t: inputs(t, True)),
+    }
+    out: dict[str, Any] = {}
+    for name, (clip, feed) in variants.items():
+        fed = [(t, f, feed(t)) for t, f in clip]  # prepared outside the timing
+        samples: list[float] = []
+        for _ in range(repeats):
+            pipeline = TouchPipeline(touch, (WIDTH, HEIGHT), ROI)
+            for n, (t, f, kw) in enumerate(fed):
+                start = time.thread_time()
+                pipeline.process(t, f, **kw)
+                if n >= len(fed) - timed:
+                    samples.append(time.thread_time() - start)
+        out[name] = _ms(samples)
+    samples = []
+    for _ in range(repeats):
+        light = ExposureLight(predictor.gain, touch)
+        for t, _f in face[-timed:]:
+            k = math.floor(t * fps)
+            history = [(j / fps, j, frames(j)) for j in range(k - 4, k + 2)]
+            start = time.thread_time()
+            light(history, t)
+            samples.append(time.thread_time() - start)
+    out["exposure_light"] = _ms(samples)
+    out["timed_frames"], out["repeats"], out["daemon_size"] = timed, repeats, list(daemon_size)
+    return out
+
+
+def _ms(samples: list[float]) -> dict[str, float]:
+    a = np.asarray(samples) * 1000.0
+    return {"median": round(float(np.median(a)), 3), "p95": round(float(np.percentile(a, 95)), 3)}
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m feelium.lab.touch.faceon [--scale S] [--jobs N] [--json FILE]``: the table, and the report."""
     import argparse
@@ -345,7 +448,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--json", help="write the report here")
+    parser.add_argument("--cost", action="store_true", help="only the CPU time per frame of the face's compensation")
     args = parser.parse_args(argv)
+    if args.cost:
+        print(json.dumps(frame_cost(seed=args.seed), indent=1))
+        return 0
     report = run_experiment(
         scale=args.scale,
         seed=args.seed,

@@ -1,0 +1,118 @@
+"""End to end in sim: the projector service plays a wearer's video, the rear camera sees it, touch stays quiet.
+
+The projector service renders a scripted wearer's video (talking avatar, sway, a cut every 1.5 s, a fade to
+black and back) and publishes each frame it shows; the simulated rear camera's scene is lit by what the
+projector showed, mixed over its 30 ms exposure with a true latency of 45 ms (the daemon assumes 33 ms
+within 16.7 ms), the projector's share of the membrane's light only. The touch service receives the frames
+from ``hub.projector_video`` and compensates. The world predicts projector light with the same calibration
+the daemon uses (the lab's face-on experiment covers a calibration decoded from camera frames).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import math
+
+import numpy as np
+
+from feelium.cameras.select import CameraSource
+from feelium.cameras.sim import SharedScene, SimRearCamera
+from feelium.events import TouchEvent
+from feelium.hub import Hub
+from feelium.interactions.config import InteractionsConfig
+from feelium.lab.touch.faceon import FaceScript, FaceVideo
+from feelium.projector.backlight import BacklightPredictor
+from feelium.projector.config import ProjectorConfig
+from feelium.projector.display import SimDisplay
+from feelium.projector.renderer import Renderer
+from feelium.projector.service import ProjectorService
+from feelium.sim.config import SimConfig
+from feelium.sim.live import LiveRearScene
+from feelium.skin.projector_map import DEFAULT_CAMERA_SIZE, DEFAULT_ROI, default_calibration
+from feelium.touch.config import TouchConfig
+from feelium.touch.projected import ProjectorHistory
+from feelium.touch.service import TouchService
+from feelium.touch.settle import predicted_exposure
+
+SIZE = (320, 240)
+TRUE_LATENCY_S = 0.045
+QUIET_S = 5.0  # face playing, nobody near: no touch may be raised
+PRESS_S = 1.5
+
+
+async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
+    hub = Hub()
+    projector_cfg = ProjectorConfig()
+    calibration = default_calibration(DEFAULT_CAMERA_SIZE, DEFAULT_ROI, (projector_cfg.width, projector_cfg.height))
+    world_light = BacklightPredictor(projector_cfg, calibration, SIZE).gain
+    shown = ProjectorHistory(keep=24)
+    lights: dict[int, np.ndarray] = {}
+    origin: list[float] = []
+
+    def projected(ts: float) -> np.ndarray | None:
+        """What lit the membrane during the exposure centred on scene time ``ts`` (true latency)."""
+        frames = shown.frames()
+        if not frames:
+            return None
+        by_seq = {seq: frame for _, seq, frame in frames}
+        light_of = lambda seq: lights.setdefault(seq, world_light(by_seq[seq]))  # noqa: E731
+        light, _ = predicted_exposure(
+            [(t, seq) for t, seq, _ in frames], light_of, ts + origin[0],
+            exposure_s=0.03, latency_s=TRUE_LATENCY_S, latency_sigma_s=0.0,
+        )  # fmt: skip
+        return light
+
+    scene = LiveRearScene(SimConfig(autoplay=False), width=SIZE[0], height=SIZE[1], projected=projected)
+    shared = SharedScene(scene, hub.clock)
+    origin.append(shared.origin)
+    touch = TouchService(
+        CameraSource("sim", lambda: SimRearCamera(shared, fps=15.0), shared), hub, TouchConfig(),
+        debug_video_fps=0.0, projected=lambda size: BacklightPredictor(projector_cfg, calibration, size).gain,
+        camera_clock_offset_s=shared.origin,
+    )  # fmt: skip
+    projector = ProjectorService(
+        projector_cfg, dataclasses.replace(InteractionsConfig(), enabled=False), hub, SimDisplay(), calibration
+    )
+    source = Renderer(dataclasses.replace(projector_cfg, sensing_floor=0.0), calibration)
+    script = FaceScript(cut_every_s=1.5, fade_every_s=5.0, fade_at_s=2.0)
+    video = FaceVideo(Renderer(projector_cfg, calibration), source, script, 0.0)
+    events = hub.bus.subscribe([TouchEvent], maxsize=256)
+
+    async def world() -> list[TouchEvent]:
+        start = hub.clock()
+        seq = 0
+        pressed = released = False
+        quiet: list[TouchEvent] = []
+        while (now := hub.clock() - start) < QUIET_S + PRESS_S + 0.5:
+            hub.face.publish(hub.clock(), video.wearer(now))
+            item = hub.projector_video.get()
+            if item is not None and item.seq != seq:
+                seq = item.seq
+                shown.record(item.t, item.seq, item.value)
+            if now >= QUIET_S and not pressed:
+                quiet = events.drain()
+                rx, ry, rw, rh = scene.roi
+                shared.press(rx + rw * 0.4, ry + rh * 0.45, hub.clock())
+                pressed = True
+            if now >= QUIET_S + PRESS_S and not released:
+                shared.release(hub.clock())
+                released = True
+            await asyncio.sleep(0.005)
+        await touch.stop()
+        await projector.stop()
+        return quiet
+
+    runs = [asyncio.create_task(touch.run()), asyncio.create_task(projector.run())]
+    quiet = await world()
+    await asyncio.gather(*runs)
+    pressed = events.drain()
+    health = touch.health()
+    assert health["projector_frames"] > 30 and health["projected_errors"] == 0, health
+    share = touch._pipeline.response.share
+    assert share is not None and abs(share - 0.45) < 0.1, share  # it learned the projector's share of s1's light
+    assert quiet == [], quiet  # no phantom touch while the face played
+    downs = [e for e in pressed if e.phase == "down"]
+    assert len(downs) == 1, pressed
+    rx, ry, rw, rh = scene.roi
+    assert math.hypot(downs[0].x - (rx + rw * 0.4), downs[0].y - (ry + rh * 0.45)) <= 6.0
