@@ -6,8 +6,7 @@ import dataclasses
 
 import numpy as np
 
-from feelium.hub import Latest
-from feelium.projector.backlight import BacklightPredictor, ProjectedBacklight
+from feelium.projector.backlight import BacklightPredictor
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
 from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics
@@ -44,15 +43,3 @@ def test_predicted_gain_matches_the_simulated_light_of_a_talking_face():
         assert np.median(np.abs(ratio - 1.0)) < 0.01
         assert np.percentile(np.abs(ratio - 1.0), 99) < 0.08  # only the thin edges of eyes and mouth differ
         assert _patch(light.factor(frame)).min() < 0.6  # the face really does change the back-light
-
-
-def test_projected_backlight_follows_the_newest_frame_and_predicts_each_once():
-    config, calibration, _ = _setup()
-    frames: Latest = Latest()
-    feed = ProjectedBacklight(BacklightPredictor(config, calibration, (320, 240)), frames)
-    assert feed.gain() is None
-    frames.publish(0.0, np.full((720, 1280, 3), 255, np.uint8))
-    bright = feed.gain()
-    assert bright.shape == (240, 320) and feed.gain() is bright and feed.predicted == 1
-    frames.publish(0.1, np.zeros((720, 1280, 3), np.uint8))
-    assert feed.gain()[120, 160] < 0.2 < bright[120, 160] and feed.predicted == 2
