@@ -15,6 +15,12 @@ def register(registry: CommandRegistry) -> None:
         "pair", "Ask the running daemon for a one-time pairing code the headset exchanges for the token.", _pair
     )
     pair.add_argument("--config", help="TOML config file (default: built-in defaults)")
+    mdns = registry.command(
+        "mdns-service",
+        "Print the avahi service file that advertises this daemon as _feelium._tcp (docs/deploy.md, Bonjour).",
+        _mdns,
+    )
+    mdns.add_argument("--config", help="TOML config file (default: built-in defaults)")
     rotate = registry.subcommand(
         "token", "rotate", "Write a new headset token; the running daemon uses it within a second, the old one stops working.", _rotate
     )
@@ -38,6 +44,18 @@ def _url(args: argparse.Namespace) -> int:
     config = load_config(args.config).http
     for url in client_urls(config, token=load_or_create_token(config.token, config.token_file)):
         print(url)
+    return 0
+
+
+def _mdns(args: argparse.Namespace) -> int:
+    from feelium.daemon.config import load_config
+    from feelium.http.mdns import avahi_service_file
+
+    config = load_config(args.config).http
+    if config.port == 0:
+        print("feelium mdns-service: [http] port is 0 (any free port); advertise a fixed port", file=sys.stderr)
+        return 1
+    sys.stdout.write(avahi_service_file(config.port, tls=bool(config.tls_cert)))
     return 0
 
 

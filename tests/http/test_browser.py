@@ -259,6 +259,51 @@ def test_stop_is_always_visible_and_stops(live, browser):  # type: ignore[no-unt
     assert page.errors == []
 
 
+def test_another_client_steering_is_shown_and_taken_over(live, browser):  # type: ignore[no-untyped-def]
+    """A move refused because another client steers offers "take over"; the refusal itself must not stop that
+    client's blimp, and taking over hands this page the lease through a stop (docs/api.md, "One client steers")."""
+
+    def post_motion(client: str, command: str, take_over: bool = False) -> int:
+        headers = dict(live.auth) | {"Content-Type": "application/json", "X-Feelium-Client": client}
+        body = json.dumps({"command": command, "hold_ms": 500, "take_over": take_over}).encode()
+        req = urllib.request.Request(f"{live.api}/motion", data=body, headers=headers, method="POST")
+        try:
+            with urllib.request.urlopen(req, timeout=5) as resp:
+                return resp.status
+        except urllib.error.HTTPError as exc:
+            return exc.code
+
+    def controller() -> str:
+        state = api(live, "GET", "/state")
+        assert state is not None
+        return str(state["headset_link"]["controller"])
+
+    page = open_wearer(browser, live)
+    try:
+        assert post_motion("vision-other", "forward", take_over=True) == 200
+        page.keyboard.down("KeyW")
+        page.wait_for_selector("#takeover:not([hidden])", timeout=5000)
+        assert "vision-other is steering" in page.inner_text("#takeover")
+        assert not page.evaluate("document.querySelector('[data-cmd=forward]').classList.contains('active')")
+        page.keyboard.up("KeyW")
+        assert controller().endswith("/vision-other")  # refused without sending a stop, which would take the lease
+
+        page.click("#takeover button")
+        page.wait_for_selector("#takeover", state="hidden")
+        assert motion_state(live)["active"] is False  # the hand-over passes through a stopped blimp
+        assert controller().endswith(page.evaluate("sessionStorage.getItem('feelium-client')"))
+        assert post_motion("vision-other", "forward") == 409
+        page.keyboard.down("KeyW")
+        time.sleep(0.3)
+        assert motion_state(live)["command"] == "forward"
+        page.keyboard.up("KeyW")
+        time.sleep(0.2)
+        assert motion_state(live)["active"] is False
+    finally:
+        page.close()
+    assert page.errors == []
+
+
 TOPMOST = """(sel) => {
   const el = document.querySelector(sel), r = el.getBoundingClientRect();
   const inside = r.top >= 0 && r.left >= 0 && r.bottom <= innerHeight && r.right <= innerWidth && r.width > 0;

@@ -105,7 +105,10 @@ async function call(method, path, body, contentType, retried = false) {
   if (resp.status === 204) return null;
   const type = resp.headers.get("Content-Type") || "";
   const data = type.includes("json") ? await resp.json() : await resp.blob();
-  if (!resp.ok) throw new Error(`${resp.status} ${data.message || data.error || ""}`);
+  if (!resp.ok) {
+    // The status and the JSON error body travel with the error, so a caller can act on its code (not_in_control).
+    throw Object.assign(new Error(`${resp.status} ${data.message || data.error || ""}`), { status: resp.status, body: data });
+  }
   return { data, resp };
 }
 

@@ -40,9 +40,30 @@ Feelium.events((item) => {
 // --- motion: a dead man; the command is refreshed every 150 ms while held, with a 500 ms hold ---
 let held = null, timer = null;
 async function send(cmd) {
-  try { await Feelium.call("POST", "/motion", { command: cmd, hold_ms: 500 }); }
-  catch (err) { say(`The blimp refused "${cmd}": ${err.message}`, "error"); }
+  try {
+    await Feelium.call("POST", "/motion", { command: cmd, hold_ms: 500 });
+    if (cmd !== "stop") $("#takeover").hidden = true;
+  } catch (err) {
+    if (err.body?.error === "not_in_control") refused(err.body);
+    else say(`The blimp refused "${cmd}": ${err.message}`, "error");
+  }
 }
+// Another client steers (409): drop the held command *without* a stop (a stop from here would stop the other
+// client's blimp and take its lease) and offer the explicit take-over.
+function refused(info) {
+  if (held) { document.querySelector(`[data-cmd="${held}"]`)?.classList.remove("active"); clearInterval(timer); held = null; }
+  const box = $("#takeover");
+  if (box.hidden) say(`${info.controller} is steering the blimp; "take over" to steer it yourself.`, "error");
+  box.querySelector("span").textContent = `${info.controller} is steering.`;
+  box.hidden = false;
+}
+// Taking over is a stop from this page: it hands this page the lease (docs/api.md, "A stop sticks"), so the
+// hand-over always passes through a stopped blimp; the next held move is this page's.
+$("#takeover button").addEventListener("click", async () => {
+  await send("stop");
+  $("#takeover").hidden = true;
+  say("You steer the blimp now; it stopped for the hand-over.");
+});
 function hold(cmd) {
   if (held === cmd) return;
   release();
