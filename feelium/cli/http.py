@@ -1,4 +1,4 @@
-"""``feelium http-url``, ``feelium pair``, ``feelium token rotate`` and ``feelium bench http``."""
+"""``feelium http-url``, ``feelium pair``, ``feelium mdns-service``, ``feelium token rotate`` and ``feelium bench link``."""
 
 from __future__ import annotations
 
@@ -25,16 +25,17 @@ def register(registry: CommandRegistry) -> None:
         "token", "rotate", "Write a new headset token; the running daemon uses it within a second, the old one stops working.", _rotate
     )
     rotate.add_argument("--config", help="TOML config file (default: built-in defaults)")
-    bench = registry.subcommand(
-        "bench", "http", "Headset link: motion round trip, touch-event latency per transport, MJPEG fps with a stalled client, speech delay and jitter.", _bench
-    )
-    bench.add_argument("--requests", type=int, default=300, help="motion requests and touch events per transport (default 300)")
-    bench.add_argument("--seconds", type=float, default=4.0, help="MJPEG measuring time per phase (default 4)")
-    bench.add_argument("--fps", type=float, default=30.0, help="rate of the synthetic 640x480 front video (default 30)")
-    bench.add_argument("--speech-seconds", type=float, default=10.0,
-                       help="speech streamed vs long-polled, measured together for this long (default 10)")
-    bench.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
-
+    for name, help in (
+        ("link", "Headset link: motion round trip, stop under a flood, touch-event latency per transport, MJPEG fps with a stalled client, speech delay and jitter."),
+        ("http", "The same as `feelium bench link` (its former name)."),
+    ):  # fmt: skip
+        bench = registry.subcommand("bench", name, help, _bench)
+        bench.add_argument("--requests", type=int, default=300, help="motion requests and touch events per transport (default 300)")
+        bench.add_argument("--seconds", type=float, default=4.0, help="MJPEG measuring time per phase (default 4)")
+        bench.add_argument("--fps", type=float, default=30.0, help="rate of the synthetic 640x480 front video (default 30)")
+        bench.add_argument("--speech-seconds", type=float, default=10.0,
+                           help="speech streamed vs long-polled, measured together for this long (default 10)")
+        bench.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
 
 def _url(args: argparse.Namespace) -> int:
     from feelium.daemon.config import load_config

@@ -1,4 +1,4 @@
-"""``feelium bench http`` runs at a tiny size and reports every measurement (numbers are not judged here)."""
+"""``feelium bench link`` (alias ``bench http``) runs at a tiny size and reports every measurement (numbers are not judged here)."""
 
 from __future__ import annotations
 
@@ -37,9 +37,13 @@ def test_bench_http_runs_small_and_reports_every_key(tmp_path, capsys) -> None: 
         assert speech[kind]["chunks"] == speech["chunks_published"], kind  # every chunk reached every reader
         assert speech[kind]["delay_median_ms"] >= 0 and speech[kind]["gap_p50_ms"] > 0
     assert speech["long_poll"]["requests_per_s"] > 0 and "ratio_delay_median_stream_vs_long_poll" in speech
+    flood = result["stop_under_flood"]
+    for key in ("quiet", "bystander_during_flood", "flooder_own_stop"):
+        assert flood[key]["refused"] == 0 and flood[key]["n"] == 10, key  # stop always wins, also under a flood
+    assert flood["flood_statuses"].get("429", 0) > 0  # the flood really was over the shipped limit
     table = capsys.readouterr().out
     assert "POST /motion round trip" in table and "3 readers + 1 stalled" in table and "slow reader" in table
-    assert "GET /speech/stream WebSocket" in table
+    assert "GET /speech/stream WebSocket" in table and "`stop` from a bystander, during a flood" in table
 
 
 def test_bench_http_rejects_a_meaningless_size(capsys) -> None:  # type: ignore[no-untyped-def]

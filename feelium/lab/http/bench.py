@@ -1,5 +1,5 @@
-"""``feelium bench http``: motion round trip, touch-event latency per transport, MJPEG rate with a stalled client,
-speech delay and jitter streamed vs long-polled.
+"""``feelium bench link`` (alias ``bench http``): motion round trip, `stop` under a flood, touch-event latency per
+transport, MJPEG rate with a stalled client, speech delay and jitter streamed vs long-polled.
 
 The server runs on its own thread and event loop (as in the daemon), the
 clients on this one, both on 127.0.0.1; every number has a baseline measured
@@ -16,6 +16,7 @@ import socket
 import sys
 import threading
 import time
+from collections import Counter
 from dataclasses import replace
 from typing import Any
 
@@ -142,6 +143,68 @@ async def bench_motion(server: ServerThread, n: int) -> dict[str, Any]:
         "motion": mot,
         "sent_to_hub": vis,
         "ratio_median": round(mot["median_ms"] / base["median_ms"], 2),
+    }
+
+
+FLOOD_TASKS = 8  # concurrent requests the flooding client keeps in flight
+
+
+async def bench_stop_under_flood(n: int) -> dict[str, Any]:
+    """`stop` sent -> in force on the hub, with the shipped rate limits, quiet and while one client floods.
+
+    The flooder keeps ``FLOOD_TASKS`` motion requests in flight (far past its bucket: most get 429, and 409
+    once a bystander's stop has taken the lease). Its stops and a bystander's are timed the same way as the
+    quiet baseline; every one of them must be accepted (200) and land on the hub.
+    """
+    with ServerThread(HttpConfig()) as server:
+        slot = server.motion
+        async with aiohttp.ClientSession(headers=AUTH, connector=aiohttp.TCPConnector(limit=0)) as session:
+
+            async def post(client: str, command: str) -> tuple[int, float]:
+                t0 = time.perf_counter()
+                async with session.post(server.api + "/motion", json={"command": command, "hold_ms": 500},
+                                        headers={"X-Feelium-Client": client}) as resp:  # fmt: skip
+                    await resp.read()
+                    return resp.status, t0
+
+            async def timed_stops(client: str) -> dict[str, Any]:
+                delays, refused = [], 0
+                for _ in range(n):
+                    before = len(slot.applied)
+                    status, t0 = await post(client, "stop")
+                    landed = [t for name, t in slot.applied[before:] if name == "stop"]
+                    if status != 200 or not landed:
+                        refused += 1
+                    else:
+                        delays.append(landed[0] - t0)
+                    await asyncio.sleep(0.01)
+                return summary(delays) | {"refused": refused}
+
+            quiet = await timed_stops("bystander")
+            flooding = asyncio.Event()
+            statuses: Counter[int] = Counter()
+            t_flood = time.perf_counter()
+
+            async def flood() -> None:
+                while not flooding.is_set():
+                    status, _ = await post("flooder", "forward")
+                    statuses[status] += 1
+
+            tasks = [asyncio.create_task(flood()) for _ in range(FLOOD_TASKS)]
+            await asyncio.sleep(0.3)  # the flooder's bucket is empty by now
+            bystander = await timed_stops("bystander")
+            own = await timed_stops("flooder")
+            flooding.set()
+            await asyncio.gather(*tasks)
+            flood_s = time.perf_counter() - t_flood
+    flood_total = sum(statuses.values())
+    return {
+        "quiet": quiet,
+        "bystander_during_flood": bystander,
+        "flooder_own_stop": own,
+        "flood_requests_per_s": round(flood_total / flood_s, 1),
+        "flood_statuses": {str(k): v for k, v in sorted(statuses.items())},
+        "ratio_median_bystander_vs_quiet": round(bystander["median_ms"] / quiet["median_ms"], 2),
     }
 
 
@@ -484,12 +547,13 @@ async def run_bench(n: int, seconds: float, fps: float, speech_seconds: float = 
     config = replace(HttpConfig(), motion_rate_per_s=1000.0, motion_burst=1000, stream_write_timeout_s=1.0,
                      event_ring_size=4096, keepalive_s=5.0)  # fmt: skip
     with ServerThread(config) as server:
-        return {
+        result = {
             "motion_round_trip": await bench_motion(server, n),
             "touch_event_latency": await bench_events(server, n),
             "mjpeg_4_clients_1_stalled": await bench_mjpeg(server, seconds, fps),
             "speech_stream_vs_long_poll": await bench_speech(server, speech_seconds),
         }
+    return result | {"stop_under_flood": await bench_stop_under_flood(max(10, n // 3))}
 
 
 def format_table(result: dict[str, Any]) -> str:
@@ -498,6 +562,13 @@ def format_table(result: dict[str, Any]) -> str:
     lines.append(f"| GET /health round trip (baseline) | {m['baseline_health']['median_ms']} | {m['baseline_health']['p95_ms']} | 1.0 |")
     lines.append(f"| POST /motion sent -> command on the hub | {m['sent_to_hub']['median_ms']} | {m['sent_to_hub']['p95_ms']} | |")
     lines.append(f"| POST /motion round trip | {m['motion']['median_ms']} | {m['motion']['p95_ms']} | {m['ratio_median']} |")
+    f = result["stop_under_flood"]
+    for label, key in (("`stop`, quiet (baseline)", "quiet"), ("`stop` from a bystander, during a flood", "bystander_during_flood"),
+                       ("`stop` from the flooder itself", "flooder_own_stop")):  # fmt: skip
+        r = f[key]
+        ratio = "1.0" if key == "quiet" else round(r["median_ms"] / f["quiet"]["median_ms"], 2)
+        lines.append(f"| {label}: sent -> on the hub ({r['n']} accepted, {r['refused']} refused) "
+                     f"| {r['median_ms']} | {r['p95_ms']} | {ratio} |")  # fmt: skip
     e = result["touch_event_latency"]
     lines.append(f"| bus publish -> in-process subscriber (baseline) | {e['baseline_bus']['median_ms']} | {e['baseline_bus']['p95_ms']} | 1.0 |")
     for kind in ("long_poll", "sse", "websocket"):
@@ -531,6 +602,8 @@ def format_table(result: dict[str, Any]) -> str:
         f"stalled client dropped: {v['stalled_dropped']} after {v['stalled_dropped_after_s']} s; "
         f"JPEG encodes / frames published: {v['jpeg_encodes']} / {v['frames_published']}",
     ]
+    lines += ["", f"flood: {f['flood_requests_per_s']} motion requests/s from one client ({FLOOD_TASKS} in flight), "
+              f"answered {f['flood_statuses']} (status: count); shipped rate limits"]
     sp = result["speech_stream_vs_long_poll"]
     lines += [
         "",
@@ -553,11 +626,11 @@ def format_table(result: dict[str, Any]) -> str:
 
 def bench_http_command(args: Any) -> int:
     if args.requests < 10 or args.seconds <= 0 or args.fps <= 0:
-        print("feelium bench http: --requests >= 10, --seconds > 0 and --fps > 0 please", file=sys.stderr)
+        print("feelium bench link: --requests >= 10, --seconds > 0 and --fps > 0 please", file=sys.stderr)
         return 2
     speech_seconds = getattr(args, "speech_seconds", 10.0)
     if speech_seconds <= 0:
-        print("feelium bench http: --speech-seconds > 0 please", file=sys.stderr)
+        print("feelium bench link: --speech-seconds > 0 please", file=sys.stderr)
         return 2
     result = asyncio.run(run_bench(args.requests, args.seconds, args.fps, speech_seconds))
     emit_report(format_table(result), result, args.json)
