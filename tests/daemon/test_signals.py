@@ -117,7 +117,9 @@ from feelium.daemon.journal import setup_logging
 calls = []
 
 def status_line(report):  # a bug that shows only once the blimp flies: the daemon's own loop raises
-    calls.append(1)
+    flight = report.get("services", {}).get("flight", {})
+    if isinstance(flight.get("fps"), (int, float)) and flight["fps"] > 0:
+        calls.append(1)  # counted only once the flight loop runs, however slowly a loaded machine starts it
     if len(calls) > 3:
         raise RuntimeError("a bug in the daemon's loop")
     return "ok"

@@ -13,6 +13,7 @@ a socket's ``in_waiting`` says only whether bytes wait, not how many, unlike a U
 from __future__ import annotations
 
 import os
+import select
 import sys
 import time
 import tty
@@ -23,12 +24,30 @@ from feelium.flight.transport import ByteLink
 
 
 def serve(master: int, link: ByteLink) -> None:
-    """Answer MSP requests written to the pty with one board that lives as long as the process."""
-    while data := os.read(master, 4096):
+    """Answer MSP requests written to the pty with one board that lives as long as the process.
+
+    A reply the daemon's side has no room for is dropped, not waited on: a real board's UART has no flow
+    control and overruns, it never stops reading because the Pi is slow. A blocking write here would let a
+    starved daemon stall the board, fill the daemon's own output and turn a slow host into a dead link.
+    """
+    os.set_blocking(master, False)
+    while True:
+        select.select([master], [], [])
+        try:
+            data = os.read(master, 4096)
+        except BlockingIOError:
+            continue
+        except OSError:  # EIO: the daemon closed its end
+            return
+        if not data:
+            return
         link.write(data)
         reply = link.read(link.in_waiting)
         if reply:
-            os.write(master, reply)
+            try:
+                os.write(master, reply)  # a partial write drops the rest, as an overrun would
+            except BlockingIOError:
+                pass
 
 
 def main() -> None:
