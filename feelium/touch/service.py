@@ -27,6 +27,7 @@ from feelium.hub import Hub
 from feelium.skin.annotation import ProjectorAnnotation
 from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight, ProjectorHistory
+from feelium.touch.sensing import SensingMonitor, SensingSample
 
 log = logging.getLogger(__name__)
 
@@ -111,6 +112,7 @@ class TouchService:
         self.frames = 0
         self.events = 0
         self.bad_frames = 0
+        self.sensing = SensingMonitor()
         self.dropped_frames = 0
         self.opens = 0
         self.last_error: str | None = None
@@ -233,6 +235,19 @@ class TouchService:
             self._last_debug = None
         return self._pipeline
 
+    def _sense(self, t: float) -> None:
+        """Feed the light monitor from the pipeline that just ran (on the loop's thread, as health reads it)."""
+        pipeline = self._pipeline
+        masked, geometry = getattr(pipeline, "masked", None), getattr(pipeline, "geometry", None)
+        if masked is None or geometry is None:
+            return
+        response = getattr(pipeline, "response", None)
+        width, height = geometry.work_size
+        self.sensing.update(SensingSample(
+            t=t, pixels=int(width * height), dark=masked.dark, saturated=masked.saturated,
+            projector_share=None if response is None else response.share,
+        ))  # fmt: skip
+
     def _flush(self) -> None:
         """Release contacts still down when a segment ends, so no consumer waits for an ``up`` forever."""
         finish = getattr(self._pipeline, "finish", None)
@@ -243,6 +258,7 @@ class TouchService:
 
     def _publish(self, frame: Frame, result: Any, debug: np.ndarray | None) -> None:
         now = self.hub.clock()
+        self._sense(frame.t)
         for event in result.events:
             self._publish_event(event)
         self.frames += 1
@@ -281,8 +297,13 @@ class TouchService:
     def health(self) -> dict[str, Any]:
         slot_drops = self._slot.dropped if self._slot is not None else 0
         now = self.hub.clock()
+        condition = frame_condition(self.last_frame_at, now, self.stale_after_s, "rear camera")
+        blind = self.sensing.reasons()
+        if condition["condition"] == "ok" and blind:
+            condition = {"condition": "degraded", "reason": "; ".join(blind)}
         return {
-            **frame_condition(self.last_frame_at, now, self.stale_after_s, "rear camera"),
+            **condition,
+            "light": self.sensing.figures(),
             "backend": self.source.backend,
             "frames": self.frames,
             "fps": round(self._rate.rate(now), 2),

@@ -1,0 +1,99 @@
+"""Can the rear camera see shadows at all? The touch service's verdict on its own light, for health.
+
+A touch pipeline that cannot see is silent, and silence looks exactly like a
+membrane nobody touches. Three things blind it, each measured on every frame
+from what the pipeline already computes:
+
+- **Saturation**: a pixel at the camera's ceiling cannot show how much light
+  a hand takes away (``depth.py`` masks it). A room or a projector so bright
+  that the exposure cannot bring most of the membrane under the ceiling leaves
+  no membrane to sense.
+- **Darkness**: a pixel whose expected light is under ``dark_reference_level``
+  carries no information (masked too). A projector that is off or shows black
+  for long leaves the membrane unlit.
+- **Room light** that outshines the projector: the projector's share of the
+  membrane's light, learned online from projected content
+  (``photometric.ProjectorResponse.share``). A contact's own contrast (the
+  frustrated reflection of the projector's light in the film) scales with
+  that share, while a hovering hand's shadow of the room light deepens with
+  the room; below ``MIN_PROJECTOR_SHARE`` the two cannot be told apart
+  reliably and touch says so instead of firing or going quiet unannounced.
+
+A condition must hold for ``HOLD_S`` before it is reported (a fade to black or
+a lamp's warm-up is not a fault) and clears as soon as the light is back.
+Pure: counts and times in, a condition out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+BLIND_SHARE = 0.5  # more than half the membrane masked: most touches would fall where nothing can be seen
+HOLD_S = 2.0  # a condition reported only once it has lasted this long
+MIN_PROJECTOR_SHARE = 0.2  # projector light under a fifth of the membrane's: room light four times the projector's
+
+
+@dataclass(frozen=True)
+class SensingSample:
+    """One frame's light, as the pipeline saw it."""
+
+    t: float
+    pixels: int  # working pixels considered
+    dark: int
+    saturated: int
+    projector_share: float | None  # None until projected content has taught it
+
+
+class SensingMonitor:
+    """Turns per-frame light figures into a sustained health condition with its reason."""
+
+    def __init__(self, hold_s: float = HOLD_S) -> None:
+        self.hold_s = hold_s
+        self.last: SensingSample | None = None
+        self._since: dict[str, float] = {}  # problem -> when it began, while it lasts
+
+    def update(self, sample: SensingSample) -> None:
+        self.last = sample
+        for problem, present in self._problems(sample).items():
+            if present:
+                self._since.setdefault(problem, sample.t)
+            else:
+                self._since.pop(problem, None)
+
+    @staticmethod
+    def _problems(s: SensingSample) -> dict[str, bool]:
+        share = s.projector_share
+        return {
+            "saturated": s.pixels > 0 and s.saturated > BLIND_SHARE * s.pixels,
+            "dark": s.pixels > 0 and s.dark > BLIND_SHARE * s.pixels,
+            "room_light": share is not None and share < MIN_PROJECTOR_SHARE,
+        }
+
+    def reasons(self) -> list[str]:
+        """What blinds touch now, for at least ``hold_s`` (empty when it can see)."""
+        s = self.last
+        if s is None:
+            return []
+        lasting = [p for p, since in self._since.items() if s.t - since >= self.hold_s]
+        out = []
+        if "saturated" in lasting:
+            out.append(f"too bright to see shadows: {100 * s.saturated / s.pixels:.0f} % of the membrane is saturated")
+        if "dark" in lasting:
+            out.append(f"too dark to see shadows: {100 * s.dark / s.pixels:.0f} % of the membrane is unlit")
+        if "room_light" in lasting and s.projector_share is not None:
+            out.append(
+                f"room light outshines the projector ({100 * s.projector_share:.0f} % of the membrane's light is "
+                f"projected, under {100 * MIN_PROJECTOR_SHARE:.0f} %): contacts and close hovers look alike"
+            )
+        return out
+
+    def figures(self) -> dict[str, float | None]:
+        """The last frame's light, in percent, for health (always shown, also when fine)."""
+        s = self.last
+        if s is None or s.pixels <= 0:
+            return {"saturated_pct": None, "unlit_pct": None, "projector_share": None}
+        return {
+            "saturated_pct": round(100.0 * s.saturated / s.pixels, 1),
+            "unlit_pct": round(100.0 * s.dark / s.pixels, 1),
+            "projector_share": None if s.projector_share is None else round(s.projector_share, 3),
+        }
