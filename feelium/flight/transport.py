@@ -24,8 +24,20 @@ class ByteLink(Protocol):
     def close(self) -> None: ...
 
 
+# pyserial (3.5, serialposix) checks a write's deadline *after* os.write returns: a thread that then waits for
+# the GIL longer than the deadline (the touch or projector thread holding it) gets "Write timeout" for bytes
+# already sent, and the link is dropped for nothing. With the reply timeout (30 ms) as the write deadline that
+# happened dozens of times in a loaded 30-minute soak. The deadline is there to catch a port that really stops
+# taking bytes (a USB adapter pulled, a wedged UART); half a second does that, far above any GIL wait, and the
+# board's own 300 ms watchdog has set neutral by then anyway.
+WRITE_TIMEOUT_S = 0.5
+
+
 def open_serial(port: str, baudrate: int, timeout_s: float) -> ByteLink:
-    """Open a device path or pyserial URL; raises ``serial.SerialException`` naming the port."""
+    """Open a device path or pyserial URL; raises ``serial.SerialException`` naming the port.
+
+    ``timeout_s`` bounds a read; a write gets :data:`WRITE_TIMEOUT_S` (or ``timeout_s`` if longer).
+    """
     import serial
 
-    return serial.serial_for_url(port, baudrate=baudrate, timeout=timeout_s, write_timeout=timeout_s)
+    return serial.serial_for_url(port, baudrate=baudrate, timeout=timeout_s, write_timeout=max(timeout_s, WRITE_TIMEOUT_S))

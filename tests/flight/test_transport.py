@@ -1,0 +1,65 @@
+"""The real serial port's write deadline survives a thread that waits for the GIL after writing."""
+
+from __future__ import annotations
+
+import os
+import time
+import tty
+
+import pytest
+import serial
+from serial import serialposix
+
+from feelium.flight.transport import WRITE_TIMEOUT_S, open_serial
+
+REPLY_TIMEOUT_S = 0.03  # the flight config's reply_timeout_s, once also the write deadline
+
+
+@pytest.fixture
+def pty_port():  # type: ignore[no-untyped-def]
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    yield master, os.ttyname(slave)
+    os.close(master)
+    os.close(slave)
+
+
+def _slow_after_writing(monkeypatch: pytest.MonkeyPatch, wait_s: float) -> None:
+    """os.write as pyserial sees it when another thread holds the GIL for ``wait_s`` after the bytes went out."""
+    real_write = os.write
+
+    def write(fd: int, data: bytes) -> int:
+        n = real_write(fd, data)
+        time.sleep(wait_s)
+        return n
+
+    monkeypatch.setattr(serialposix.os, "write", write)
+
+
+def test_a_write_delayed_past_the_reply_timeout_is_not_a_dead_link(pty_port, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    master, path = pty_port
+    _slow_after_writing(monkeypatch, 2 * REPLY_TIMEOUT_S)
+    with serial.Serial(path, 115200, timeout=REPLY_TIMEOUT_S, write_timeout=REPLY_TIMEOUT_S) as naive:
+        with pytest.raises(serial.SerialTimeoutException):  # the failure: every byte was sent, yet "Write timeout"
+            naive.write(b"$M<\x00\x64\x64")
+    assert os.read(master, 64) == b"$M<\x00\x64\x64"
+
+    link = open_serial(path, 115200, REPLY_TIMEOUT_S)
+    try:
+        assert link.write(b"$M<\x00\x65\x65") == 6
+        assert os.read(master, 64) == b"$M<\x00\x65\x65"
+    finally:
+        link.close()
+
+
+def test_a_port_that_takes_no_bytes_still_times_out(pty_port) -> None:  # type: ignore[no-untyped-def]
+    master, path = pty_port
+    link = open_serial(path, 115200, REPLY_TIMEOUT_S)
+    started = time.monotonic()
+    try:
+        with pytest.raises(serial.SerialTimeoutException):
+            for _ in range(100_000):  # nobody reads the master: the pty's buffer fills, then writes block
+                link.write(b"x" * 1024)
+    finally:
+        link.close()
+    assert time.monotonic() - started < 5 * WRITE_TIMEOUT_S + 2.0
