@@ -49,7 +49,7 @@ def test_room_light_is_judged_only_once_the_projectors_share_is_known(share: flo
     reasons = monitor.reasons()
     assert bool(reasons) is blind
     if blind:
-        assert reasons[0].startswith("room light outshines the projector (18 % of the membrane's light is projected")
+        assert reasons[0].startswith("room light outshines the projector (30 % of the membrane's light is projected, under 33 %)")
 
 
 def test_half_the_membrane_masked_is_the_limit() -> None:
