@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from feelium.touch.buffers import Scratch
+
 
 @dataclass(frozen=True)
 class Candidate:
@@ -63,9 +65,14 @@ def find_candidates(
     core_fraction: float,
     max_candidates: int,
     edge_radius: float = 10.0,
+    scratch: Scratch | None = None,
 ) -> tuple[list[Candidate], Segmentation | None]:
-    """Candidates (largest first, working-image coordinates) and their segmentation (None when none)."""
-    full_mask = (depth > threshold).view(np.uint8)
+    """Candidates (largest first, working-image coordinates) and their segmentation (None when none).
+
+    ``scratch`` holds the working-size mask (:mod:`feelium.touch.buffers`); nothing returned refers to it.
+    """
+    buf = Scratch() if scratch is None else scratch
+    full_mask = np.greater(depth, threshold, out=buf.like("candidates.mask", depth, bool)).view(np.uint8)
     bx, by, bw, bh = cv2.boundingRect(full_mask)
     if bw == 0 or bh == 0:
         return [], None
