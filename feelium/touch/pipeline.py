@@ -153,8 +153,10 @@ class TouchPipeline:
         if self._last_t is not None and t <= self._last_t:
             raise ValueError(f"frame time {t} does not follow the previous frame time {self._last_t}")
         work, unusable = self._prepare(frame, backlight_gain)
-        light = None if projected_light is None else self._cut_light(projected_light)
-        spread = None if light is None or projected_spread is None else self._cut_light(projected_spread, unknown=LIGHT_MAX)
+        light = None if projected_light is None else self._cut_light(projected_light, "light")
+        spread = (
+            None if light is None or projected_spread is None else self._cut_light(projected_spread, "spread", unknown=LIGHT_MAX)
+        )
         raw = work
         if light is not None:
             # Until the response is learned nothing is settled: the compensation is only a guess.
@@ -313,15 +315,18 @@ class TouchPipeline:
         work[unusable] = float(self.config.saturation_level)
         return work, unusable
 
-    def _cut_light(self, projected_light: np.ndarray, *, unknown: float = 0.0) -> np.ndarray:
+    def _cut_light(self, projected_light: np.ndarray, name: str, *, unknown: float = 0.0) -> np.ndarray:
         """The predicted light (or its spread) over the ROI at working resolution; NaN and inf become ``unknown`` (no
-        light; for a spread, as uncertain as light can be), negatives 0, the rest is clipped to the range."""
+        light; for a spread, as uncertain as light can be), negatives 0, the rest is clipped to the range. Written
+        into the buffer ``name`` (valid for this frame)."""
         fw, fh = self.geometry.frame_size
         if projected_light.shape != (fh, fw):
             raise ValueError(f"projected_light shape {projected_light.shape} does not match the camera's {fw}x{fh}")
         x, y, w, h = self.geometry.roi
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
-        light = self.geometry.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False))
+        g = self.geometry
+        out = self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype)
+        light = g.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False), out=out)
         np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
         np.clip(light, 0.0, LIGHT_MAX, out=light)
         return light
