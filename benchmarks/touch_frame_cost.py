@@ -43,7 +43,9 @@ def main() -> int:
     for _ in range(max(2, args.loops)):
         cpu = 0.0
         for i, frame in enumerate(frames):
-            extra = {"projected_light": lights[(i // 7) % 4], "projected_spread": spreads[(i // 7) % 4]} if args.projected else {}
+            extra = {}
+            if args.projected:
+                extra = {"projected_light": lights[(i // 7) % 4], "projected_spread": spreads[(i // 7) % 4]}
             start = time.thread_time()
             pipeline.process(k / 30.0, frame, **extra)
             cpu += time.thread_time() - start

@@ -49,9 +49,11 @@ def tile_ratios(
     buf = Scratch() if scratch is None else scratch
     weight = buf.like("tiles.weight", usable, np.float32)
     np.copyto(weight, usable)
-    weighted = np.multiply(frame, weight, out=buf.get("tiles.weighted", frame.shape, np.result_type(frame, weight)))
+    dtype = np.result_type(frame, weight)
+    weighted = np.multiply(frame, weight, out=buf.get("tiles.weighted", frame.shape, dtype))
     num = cv2.resize(weighted, size, interpolation=cv2.INTER_AREA)
-    weighted = np.multiply(reference, weight, out=buf.get("tiles.weighted", frame.shape, np.result_type(reference, weight)))
+    dtype = np.result_type(reference, weight)
+    weighted = np.multiply(reference, weight, out=buf.get("tiles.weighted", frame.shape, dtype))
     den = cv2.resize(weighted, size, interpolation=cv2.INTER_AREA)
     share = cv2.resize(weight, size, interpolation=cv2.INTER_AREA)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -73,7 +73,8 @@ class ProjectorResponse:
             slope = share * frame / (share * np.maximum(light, np.float32(0.0)) + (np.float32(1.0) - share))
             self.slope = np.nan_to_num(slope, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
         buf = self._scratch
-        part = np.subtract(np.float32(1.0), light, out=buf.like("compensate.part", light, np.result_type(np.float32, light)))
+        part = buf.like("compensate.part", light, np.result_type(np.float32, light))
+        np.subtract(np.float32(1.0), light, out=part)
         part *= self.slope
         shape = np.broadcast_shapes(frame.shape, part.shape)
         return np.add(frame, part, out=buf.get("compensated", shape, np.result_type(frame, part)))
@@ -102,7 +103,8 @@ class ProjectorResponse:
         x = buf.like("learn.x", usable, np.float32)
         x.fill(0.0)
         np.copyto(x, light, where=usable)
-        fresh = [w, x, np.multiply(x, x, out=buf.like("learn.xx", x)), f, np.multiply(f, x, out=buf.like("learn.fx", x))]
+        xx = np.multiply(x, x, out=buf.like("learn.xx", x))
+        fresh = [w, x, xx, f, np.multiply(f, x, out=buf.like("learn.fx", x))]
         if self._sums is None:
             self._sums = [a.copy() for a in fresh]  # kept across frames: never a scratch buffer
         else:

@@ -154,9 +154,9 @@ class TouchPipeline:
             raise ValueError(f"frame time {t} does not follow the previous frame time {self._last_t}")
         work, unusable = self._prepare(frame, backlight_gain)
         light = None if projected_light is None else self._cut_light(projected_light, "light")
-        spread = (
-            None if light is None or projected_spread is None else self._cut_light(projected_spread, "spread", unknown=LIGHT_MAX)
-        )
+        spread = None
+        if light is not None and projected_spread is not None:
+            spread = self._cut_light(projected_spread, "spread", unknown=LIGHT_MAX)
         raw = work
         if light is not None:
             # Until the response is learned nothing is settled: the compensation is only a guess.

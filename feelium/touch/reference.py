@@ -145,7 +145,8 @@ class AdaptiveReference:
         ratio = np.divide(frame, self.image, out=buf.get("rows.ratio", frame.shape, np.result_type(frame, self.image)))
         ratio *= self.dtype_cast(1.0 / self.gain)
         np.clip(ratio, one - self.dtype_cast(c), one + self.dtype_cast(c), out=ratio)
-        usable = np.greater_equal(self.image, self.dtype_cast(self.dark_level / self.gain), out=buf.like("rows.usable", frame, bool))
+        dark = self.dtype_cast(self.dark_level / self.gain)
+        usable = np.greater_equal(self.image, dark, out=buf.like("rows.usable", frame, bool))
         other = np.less(frame, self.saturation_level, out=buf.like("rows.other", frame, bool))
         usable &= other
         if exclude is not None:
@@ -196,7 +197,8 @@ class AdaptiveReference:
         if extra > 0.0:
             # Second step so the total rate where it got clearly brighter equals the bright rate.
             bright = np.multiply(image, self._bright_factor, out=buf.like("update.bright", image))
-            brighter = np.greater(target, bright, out=buf.get("update.brighter", np.broadcast_shapes(target.shape, bright.shape), bool))
+            shape = np.broadcast_shapes(target.shape, bright.shape)
+            brighter = np.greater(target, bright, out=buf.get("update.brighter", shape, bool))
             if free is not None:
                 brighter &= free
             cv2.accumulateWeighted(target, image, extra, mask=brighter.view(np.uint8))
