@@ -52,7 +52,8 @@ class Subscription(Generic[T]):
         while not self._items:
             self._ready.clear()
             try:
-                await asyncio.wait_for(self._ready.wait(), timeout)
+                async with asyncio.timeout(timeout):
+                    await self._ready.wait()
             except asyncio.TimeoutError:
                 return None
         return self.get_nowait()

@@ -53,7 +53,10 @@ class Latest(Generic[T]):
             return item
         changed = self._changed
         try:
-            await asyncio.wait_for(changed.wait(), timeout)
+            # asyncio.timeout, not wait_for: on Python 3.11 wait_for wraps the wait in a new task, with its own
+            # loop callbacks, each time; every frame's consumers wait here (docs/performance.md).
+            async with asyncio.timeout(timeout):
+                await changed.wait()
         except asyncio.TimeoutError:
             return None
         return self._item

@@ -79,19 +79,23 @@ async def sse(request: web.Request) -> web.StreamResponse:
     epoch, seq = (None, link.events.ring.last_seq) if after is None else after
     link.count("event_clients")
     try:
-        await asyncio.wait_for(response.write(b"retry: 1000\n\n"), timeout)
+        async with asyncio.timeout(timeout):
+            await response.write(b"retry: 1000\n\n")
         while True:
             catchup = await link.events.wait_after(seq, link.config.keepalive_s, epoch)
             epoch = None  # from here on the client follows this run's numbers
             if catchup.reset:
-                await asyncio.wait_for(response.write(sse_message(reset_message(link, catchup))), timeout)
+                async with asyncio.timeout(timeout):
+                    await response.write(sse_message(reset_message(link, catchup)))
             if catchup.events or catchup.reset:
                 payload = b"".join(sse_message(item) for item in catchup.events)
                 if payload:
-                    await asyncio.wait_for(response.write(payload), timeout)
+                    async with asyncio.timeout(timeout):
+                        await response.write(payload)
                 seq = catchup.last_seq
             else:
-                await asyncio.wait_for(response.write(b": keepalive\n\n"), timeout)
+                async with asyncio.timeout(timeout):
+                    await response.write(b": keepalive\n\n")
     except asyncio.TimeoutError:
         link.count("stalled_clients_dropped")
         if request.transport is not None:
@@ -126,9 +130,11 @@ async def websocket(request: web.Request) -> web.StreamResponse:
             catchup = await link.events.wait_after(seq, link.config.keepalive_s, epoch)
             epoch = None
             if catchup.reset:
-                await asyncio.wait_for(ws.send_json(reset_message(link, catchup)), timeout)
+                async with asyncio.timeout(timeout):
+                    await ws.send_json(reset_message(link, catchup))
             for item in catchup.events:
-                await asyncio.wait_for(ws.send_json(item), timeout)
+                async with asyncio.timeout(timeout):
+                    await ws.send_json(item)
             seq = catchup.last_seq
     except asyncio.TimeoutError:
         link.count("stalled_clients_dropped")

@@ -61,7 +61,8 @@ class EventFeed:
             return catchup
         changed = self._changed
         try:
-            await asyncio.wait_for(changed.wait(), timeout)
+            async with asyncio.timeout(timeout):
+                await changed.wait()
         except asyncio.TimeoutError:
             pass
         return self.ring.after(seq, epoch)

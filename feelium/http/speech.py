@@ -52,7 +52,8 @@ class SpeechFeed:
             return chunks
         changed = self._changed
         try:
-            await asyncio.wait_for(changed.wait(), timeout)
+            async with asyncio.timeout(timeout):
+                await changed.wait()
         except asyncio.TimeoutError:
             pass
         return self.numbered_after(seq)

@@ -98,7 +98,8 @@ async def _serve(request: web.Request, ws: web.WebSocketResponse, link: LinkCont
                     link.count("speech_frames_dropped")
                     continue
                 frame = SpeechFrame(number, chunk.rate, chunk.t, dropped, chunk.pcm)
-                await asyncio.wait_for(ws.send_bytes(encode_frame(frame)), timeout)
+                async with asyncio.timeout(timeout):
+                    await ws.send_bytes(encode_frame(frame))
                 link.count("speech_frames_sent")
     except asyncio.TimeoutError:
         link.count("stalled_clients_dropped")

@@ -152,7 +152,8 @@ async def _stream(request: web.Request, feed: JpegFeed, max_fps: float) -> web.S
             seq = item.seq
             part = part_header(len(item.value), item.t, item.seq) + item.value + b"\r\n"
             try:
-                await asyncio.wait_for(response.write(part), timeout)
+                async with asyncio.timeout(timeout):
+                    await response.write(part)
                 inflight = link.config.stream_inflight_bytes
                 delivered = inflight == 0 or await wait_until_acknowledged(sock, inflight, timeout)
             except asyncio.TimeoutError:

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from feelium.touch.buffers import Scratch
+
 
 @dataclass(frozen=True)
 class Candidate:
@@ -63,17 +65,24 @@ def find_candidates(
     core_fraction: float,
     max_candidates: int,
     edge_radius: float = 10.0,
+    scratch: Scratch | None = None,
 ) -> tuple[list[Candidate], Segmentation | None]:
-    """Candidates (largest first, working-image coordinates) and their segmentation (None when none)."""
-    full_mask = (depth > threshold).view(np.uint8)
+    """Candidates (largest first, working-image coordinates) and their segmentation (None when none).
+
+    ``scratch`` holds the working-size mask (:mod:`feelium.touch.buffers`); nothing returned refers to it.
+    """
+    buf = Scratch() if scratch is None else scratch
+    full_mask = np.greater(depth, threshold, out=buf.like("candidates.mask", depth, bool)).view(np.uint8)
     bx, by, bw, bh = cv2.boundingRect(full_mask)
     if bw == 0 or bh == 0:
         return [], None
     mask = full_mask[by : by + bh, bx : bx + bw]
     full_depth = depth
     depth = depth[by : by + bh, bx : bx + bw]
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=cv2.CV_32S)
-    areas = stats[1:, cv2.CC_STAT_AREA]
+    # Labels only, then areas by bincount and boxes for the few kept: OpenCV's WithStats variant also computes
+    # centroids, which made it ~10x slower than the labelling alone (370-515 against 40 us on a 256x192 mask).
+    count, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_32S)
+    areas = np.bincount(labels.ravel(), minlength=count)[1:]
     order = np.argsort(-areas, kind="stable")
     found: list[Candidate] = []
     for index in order[:max_candidates]:
@@ -81,7 +90,7 @@ def find_candidates(
         if area < min_area:
             break
         label = int(index) + 1
-        x0, y0, w, h = (int(v) for v in stats[label, :4])
+        x0, y0, w, h = cv2.boundingRect(np.equal(labels, label).view(np.uint8))
         patch = depth[y0 : y0 + h, x0 : x0 + w]
         inside = labels[y0 : y0 + h, x0 : x0 + w] == label
         values = np.where(inside, patch, 0.0)

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from feelium.touch.buffers import Scratch
+
 
 @dataclass
 class MaskCounts:
@@ -31,6 +33,7 @@ def relative_depth(
     saturation_level: float,
     counts: MaskCounts | None = None,
     signed: bool = False,
+    scratch: Scratch | None = None,
 ) -> np.ndarray:
     """``clip(1 - frame / (gain * reference), 0, 1)`` where usable, 0 where masked.
 
@@ -40,20 +43,30 @@ def relative_depth(
 
     ``frame`` and ``reference`` are same-shape float arrays (the frame may
     already have the projected back-light divided out); ``gain`` is a number
-    or an array that broadcasts (per-row gains).
+    or an array that broadcasts (per-row gains). With ``scratch`` every array,
+    the result included, is one of its buffers (valid until its next use);
+    without, the result is a new array.
     """
+    buf = Scratch() if scratch is None else scratch
     dtype = reference.dtype.type
-    expected = reference * (dtype(gain) if np.isscalar(gain) else gain.astype(reference.dtype, copy=False))
-    dark = ~(expected >= dark_level)  # also catches NaN
-    saturated = ~(frame < saturation_level)
-    masked = dark | saturated
+    factor = dtype(gain) if np.isscalar(gain) else gain.astype(reference.dtype, copy=False)
+    expected = np.multiply(reference, factor, out=buf.like("depth.expected", reference))
+    dark = np.greater_equal(expected, dark_level, out=buf.like("depth.dark", reference, bool))
+    np.logical_not(dark, out=dark)  # also catches NaN
+    saturated = np.less(frame, saturation_level, out=buf.like("depth.saturated", reference, bool))
+    np.logical_not(saturated, out=saturated)
+    masked = np.logical_or(dark, saturated, out=buf.like("depth.masked", reference, bool))
     np.copyto(expected, dtype(1.0), where=masked)
-    depth = frame / expected
+    depth = np.divide(frame, expected, out=buf.get("depth.depth", expected.shape, np.result_type(frame, expected)))
     np.subtract(dtype(1.0), depth, out=depth)
     np.clip(depth, -1.0 if signed else 0.0, 1.0, out=depth)
-    depth[masked] = 0.0
-    depth[~np.isfinite(depth)] = 0.0
+    np.copyto(depth, depth.dtype.type(0.0), where=masked)
+    bad = np.isfinite(depth, out=buf.like("depth.bad", reference, bool))
+    np.logical_not(bad, out=bad)
+    np.copyto(depth, depth.dtype.type(0.0), where=bad)
     if counts is not None:
         counts.dark = int(np.count_nonzero(dark))
-        counts.saturated = int(np.count_nonzero(saturated & ~dark))
+        only_saturated = np.logical_not(dark, out=bad)
+        np.logical_and(only_saturated, saturated, out=only_saturated)
+        counts.saturated = int(np.count_nonzero(only_saturated))
     return depth

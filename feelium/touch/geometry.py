@@ -64,9 +64,13 @@ class WorkingGeometry:
         x, y, _, _ = self.roi
         return x + (wx + 0.5) / sx - 0.5, y + (wy + 0.5) / sy - 0.5
 
-    def cut_roi(self, part: np.ndarray) -> np.ndarray:
-        """An ROI-size image at the working resolution, in the working dtype (always a new array)."""
+    def cut_roi(self, part: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """An ROI-size image at the working resolution, in the working dtype: a new array, or ``out`` (working size
+        and dtype) filled with it."""
         w, h = self.roi[2], self.roi[3]
         if (w, h) != self.work_size:
             part = cv2.resize(part, self.work_size, interpolation=cv2.INTER_AREA)
+        if out is not None:
+            np.copyto(out, part)
+            return out
         return part.astype(self.dtype, copy=False) if part.dtype != self.dtype else part.copy()

@@ -30,18 +30,31 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from feelium.touch.buffers import Scratch
+
 TILE_PX = 16  # working pixels per coarse tile side
 MIN_TILE_WEIGHT = 0.5  # share of a tile's pixels that must be usable for its mean to count
 MIN_TILES = 8
 
 
-def tile_ratios(frame: np.ndarray, reference: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per coarse tile: frame over reference summed over usable pixels, and the usable share of the tile."""
+def tile_ratios(
+    frame: np.ndarray, reference: np.ndarray, usable: np.ndarray, scratch: Scratch | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per coarse tile: frame over reference summed over usable pixels, and the usable share of the tile.
+
+    ``scratch`` holds the working-size temporaries (:mod:`feelium.touch.buffers`); the results are new arrays.
+    """
     h, w = frame.shape
     size = (max(1, w // TILE_PX), max(1, h // TILE_PX))
-    weight = usable.astype(np.float32)
-    num = cv2.resize(frame * weight, size, interpolation=cv2.INTER_AREA)
-    den = cv2.resize(reference * weight, size, interpolation=cv2.INTER_AREA)
+    buf = Scratch() if scratch is None else scratch
+    weight = buf.like("tiles.weight", usable, np.float32)
+    np.copyto(weight, usable)
+    dtype = np.result_type(frame, weight)
+    weighted = np.multiply(frame, weight, out=buf.get("tiles.weighted", frame.shape, dtype))
+    num = cv2.resize(weighted, size, interpolation=cv2.INTER_AREA)
+    dtype = np.result_type(reference, weight)
+    weighted = np.multiply(reference, weight, out=buf.get("tiles.weighted", frame.shape, dtype))
+    den = cv2.resize(weighted, size, interpolation=cv2.INTER_AREA)
     share = cv2.resize(weight, size, interpolation=cv2.INTER_AREA)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.where(den > 0.0, num / np.maximum(den, 1e-6), 1.0).astype(np.float32)
@@ -49,7 +62,12 @@ def tile_ratios(frame: np.ndarray, reference: np.ndarray, usable: np.ndarray) ->
 
 
 def illumination_change(
-    frame: np.ndarray, reference: np.ndarray, gain: float, usable: np.ndarray, spread_limit: float
+    frame: np.ndarray,
+    reference: np.ndarray,
+    gain: float,
+    usable: np.ndarray,
+    spread_limit: float,
+    scratch: Scratch | None = None,
 ) -> np.ndarray | None:
     """The smooth change of light (working size, frame over ``gain * reference``) if the membrane changed shape.
 
@@ -57,7 +75,7 @@ def illumination_change(
     Returns None when the tiles' median absolute deviation is within ``spread_limit`` of their median (the
     light kept its shape).
     """
-    ratio, share = tile_ratios(frame, reference, usable)
+    ratio, share = tile_ratios(frame, reference, usable, scratch)
     good = share >= MIN_TILE_WEIGHT
     if np.count_nonzero(good) < MIN_TILES or not gain > 0.0:
         return None

@@ -29,6 +29,8 @@ import math
 
 import numpy as np
 
+from feelium.touch.buffers import Scratch
+
 LIGHT_MIN = 0.05  # predicted light (relative to flat) below which frame / light says nothing
 LIGHT_MAX = 16.0  # predicted light above which a prediction is not believed
 FRAME_MAX = 1e4  # grey levels (any camera depth, any working dtype) above which a value is not a frame
@@ -49,6 +51,7 @@ class ProjectorResponse:
         self.share: float | None = None  # projector's share of a pixel's light under flat grey, once learned
         self._sums: list[np.ndarray] | None = None  # weights, light, light^2, frame, frame * light
         self._last_t: float | None = None
+        self._scratch = Scratch()  # learn's and the fit's per-frame temporaries: it runs on every hand-free frame
 
     def reset(self) -> None:
         self.slope = None
@@ -58,7 +61,8 @@ class ProjectorResponse:
         self._last_t = None
 
     def compensate(self, frame: np.ndarray, light: np.ndarray) -> np.ndarray:
-        """``frame + a * (1 - light)``: the frame as the flat grey would have lit it (new array, float32).
+        """``frame + a * (1 - light)``: the frame as the flat grey would have lit it (one reused buffer, valid
+        until the next call).
 
         Before anything was learned the projector's share is taken as :data:`INITIAL_SHARE`, which keeps the
         slope within twice the frame even where the prediction is near black (``frame / light``, the
@@ -68,25 +72,41 @@ class ProjectorResponse:
             share = np.float32(INITIAL_SHARE)
             slope = share * frame / (share * np.maximum(light, np.float32(0.0)) + (np.float32(1.0) - share))
             self.slope = np.nan_to_num(slope, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
-        return frame + self.slope * (np.float32(1.0) - light)
+        buf = self._scratch
+        part = buf.like("compensate.part", light, np.result_type(np.float32, light))
+        np.subtract(np.float32(1.0), light, out=part)
+        part *= self.slope
+        shape = np.broadcast_shapes(frame.shape, part.shape)
+        return np.add(frame, part, out=buf.get("compensated", shape, np.result_type(frame, part)))
 
     def learn(self, t: float, frame: np.ndarray, light: np.ndarray, usable: np.ndarray) -> None:
         """Add one hand-free frame (``usable``: unshadowed, unsaturated, finite pixels) to the fit."""
         # Values outside what a camera and a prediction can give (NaN, inf, negative, absurdly large) teach nothing.
-        usable = usable & (frame >= 0.0) & (frame <= FRAME_MAX) & (light >= 0.0) & (light <= LIGHT_MAX)
+        buf = self._scratch
+        check = buf.like("learn.check", usable)
+        usable = np.logical_and(usable, np.greater_equal(frame, 0.0, out=check), out=buf.like("learn.usable", usable))
+        usable &= np.less_equal(frame, FRAME_MAX, out=check)
+        usable &= np.greater_equal(light, 0.0, out=check)
+        usable &= np.less_equal(light, LIGHT_MAX, out=check)
         if not usable.any():
             return
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
         self._last_t = t
         keep = np.float32(math.exp(-dt / self.tau_s))
-        w = usable.astype(np.float32)
+        w = buf.like("learn.w", usable, np.float32)
+        np.copyto(w, usable)
         if self.slope is None:
             self.compensate(frame, light)
-        f = np.where(usable, frame, 0.0).astype(np.float32)
-        x = np.where(usable, light, 0.0).astype(np.float32)
-        fresh = [w, x, x * x, f, f * x]
+        f = buf.like("learn.f", usable, np.float32)
+        f.fill(0.0)
+        np.copyto(f, frame, where=usable)
+        x = buf.like("learn.x", usable, np.float32)
+        x.fill(0.0)
+        np.copyto(x, light, where=usable)
+        xx = np.multiply(x, x, out=buf.like("learn.xx", x))
+        fresh = [w, x, xx, f, np.multiply(f, x, out=buf.like("learn.fx", x))]
         if self._sums is None:
-            self._sums = fresh
+            self._sums = [a.copy() for a in fresh]  # kept across frames: never a scratch buffer
         else:
             for total, add in zip(self._sums, fresh):
                 total *= keep
@@ -105,18 +125,28 @@ class ProjectorResponse:
         """
         assert self._sums is not None and self.slope is not None
         n, sx, sxx, sf, sfx = self._sums
-        seen = n > np.float32(1e-3)
-        n = np.maximum(n, np.float32(1e-3))
-        mx = sx / n
-        mf = sf / n
-        var = np.maximum(sxx / n - mx * mx, np.float32(0.0))
-        cov = sfx / n - mx * mf
+        buf = self._scratch  # each line's arithmetic in the same order as written out in the docstring
+        seen = np.greater(n, np.float32(1e-3), out=buf.like("fit.seen", n, bool))
+        n = np.maximum(n, np.float32(1e-3), out=buf.like("fit.n", n))
+        mx = np.divide(sx, n, out=buf.like("fit.mx", n))
+        mf = np.divide(sf, n, out=buf.like("fit.mf", n))
+        tmp = buf.like("fit.tmp", n)
+        var = np.divide(sxx, n, out=buf.like("fit.var", n))
+        var -= np.multiply(mx, mx, out=tmp)
+        np.maximum(var, np.float32(0.0), out=var)
+        cov = np.divide(sfx, n, out=buf.like("fit.cov", n))
+        cov -= np.multiply(mx, mf, out=tmp)
         self.share = self._pooled_share(var, cov, mx, mf, seen)
         share = np.float32(INITIAL_SHARE if self.share is None else self.share)
-        prior = share * mf / np.maximum(share * mx + (np.float32(1.0) - share), np.float32(LIGHT_MIN))
-        slope = (cov + np.float32(self.prior_var) * prior) / (var + np.float32(self.prior_var))
-        slope = np.nan_to_num(slope, nan=0.0, posinf=0.0, neginf=0.0)
-        np.copyto(self.slope, slope.astype(np.float32), where=seen)
+        prior = np.multiply(share, mf, out=buf.like("fit.prior", n))
+        under = np.multiply(share, mx, out=tmp)
+        under += np.float32(1.0) - share
+        prior /= np.maximum(under, np.float32(LIGHT_MIN), out=under)
+        prior *= np.float32(self.prior_var)
+        slope = np.add(cov, prior, out=cov)
+        slope /= np.add(var, np.float32(self.prior_var), out=var)
+        np.nan_to_num(slope, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        np.copyto(self.slope, slope, where=seen)
 
     def _pooled_share(
         self, var: np.ndarray, cov: np.ndarray, mx: np.ndarray, mf: np.ndarray, seen: np.ndarray

@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from feelium.events import TouchEvent
+from feelium.touch.buffers import Scratch
 from feelium.touch.candidates import find_candidates
 from feelium.touch.config import TouchConfig
 from feelium.touch.depth import MaskCounts, relative_depth
@@ -94,6 +95,8 @@ class TouchPipeline:
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
         self._deep: np.ndarray | None = None
+        # Working-size temporaries reused every frame (feelium.touch.buffers): none outlives its frame.
+        self._scratch = Scratch()
         g = self.geometry
         self._sigma = g.px(config.blur_sigma_px)
         self._edge_radius = g.px(config.contact_edge_radius_px)
@@ -150,8 +153,10 @@ class TouchPipeline:
         if self._last_t is not None and t <= self._last_t:
             raise ValueError(f"frame time {t} does not follow the previous frame time {self._last_t}")
         work, unusable = self._prepare(frame, backlight_gain)
-        light = None if projected_light is None else self._cut_light(projected_light)
-        spread = None if light is None or projected_spread is None else self._cut_light(projected_spread, unknown=LIGHT_MAX)
+        light = None if projected_light is None else self._cut_light(projected_light, "light")
+        spread = None
+        if light is not None and projected_spread is not None:
+            spread = self._cut_light(projected_spread, "spread", unknown=LIGHT_MAX)
         raw = work
         if light is not None:
             # Until the response is learned nothing is settled: the compensation is only a guess.
@@ -173,6 +178,7 @@ class TouchPipeline:
         if self.settled:
             ref.observe_gain(gain, work, self._shadow)
         ref.measure_rows(work, self._deep)
+        buf = self._scratch
         depth = relative_depth(
             work,
             ref.image,
@@ -181,12 +187,15 @@ class TouchPipeline:
             saturation_level=float(cfg.saturation_level),
             counts=self.masked,
             signed=True,
+            scratch=buf,
         )
         if self._sigma > 0.2:
-            smooth = cv2.GaussianBlur(depth, (0, 0), self._sigma, borderType=cv2.BORDER_REPLICATE)
+            smooth = cv2.GaussianBlur(
+                depth, (0, 0), self._sigma, dst=buf.like("smooth", depth), borderType=cv2.BORDER_REPLICATE
+            )
         else:
             smooth = depth
-        floor = _noise_floor_map(smooth, cfg.noise_sigmas, cfg.noise_floor)
+        floor = _noise_floor_map(smooth, cfg.noise_sigmas, cfg.noise_floor, buf)
         self.noise = float(floor.max()) if floor.size else 0.0
         uncertain = None
         if spread is not None and self.response.slope is not None:
@@ -196,7 +205,7 @@ class TouchPipeline:
             uncertain = bound >= cfg.noise_floor
             self.uncertain_frames += bool(uncertain.any())
         np.maximum(smooth, 0.0, out=smooth)
-        shadow = smooth > floor
+        shadow = np.greater(smooth, floor, out=buf.like("shadow.raw", smooth, bool))
         # Opening drops isolated specks of noise and keeps the area of real shadows.
         shadow = cv2.morphologyEx(shadow.view(np.uint8), cv2.MORPH_OPEN, _SPECK_KERNEL).view(bool)
         darkened = int(np.count_nonzero(shadow))
@@ -209,6 +218,7 @@ class TouchPipeline:
             core_fraction=cfg.core_fraction,
             max_candidates=cfg.max_candidates,
             edge_radius=self._edge_radius,
+            scratch=buf,
         )
         observations = []
         kept = []
@@ -258,12 +268,15 @@ class TouchPipeline:
 
     def _follow_light(self, work: np.ndarray) -> bool:
         """Re-seed the reference on a membrane-wide change of light's shape (:mod:`feelium.touch.illumination`)."""
-        ref, cfg = self.reference, self.config
+        ref, cfg, buf = self.reference, self.config, self._scratch
         assert ref.image is not None
-        usable = (ref.image * ref.gain >= cfg.dark_reference_level) & (work < cfg.saturation_level)
+        lit = np.multiply(ref.image, ref.gain, out=buf.like("follow.lit", ref.image))
+        usable = np.greater_equal(lit, cfg.dark_reference_level, out=buf.like("follow.usable", work, bool))
+        other = np.less(work, cfg.saturation_level, out=buf.like("follow.other", work, bool))
+        usable &= other
         if self._shadow is not None:
-            usable &= ~self._shadow
-        change = illumination_change(work, ref.image, ref.gain, usable, cfg.noise_floor)
+            usable &= np.logical_not(self._shadow, out=other)
+        change = illumination_change(work, ref.image, ref.gain, usable, cfg.noise_floor, buf)
         if change is None:
             return False
         self.light_changes += 1
@@ -284,7 +297,8 @@ class TouchPipeline:
         part = frame[y : y + h, x : x + w]
         if part.ndim == 3:
             part = part[:, :, 0] if part.shape[2] == 1 else cv2.cvtColor(part, cv2.COLOR_BGR2GRAY)
-        work = self.geometry.cut_roi(part)
+        g = self.geometry
+        work = g.cut_roi(part, out=self._scratch.get("work", (g.work_size[1], g.work_size[0]), g.dtype))
         if backlight_gain is None:
             return work, None
         if backlight_gain.shape != (fh, fw):
@@ -301,15 +315,18 @@ class TouchPipeline:
         work[unusable] = float(self.config.saturation_level)
         return work, unusable
 
-    def _cut_light(self, projected_light: np.ndarray, *, unknown: float = 0.0) -> np.ndarray:
+    def _cut_light(self, projected_light: np.ndarray, name: str, *, unknown: float = 0.0) -> np.ndarray:
         """The predicted light (or its spread) over the ROI at working resolution; NaN and inf become ``unknown`` (no
-        light; for a spread, as uncertain as light can be), negatives 0, the rest is clipped to the range."""
+        light; for a spread, as uncertain as light can be), negatives 0, the rest is clipped to the range. Written
+        into the buffer ``name`` (valid for this frame)."""
         fw, fh = self.geometry.frame_size
         if projected_light.shape != (fh, fw):
             raise ValueError(f"projected_light shape {projected_light.shape} does not match the camera's {fw}x{fh}")
         x, y, w, h = self.geometry.roi
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
-        light = self.geometry.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False))
+        g = self.geometry
+        out = self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype)
+        light = g.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False), out=out)
         np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
         np.clip(light, 0.0, LIGHT_MAX, out=light)
         return light
@@ -320,7 +337,7 @@ NOISE_TILES = (8, 6)
 _SPECK_KERNEL = np.ones((3, 3), np.uint8)
 
 
-def _noise_floor_map(signed_depth: np.ndarray, sigmas: float, minimum: float) -> np.ndarray:
+def _noise_floor_map(signed_depth: np.ndarray, sigmas: float, minimum: float, scratch: Scratch) -> np.ndarray:
     """Per-pixel darkening floor: ``sigmas`` times the local noise of the smoothed depth, at least ``minimum``.
 
     Noise is measured per coarse tile from the negative half of the signed
@@ -329,13 +346,13 @@ def _noise_floor_map(signed_depth: np.ndarray, sigmas: float, minimum: float) ->
     times larger in the dim corners of an uneven back-light than at its centre.
     """
     h, w = signed_depth.shape
-    negative = np.minimum(signed_depth, 0.0)
+    negative = np.minimum(signed_depth, 0.0, out=scratch.like("floor.negative", signed_depth))
     negative *= negative
     tiles = cv2.resize(negative, NOISE_TILES, interpolation=cv2.INTER_AREA)
     np.sqrt(tiles * 2.0, out=tiles)
     tiles *= sigmas
     np.maximum(tiles, minimum, out=tiles)
-    return cv2.resize(tiles, (w, h), interpolation=cv2.INTER_LINEAR)
+    return cv2.resize(tiles, (w, h), dst=scratch.get("floor", (h, w), tiles.dtype), interpolation=cv2.INTER_LINEAR)
 
 
 def _regions_containing(mask: np.ndarray, seeds: list[tuple[float, float]]) -> np.ndarray:

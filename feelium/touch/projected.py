@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from feelium.touch.buffers import Scratch
 from feelium.touch.config import TouchConfig
 from feelium.touch.settle import predicted_exposure
 
@@ -52,10 +53,13 @@ class ExposureLight:
         self._sigma = config.projector_latency_sigma_s
         self._exposure = config.camera_exposure_s
         self._lights: dict[int, np.ndarray] = {}
+        self._scratch = Scratch()  # the mixes: the pipeline reads them within the same camera frame
         self.predicted = 0
 
     def __call__(self, frames: list[tuple[float, int, np.ndarray]], t: float) -> tuple[np.ndarray, np.ndarray] | None:
-        """For the camera exposure centred on ``t`` (the daemon's clock); ``None`` before any projector frame."""
+        """For the camera exposure centred on ``t`` (the daemon's clock); ``None`` before any projector frame.
+
+        The two arrays are reused by the next call: use them before asking for another exposure."""
         if not frames:
             return None
         by_seq = {seq: frame for _, seq, frame in frames}
@@ -75,6 +79,7 @@ class ExposureLight:
             exposure_s=self._exposure,
             latency_s=self._latency,
             latency_sigma_s=self._sigma,
+            scratch=self._scratch,
         )
         for seq in [s for s in self._lights if s not in by_seq]:
             del self._lights[seq]

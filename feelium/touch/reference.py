@@ -29,6 +29,8 @@ import math
 import cv2
 import numpy as np
 
+from feelium.touch.buffers import Scratch
+
 REFERENCE_FLOOR = 1.0 / 64.0  # grey levels; far below the dark mask, far above denormals
 GAIN_LIMITS = (1e-3, 1e3)
 
@@ -64,6 +66,7 @@ class AdaptiveReference:
         self.last_t: float | None = None
         self.rebaselines = 0
         self._rate_cache: tuple[float, tuple[float, float, float]] | None = None
+        self._scratch = Scratch()  # per-frame temporaries of measure_rows and update (never the image itself)
 
     def reset(self) -> None:
         self.image = None
@@ -138,13 +141,18 @@ class AdaptiveReference:
             self.rows = None
             return None
         one = self.dtype_cast(1.0)
-        ratio = frame / self.image
+        buf = self._scratch
+        ratio = np.divide(frame, self.image, out=buf.get("rows.ratio", frame.shape, np.result_type(frame, self.image)))
         ratio *= self.dtype_cast(1.0 / self.gain)
         np.clip(ratio, one - self.dtype_cast(c), one + self.dtype_cast(c), out=ratio)
-        usable = (self.image >= self.dtype_cast(self.dark_level / self.gain)) & (frame < self.saturation_level)
+        dark = self.dtype_cast(self.dark_level / self.gain)
+        usable = np.greater_equal(self.image, dark, out=buf.like("rows.usable", frame, bool))
+        other = np.less(frame, self.saturation_level, out=buf.like("rows.other", frame, bool))
+        usable &= other
         if exclude is not None:
-            usable &= ~exclude
-        ratio[~usable] = one
+            usable &= np.logical_not(exclude, out=other)
+        np.logical_not(usable, out=usable)
+        np.copyto(ratio, one, where=usable)
         rows = ratio.mean(axis=1, keepdims=True, dtype=self.image.dtype)
         self.rows = rows
         return rows
@@ -177,19 +185,29 @@ class AdaptiveReference:
             # starts as an average, not as one noisy frame.
             alpha = 1.0 / (self.updates + 1)
         scale = self.expected_gain()
-        target = frame / scale if (self.rows is not None or self.gain != 1.0) else frame
+        buf = self._scratch
         image = self.image
+        if self.rows is not None or self.gain != 1.0:
+            target = np.divide(frame, scale, out=buf.get("update.target", frame.shape, np.result_type(frame, scale)))
+        else:
+            target = frame
         any_shadow = bool(shadow.any())
-        free = ~shadow if any_shadow else None
+        free = np.logical_not(shadow, out=buf.like("update.free", shadow)) if any_shadow else None
         cv2.accumulateWeighted(target, image, alpha, mask=None if free is None else free.view(np.uint8))
         if extra > 0.0:
             # Second step so the total rate where it got clearly brighter equals the bright rate.
-            brighter = np.greater(target, image * self._bright_factor)
+            bright = np.multiply(image, self._bright_factor, out=buf.like("update.bright", image))
+            shape = np.broadcast_shapes(target.shape, bright.shape)
+            brighter = np.greater(target, bright, out=buf.get("update.brighter", shape, bool))
             if free is not None:
                 brighter &= free
             cv2.accumulateWeighted(target, image, extra, mask=brighter.view(np.uint8))
         if any_shadow:
-            forced = shadow if anchored is None else (shadow & ~anchored)
+            if anchored is None:
+                forced = shadow
+            else:
+                forced = np.logical_not(anchored, out=buf.like("update.forced", shadow))
+                forced &= shadow
             cv2.accumulateWeighted(target, image, alpha_forced, mask=forced.view(np.uint8))
         np.maximum(image, self._floor, out=image)
 

@@ -35,6 +35,8 @@ from collections.abc import Callable, Hashable, Sequence
 import cv2
 import numpy as np
 
+from feelium.touch.buffers import Scratch
+
 
 def exposure_shares(
     shown: Sequence[float], t: float, exposure_s: float, latency_s: float
@@ -73,29 +75,40 @@ def predicted_exposure(
     exposure_s: float,
     latency_s: float,
     latency_sigma_s: float,
+    scratch: Scratch | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(light, spread) for the camera exposure centred on ``t``.
 
     ``frames``: (time shown, key) of the projector frames around ``t``, in time order; ``light_of(key)`` is a
     frame's predicted light (camera frame size, float32). ``light`` is the exposure-weighted mix at the assumed
     ``latency_s``; ``spread`` the largest absolute change of that mix when the latency is ``latency_s +-
-    latency_sigma_s`` (light adds linearly, so each is the same weighted sum).
+    latency_sigma_s`` (light adds linearly, so each is the same weighted sum). With ``scratch`` (once per camera
+    frame, :mod:`feelium.touch.buffers`) both results are its buffers, valid until the next call.
     """
     shown = [f[0] for f in frames]
+    buf = Scratch() if scratch is None else scratch
 
-    def mix(latency: float) -> np.ndarray:
+    def mix(latency: float, name: str) -> np.ndarray:
         out: np.ndarray | None = None
         for i, w in exposure_shares(shown, t, exposure_s, latency):
-            term = light_of(frames[i][1]) * np.float32(w)
-            out = term if out is None else out + term
+            light = light_of(frames[i][1])
+            dtype = np.result_type(light, np.float32)
+            if out is None:
+                out = np.multiply(light, np.float32(w), out=buf.get(name, light.shape, dtype))
+            else:
+                out += np.multiply(light, np.float32(w), out=buf.get("exposure.term", light.shape, dtype))
         assert out is not None
         return out
 
-    light = mix(latency_s)
+    light = mix(latency_s, "exposure.light")
+    spread = buf.like("exposure.spread", light)
     if latency_sigma_s <= 0.0:
-        return light, np.zeros_like(light)
-    spread = np.abs(mix(latency_s - latency_sigma_s) - light)
-    np.maximum(spread, np.abs(mix(latency_s + latency_sigma_s) - light), out=spread)
+        spread.fill(0)
+        return light, spread
+    np.abs(np.subtract(mix(latency_s - latency_sigma_s, "exposure.other"), light, out=spread), out=spread)
+    other = mix(latency_s + latency_sigma_s, "exposure.other")
+    np.abs(np.subtract(other, light, out=other), out=other)
+    np.maximum(spread, other, out=spread)
     return light, spread
 
 
