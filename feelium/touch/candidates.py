@@ -12,6 +12,11 @@ whose edge is far from its centre). Skin pressed on the membrane casts a shadow
 as sharp as the membrane's own scatter (and frustrates its reflection, a
 sharp extra loss), while a hand even 2 mm above it is blurred by its height,
 so the edge tells contact from a close hover where depth alone cannot.
+
+One shadow can hold several contacts (two fingers of one hand, two hands whose
+shadows overlap): each separate part of its core is a candidate of its own,
+and the core's pixel count and second moments are the contact's footprint
+(:mod:`feelium.touch.shape`).
 """
 
 from __future__ import annotations
@@ -34,7 +39,9 @@ class Candidate:
     area: int  # working pixels above candidate_depth
     edge: float  # steepest depth gradient near the core, depth per working pixel
     label: int  # component label in this frame's Segmentation
-    bbox: tuple[int, int, int, int]  # x, y, w, h in working pixels
+    bbox: tuple[int, int, int, int]  # x, y, w, h in working pixels (of the whole shadow)
+    core_area: int = 0  # working pixels of the core: the contact's footprint
+    core_cov: tuple[float, float, float] = (0.0, 0.0, 0.0)  # var x, var y, cov xy of the core, working px^2
 
 
 @dataclass(frozen=True)
@@ -63,8 +70,14 @@ def find_candidates(
     core_fraction: float,
     max_candidates: int,
     edge_radius: float = 10.0,
+    core_merge: float = 0.0,
 ) -> tuple[list[Candidate], Segmentation | None]:
-    """Candidates (largest first, working-image coordinates) and their segmentation (None when none)."""
+    """Candidates (largest shadow first, working-image coordinates) and their segmentation (None when none).
+
+    A shadow whose core falls apart into parts farther than ``core_merge`` working px from each other (two
+    fingertips of one hand, two hands whose shadows overlap) gives one candidate per part of at least
+    ``min_area`` px (the largest part always); the shadow's pixels are shared out to the nearest part.
+    """
     full_mask = (depth > threshold).view(np.uint8)
     bx, by, bw, bh = cv2.boundingRect(full_mask)
     if bw == 0 or bh == 0:
@@ -75,10 +88,11 @@ def find_candidates(
     count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=cv2.CV_32S)
     areas = stats[1:, cv2.CC_STAT_AREA]
     order = np.argsort(-areas, kind="stable")
+    merge_kernel = _disc(core_merge)
     found: list[Candidate] = []
     for index in order[:max_candidates]:
         area = int(areas[index])
-        if area < min_area:
+        if area < min_area or len(found) >= max_candidates:
             break
         label = int(index) + 1
         x0, y0, w, h = (int(v) for v in stats[label, :4])
@@ -89,24 +103,78 @@ def find_candidates(
         level = core_fraction * peak
         weights = values - level
         np.maximum(weights, 0.0, out=weights)
-        total = float(weights.sum())
         core = weights > 0
-        if total <= 0.0 or not np.isfinite(total):
+        if float(weights.sum()) <= 0.0 or not np.isfinite(weights.sum()):
             # A flat core (e.g. saturated depth 1.0 everywhere): fall back to the plain core centroid.
             core = values >= level
             weights = core.astype(depth.dtype)
-            total = float(weights.sum())
-        ys, xs = np.nonzero(core)
-        w_core = weights[ys, xs]
-        cx = bx + x0 + float(np.dot(xs, w_core)) / total
-        cy = by + y0 + float(np.dot(ys, w_core)) / total
-        core_depth = float(values[core].mean())
-        edge = steepest_gradient(
-            full_depth, (bx + x0 + int(xs.min()), by + y0 + int(ys.min()), bx + x0 + int(xs.max()), by + y0 + int(ys.max())),
-            edge_radius,
-        )
-        found.append(Candidate(cx, cy, peak, core_depth, area, edge, label, (bx + x0, by + y0, w, h)))
+        for part, part_area in _core_parts(core, inside, merge_kernel, min_area):
+            part_weights = np.where(part, weights, 0.0)
+            total = float(part_weights.sum())
+            ys, xs = np.nonzero(part)
+            w_core = part_weights[ys, xs]
+            cx = bx + x0 + float(np.dot(xs, w_core)) / total
+            cy = by + y0 + float(np.dot(ys, w_core)) / total
+            part_values = values[part]
+            edge = steepest_gradient(
+                full_depth,
+                (bx + x0 + int(xs.min()), by + y0 + int(ys.min()), bx + x0 + int(xs.max()), by + y0 + int(ys.max())),
+                edge_radius,
+            )
+            found.append(Candidate(
+                cx, cy, float(part_values.max()), float(part_values.mean()), part_area, edge, label,
+                (bx + x0, by + y0, w, h), int(xs.size), _covariance(xs, ys),
+            ))  # fmt: skip
+            if len(found) >= max_candidates:
+                break
     return found, Segmentation(labels, (bx, by))
+
+
+def _disc(radius: float) -> np.ndarray | None:
+    r = int(round(radius / 2))
+    return None if r <= 0 else cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+def _core_parts(
+    core: np.ndarray, inside: np.ndarray, kernel: np.ndarray | None, min_area: int
+) -> list[tuple[np.ndarray, int]]:
+    """The core's separate parts (bool masks, largest first) and the shadow area each one owns.
+
+    Parts closer than the kernel's width are joined (a pad whose core is split by
+    noise or a seam stays one contact); the shadow's pixels go to the nearest part.
+    """
+    grouped = core.view(np.uint8)
+    if kernel is not None:
+        grouped = cv2.dilate(grouped, kernel)
+    n, groups = cv2.connectedComponents(grouped, connectivity=8, ltype=cv2.CV_32S)
+    if n <= 2:
+        return [(core, int(np.count_nonzero(inside)))]
+    sizes = np.bincount(groups[core], minlength=n)[1:]
+    largest = int(np.argmax(sizes))
+    keep = [int(i) + 1 for i in np.argsort(-sizes, kind="stable") if sizes[i] >= min_area or i == largest]
+    if len(keep) == 1:
+        return [(core, int(np.count_nonzero(inside)))]
+    seeds = np.ones(core.shape, np.uint8)
+    for k in keep:
+        seeds[groups == k] = 0
+    # Every shadow pixel joins its nearest kept part (one label per connected group of zeros in ``seeds``).
+    _, nearest = cv2.distanceTransformWithLabels(seeds, cv2.DIST_L2, 3, labelType=cv2.DIST_LABEL_CCOMP)
+    out = []
+    for k in keep:
+        group = groups == k
+        owner = int(nearest[group][0])
+        out.append((group & core, int(np.count_nonzero(inside & (nearest == owner)))))
+    return out
+
+
+def _covariance(xs: np.ndarray, ys: np.ndarray) -> tuple[float, float, float]:
+    """(var x, var y, cov xy) of pixel centres, each pixel a unit square (+1/12 per axis)."""
+    if xs.size == 0:
+        return 0.0, 0.0, 0.0
+    fx, fy = xs.astype(np.float64), ys.astype(np.float64)
+    mx, my = fx.mean(), fy.mean()
+    dx, dy = fx - mx, fy - my
+    return float(np.dot(dx, dx) / xs.size + 1 / 12), float(np.dot(dy, dy) / xs.size + 1 / 12), float(np.dot(dx, dy) / xs.size)
 
 
 def steepest_gradient(depth: np.ndarray, box: tuple[int, int, int, int], radius: float) -> float:
