@@ -15,8 +15,9 @@ so the edge tells contact from a close hover where depth alone cannot.
 
 One shadow can hold several contacts (two fingers of one hand, two hands whose
 shadows overlap): each separate part of its core is a candidate of its own,
-and the core's pixel count and second moments are the contact's footprint
-(:mod:`feelium.touch.shape`).
+and its *footprint* (the part's shadow at least ``core_fraction`` of its core's
+mean depth: a pressed contact's plateau, up to its blurred edge) gives the
+contact's area and second moments (:mod:`feelium.touch.shape`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from feelium.touch.shape import axes_from_moments
 
 
 @dataclass(frozen=True)
@@ -40,8 +43,8 @@ class Candidate:
     edge: float  # steepest depth gradient near the core, depth per working pixel
     label: int  # component label in this frame's Segmentation
     bbox: tuple[int, int, int, int]  # x, y, w, h in working pixels (of the whole shadow)
-    core_area: int = 0  # working pixels of the core: the contact's footprint
-    core_cov: tuple[float, float, float] = (0.0, 0.0, 0.0)  # var x, var y, cov xy of the core, working px^2
+    footprint_area: int = 0  # working pixels of the contact's footprint (see find_candidates)
+    footprint_cov: tuple[float, float, float] = (0.0, 0.0, 0.0)  # var x, var y, cov xy of the footprint, working px^2
 
 
 @dataclass(frozen=True)
@@ -70,13 +73,14 @@ def find_candidates(
     core_fraction: float,
     max_candidates: int,
     edge_radius: float = 10.0,
-    core_merge: float = 0.0,
+    split_fraction: float = 0.0,
 ) -> tuple[list[Candidate], Segmentation | None]:
     """Candidates (largest shadow first, working-image coordinates) and their segmentation (None when none).
 
-    A shadow whose core falls apart into parts farther than ``core_merge`` working px from each other (two
-    fingertips of one hand, two hands whose shadows overlap) gives one candidate per part of at least
-    ``min_area`` px (the largest part always); the shadow's pixels are shared out to the nearest part.
+    A shadow whose core falls apart into parts between which its depth drops below ``split_fraction`` of the
+    core's mean depth (two fingertips of one hand, two hands whose shadows overlap) gives one candidate per part of at
+    least ``min_area`` px (the largest part always); the shadow's pixels are shared out to the nearest part.
+    0 never splits.
     """
     full_mask = (depth > threshold).view(np.uint8)
     bx, by, bw, bh = cv2.boundingRect(full_mask)
@@ -88,7 +92,6 @@ def find_candidates(
     count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=cv2.CV_32S)
     areas = stats[1:, cv2.CC_STAT_AREA]
     order = np.argsort(-areas, kind="stable")
-    merge_kernel = _disc(core_merge)
     found: list[Candidate] = []
     for index in order[:max_candidates]:
         area = int(areas[index])
@@ -108,7 +111,7 @@ def find_candidates(
             # A flat core (e.g. saturated depth 1.0 everywhere): fall back to the plain core centroid.
             core = values >= level
             weights = core.astype(depth.dtype)
-        for part, part_area in _core_parts(core, inside, merge_kernel, min_area):
+        for part, reach, part_area in _core_parts(values, core, inside, split_fraction * float(values[core].mean()), min_area):
             part_weights = np.where(part, weights, 0.0)
             total = float(part_weights.sum())
             ys, xs = np.nonzero(part)
@@ -116,6 +119,10 @@ def find_candidates(
             cx = bx + x0 + float(np.dot(xs, w_core)) / total
             cy = by + y0 + float(np.dot(ys, w_core)) / total
             part_values = values[part]
+            # The footprint: where the shadow is at least core_fraction of the core's *mean* depth. The peak of a
+            # large flat contact is the largest of many noisy pixels, so a level from it cuts into the plateau.
+            footprint = reach & (values >= core_fraction * float(part_values.mean()))
+            fys, fxs = np.nonzero(footprint)
             edge = steepest_gradient(
                 full_depth,
                 (bx + x0 + int(xs.min()), by + y0 + int(ys.min()), bx + x0 + int(xs.max()), by + y0 + int(ys.max())),
@@ -123,37 +130,49 @@ def find_candidates(
             )
             found.append(Candidate(
                 cx, cy, float(part_values.max()), float(part_values.mean()), part_area, edge, label,
-                (bx + x0, by + y0, w, h), int(xs.size), _covariance(xs, ys),
+                (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys),
             ))  # fmt: skip
             if len(found) >= max_candidates:
                 break
-    return found, Segmentation(labels, (bx, by))
+    return _drop_surrounding(found), Segmentation(labels, (bx, by))
 
 
-def _disc(radius: float) -> np.ndarray | None:
-    r = int(round(radius / 2))
-    return None if r <= 0 else cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+def _drop_surrounding(found: list[Candidate]) -> list[Candidate]:
+    """Of two candidates centred on each other's footprint, only the deeper one.
+
+    Two contacts cannot share a centre: one of them surrounds the other, like
+    the soft shadow of a torso curving away around the patch it presses (a
+    ring, split from the patch wherever the shadow dips between them). Skin on
+    the membrane is the deeper of the two (it frustrates the membrane's
+    reflection), so that one is the contact.
+    """
+    reach = [0.5 * axes_from_moments(*c.footprint_cov)[0] for c in found]
+    out = []
+    for i, c in enumerate(found):
+        if not any(
+            o.core_depth > c.core_depth and math.hypot(o.x - c.x, o.y - c.y) <= max(reach[i], reach[j])
+            for j, o in enumerate(found)
+        ):
+            out.append(c)
+    return out
 
 
 def _core_parts(
-    core: np.ndarray, inside: np.ndarray, kernel: np.ndarray | None, min_area: int
-) -> list[tuple[np.ndarray, int]]:
-    """The core's separate parts (bool masks, largest first) and the shadow area each one owns.
+    values: np.ndarray, core: np.ndarray, inside: np.ndarray, split_level: float, min_area: int
+) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """The core's separate parts (bool masks, largest first), the shadow each one owns (bool mask) and its area.
 
-    Parts closer than the kernel's width are joined (a pad whose core is split by
-    noise or a seam stays one contact); the shadow's pixels go to the nearest part.
+    Two parts are separate contacts when the shadow between them falls below
+    ``split_level``; the shadow's pixels go to the nearest part.
     """
-    grouped = core.view(np.uint8)
-    if kernel is not None:
-        grouped = cv2.dilate(grouped, kernel)
-    n, groups = cv2.connectedComponents(grouped, connectivity=8, ltype=cv2.CV_32S)
+    n, groups = cv2.connectedComponents((values >= split_level).view(np.uint8), connectivity=8, ltype=cv2.CV_32S)
     if n <= 2:
-        return [(core, int(np.count_nonzero(inside)))]
+        return [(core, inside, int(np.count_nonzero(inside)))]
     sizes = np.bincount(groups[core], minlength=n)[1:]
     largest = int(np.argmax(sizes))
     keep = [int(i) + 1 for i in np.argsort(-sizes, kind="stable") if sizes[i] >= min_area or i == largest]
     if len(keep) == 1:
-        return [(core, int(np.count_nonzero(inside)))]
+        return [(core, inside, int(np.count_nonzero(inside)))]
     seeds = np.ones(core.shape, np.uint8)
     for k in keep:
         seeds[groups == k] = 0
@@ -162,8 +181,8 @@ def _core_parts(
     out = []
     for k in keep:
         group = groups == k
-        owner = int(nearest[group][0])
-        out.append((group & core, int(np.count_nonzero(inside & (nearest == owner)))))
+        owned = inside & (nearest == int(nearest[group][0]))
+        out.append((group & core, owned, int(np.count_nonzero(owned))))
     return out
 
 

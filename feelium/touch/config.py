@@ -94,12 +94,13 @@ class TouchConfig:
     core_fraction: float = setting(
         0.75, "The darkening core is where depth >= this fraction of the candidate's peak depth.", min=0.05, max=0.99
     )
-    core_merge_px: float = setting(
-        8.0,
-        "Core parts of one shadow closer than this (camera px) are one contact; farther apart they are separate "
-        "contacts (two fingers in one hand's shadow). Below a finger pad's width, far below 5 cm.",
+    contact_split_fraction: float = setting(
+        0.5,
+        "Parts of one shadow's core are separate contacts (two fingertips in one hand's shadow) when its depth "
+        "between them falls below this fraction of the core's mean depth: a pressed contact blurred by the membrane's scatter "
+        "is at half its depth at its edge, so below half the skin between them is not on the membrane. 0: never split.",
         min=0.0,
-        max=500.0,
+        max=0.99,
     )
 
     # Contact shape (finger, palm, hug), see docs/touch.md "Contact shape".

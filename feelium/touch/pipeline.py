@@ -99,7 +99,6 @@ class TouchPipeline:
         g = self.geometry
         self._sigma = g.px(config.blur_sigma_px)
         self._edge_radius = g.px(config.contact_edge_radius_px)
-        self._core_merge = g.px(config.core_merge_px)
         self._per_camera_px = g.px(1.0)  # a gradient per working px times this is per camera px
         self._min_area = max(1, int(math.ceil(config.candidate_min_area_px / g.area_scale)))
         self._activity_area = config.activity_min_area_px
@@ -212,7 +211,7 @@ class TouchPipeline:
             core_fraction=cfg.core_fraction,
             max_candidates=cfg.max_candidates,
             edge_radius=self._edge_radius,
-            core_merge=self._core_merge,
+            split_fraction=cfg.contact_split_fraction,
         )
         observations = []
         kept = []
@@ -223,8 +222,8 @@ class TouchPipeline:
             u, v = skin_uv(self._roi, cx, cy)
             area_px = int(round(cand.area * self.geometry.area_scale))
             edge = cand.edge * self._per_camera_px
-            cov = self.geometry.cov_to_camera(cand.core_cov)
-            shape = contact_shape(cfg, cand.core_area * self.geometry.area_scale, cov)
+            cov = self.geometry.cov_to_camera(cand.footprint_cov)
+            shape = contact_shape(cfg, cand.footprint_area * self.geometry.area_scale, cov)
             reach = 0.5 * axes_from_moments(*cov)[0]
             observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge, shape, reach))
             kept.append(cand)

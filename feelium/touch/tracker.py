@@ -72,6 +72,7 @@ class Track:
     max_depth: float = 0.0
     velocity: tuple[float, float] = (0.0, 0.0)  # camera px per second, smoothed
     contact: ContactShape | None = None  # the footprint reported with events (largest kind while down)
+    widest: Observation | None = None  # the observation of the widest footprint while down (for ``up``)
 
     def predicted(self, t: float) -> tuple[float, float]:
         """Where the track should be at ``t``: its last position moved on by its velocity."""
@@ -126,7 +127,7 @@ class Tracker:
         cfg = self.config
         out = TrackerStep()
         matched = self._associate(t, observations)
-        merged = self._merged(t, observations, set(map(id, matched.values())))
+        shared = self._shared(t, observations, matched)
         for track in self.tracks:
             track.seen = False
         new_tracks = []
@@ -135,6 +136,8 @@ class Tracker:
             if track is None:
                 track = Track(last_seen_t=t, obs=obs)
                 new_tracks.append(track)
+            elif id(track) in shared:
+                continue
             elif t > track.last_seen_t:
                 vx, vy = (obs.x - track.obs.x) / (t - track.last_seen_t), (obs.y - track.obs.y) / (t - track.last_seen_t)
                 a = VELOCITY_SMOOTHING
@@ -142,8 +145,8 @@ class Tracker:
             track.obs = obs
             track.seen = True
             track.last_seen_t = t
-        for track, obs in merged:
-            # Seen, at its own last position; its last sighting and velocity stay, so the prediction runs on.
+        for track, obs in shared.values():
+            # Seen at its own last position; its last sighting and velocity stay, so its prediction runs on.
             track.obs = obs
             track.seen = True
         self.tracks.extend(new_tracks)
@@ -260,20 +263,28 @@ class Tracker:
             matched[oi] = self.tracks[ti]
         return matched
 
-    def _merged(self, t: float, observations: list[Observation], matched: set[int]) -> list[tuple[Track, Observation]]:
-        """Unmatched contacts that are down and predicted on another shadow's footprint (two shadows that touch
-        while crossing), for at most :data:`MERGED_MAX_S`: each is seen at its own last position with that
-        shadow's depth and edge."""
-        out = []
-        for track in self.tracks:
-            if id(track) in matched or not track.down or t - track.last_seen_t > MERGED_MAX_S:
-                continue
-            px, py = track.predicted(t)
-            for obs in observations:
-                if math.hypot(obs.x - px, obs.y - py) <= obs.reach + self.config.core_merge_px:
+    def _shared(
+        self, t: float, observations: list[Observation], matched: dict[int, Track]
+    ) -> dict[int, tuple[Track, Observation]]:
+        """Contacts that are down and predicted on a shadow that is not (only) theirs: two shadows that touch while
+        crossing, for at most :data:`MERGED_MAX_S`.
+
+        Each such contact (by ``id``) is seen at its own last position with that shadow's depth and edge, the one
+        the shadow was assigned to included: the merged shadow's centre is neither's fingertip.
+        """
+        out: dict[int, tuple[Track, Observation]] = {}
+        for index, obs in enumerate(observations):
+            involved = []
+            for track in self.tracks:
+                if not track.down or t - track.last_seen_t > MERGED_MAX_S or id(track) in out:
+                    continue
+                px, py = track.predicted(t)
+                if math.hypot(obs.x - px, obs.y - py) <= obs.reach + self.config.path_deadband_px:
+                    involved.append(track)
+            if len(involved) >= 2 or (len(involved) == 1 and matched.get(index) is not involved[0]):
+                for track in involved:
                     own = track.obs
-                    out.append((track, replace(obs, x=own.x, y=own.y, u=own.u, v=own.v, shape=own.shape, reach=own.reach)))
-                    break
+                    out[id(track)] = (track, replace(obs, x=own.x, y=own.y, u=own.u, v=own.v, shape=own.shape, reach=own.reach))
         return out
 
     def _advance(self, track: Track, t: float, touching: bool, events: list[TouchEvent]) -> None:
@@ -290,6 +301,7 @@ class Tracker:
                 track.touch_obs = track.obs
                 track.max_area = track.obs.area
                 track.max_depth = track.obs.depth
+                track.widest = track.obs
                 events.append(self._event(track, "down", t, None))
             return
         if touching:
@@ -299,6 +311,8 @@ class Tracker:
             track.touch_obs = obs
             track.max_area = max(track.max_area, obs.area)
             track.max_depth = max(track.max_depth, obs.depth)
+            if track.widest is None or obs.reach > track.widest.reach:
+                track.widest = obs
             ax, ay = track.path_anchor
             step = math.hypot(obs.x - ax, obs.y - ay)
             if step >= cfg.path_deadband_px:
@@ -321,6 +335,7 @@ class Tracker:
         track.event_id = None
         track.streak = 0
         track.touch_obs = None
+        track.contact = track.widest = None
         return event
 
     def _kind_so_far(self, track: Track, t: float) -> TouchKind | None:
@@ -335,12 +350,12 @@ class Tracker:
 
     def _event(self, track: Track, phase: str, t: float, kind: TouchKind | None) -> TouchEvent:
         obs = track.touch_obs or track.obs
-        if obs.shape is not None:
-            # Every event reports the current footprint except ``up``, which keeps the largest (as ``area``).
-            if track.contact is None:
-                track.contact = obs.shape
-            elif phase != "up":
-                track.contact = replace(obs.shape, contact=larger(track.contact.contact, obs.shape.contact))
+        # Every event reports the current footprint, ``up`` the widest (as ``area`` its largest), with the largest
+        # kind seen while down.
+        shown = track.widest if phase == "up" and track.widest is not None else obs
+        if shown.shape is not None:
+            what = shown.shape.contact if track.contact is None else larger(track.contact.contact, shown.shape.contact)
+            track.contact = replace(shown.shape, contact=what)
         return TouchEvent(
             id=track.event_id or 0,
             phase=phase,  # type: ignore[arg-type]
