@@ -78,9 +78,9 @@ def find_candidates(
     """Candidates (largest shadow first, working-image coordinates) and their segmentation (None when none).
 
     A shadow whose core falls apart into parts between which its depth drops below ``split_fraction`` of the
-    core's mean depth (two fingertips of one hand, two hands whose shadows overlap) gives one candidate per part of at
-    least ``min_area`` px (the largest part always); the shadow's pixels are shared out to the nearest part.
-    0 never splits.
+    core's mean depth (two fingertips of one hand, two hands whose shadows overlap) gives one candidate per part
+    of at least ``min_area`` px (the largest part always); the shadow's pixels are shared out to the nearest
+    part. 0 never splits. Of two candidates centred on each other's footprint only the deeper is kept.
     """
     full_mask = (depth > threshold).view(np.uint8)
     bx, by, bw, bh = cv2.boundingRect(full_mask)
@@ -111,7 +111,8 @@ def find_candidates(
             # A flat core (e.g. saturated depth 1.0 everywhere): fall back to the plain core centroid.
             core = values >= level
             weights = core.astype(depth.dtype)
-        for part, reach, part_area in _core_parts(values, core, inside, split_fraction * float(values[core].mean()), min_area):
+        split_level = split_fraction * float(values[core].mean())
+        for part, owned, part_area in _core_parts(values, core, inside, split_level, min_area):
             part_weights = np.where(part, weights, 0.0)
             total = float(part_weights.sum())
             ys, xs = np.nonzero(part)
@@ -121,7 +122,7 @@ def find_candidates(
             part_values = values[part]
             # The footprint: where the shadow is at least core_fraction of the core's *mean* depth. The peak of a
             # large flat contact is the largest of many noisy pixels, so a level from it cuts into the plateau.
-            footprint = reach & (values >= core_fraction * float(part_values.mean()))
+            footprint = owned & (values >= core_fraction * float(part_values.mean()))
             fys, fxs = np.nonzero(footprint)
             edge = steepest_gradient(
                 full_depth,

@@ -5,15 +5,15 @@ each track's *predicted* position (its last one moved on by its velocity) and
 this frame's shadows, within ``match_distance_px`` (an exact assignment: there
 are only a few contacts), so two simultaneous contacts keep their own ids even
 when they come close, and a swipe that crosses a held touch comes out on its
-own side. While the two shadows are one (the crossing itself), a contact that
-is down and whose predicted position lies on another shadow's footprint is
-kept where it was predicted rather than released: both ids survive. A touch is confirmed after ``down_frames`` consecutive touching frames
-and released after ``release_s`` of not touching (debouncing both ends). On
+own side. While the two shadows are one (the crossing itself), every contact
+that is down and predicted on a shadow that is not only its own is seen at its
+own last position, its prediction running on, rather than released or moved
+to the merged centre: both ids survive. A touch is confirmed after
+``down_frames`` consecutive touching frames and released after ``release_s`` of not touching (debouncing both ends). On
 release the contact is classified: a swipe when its fingertip path (with a
-jitter deadband) is long, else a hold when it lasted long, else a tap. Area is
-reported with every event so a palm or a lean-in hug is recognisable, and the contact's shape
-(:mod:`feelium.touch.shape`): a track keeps the largest kind it showed while down,
-since a palm lands heel first and a hug grows.
+jitter deadband) is long, else a hold when it lasted long, else a tap. Every
+event also says what touched (:mod:`feelium.touch.shape`): a track keeps the
+largest kind it showed while down, since a palm lands heel first and a hug grows.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from feelium.touch.gates import has_contact_edge, is_touching
 from feelium.touch.rolling import RollingMin
 from feelium.touch.shape import larger
 
-EXACT_MAX_OBSERVATIONS = 10  # beyond this many shadows in a frame the assignment is greedy (2^n states)
+EXACT_MAX_OBSERVATIONS = 6  # beyond this many shadows in a frame the assignment is greedy (2^n states)
 VELOCITY_SMOOTHING = 0.5  # weight of the newest frame-to-frame velocity in a track's velocity
 # A contact hidden in another's shadow stays down this long at most: a swipe crossing a held fingertip (two
 # pads, ~25 mm, at >= 25 mm/s) is through in a second, while a finger lifted beside a palm must still release.
@@ -45,7 +45,7 @@ class Observation:
     depth: float  # core depth
     area: int  # camera pixels
     edge: float  # steepest depth gradient near the fingertip, per camera px (contact edge)
-    shape: ContactShape | None = None  # the footprint (its core): what touched
+    shape: ContactShape | None = None  # the footprint: what touched
     reach: float = 0.0  # half the footprint's longest axis, camera px
 
 
