@@ -14,6 +14,8 @@ to :data:`JITTER_PX`:
 - ``two-partners``: two people, fingertips 150 mm apart, overlapping holds;
 - ``swipe-cross``: a fingertip held while another hand's fingertip (from the other side) swipes past it,
   their pads' centres 18 mm apart as they pass (two 16 mm fingers side by side), at 160 mm/s;
+- ``swipe-graze``: the same with the pads' centres 12 mm apart (the two fingertips, pointing at each other,
+  graze): their pads' shadows merge while they pass;
 - ``palm``: a hand pressed flat for 1.5 s;
 - ``palm-and-finger``: a flat hand and, 120 mm away, a fingertip;
 - ``hug``: a body leaning in, its chest pressed for 2 s.
@@ -121,9 +123,10 @@ def _scene(name: str, rng: np.random.Generator) -> Scene:
     if name == "two-partners":
         a, b = _press(x - 150, y, 1.0, 2.6, rng), _press(x + 150, y, 1.3, 2.3, rng)
         return Scene(name, 3.4, (a, b), (), (Truth(0, 0, 1.0, 2.6, "finger"), Truth(1, 0, 1.3, 2.3, "finger")))
-    if name == "swipe-cross":
-        held = _press(x, y + 18, 0.8, 3.4, rng)
-        sy = y - 18
+    if name in ("swipe-cross", "swipe-graze"):
+        gap = 18.0 if name == "swipe-cross" else 12.0  # px either side: pad centres 18 mm / 12 mm apart
+        held = _press(x, y + gap, 0.8, 3.4, rng)
+        sy = y - gap
         keys = (
             Keyframe(0.0, x - 170, sy, 60.0), Keyframe(1.3, x - 160, sy, 0.0), Keyframe(1.4, x - 160, sy, 0.0),
             Keyframe(2.6, x + 160, sy, 0.0), Keyframe(2.7, x + 160, sy, 0.0), Keyframe(3.3, x + 170, sy, 60.0),
@@ -143,7 +146,8 @@ def _scene(name: str, rng: np.random.Generator) -> Scene:
 
 
 SCENES = (
-    "one-finger", "two-finger-v", "two-hands-5cm", "two-partners", "swipe-cross", "palm", "palm-and-finger", "hug",
+    "one-finger", "two-finger-v", "two-hands-5cm", "two-partners", "swipe-cross", "swipe-graze", "palm",
+    "palm-and-finger", "hug",
 )  # fmt: skip
 
 
