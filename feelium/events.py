@@ -13,6 +13,7 @@ from typing import Any, Literal
 
 TouchPhase = Literal["down", "move", "up"]
 TouchKind = Literal["tap", "hold", "swipe"]
+ContactKind = Literal["finger", "palm", "hug"]  # what touched (the contact's shape), beside the gesture in time
 PresencePhase = Literal["approach", "update", "leave"]
 
 
@@ -24,11 +25,40 @@ def _rounded(value: float, digits: int) -> float | None:
 
 
 @dataclass(frozen=True)
+class ContactShape:
+    """What touched, from the contact's footprint (the deep core of its shadow), for interactions that react
+    to a palm or a hug rather than to a fingertip.
+
+    ``area_mm2``, ``major_mm`` and ``minor_mm`` are None when the camera's scale on the membrane is unknown;
+    ``elongation`` (major / minor) and ``orientation_deg`` (the major axis from the camera's x axis, image y
+    down, 0..180) need no scale.
+    """
+
+    contact: ContactKind
+    area_mm2: float | None
+    major_mm: float | None
+    minor_mm: float | None
+    elongation: float
+    orientation_deg: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "contact": self.contact,
+            "contact_area_mm2": None if self.area_mm2 is None else _rounded(self.area_mm2, 0),
+            "major_mm": None if self.major_mm is None else _rounded(self.major_mm, 1),
+            "minor_mm": None if self.minor_mm is None else _rounded(self.minor_mm, 1),
+            "elongation": _rounded(self.elongation, 2),
+            "orientation_deg": _rounded(self.orientation_deg, 1),
+        }
+
+
+@dataclass(frozen=True)
 class TouchEvent:
     """One phase of one contact on the membrane.
 
     ``t`` is the frame's time (in the daemon, its monotonic clock); ``x``/``y`` are camera pixels at the
-    recording's full resolution; ``u``/``v`` run 0..1 across the ROI.
+    recording's full resolution; ``u``/``v`` run 0..1 across the ROI. ``kind`` is the gesture in time (the
+    spec's tap/hold/swipe); ``shape`` says what touched (finger, palm or hug) and its footprint.
     """
 
     id: int
@@ -42,6 +72,7 @@ class TouchEvent:
     depth: float
     area: int
     anchor: float
+    shape: ContactShape | None = None
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
     def to_json(self) -> dict[str, Any]:
@@ -59,6 +90,8 @@ class TouchEvent:
             "area": int(self.area),
             "anchor": _rounded(self.anchor, 3),
         }
+        if self.shape is not None:
+            obj.update(self.shape.to_json())
         obj.update(self.extra)
         return obj
 

@@ -81,6 +81,15 @@ def message_schemas() -> dict[str, Any]:
             "px": NUM_OR_NULL | {"description": "Projector pixels (only with a projector calibration; null off the map)."},
             "py": NUM_OR_NULL,
             "region": STR_OR_NULL | {"description": "The skin region touched (only with a projector calibration)."},
+            "contact": {
+                "enum": ["finger", "palm", "hug"],
+                "description": "What touched, from the contact's footprint (kind is the gesture in time).",
+            },
+            "contact_area_mm2": NUM_OR_NULL | {"description": "The footprint's area on the membrane, mm^2 (null: scale unknown)."},
+            "major_mm": NUM_OR_NULL | {"description": "The footprint's long axis, mm (null: scale unknown)."},
+            "minor_mm": NUM_OR_NULL | {"description": "The footprint's short axis, mm (null: scale unknown)."},
+            "elongation": NUM_OR_NULL | {"description": "Long axis over short axis."},
+            "orientation_deg": NUM_OR_NULL | {"description": "The long axis from the camera's x axis (image y down), 0..180."},
         },
         "One phase of one contact on the membrane.",
     )

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from feelium.sim.body import Lean
 from feelium.sim.hand import Blob, HandPose
 
 HOVER_FLOOR_MM = 0.8  # a hand that is not touching never gets closer than this
@@ -97,6 +98,8 @@ class HandTrack:
     size: float = 1.0
     open_hand: bool = False
     left: bool = False
+    spread_mm: float = 0.0  # a V of two pressed fingertips this far apart (see HandPose)
+    flat: bool = False  # the hand flat: the keys place the palm's centre
     t_in: float = -math.inf  # the hand is in the scene during [t_in, t_out)
     t_out: float = math.inf
     press_ramp_s: float = 0.04  # the contact patch grows and shrinks over this time
@@ -138,7 +141,7 @@ class HandTrack:
                 press = max(0.45, ramp) * wobble
         return HandPose(
             x, y, h, heading=self.heading, pitch_deg=self.pitch_deg, press=press,
-            size=self.size, open_hand=self.open_hand, left=self.left,
+            size=self.size, open_hand=self.open_hand, left=self.left, spread_mm=self.spread_mm, flat=self.flat,
         )  # fmt: skip
 
     def contact_path(self, on: float, off: float, rate_hz: float = 30.0) -> np.ndarray:
@@ -162,3 +165,19 @@ class BlobTrack:
     def blob(self, t: float) -> Blob:
         x, y, _ = interpolate(self.keys, t)
         return Blob(x, y, self.radius_x, self.radius_y, self.height_mm)
+
+
+@dataclass(frozen=True)
+class LeanTrack:
+    """A body leaning in for a hug: keyframed centre and height (mm), pressed during ``contacts``."""
+
+    keys: tuple[Keyframe, ...]
+    contacts: tuple[tuple[float, float], ...] = ()
+    settle_s: float = 0.3  # the chest's footprint spreads over this time as the body settles against the skin
+
+    def lean(self, t: float) -> Lean:
+        x, y, h = interpolate(self.keys, t)
+        for on, off in self.contacts:
+            if on <= t < off:
+                return Lean(x, y, 0.0, press=max(0.2, min(1.0, (t - on) / self.settle_s, (off - t) / self.settle_s)))
+        return Lean(x, y, max(h, HOVER_FLOOR_MM))

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from feelium.sim.body import Lean
 from feelium.sim.camera import SensorParams, expose, gain_at
 from feelium.sim.hand import Blob, HandPose, hand_parts
 from feelium.sim.optics import OpticsParams, backlight, laser_banding, membrane_transmission
@@ -59,6 +60,7 @@ class SceneState:
 
     hands: tuple[HandPose, ...] = ()
     blobs: tuple[Blob, ...] = ()
+    leans: tuple[Lean, ...] = ()  # bodies leaning in (hugs)
     room: float = 1.0  # outside light level relative to the session's (1 = as calibrated)
     exposure: float = 1.0  # extra exposure factor (auto-exposure hunting), 1 = none
 
@@ -109,6 +111,10 @@ class SceneRenderer:
             contacts += c
         for blob in state.blobs:
             parts += blob.parts()
+        for lean in state.leans:
+            p, c = lean.parts(self.session.shadow.px_per_mm)
+            parts += p
+            contacts += c
         return parts, contacts
 
     def signal(self, t: float, state: SceneState | Sequence[SceneState]) -> np.ndarray:
@@ -144,7 +150,7 @@ class SceneRenderer:
             if self._room is not None:
                 free = 1.0 - found.occlusion
                 open_sky = free if open_sky is None else open_sky + free
-        unshadowed = len(states) - sum(1 for sub in states if sub.hands or sub.blobs or sub.room != 1.0)
+        unshadowed = len(states) - sum(1 for sub in states if sub.hands or sub.blobs or sub.leans or sub.room != 1.0)
         if transmission is not None or not isinstance(lit, float):
             clear = s.shadow.outside_share + (1.0 - s.shadow.outside_share) * lit
             total = clear * unshadowed if transmission is None else transmission + clear * unshadowed

@@ -12,6 +12,12 @@ whose edge is far from its centre). Skin pressed on the membrane casts a shadow
 as sharp as the membrane's own scatter (and frustrates its reflection, a
 sharp extra loss), while a hand even 2 mm above it is blurred by its height,
 so the edge tells contact from a close hover where depth alone cannot.
+
+One shadow can hold several contacts (two fingers of one hand, two hands whose
+shadows overlap): each separate part of its core is a candidate of its own,
+and its *footprint* (the part's shadow at least ``core_fraction`` of its core's
+mean depth: a pressed contact's plateau, up to its blurred edge) gives the
+contact's area and second moments (:mod:`feelium.touch.shape`).
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import cv2
 import numpy as np
 
 from feelium.touch.buffers import Scratch
+from feelium.touch.shape import axes_from_moments
 
 
 @dataclass(frozen=True)
@@ -36,7 +43,9 @@ class Candidate:
     area: int  # working pixels above candidate_depth
     edge: float  # steepest depth gradient near the core, depth per working pixel
     label: int  # component label in this frame's Segmentation
-    bbox: tuple[int, int, int, int]  # x, y, w, h in working pixels
+    bbox: tuple[int, int, int, int]  # x, y, w, h in working pixels (of the whole shadow)
+    footprint_area: int = 0  # working pixels of the contact's footprint (see find_candidates)
+    footprint_cov: tuple[float, float, float] = (0.0, 0.0, 0.0)  # var x, var y, cov xy of the footprint, working px^2
 
 
 @dataclass(frozen=True)
@@ -66,8 +75,14 @@ def find_candidates(
     max_candidates: int,
     edge_radius: float = 10.0,
     scratch: Scratch | None = None,
+    split_fraction: float = 0.0,
 ) -> tuple[list[Candidate], Segmentation | None]:
-    """Candidates (largest first, working-image coordinates) and their segmentation (None when none).
+    """Candidates (largest shadow first, working-image coordinates) and their segmentation (None when none).
+
+    A shadow whose core falls apart into parts between which its depth drops below ``split_fraction`` of the
+    core's mean depth (two fingertips of one hand, two hands whose shadows overlap) gives one candidate per part
+    of at least ``min_area`` px (the largest part always); the shadow's pixels are shared out to the nearest
+    part. 0 never splits. Of two candidates centred on each other's footprint only the deeper is kept.
 
     ``scratch`` holds the working-size mask (:mod:`feelium.touch.buffers`); nothing returned refers to it.
     """
@@ -87,7 +102,7 @@ def find_candidates(
     found: list[Candidate] = []
     for index in order[:max_candidates]:
         area = int(areas[index])
-        if area < min_area:
+        if area < min_area or len(found) >= max_candidates:
             break
         label = int(index) + 1
         x0, y0, w, h = cv2.boundingRect(np.equal(labels, label).view(np.uint8))
@@ -98,24 +113,95 @@ def find_candidates(
         level = core_fraction * peak
         weights = values - level
         np.maximum(weights, 0.0, out=weights)
-        total = float(weights.sum())
         core = weights > 0
-        if total <= 0.0 or not np.isfinite(total):
+        if float(weights.sum()) <= 0.0 or not np.isfinite(weights.sum()):
             # A flat core (e.g. saturated depth 1.0 everywhere): fall back to the plain core centroid.
             core = values >= level
             weights = core.astype(depth.dtype)
-            total = float(weights.sum())
-        ys, xs = np.nonzero(core)
-        w_core = weights[ys, xs]
-        cx = bx + x0 + float(np.dot(xs, w_core)) / total
-        cy = by + y0 + float(np.dot(ys, w_core)) / total
-        core_depth = float(values[core].mean())
-        edge = steepest_gradient(
-            full_depth, (bx + x0 + int(xs.min()), by + y0 + int(ys.min()), bx + x0 + int(xs.max()), by + y0 + int(ys.max())),
-            edge_radius,
-        )
-        found.append(Candidate(cx, cy, peak, core_depth, area, edge, label, (bx + x0, by + y0, w, h)))
-    return found, Segmentation(labels, (bx, by))
+        split_level = split_fraction * float(values[core].mean())
+        for part, owned, part_area in _core_parts(values, core, inside, split_level, min_area):
+            part_weights = np.where(part, weights, 0.0)
+            total = float(part_weights.sum())
+            ys, xs = np.nonzero(part)
+            w_core = part_weights[ys, xs]
+            cx = bx + x0 + float(np.dot(xs, w_core)) / total
+            cy = by + y0 + float(np.dot(ys, w_core)) / total
+            part_values = values[part]
+            # The footprint: where the shadow is at least core_fraction of the core's *mean* depth. The peak of a
+            # large flat contact is the largest of many noisy pixels, so a level from it cuts into the plateau.
+            footprint = owned & (values >= core_fraction * float(part_values.mean()))
+            fys, fxs = np.nonzero(footprint)
+            edge = steepest_gradient(
+                full_depth,
+                (bx + x0 + int(xs.min()), by + y0 + int(ys.min()), bx + x0 + int(xs.max()), by + y0 + int(ys.max())),
+                edge_radius,
+            )
+            found.append(Candidate(
+                cx, cy, float(part_values.max()), float(part_values.mean()), part_area, edge, label,
+                (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys),
+            ))  # fmt: skip
+            if len(found) >= max_candidates:
+                break
+    return _drop_surrounding(found), Segmentation(labels, (bx, by))
+
+
+def _drop_surrounding(found: list[Candidate]) -> list[Candidate]:
+    """Of two candidates centred on each other's footprint, only the deeper one.
+
+    Two contacts cannot share a centre: one of them surrounds the other, like
+    the soft shadow of a torso curving away around the patch it presses (a
+    ring, split from the patch wherever the shadow dips between them). Skin on
+    the membrane is the deeper of the two (it frustrates the membrane's
+    reflection), so that one is the contact.
+    """
+    reach = [0.5 * axes_from_moments(*c.footprint_cov)[0] for c in found]
+    out = []
+    for i, c in enumerate(found):
+        if not any(
+            o.core_depth > c.core_depth and math.hypot(o.x - c.x, o.y - c.y) <= max(reach[i], reach[j])
+            for j, o in enumerate(found)
+        ):
+            out.append(c)
+    return out
+
+
+def _core_parts(
+    values: np.ndarray, core: np.ndarray, inside: np.ndarray, split_level: float, min_area: int
+) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """The core's separate parts (bool masks, largest first), the shadow each one owns (bool mask) and its area.
+
+    Two parts are separate contacts when the shadow between them falls below
+    ``split_level``; the shadow's pixels go to the nearest part.
+    """
+    n, groups = cv2.connectedComponents((values >= split_level).view(np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    if n <= 2:
+        return [(core, inside, int(np.count_nonzero(inside)))]
+    sizes = np.bincount(groups[core], minlength=n)[1:]
+    largest = int(np.argmax(sizes))
+    keep = [int(i) + 1 for i in np.argsort(-sizes, kind="stable") if sizes[i] >= min_area or i == largest]
+    if len(keep) == 1:
+        return [(core, inside, int(np.count_nonzero(inside)))]
+    seeds = np.ones(core.shape, np.uint8)
+    for k in keep:
+        seeds[groups == k] = 0
+    # Every shadow pixel joins its nearest kept part (one label per connected group of zeros in ``seeds``).
+    _, nearest = cv2.distanceTransformWithLabels(seeds, cv2.DIST_L2, 3, labelType=cv2.DIST_LABEL_CCOMP)
+    out = []
+    for k in keep:
+        group = groups == k
+        owned = inside & (nearest == int(nearest[group][0]))
+        out.append((group & core, owned, int(np.count_nonzero(owned))))
+    return out
+
+
+def _covariance(xs: np.ndarray, ys: np.ndarray) -> tuple[float, float, float]:
+    """(var x, var y, cov xy) of pixel centres, each pixel a unit square (+1/12 per axis)."""
+    if xs.size == 0:
+        return 0.0, 0.0, 0.0
+    fx, fy = xs.astype(np.float64), ys.astype(np.float64)
+    mx, my = fx.mean(), fy.mean()
+    dx, dy = fx - mx, fy - my
+    return float(np.dot(dx, dx) / xs.size + 1 / 12), float(np.dot(dy, dy) / xs.size + 1 / 12), float(np.dot(dx, dy) / xs.size)
 
 
 def steepest_gradient(depth: np.ndarray, box: tuple[int, int, int, int], radius: float) -> float:

@@ -94,6 +94,44 @@ class TouchConfig:
     core_fraction: float = setting(
         0.75, "The darkening core is where depth >= this fraction of the candidate's peak depth.", min=0.05, max=0.99
     )
+    contact_split_fraction: float = setting(
+        0.5,
+        "Parts of one shadow's core are separate contacts (two fingertips in one hand's shadow) when its depth "
+        "between them falls below this fraction of the core's mean depth: a pressed contact blurred by the membrane's scatter "
+        "is at half its depth at its edge, so below half the skin between them is not on the membrane. 0: never split.",
+        min=0.0,
+        max=0.99,
+    )
+
+    # Contact shape (finger, palm, hug), see docs/touch.md "Contact shape".
+    px_per_mm: float = setting(
+        2.0,
+        "Camera pixels (of the input frame) per mm on the membrane, for contact areas and axes in mm; the nominal "
+        "640x480 rear camera over the front face. 0: unknown (figures in mm are null, classification assumes 2.0).",
+        min=0.0,
+        max=1000.0,
+    )
+    palm_min_area_mm2: float = setting(
+        1500.0,
+        "Contact footprint (mm^2) from which it is a palm: above a thumb pressed hard (4 cm^2) or two fingers "
+        "together (8 cm^2), below the heel of a palm alone (about 16 cm^2).",
+        min=1.0,
+        max=1e7,
+    )
+    hug_min_area_mm2: float = setting(
+        20000.0,
+        "Contact footprint (mm^2) from which it is a hug or lean-in: more than the whole palmar side of a large "
+        "adult hand (180-200 cm^2).",
+        min=1.0,
+        max=1e8,
+    )
+    hug_min_length_mm: float = setting(
+        230.0,
+        "A palm-sized footprint at least this long (mm) is a hug too (a forearm along the skin): longer than any "
+        "hand, wrist to fingertip 17-21 cm.",
+        min=1.0,
+        max=1e5,
+    )
 
     contact_edge_radius_px: float = setting(
         20.0,

@@ -64,6 +64,11 @@ class WorkingGeometry:
         x, y, _, _ = self.roi
         return x + (wx + 0.5) / sx - 0.5, y + (wy + 0.5) / sy - 0.5
 
+    def cov_to_camera(self, cov: tuple[float, float, float]) -> tuple[float, float, float]:
+        """A covariance (var x, var y, cov xy) in working px^2 in camera px^2."""
+        sx, sy = self.scale
+        return cov[0] / (sx * sx), cov[1] / (sy * sy), cov[2] / (sx * sy)
+
     def cut_roi(self, part: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """An ROI-size image at the working resolution, in the working dtype: a new array, or ``out`` (working size
         and dtype) filled with it."""

@@ -5,7 +5,8 @@ or does I/O, so the daemon, `feelium replay`, `feelium eval` and the tests run
 exactly the same code. Stages (each its own module):
 geometry (ROI at working resolution) -> reference (exposure gain, adaptive
 reference) -> depth (relative shadow depth, masked) -> candidates (components
-of smoothed depth, fingertip as core centroid) -> gates + tracker (events).
+of smoothed depth split into contacts, fingertip as core centroid, footprint
+shape) -> gates + tracker (events).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
 from feelium.touch.settle import depth_uncertainty
+from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
 from feelium.skin.coords import inside_roi, skin_uv
 
@@ -219,6 +221,7 @@ class TouchPipeline:
             max_candidates=cfg.max_candidates,
             edge_radius=self._edge_radius,
             scratch=buf,
+            split_fraction=cfg.contact_split_fraction,
         )
         observations = []
         kept = []
@@ -229,7 +232,10 @@ class TouchPipeline:
             u, v = skin_uv(self._roi, cx, cy)
             area_px = int(round(cand.area * self.geometry.area_scale))
             edge = cand.edge * self._per_camera_px
-            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge))
+            cov = self.geometry.cov_to_camera(cand.footprint_cov)
+            shape = contact_shape(cfg, cand.footprint_area * self.geometry.area_scale, cov)
+            reach = 0.5 * axes_from_moments(*cov)[0]
+            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge, shape, reach))
             kept.append(cand)
         step = self.tracker.step(t, observations, settled=self.settled)
         if self._margin_kernel is not None and darkened:

@@ -1,23 +1,37 @@
 """From per-frame shadow decisions to touch events (down, move, up) with ids and kinds.
 
-Shadows are associated frame to frame by nearest centre (greedy on distance,
-within ``match_distance_px``), so two or more simultaneous contacts keep their
-own ids. A touch is confirmed after ``down_frames`` consecutive touching frames
-and released after ``release_s`` of not touching (debouncing both ends). On
+Shadows are associated frame to frame by the smallest total distance between
+each track's *predicted* position (its last one moved on by its velocity) and
+this frame's shadows, within ``match_distance_px`` (an exact assignment: there
+are only a few contacts), so two simultaneous contacts keep their own ids even
+when they come close, and a swipe that crosses a held touch comes out on its
+own side. While the two shadows are one (the crossing itself), every contact
+that is down and predicted on a shadow that is not only its own is seen at its
+own last position, its prediction running on, rather than released or moved
+to the merged centre: both ids survive. A touch is confirmed after
+``down_frames`` consecutive touching frames and released after ``release_s`` of not touching (debouncing both ends). On
 release the contact is classified: a swipe when its fingertip path (with a
-jitter deadband) is long, else a hold when it lasted long, else a tap. Area is
-reported with every event so a palm or a lean-in hug is recognisable.
+jitter deadband) is long, else a hold when it lasted long, else a tap. Every
+event also says what touched (:mod:`feelium.touch.shape`): a track keeps the
+largest kind it showed while down, since a palm lands heel first and a hug grows.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
-from feelium.events import TouchEvent, TouchKind
+from feelium.events import ContactShape, TouchEvent, TouchKind
 from feelium.touch.config import TouchConfig
 from feelium.touch.gates import has_contact_edge, is_touching
 from feelium.touch.rolling import RollingMin
+from feelium.touch.shape import larger
+
+EXACT_MAX_OBSERVATIONS = 6  # beyond this many shadows in a frame the assignment is greedy (2^n states)
+VELOCITY_SMOOTHING = 0.5  # weight of the newest frame-to-frame velocity in a track's velocity
+# A contact hidden in another's shadow stays down this long at most: a swipe crossing a held fingertip (two
+# pads, ~25 mm, at >= 25 mm/s) is through in a second, while a finger lifted beside a palm must still release.
+MERGED_MAX_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -31,6 +45,8 @@ class Observation:
     depth: float  # core depth
     area: int  # camera pixels
     edge: float  # steepest depth gradient near the fingertip, per camera px (contact edge)
+    shape: ContactShape | None = None  # the footprint: what touched
+    reach: float = 0.0  # half the footprint's longest axis, camera px
 
 
 @dataclass
@@ -54,6 +70,14 @@ class Track:
     touch_obs: Observation | None = None
     max_area: int = 0
     max_depth: float = 0.0
+    velocity: tuple[float, float] = (0.0, 0.0)  # camera px per second, smoothed
+    contact: ContactShape | None = None  # the footprint reported with events (largest kind while down)
+    widest: Observation | None = None  # the observation of the widest footprint while down (for ``up``)
+
+    def predicted(self, t: float) -> tuple[float, float]:
+        """Where the track should be at ``t``: its last position moved on by its velocity."""
+        dt = max(t - self.last_seen_t, 0.0)
+        return self.obs.x + self.velocity[0] * dt, self.obs.y + self.velocity[1] * dt
 
     @property
     def down(self) -> bool:
@@ -102,7 +126,8 @@ class Tracker:
         """
         cfg = self.config
         out = TrackerStep()
-        matched = self._associate(observations)
+        matched = self._associate(t, observations)
+        shared = self._shared(t, observations, matched)
         for track in self.tracks:
             track.seen = False
         new_tracks = []
@@ -111,9 +136,19 @@ class Tracker:
             if track is None:
                 track = Track(last_seen_t=t, obs=obs)
                 new_tracks.append(track)
+            elif id(track) in shared:
+                continue
+            elif t > track.last_seen_t:
+                vx, vy = (obs.x - track.obs.x) / (t - track.last_seen_t), (obs.y - track.obs.y) / (t - track.last_seen_t)
+                a = VELOCITY_SMOOTHING
+                track.velocity = (a * vx + (1 - a) * track.velocity[0], a * vy + (1 - a) * track.velocity[1])
             track.obs = obs
             track.seen = True
             track.last_seen_t = t
+        for track, obs in shared.values():
+            # Seen at its own last position; its last sighting and velocity stay, so its prediction runs on.
+            track.obs = obs
+            track.seen = True
         self.tracks.extend(new_tracks)
 
         survivors = []
@@ -188,16 +223,37 @@ class Tracker:
         track.anchor = track.landed_depths.push(t, depth)
         return t - track.landed_t
 
-    def _associate(self, observations: list[Observation]) -> dict[int, Track]:
-        """Greedy nearest-centre matching of this frame's shadows to existing tracks."""
+    def _associate(self, t: float, observations: list[Observation]) -> dict[int, Track]:
+        """This frame's shadows matched to tracks: the smallest total distance from predicted positions.
+
+        Each pair within ``match_distance_px`` costs its distance minus twice that
+        limit (so a match always beats leaving a track and a shadow both unmatched);
+        the exact minimum is found by dynamic programming over the set of used
+        shadows, greedy on distance beyond :data:`EXACT_MAX_OBSERVATIONS`.
+        """
         limit = self.config.match_distance_px
-        pairs = []
-        for ti, track in enumerate(self.tracks):
-            for oi, obs in enumerate(observations):
-                d = math.hypot(obs.x - track.obs.x, obs.y - track.obs.y)
-                if d <= limit:
-                    pairs.append((d, ti, oi))
-        pairs.sort()
+        predicted = [track.predicted(t) for track in self.tracks]
+        near: list[list[tuple[float, int]]] = []
+        for px, py in predicted:
+            row = [(math.hypot(o.x - px, o.y - py), oi) for oi, o in enumerate(observations)]
+            near.append([(d, oi) for d, oi in row if d <= limit])
+        if len(observations) > EXACT_MAX_OBSERVATIONS:
+            return self._greedy(near)
+        best: dict[int, tuple[float, tuple[int, ...]]] = {0: (0.0, ())}
+        for row in near:
+            step: dict[int, tuple[float, tuple[int, ...]]] = {}
+            for used, (cost, chosen) in best.items():
+                options = [(cost, used, chosen + (-1,))]
+                options += [(cost + d - 2 * limit, used | 1 << oi, chosen + (oi,)) for d, oi in row if not used >> oi & 1]
+                for c, key, pick in options:
+                    if key not in step or c < step[key][0]:
+                        step[key] = (c, pick)
+            best = step
+        _, chosen = min(best.values(), key=lambda item: item[0])
+        return {oi: self.tracks[ti] for ti, oi in enumerate(chosen) if oi >= 0}
+
+    def _greedy(self, near: list[list[tuple[float, int]]]) -> dict[int, Track]:
+        pairs = sorted((d, ti, oi) for ti, row in enumerate(near) for d, oi in row)
         used_t: set[int] = set()
         matched: dict[int, Track] = {}
         for _, ti, oi in pairs:
@@ -206,6 +262,30 @@ class Tracker:
             used_t.add(ti)
             matched[oi] = self.tracks[ti]
         return matched
+
+    def _shared(
+        self, t: float, observations: list[Observation], matched: dict[int, Track]
+    ) -> dict[int, tuple[Track, Observation]]:
+        """Contacts that are down and predicted on a shadow that is not (only) theirs: two shadows that touch while
+        crossing, for at most :data:`MERGED_MAX_S`.
+
+        Each such contact (by ``id``) is seen at its own last position with that shadow's depth and edge, the one
+        the shadow was assigned to included: the merged shadow's centre is neither's fingertip.
+        """
+        out: dict[int, tuple[Track, Observation]] = {}
+        for index, obs in enumerate(observations):
+            involved = []
+            for track in self.tracks:
+                if not track.down or t - track.last_seen_t > MERGED_MAX_S or id(track) in out:
+                    continue
+                px, py = track.predicted(t)
+                if math.hypot(obs.x - px, obs.y - py) <= obs.reach + self.config.path_deadband_px:
+                    involved.append(track)
+            if len(involved) >= 2 or (len(involved) == 1 and matched.get(index) is not involved[0]):
+                for track in involved:
+                    own = track.obs
+                    out[id(track)] = (track, replace(obs, x=own.x, y=own.y, u=own.u, v=own.v, shape=own.shape, reach=own.reach))
+        return out
 
     def _advance(self, track: Track, t: float, touching: bool, events: list[TouchEvent]) -> None:
         cfg = self.config
@@ -221,6 +301,7 @@ class Tracker:
                 track.touch_obs = track.obs
                 track.max_area = track.obs.area
                 track.max_depth = track.obs.depth
+                track.widest = track.obs
                 events.append(self._event(track, "down", t, None))
             return
         if touching:
@@ -230,6 +311,8 @@ class Tracker:
             track.touch_obs = obs
             track.max_area = max(track.max_area, obs.area)
             track.max_depth = max(track.max_depth, obs.depth)
+            if track.widest is None or obs.reach > track.widest.reach:
+                track.widest = obs
             ax, ay = track.path_anchor
             step = math.hypot(obs.x - ax, obs.y - ay)
             if step >= cfg.path_deadband_px:
@@ -252,6 +335,7 @@ class Tracker:
         track.event_id = None
         track.streak = 0
         track.touch_obs = None
+        track.contact = track.widest = None
         return event
 
     def _kind_so_far(self, track: Track, t: float) -> TouchKind | None:
@@ -266,6 +350,12 @@ class Tracker:
 
     def _event(self, track: Track, phase: str, t: float, kind: TouchKind | None) -> TouchEvent:
         obs = track.touch_obs or track.obs
+        # Every event reports the current footprint, ``up`` the widest (as ``area`` its largest), with the largest
+        # kind seen while down.
+        shown = track.widest if phase == "up" and track.widest is not None else obs
+        if shown.shape is not None:
+            what = shown.shape.contact if track.contact is None else larger(track.contact.contact, shown.shape.contact)
+            track.contact = replace(shown.shape, contact=what)
         return TouchEvent(
             id=track.event_id or 0,
             phase=phase,  # type: ignore[arg-type]
@@ -278,4 +368,6 @@ class Tracker:
             depth=obs.depth,
             area=obs.area if phase != "up" else track.max_area,
             anchor=track.anchor,
+            shape=track.contact,
         )
+

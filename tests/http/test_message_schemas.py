@@ -17,7 +17,7 @@ import pytest
 from referencing import Registry, Resource
 from referencing.jsonschema import DRAFT202012
 
-from feelium.events import InteractionEvent, PresenceEvent
+from feelium.events import ContactShape, InteractionEvent, PresenceEvent, TouchEvent
 from feelium.http.openapi import openapi_document
 from feelium.http.speech_stream import decode_frame
 
@@ -47,6 +47,15 @@ def test_the_schemas_refuse_what_the_daemon_must_not_send() -> None:
     every_stream_op = [op for item in DOC["paths"].values() for op in item.values() if op.get("x-streaming")]
     assert all("x-sse-events" in op or "x-websocket-messages" in op or op["operationId"] == "videoMjpeg" for op in every_stream_op)
     assert set(DOC["components"]["schemas"]["Error"]["x-error-codes"]) >= {"bad_request", "unauthorized", "too_many_requests"}
+
+
+def test_a_touch_event_with_its_contact_shape_matches_its_schema() -> None:
+    shape = ContactShape("palm", 7800.0, 160.0, 78.0, 2.05, 91.0)
+    event = TouchEvent(3, "up", "hold", 2.5, 300.0, 210.0, 0.46, 0.42, 0.66, 45000, 0.6, shape).to_json()
+    check("TouchEvent", event)
+    check("TouchEvent", event | {"contact_area_mm2": None, "major_mm": None, "minor_mm": None})  # scale unknown
+    with pytest.raises(jsonschema.ValidationError):
+        check("TouchEvent", event | {"contact": "elbow"})
 
 
 async def _collect_ws(session: aiohttp.ClientSession, url: str, want: set[str], out: list[dict]) -> None:

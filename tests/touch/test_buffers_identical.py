@@ -1,7 +1,9 @@
 """Reusing the pipeline's working buffers frame after frame changes no result, bit for bit.
 
 The digests below are the outputs of the pipeline before its buffers were
-reused (commit 54df552), on seeded simulator frames that exercise every path
+reused (first commit 54df552; re-pinned from the tip of branch i17h, fdc84b2,
+the multi-touch candidates and shapes without buffer reuse, which the merged
+pipeline matched to the bit), on seeded simulator frames that exercise every path
 that writes a working-size array: touches (candidates, anchored regions, the
 forced update), an exposure step (the re-baseline), added room light (the
 illumination re-seed), a saturated patch, and the projected-light compensation
@@ -76,8 +78,8 @@ def _rounded(value: object) -> object:
 @pytest.mark.parametrize(
     ("projected", "expected"),
     [
-        (False, "4f285c631acc04437f14911fc6972ca5042a82376b8f49050292f116dc6ac25d"),
-        (True, "56b0dbfdb21a6040417f22772120901d723b8bd0f9a606b0c89b87d677ab43c4"),
+        (False, "c74fe3b0198123935d480841f0c05c302020cadea2c529679b3e380008a9d538"),
+        (True, "6ad27e01d52e0f0c0b7524f7f16ca299261f0c3efb2d4ecf750ebb11cdfdc718"),
     ],
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:
