@@ -127,7 +127,7 @@ class AltitudeObserver:
     vertical acceleration (buoyancy error, thrust error) learned slowly as the altitude loop's integral.
 
     How strongly the body answers a change of the modelled net force (the heave effectiveness: mass
-    and thrust may each be off by ``plant_uncertainty``) is learned against the rangefinder's own
+    and thrust may each be off by its axis' uncertainty) is learned against the rangefinder's own
     slope (:class:`RangeRate`), never against this observer's climb rate, which leans on the model.
     The modelled push is delayed to the slope's age, so both describe the same moment.
     """
@@ -143,7 +143,7 @@ class AltitudeObserver:
         self.reacquire = False  # set by a failsafe: the next reading restarts the observer
         self._gated_since: float | None = None
         self._restart_t = -math.inf
-        low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
+        low, high = effectiveness_bounds(config.uncertainty("heave"), reverse=False)
         self.effectiveness = Effectiveness(low, high, window_s=HEAVE_WINDOW_S, min_change=HEAVE_MIN_CHANGE)
         self.range_rate = RangeRate()
         self._pushes: deque[float] = deque(maxlen=max(1, round(self.range_rate.age_s * config.rate_hz)) + 1)
@@ -169,7 +169,7 @@ class AltitudeObserver:
         (and before the disturbance is learned) that rate may be off by half a metre per second while
         the altitude still looks close, and the loop would not damp a fall it cannot see. The slope
         is compared with the estimate brought back to the slope's age."""
-        gain = (self.c.plant_uncertainty - 1.0) / CLIMB_RATE_TAU_S
+        gain = (self.c.uncertainty("heave") - 1.0) / CLIMB_RATE_TAU_S
         slope = self.range_rate.rate(t) if gain > 0.0 else None
         if slope is None:
             return
@@ -249,7 +249,7 @@ class YawEstimate:
         self.heading: float | None = None
         self.rate_dps = 0.0
         self.last_heading_t: float | None = None
-        low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
+        low, high = effectiveness_bounds(config.uncertainty("yaw"), reverse=False)
         self.effectiveness = Effectiveness(low * _yaw_reverse_share(config), high, min_change=0.01,
                                            confirming_change=YAW_CONFIRMING_CHANGE_RAD_S)
 
@@ -272,7 +272,7 @@ class YawEstimate:
 def _yaw_reverse_share(config: FlightConfig) -> float:
     """A yaw torque is one motor forward, one reversed: the worst reverse ratio costs this share of it."""
     ratio = config.horizontal_reverse_ratio
-    worst = ratio / config.plant_uncertainty
+    worst = ratio / config.uncertainty("yaw")
     return (1.0 + worst) / (1.0 + ratio) if ratio > 0 else 1.0
 
 
@@ -290,8 +290,8 @@ class SurgeEstimate:
         self.last_flow_t: float | None = None
         self.last_measured: float | None = None
         self._drag_integral = 0.0
-        low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
-        reverse_low, _ = effectiveness_bounds(config.plant_uncertainty, reverse=True)
+        low, high = effectiveness_bounds(config.uncertainty("surge"), reverse=False)
+        reverse_low, _ = effectiveness_bounds(config.uncertainty("surge"), reverse=True)
         self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005,
                                       assuring_change=SURGE_ASSURING_CHANGE_M_S)
 
@@ -305,7 +305,7 @@ class SurgeEstimate:
         measured = None
         if flow_x_rad_s is not None and height_m is not None and height_m >= MIN_FLOW_HEIGHT_M:
             measured = flow_x_rad_s * height_m
-            tau = FLOW_TAU_TRUSTED_S / c.plant_uncertainty**FLOW_TAU_EXPONENT
+            tau = FLOW_TAU_TRUSTED_S / c.uncertainty("surge") ** FLOW_TAU_EXPONENT
             self.speed += (measured - self.speed) * (1.0 - math.exp(-dt / tau))
             self.last_flow_t, self.last_measured = t, measured
         # The air's drag brakes the body along with any push against a drift; added back (by the model),
