@@ -32,11 +32,9 @@ HEAVE_WINDOW_S = 0.5  # its effectiveness windows: longer than the surge's, the 
 HEAVE_MIN_CHANGE = 0.03  # m/s of modelled climb-rate change: below it a window is noise, not excitation
 RESIDUAL_GATE_M = 0.06  # about 4 sigma of the rangefinder's noise at 2 m
 RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and is learned
-# How fast the speed estimate follows the flow sensor (its noise is about 2 cm/s a sample): 3 s when the
-# model is trusted (a fitted config: the flow only corrects drift), 80 ms when it may be off by 2x (the
-# default: the flow is the speed), in between on a log scale (the exponent joins those two points).
+# How fast the speed estimate follows the flow sensor (its noise is about 2 cm/s a sample): see flow_tau_s.
 FLOW_TAU_TRUSTED_S = 3.0
-FLOW_TAU_EXPONENT = 5.23
+FLOW_TAU_BOX_S = 0.08  # at the shipped uncertainty, 2
 YAW_CONFIRMING_CHANGE_RAD_S = 0.035  # 2 deg/s of measured yaw-rate change in a window: a turn or a brake, not a nudge
 SURGE_ASSURING_CHANGE_M_S = 0.02  # a window must change the modelled speed this much to teach the stop's margin
 FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone
@@ -46,6 +44,22 @@ MIN_FLOW_HEIGHT_M = 0.08
 def air_drag(speed: float, quadratic: float) -> float:
     """The config's air drag (N) at ``speed``: quadratic, plus the small linear term of the body."""
     return quadratic * speed * abs(speed) + 0.02 * speed
+
+
+def flow_tau_s(uncertainty: float) -> float:
+    """How long the speed estimate trusts the model over the flow sensor, for a surge model this uncertain.
+
+    The model's speed drifts from the truth at a rate that grows with its error (an effectiveness off by up
+    to U^2 - 1), so over a time constant tau the estimate is biased by about (U^2 - 1) tau, while the flow's
+    noise it lets through falls as 1/sqrt(tau); their sum is least for tau proportional to (U^2 - 1)^(-2/3).
+    Anchored at 80 ms for the shipped box (2: the flow is the speed) and capped at 3 s for a model trusted
+    outright (1: the flow only corrects drift). The curve before this one (3 s / U^5.23) joined the same two
+    ends but still trusted a fitted model for 1.3-2.2 s at U 1.1-1.17: a surge model 10 % off then cruised
+    10 % off, since the flow had no time to correct it within a held command.
+    """
+    if uncertainty <= 1.0:
+        return FLOW_TAU_TRUSTED_S
+    return min(FLOW_TAU_TRUSTED_S, FLOW_TAU_BOX_S * (3.0 / (uncertainty * uncertainty - 1.0)) ** (2.0 / 3.0))
 
 
 def effectiveness_bounds(uncertainty: float, reverse: bool) -> tuple[float, float]:
@@ -305,7 +319,7 @@ class SurgeEstimate:
         measured = None
         if flow_x_rad_s is not None and height_m is not None and height_m >= MIN_FLOW_HEIGHT_M:
             measured = flow_x_rad_s * height_m
-            tau = FLOW_TAU_TRUSTED_S / c.uncertainty("surge") ** FLOW_TAU_EXPONENT
+            tau = flow_tau_s(c.uncertainty("surge"))
             self.speed += (measured - self.speed) * (1.0 - math.exp(-dt / tau))
             self.last_flow_t, self.last_measured = t, measured
         # The air's drag brakes the body along with any push against a drift; added back (by the model),
