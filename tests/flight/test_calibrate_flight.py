@@ -146,10 +146,10 @@ def test_on_noise_free_sensors_in_still_air_every_parameter_but_the_drags_split_
 RECOVERED = ("heave_mass_kg", "vertical_thrust_n")
 
 
-@pytest.mark.slow
 # 16: the fitted surge model is 10 % off (horizontal thrust -9 %): cruise 0.93 now that the speed estimate follows the
 # flow within a held command (0.89 before). 17: its loose vertical reverse ratio (+-17 %) no longer widens the
 # surge's box: cruise 0.97 (0.59 with one uncertainty for all axes).
+@pytest.mark.slow
 @pytest.mark.parametrize("index", [16, 17])
 def test_on_randomised_plants_the_buoyancy_scaled_parameters_are_recovered_and_the_tight_goals_met(index: int) -> None:
     plant = plant_set(index + 1)[index]
