@@ -34,7 +34,7 @@ RESIDUAL_GATE_M = 0.06  # about 4 sigma of the rangefinder's noise at 2 m
 RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and is learned
 # How fast the speed estimate follows the flow sensor (its noise is about 2 cm/s a sample): see flow_tau_s.
 FLOW_TAU_TRUSTED_S = 3.0
-FLOW_TAU_BOX_S = 0.08  # at the shipped uncertainty, 2
+FLOW_TAU_BOX_S = FLOW_TAU_TRUSTED_S / 2.0**5.23  # 80 ms at the shipped uncertainty, 2: exactly the value it had
 YAW_CONFIRMING_CHANGE_RAD_S = 0.035  # 2 deg/s of measured yaw-rate change in a window: a turn or a brake, not a nudge
 SURGE_ASSURING_CHANGE_M_S = 0.02  # a window must change the modelled speed this much to teach the stop's margin
 FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone

@@ -114,7 +114,7 @@ def test_a_steady_push_against_a_draft_does_not_make_a_large_push_count_on_a_low
 def test_the_speed_estimate_trusts_the_model_less_the_less_it_is_known(u: float, v: float) -> None:
     """3 s for a model trusted outright, 80 ms for the shipped box; a fitted surge model (1.05-1.2) is
     corrected by the flow well within a held command (it is then about 10 % off: the flow must win)."""
-    assert flow_tau_s(1.0) == 3.0 and flow_tau_s(2.0) == pytest.approx(0.08)
+    assert flow_tau_s(1.0) == 3.0 and flow_tau_s(2.0) == pytest.approx(0.08, rel=0.01)
     if u < v:
         assert flow_tau_s(u) >= flow_tau_s(v)
     assert flow_tau_s(1.05) < 0.8 and flow_tau_s(1.2) < 0.35
