@@ -8,6 +8,8 @@ from typing import Literal
 from feelium.flight.propellers import ONE_DIRECTION_REVERSE_RATIO, REVERSIBLE_3D_REVERSE_RATIO
 from feelium.settings import section, setting
 
+Axis = Literal["heave", "surge", "yaw"]
+
 
 @dataclass(frozen=True)
 class FlightSimConfig:
@@ -62,7 +64,7 @@ class FlightConfig:
     motor_lag_s: float = setting(
         0.08,
         "The motors' first-order lag (time constant) the model assumes: a real one is 40-150 ms;"
-        " `feelium calibrate flight` fits it. Stops plan on it times plant_uncertainty.",
+        " `feelium calibrate flight` fits it. Stops plan on it times the axis' uncertainty.",
         min=0.01,
         max=0.5,
     )
@@ -75,6 +77,20 @@ class FlightConfig:
         " have measured (docs/flight-robustness.md). 1 trusts the model: set it only for numbers fitted to this blimp.",
         min=1.0,
         max=4.0,
+    )
+    # One axis may be known far better than another: a fit pins the surge and yaw ratios within a few percent
+    # while the vertical reverse ratio stays loose (short reverse steps, a noisy rangefinder), and one number
+    # for all three kept the surge's learned speed cap for the heave's sake.
+    heave_uncertainty: float = setting(
+        0.0, "plant_uncertainty of the vertical axis alone (thrust per heave mass, its reverse ratio); 0: plant_uncertainty."
+        " `feelium calibrate flight` sets it from the fit.", min=0.0, max=4.0
+    )
+    surge_uncertainty: float = setting(
+        0.0, "plant_uncertainty of forward/backward alone (horizontal thrust per surge mass, reverse ratio); 0: plant_uncertainty.",
+        min=0.0, max=4.0
+    )
+    yaw_uncertainty: float = setting(
+        0.0, "plant_uncertainty of turns alone (torque per yaw inertia, reverse ratio); 0: plant_uncertainty.", min=0.0, max=4.0
     )
 
     # Gains (accelerations per unit error, so they do not change with mass).
@@ -130,6 +146,12 @@ class FlightConfig:
     battery_critical_v: float = setting(3.35, "Battery voltage reported as critical.", min=0.0, max=60.0)
 
     sim: FlightSimConfig = section(FlightSimConfig)
+
+    def uncertainty(self, axis: Axis) -> float:
+        """How far this axis of the real blimp may be from the config: its own key if set, else ``plant_uncertainty``
+        (a value below 1 counts as 1: nothing is known better than exactly)."""
+        own = {"heave": self.heave_uncertainty, "surge": self.surge_uncertainty, "yaw": self.yaw_uncertainty}[axis]
+        return max(own, 1.0) if own else self.plant_uncertainty
 
     @property
     def heave_mass(self) -> float:

@@ -32,11 +32,9 @@ HEAVE_WINDOW_S = 0.5  # its effectiveness windows: longer than the surge's, the 
 HEAVE_MIN_CHANGE = 0.03  # m/s of modelled climb-rate change: below it a window is noise, not excitation
 RESIDUAL_GATE_M = 0.06  # about 4 sigma of the rangefinder's noise at 2 m
 RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and is learned
-# How fast the speed estimate follows the flow sensor (its noise is about 2 cm/s a sample): 3 s when the
-# model is trusted (a fitted config: the flow only corrects drift), 80 ms when it may be off by 2x (the
-# default: the flow is the speed), in between on a log scale (the exponent joins those two points).
+# How fast the speed estimate follows the flow sensor (its noise is about 2 cm/s a sample): see flow_tau_s.
 FLOW_TAU_TRUSTED_S = 3.0
-FLOW_TAU_EXPONENT = 5.23
+FLOW_TAU_BOX_S = FLOW_TAU_TRUSTED_S / 2.0**5.23  # 80 ms at the shipped uncertainty, 2: exactly the value it had
 YAW_CONFIRMING_CHANGE_RAD_S = 0.035  # 2 deg/s of measured yaw-rate change in a window: a turn or a brake, not a nudge
 SURGE_ASSURING_CHANGE_M_S = 0.02  # a window must change the modelled speed this much to teach the stop's margin
 FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone
@@ -46,6 +44,23 @@ MIN_FLOW_HEIGHT_M = 0.08
 def air_drag(speed: float, quadratic: float) -> float:
     """The config's air drag (N) at ``speed``: quadratic, plus the small linear term of the body."""
     return quadratic * speed * abs(speed) + 0.02 * speed
+
+
+def flow_tau_s(uncertainty: float) -> float:
+    """How long the speed estimate trusts the model over the flow sensor, for a surge model this uncertain.
+
+    The model's speed drifts from the truth at a rate that grows with its error (an effectiveness off by up
+    to U^2 - 1), so over a time constant tau the estimate is biased by about (U^2 - 1) tau, while the flow's
+    noise it lets through falls as 1/sqrt(tau); their sum is least for tau proportional to (U^2 - 1)^(-2/3).
+    Anchored at the shipped box's 80 ms (2: the flow is the speed; exactly the old value, so the shipped
+    controller flies as it did: 0.07 % more moved a corner's hover reversals from 0.70 to 0.73 /s) and capped at 3 s for a model trusted
+    outright (1: the flow only corrects drift). The curve before this one (3 s / U^5.23) joined the same two
+    ends but still trusted a fitted model for 1.3-2.2 s at U 1.1-1.17: a surge model 10 % off then cruised
+    10 % off, since the flow had no time to correct it within a held command.
+    """
+    if uncertainty <= 1.0:
+        return FLOW_TAU_TRUSTED_S
+    return min(FLOW_TAU_TRUSTED_S, FLOW_TAU_BOX_S * (3.0 / (uncertainty * uncertainty - 1.0)) ** (2.0 / 3.0))
 
 
 def effectiveness_bounds(uncertainty: float, reverse: bool) -> tuple[float, float]:
@@ -127,7 +142,7 @@ class AltitudeObserver:
     vertical acceleration (buoyancy error, thrust error) learned slowly as the altitude loop's integral.
 
     How strongly the body answers a change of the modelled net force (the heave effectiveness: mass
-    and thrust may each be off by ``plant_uncertainty``) is learned against the rangefinder's own
+    and thrust may each be off by its axis' uncertainty) is learned against the rangefinder's own
     slope (:class:`RangeRate`), never against this observer's climb rate, which leans on the model.
     The modelled push is delayed to the slope's age, so both describe the same moment.
     """
@@ -143,7 +158,7 @@ class AltitudeObserver:
         self.reacquire = False  # set by a failsafe: the next reading restarts the observer
         self._gated_since: float | None = None
         self._restart_t = -math.inf
-        low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
+        low, high = effectiveness_bounds(config.uncertainty("heave"), reverse=False)
         self.effectiveness = Effectiveness(low, high, window_s=HEAVE_WINDOW_S, min_change=HEAVE_MIN_CHANGE)
         self.range_rate = RangeRate()
         self._pushes: deque[float] = deque(maxlen=max(1, round(self.range_rate.age_s * config.rate_hz)) + 1)
@@ -169,7 +184,7 @@ class AltitudeObserver:
         (and before the disturbance is learned) that rate may be off by half a metre per second while
         the altitude still looks close, and the loop would not damp a fall it cannot see. The slope
         is compared with the estimate brought back to the slope's age."""
-        gain = (self.c.plant_uncertainty - 1.0) / CLIMB_RATE_TAU_S
+        gain = (self.c.uncertainty("heave") - 1.0) / CLIMB_RATE_TAU_S
         slope = self.range_rate.rate(t) if gain > 0.0 else None
         if slope is None:
             return
@@ -249,7 +264,7 @@ class YawEstimate:
         self.heading: float | None = None
         self.rate_dps = 0.0
         self.last_heading_t: float | None = None
-        low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
+        low, high = effectiveness_bounds(config.uncertainty("yaw"), reverse=False)
         self.effectiveness = Effectiveness(low * _yaw_reverse_share(config), high, min_change=0.01,
                                            confirming_change=YAW_CONFIRMING_CHANGE_RAD_S)
 
@@ -272,7 +287,7 @@ class YawEstimate:
 def _yaw_reverse_share(config: FlightConfig) -> float:
     """A yaw torque is one motor forward, one reversed: the worst reverse ratio costs this share of it."""
     ratio = config.horizontal_reverse_ratio
-    worst = ratio / config.plant_uncertainty
+    worst = ratio / config.uncertainty("yaw")
     return (1.0 + worst) / (1.0 + ratio) if ratio > 0 else 1.0
 
 
@@ -290,8 +305,8 @@ class SurgeEstimate:
         self.last_flow_t: float | None = None
         self.last_measured: float | None = None
         self._drag_integral = 0.0
-        low, high = effectiveness_bounds(config.plant_uncertainty, reverse=False)
-        reverse_low, _ = effectiveness_bounds(config.plant_uncertainty, reverse=True)
+        low, high = effectiveness_bounds(config.uncertainty("surge"), reverse=False)
+        reverse_low, _ = effectiveness_bounds(config.uncertainty("surge"), reverse=True)
         self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005,
                                       assuring_change=SURGE_ASSURING_CHANGE_M_S)
 
@@ -305,7 +320,7 @@ class SurgeEstimate:
         measured = None
         if flow_x_rad_s is not None and height_m is not None and height_m >= MIN_FLOW_HEIGHT_M:
             measured = flow_x_rad_s * height_m
-            tau = FLOW_TAU_TRUSTED_S / c.plant_uncertainty**FLOW_TAU_EXPONENT
+            tau = flow_tau_s(c.uncertainty("surge"))
             self.speed += (measured - self.speed) * (1.0 - math.exp(-dt / tau))
             self.last_flow_t, self.last_measured = t, measured
         # The air's drag brakes the body along with any push against a drift; added back (by the model),

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from feelium.flight.config import FlightConfig
+from feelium.flight.config import Axis, FlightConfig
 from feelium.flight.estimators import YAW_RATE_TAU_S, AltitudeObserver, SurgeEstimate, ThrustModel, YawEstimate, air_drag
 from feelium.flight.mixer import Mixer
 from feelium.flight.references import (
@@ -43,9 +43,9 @@ HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
 LIMIT_BRAKE_SHARE = 0.35  # of the vertical authority a climb into a limit plans to brake with (the loop needs the rest)
 
 
-def worst_lag_s(config: FlightConfig) -> float:
-    """The longest motor lag the box allows, plus a cycle and the flow sensor's frame: what a stop must wait out."""
-    return config.motor_lag_s * config.plant_uncertainty + 0.1
+def worst_lag_s(config: FlightConfig, axis: Axis) -> float:
+    """The longest motor lag the axis' box allows, plus a cycle and the flow sensor's frame: what a stop must wait out."""
+    return config.motor_lag_s * config.uncertainty(axis) + 0.1
 
 
 class _Band:
@@ -173,7 +173,7 @@ class AltitudeLoop:
     def _climb_within_limits(self, z: float, obs: AltitudeObserver, climb: float) -> float:
         """The commanded climb rate, slowed near the altitude limits so that a held up or down stops there."""
         c = self.c
-        z_ahead = z + obs.vz * (HANDOVER_S + c.motor_lag_s * c.plant_uncertainty)
+        z_ahead = z + obs.vz * (HANDOVER_S + c.motor_lag_s * c.uncertainty("heave"))
         room = c.altitude_max_m - z_ahead if climb > 0 else z_ahead - c.altitude_min_m
         allowed = math.sqrt(2.0 * self._braking(obs, climb) * max(room, 0.0))
         return math.copysign(min(abs(climb), allowed), climb)
@@ -293,7 +293,7 @@ class HeadingLoop:
         torque = self.mixer.limit_yaw_nm() * BRAKE_SHARE
         decel = math.degrees(min(est.effectiveness.assured(1.0), est.effectiveness.assured(-1.0)) * torque / c.yaw_inertia_kg_m2)
         decel = min(decel, c.brake_yaw_dps2)
-        return min(c.yaw_rate_dps, stoppable_rate(decel, c.stop_within_s, worst_lag_s(c), 0.7 * STOPPED_YAW_DPS))
+        return min(c.yaw_rate_dps, stoppable_rate(decel, c.stop_within_s, worst_lag_s(c, "yaw"), 0.7 * STOPPED_YAW_DPS))
 
     def _accel_limits_dps2(self, est: YawEstimate, rate_dps: float) -> tuple[float, float]:
         c = self.c
@@ -350,7 +350,7 @@ class SurgeLoop:
         braking_n = (-lo if speed_sp >= 0 else hi) * BRAKE_SHARE
         effectiveness = est.effectiveness.assured(-1.0 if speed_sp >= 0 else 1.0)
         decel = min(effectiveness * braking_n / c.mass_kg, c.brake_m_s2 * 2.0)
-        cap = min(c.forward_speed_m_s, stoppable_rate(decel, c.stop_within_s, worst_lag_s(c), 0.7 * STOPPED_SPEED_M_S))
+        cap = min(c.forward_speed_m_s, stoppable_rate(decel, c.stop_within_s, worst_lag_s(c, "surge"), 0.7 * STOPPED_SPEED_M_S))
         if not est.measured(t):
             cap *= c.no_flow_speed_fraction
         return cap

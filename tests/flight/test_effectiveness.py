@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from feelium.flight.effectiveness import Effectiveness
-from feelium.flight.estimators import effectiveness_bounds
+from feelium.flight.estimators import effectiveness_bounds, flow_tau_s
 
 
 def _fly(estimator: Effectiveness, gains: tuple[float, float], seconds: float = 6.0, noise: float = 0.0, seed: int = 1) -> None:
@@ -108,3 +108,13 @@ def test_a_steady_push_against_a_draft_does_not_make_a_large_push_count_on_a_low
     assert estimator.values[1] < 1.5  # the hover windows taught a value far too low...
     assert estimator.confirmed(1.0) > 2.0  # ...the large push counts on what the real pushes showed
     assert Effectiveness(0.25, 4.0, confirming_change=0.035).confirmed(1.0) == 4.0  # untaught: the safe side
+
+
+@given(u=st.floats(1.0, 4.0), v=st.floats(1.0, 4.0))
+def test_the_speed_estimate_trusts_the_model_less_the_less_it_is_known(u: float, v: float) -> None:
+    """3 s for a model trusted outright, 80 ms for the shipped box; a fitted surge model (1.05-1.2) is
+    corrected by the flow well within a held command (it is then about 10 % off: the flow must win)."""
+    assert flow_tau_s(1.0) == 3.0 and flow_tau_s(2.0) == pytest.approx(0.08, rel=0.01)
+    if u < v:
+        assert flow_tau_s(u) >= flow_tau_s(v)
+    assert flow_tau_s(1.05) < 0.8 and flow_tau_s(1.2) < 0.35

@@ -133,6 +133,7 @@ def fitted_config(config: FlightConfig, fit: PlantFit) -> FlightConfig:
     def v(name: str) -> float:
         return float(fit.value(name))
 
+    axes = axis_uncertainties(fit)
     return replace(
         config,
         mass_kg=round(v("surge_mass_kg"), 4),
@@ -146,22 +147,38 @@ def fitted_config(config: FlightConfig, fit: PlantFit) -> FlightConfig:
         vertical_reverse_ratio=round(min(max(v("vertical_reverse_ratio"), 0.0), 1.0), 3),
         motor_deadband=round(float(min(max(0.5 * (v("horizontal_deadband") + v("vertical_deadband")), 0.0), 0.5)), 4),
         motor_lag_s=round(min(max(v("motor_lag_s"), 0.01), 0.5), 4),
-        plant_uncertainty=plant_uncertainty(fit),
+        plant_uncertainty=max(axes.values()),
+        heave_uncertainty=axes["heave"],
+        surge_uncertainty=axes["surge"],
+        yaw_uncertainty=axes["yaw"],
     )
 
 
-# What the controller's loops divide by: the thrust-to-inertia ratio of each axis and the reverse ratios (the
-# surge mass, thrust and yaw inertia scale together with one poorly determined factor and the loops see only
-# their ratios), and the heave mass (the buoyancy over it is the hover force). Their relative standard errors
-# set how far the fitted model may still be off (3 sigma), so a poor fit keeps a learning box instead of
-# trusting the model blindly.
-TRUSTED_RATIOS = ("surge_thrust_per_mass", "yaw_torque_per_inertia", "heave_thrust_per_mass", "heave_mass_kg",
-                  "horizontal_reverse_ratio", "vertical_reverse_ratio")
+# How far the fitted model may still be off, per axis, in the units the loops' learning box uses
+# (``estimators.effectiveness_bounds``: an axis' acceleration per modelled push lies within U^-2..U^2, a reverse
+# push's (surge) down to U^-3). The loops divide by each axis' thrust-to-inertia ratio (the surge mass, thrust and
+# yaw inertia scale together with one poorly determined factor and the loops see only their ratios) and by the
+# reverse ratios; the heave mass turns the weighed buoyancy into the hover push. Each may be off by 3 standard
+# errors (a factor 1 + 3 x its relative error), and U is the smallest box that holds that. One number for all
+# axes (the worst ratio's 1 + 3 x error, as before) let the loosest fit, usually the vertical reverse ratio from
+# short reverse steps, keep the surge's learned speed cap: cruise at 0.4-0.8 of the commanded speed.
+MAX_UNCERTAINTY, UNKNOWN_UNCERTAINTY = 4.0, 2.0
 
 
-def plant_uncertainty(fit: PlantFit) -> float:
-    worst = max(fit.values[name].relative for name in TRUSTED_RATIOS)
-    return round(min(4.0, 1.0 + 3.0 * worst), 2) if math.isfinite(worst) else 2.0
+def axis_uncertainties(fit: PlantFit) -> dict[str, float]:
+    """Per axis (heave, surge, yaw), the smallest ``plant_uncertainty`` whose box holds the fit's 3-sigma errors."""
+    def factor(name: str) -> float:
+        return 1.0 + 3.0 * fit.values[name].relative
+
+    def box(forward: float, reverse: float, reverse_power: float) -> float:
+        u = max(math.sqrt(forward), (forward * reverse) ** (1.0 / reverse_power))
+        return min(MAX_UNCERTAINTY, math.ceil(100.0 * u) / 100.0) if math.isfinite(u) else UNKNOWN_UNCERTAINTY
+
+    horizontal_reverse = factor("horizontal_reverse_ratio")
+    heave = max(factor("heave_thrust_per_mass"), factor("heave_mass_kg"))
+    return {"heave": box(heave, factor("vertical_reverse_ratio"), 2.0),  # the heave box is U^+-2 both ways
+            "surge": box(factor("surge_thrust_per_mass"), horizontal_reverse, 3.0),
+            "yaw": box(factor("yaw_torque_per_inertia"), horizontal_reverse, 3.0)}
 
 
 # The config keys the fit sets directly, and the fitted value each one is (for the uncertainty comment);
@@ -173,7 +190,10 @@ CONFIG_SOURCES = {"mass_kg": "surge_mass_kg", "heave_mass_kg": "heave_mass_kg", 
 DERIVED_NOTES = {"quadratic_drag": "the fitted drag at 0.15 m/s as this model's quadratic term (fitted terms above)",
                  "yaw_drag": "the fitted yaw drag at 20 deg/s as a quadratic term (fitted terms above)",
                  "motor_deadband": "mean of the two pairs' fitted deadbands (above)",
-                 "plant_uncertainty": "1 + 3 x the worst relative standard error of the ratios the loops use",
+                 "plant_uncertainty": "the worst axis below",
+                 "heave_uncertainty": "the box holding 3 sigma of the heave thrust per mass, heave mass and vertical reverse ratio",
+                 "surge_uncertainty": "the box holding 3 sigma of the surge thrust per mass and horizontal reverse ratio",
+                 "yaw_uncertainty": "the box holding 3 sigma of the yaw torque per inertia and horizontal reverse ratio",
                  "net_buoyancy_n": "weighed, not fitted: the fit's scale"}
 
 
@@ -212,6 +232,7 @@ def summary(calibration: Calibration) -> dict[str, Any]:
     fit = calibration.fit
     return {"values": {k: {"value": e.value, "stderr": e.stderr} for k, e in fit.values.items()},
             "residuals": fit.residuals, "plant_uncertainty": calibration.config.plant_uncertainty,
+            "axis_uncertainty": {axis: calibration.config.uncertainty(axis) for axis in ("heave", "surge", "yaw")},
             "flight_s": float(calibration.record.t[-1] - calibration.record.t[0]), "steps_flown": len(calibration.pilot.segments),
             "aborted": calibration.pilot.aborted}
 

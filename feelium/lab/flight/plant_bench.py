@@ -45,8 +45,9 @@ def _fly_calibrated(job: tuple[FlightConfig, Plant, bool]) -> dict[str, Any]:
     weighed = replace(config, net_buoyancy_n=fitted.net_buoyancy_n)
     row["tight_before"] = tight_goals(weighed, plant.blimp)
     row["tight_after"] = tight_goals(fitted, plant.blimp)
-    row["tight_after_trusted"] = tight_goals(replace(fitted, plant_uncertainty=1.0), plant.blimp)
-    row["plant_uncertainty"] = fitted.plant_uncertainty
+    trusted = replace(fitted, plant_uncertainty=1.0, heave_uncertainty=0.0, surge_uncertainty=0.0, yaw_uncertainty=0.0)
+    row["tight_after_trusted"] = tight_goals(trusted, plant.blimp)
+    row["plant_uncertainty"] = {axis: fitted.uncertainty(axis) for axis in ("heave", "surge", "yaw")}
     row["recovery_error"] = {k: round(v, 4) for k, v in recovery_errors(calibration.fit, plant.blimp).items()}
     return row
 
