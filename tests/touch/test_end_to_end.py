@@ -58,9 +58,11 @@ def test_eval_report_follows_the_spec_and_scores_well(dataset, tmp_path, capsys)
     margins = report["margins"]
     config = load_config(None).touch
     for sample in ("trials", "clips"):
-        instant, sustained = margins[sample]["instant"], margins[sample]["sustained"]
-        assert (instant["threshold"], sustained["threshold"]) == (config.instant_depth, config.anchor_threshold)
-        for m in (instant, sustained):
+        edge, instant, sustained = (margins[sample][gate] for gate in ("edge", "instant", "sustained"))
+        assert (edge["threshold"], instant["threshold"], sustained["threshold"]) == (
+            config.contact_edge, config.instant_depth, config.anchor_threshold
+        )
+        for m in (edge, instant, sustained):
             assert m["negative_margin"] == pytest.approx(m["threshold"] - m["hardest_negative"])
             assert m["positive_margin"] == pytest.approx(m["hardest_positive"] - m["threshold"])
     assert margins["trials"]["instant"]["negatives"] == sum(

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from feelium.lab.touch.margins import GateSeries, GateThresholds, gate_margin, instant_scores, margins
+from feelium.lab.touch.margins import GateSeries, GateThresholds, gate_margin, margins
 from feelium.recording import Contact
 
 GATES = GateThresholds(contact_edge=0.05, instant_depth=0.55, anchor_threshold=0.30, anchor_min_age_s=0.5)
@@ -17,13 +17,9 @@ def _series(anchor, core, edge, contacts=(), negative=False):
     return GateSeries(T, full(anchor), full(core), full(edge), tuple(contacts), negative)
 
 
-def test_the_instant_score_is_zero_without_a_contact_edge():
-    assert instant_scores(np.array([0.7, 0.7, 0.4]), np.array([0.06, 0.02, 0.05]), 0.05).tolist() == [0.7, 0.0, 0.4]
-
-
 def test_hardest_cases_and_signed_margins_per_gate():
-    deep_hover = _series(0.10, np.where(T > 2, 0.52, 0.2), 0.06, negative=True)  # landed, 0.52 deep: 0.03 below
-    blurred_hover = _series(0.0, 0.60, 0.03, negative=True)  # deeper, but no contact edge: the gate never sees it
+    deep_hover = _series(0.10, np.where(T > 2, 0.52, 0.2), 0.046, negative=True)  # 0.52 deep: 0.03 below
+    blurred_hover = _series(0.0, 0.50, 0.03, negative=True)  # no contact edge: held off by the edge gate
     tap_core = np.where((T >= 1.0) & (T < 1.3), 0.58, 0.0)
     tap = _series(np.where(tap_core > 0, 0.5, 0.0), tap_core, 0.06, [Contact(1.0, 1.3, None)])
     hold = _series(np.where(T >= 1.5, 0.35, 0.0), np.where(T >= 1.0, 0.62, 0.0), 0.06, [Contact(1.0, 3.0, None)])
@@ -33,6 +29,8 @@ def test_hardest_cases_and_signed_margins_per_gate():
     assert m["instant"]["hardest_positive"] == pytest.approx(0.58)  # the tap is the shallower press
     assert m["instant"]["positive_margin"] == pytest.approx(0.03)
     assert (m["instant"]["negatives"], m["instant"]["positives"]) == (2, 2)
+    assert m["edge"]["negative_margin"] == pytest.approx(0.004)  # the sharpest hover, 0.004 short of landing
+    assert m["edge"]["positive_margin"] == pytest.approx(0.01)
     # The tap (0.3 s) is shorter than anchor_min_age_s: not a positive of the sustained gate.
     assert m["sustained"]["positives"] == 1
     assert m["sustained"]["hardest_positive"] == pytest.approx(0.35)

@@ -74,7 +74,8 @@ def sweep(
 def format_table(report: dict[str, Any]) -> str:
     lines = [
         f"sensing-floor sweep, video black: scale {report['scale']}, seed {report['seed']}, {'/'.join(report['labels'])}",
-        f"{'floor':>6}{'light':>7}{'recall':>8}{'tp/n':>7}{'neg fired':>11}{'instant neg/pos margin':>24}{'sustained neg/pos margin':>26}",
+        f"{'floor':>6}{'light':>7}{'recall':>8}{'tp/n':>7}{'neg fired':>11}"
+        + "".join(f"{gate + ' neg/pos margin':>26}" for gate in ("edge", "instant", "sustained")),
     ]
 
     def num(v: float | None) -> str:
@@ -85,8 +86,7 @@ def format_table(report: dict[str, Any]) -> str:
         lines.append(
             f"{r['sensing_floor']:>6.2f}{r['light']:>7.2f}{r['recall'] if r['recall'] is not None else float('nan'):>8.3f}"
             f"{r['tp']:>4}/{r['tp'] + r['fn']:<2}{r['negatives_fired']:>6} / {r['negatives']:<3}"
-            f"{num(g['instant']['negative_margin']):>12}{num(g['instant']['positive_margin']):>12}"
-            f"{num(g['sustained']['negative_margin']):>13}{num(g['sustained']['positive_margin']):>13}"
+            + "".join(f"{num(g[gate]['negative_margin']):>13}{num(g[gate]['positive_margin']):>13}" for gate in g)
         )
     return "\n".join(lines)
 

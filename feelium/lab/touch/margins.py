@@ -14,10 +14,14 @@ smallest positive one; the margins are ``threshold - hardest negative`` and
 trials, and their size is how much closer a hover may come (or how much
 shallower a press may get) before the gate's decision flips.
 
-The gates' per-frame scores, as the pipeline decides (``feelium.touch.gates``):
+The gates' per-frame scores, as the pipeline sees them (``feelium.touch.gates``):
 
-- *instant*: the deepest candidate's core depth on a frame where it has a
-  contact edge, else 0 (a shadow without an edge cannot pass the gate);
+- *edge*: the deepest candidate's contact edge (landing needs it at least
+  ``contact_edge``);
+- *instant*: the deepest candidate's core depth, with or without an edge: the
+  instant gate fires on a core past both thresholds, so its two margins are
+  read together (a hover deep enough for the depth threshold is held off by
+  the edge margin alone);
 - *sustained*: the anchoring score (the rolling minimum since landing, 0
   without an edge). A contact shorter than ``anchor_min_age_s`` can never pass
   it by design (taps are the instant gate's), so only touch trials whose
@@ -59,12 +63,6 @@ class GateSeries:
     negative: bool  # a negative trial (hover, disturbance, empty) or a hover clip
 
 
-def instant_scores(core_depth: np.ndarray, edge: np.ndarray, contact_edge: float) -> np.ndarray:
-    """Per frame, the core depth the instant gate sees: 0 where the deepest shadow has no contact edge."""
-    core, sharp = np.asarray(core_depth, float), np.asarray(edge, float) >= contact_edge
-    return np.where(sharp, core, 0.0)
-
-
 def gate_margin(negatives: Iterable[float], positives: Iterable[float], threshold: float) -> dict[str, Any]:
     """Hardest negative and positive scores and their signed distances to ``threshold`` (None when absent)."""
     neg, pos = list(negatives), list(positives)
@@ -95,19 +93,20 @@ def margins(
     widen: tuple[float, float] = (0.0, 0.0),
     per_contact: bool = False,
 ) -> dict[str, dict[str, Any]]:
-    """Per gate (``instant``, ``sustained``), :func:`gate_margin` over ``recordings``.
+    """Per gate (``edge``, ``instant``, ``sustained``), :func:`gate_margin` over ``recordings``.
 
     ``widen`` = (before, after): how far each labelled contact is widened when
     looking for its positive score (the trial scoring's window; clips use none).
     A trial is one positive (detected when any of its contacts is);
     ``per_contact`` makes every contact its own positive, as a clip's presses are.
     """
-    neg: dict[str, list[float]] = {"instant": [], "sustained": []}
-    pos: dict[str, list[float]] = {"instant": [], "sustained": []}
+    thresholds = {"edge": gates.contact_edge, "instant": gates.instant_depth, "sustained": gates.anchor_threshold}
+    neg: dict[str, list[float]] = {gate: [] for gate in thresholds}
+    pos: dict[str, list[float]] = {gate: [] for gate in thresholds}
     for rec in recordings:
         if rec.t.size == 0:
             continue
-        series = {"instant": instant_scores(rec.core_depth, rec.edge, gates.contact_edge), "sustained": rec.anchor}
+        series = {"edge": rec.edge, "instant": rec.core_depth, "sustained": rec.anchor}
         if rec.negative:
             for gate, scores in series.items():
                 neg[gate].append(float(scores.max()))
@@ -123,7 +122,4 @@ def margins(
                 best = _max_within(rec.t, scores, windows)
                 if best is not None:
                     pos[gate].append(best)
-    return {
-        "instant": gate_margin(neg["instant"], pos["instant"], gates.instant_depth),
-        "sustained": gate_margin(neg["sustained"], pos["sustained"], gates.anchor_threshold),
-    }
+    return {gate: gate_margin(neg[gate], pos[gate], threshold) for gate, threshold in thresholds.items()}
