@@ -5,7 +5,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from feelium.lab.touch.calibrate import ClipSeries, fit_centred_threshold, fit_edge, fit_gates
+from feelium.lab.touch.calibrate import ClipSeries, _fit_samples, fit_centred_threshold, fit_edge, fit_gates, margin_threshold
+from feelium.lab.touch.evaluate import fit_threshold, split_clip
 
 
 def test_a_clean_gap_is_split_in_the_middle():
@@ -52,3 +53,64 @@ def test_fits_use_only_the_first_sixty_percent_and_name_what_is_missing():
     assert fit.values()["contact_edge"] == pytest.approx(edge, abs=1e-4)
     with pytest.raises(ValueError, match="'hover' clip"):
         fit_gates(clips[:1], edge)
+
+
+def _press_and_hover_clips(seed: int, press_peak: float = 0.62, hover_peak: float = 0.30):
+    """A contact clip of 1.5 s presses 1 s apart and a hover clip that now and then lands shallow, both 60 s.
+
+    Anchoring scores grow from the landing to a press's depth; the hover's wobble lands for a few frames
+    at a time at up to ``hover_peak`` (seeded, deterministic).
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 60.0, 1 / 15)
+    phase = t % 2.5
+    contact = (phase >= 0.5) & (phase < 2.0)
+    press = np.where(contact, press_peak - 0.08 * rng.random(t.size), 0.0)
+    press *= 1.0 - 0.05 * rng.random(t.size // 38 + 1).repeat(38)[: t.size]  # press to press, a little shallower
+    landed = np.clip((phase - 0.5 - 2 / 15) / 0.5, 0.0, 1.0)  # no score before landing, then the rolling minimum grows
+    hover = np.where(rng.random(t.size) < 0.1, hover_peak * rng.random(t.size), 0.0)
+    hover[rng.integers(0, int(0.5 * t.size))] = hover_peak  # the hardest hover, inside the fitted 60 %
+    clips = [
+        ClipSeries("contact", t, anchor=press * landed * 0.9, core_depth=press, edge=np.where(contact, 0.06, 0.0), contact=contact),
+        ClipSeries("hover", t, anchor=hover * 0.9, core_depth=1.6 * hover, edge=np.zeros(t.size), contact=np.zeros(t.size, bool)),
+    ]
+    return clips
+
+
+def _fit_part_max(clip: ClipSeries, series: str) -> float:
+    return float(getattr(clip, series)[split_clip(clip.t)].max())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_hover_a_little_closer_than_the_fitted_clips_does_not_fire(seed):
+    clips = _press_and_hover_clips(seed)
+    fit = fit_gates(clips, 0.05)
+    assert not fit.warnings
+    hover = clips[1]
+    for gate, series in ((fit.anchor_threshold, "anchor"), (fit.instant_depth, "core_depth")):
+        hardest = _fit_part_max(hover, series)
+        # Held out: the hardest hover's approach 10 % deeper must stay below the gate ...
+        assert 1.10 * hardest < gate
+        # ... while every press of the held-out 40 % still passes it.
+        contact = clips[0]
+        held = ~split_clip(contact.t) & contact.contact
+        assert getattr(contact, series)[held].max() >= gate
+    # The balanced-accuracy fit alone sits just above the hardest hover: the closer hover would fire.
+    pos, neg = _fit_samples(clips, "anchor")
+    assert fit_threshold(pos, neg) < 1.10 * _fit_part_max(hover, "anchor")
+
+
+def test_the_rule_is_half_the_gap_and_at_least_two_hover_spreads():
+    assert margin_threshold(0.2, 0.6, 0.01) == pytest.approx(0.4)
+    assert margin_threshold(0.2, 0.6, 0.15) == pytest.approx(0.5)  # two spreads beyond half the gap
+    assert margin_threshold(0.2, 0.6, 0.2) is None  # two spreads reach the hardest press
+    assert margin_threshold(0.5, 0.45, 0.0) is None  # a press shallower than a hover
+
+
+def test_a_gap_too_small_warns_and_falls_back_to_balanced_accuracy():
+    clips = _press_and_hover_clips(0, press_peak=0.36, hover_peak=0.32)
+    fit = fit_gates(clips, 0.05)
+    assert any("anchor_threshold" in w and "balanced accuracy" in w for w in fit.warnings)
+    pos, neg = _fit_samples(clips, "anchor")
+    assert fit.anchor_threshold == pytest.approx(fit_threshold(pos, neg))
+    assert "# warning: anchor_threshold" in fit.to_toml()

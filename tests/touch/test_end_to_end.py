@@ -54,8 +54,23 @@ def test_eval_report_follows_the_spec_and_scores_well(dataset, tmp_path, capsys)
     assert report["sustained"]["auc"] is not None and report["sustained"]["auc"] >= 0.95
     assert report["sustained"]["balanced_accuracy_holdout"] >= 0.9
     assert figure.stat().st_size > 1000
+    # Added keys (issue 17 point 5): each gate's hardest cases against the threshold in use.
+    margins = report["margins"]
+    config = load_config(None).touch
+    for sample in ("trials", "clips"):
+        edge, instant, sustained = (margins[sample][gate] for gate in ("edge", "instant", "sustained"))
+        assert (edge["threshold"], instant["threshold"], sustained["threshold"]) == (
+            config.contact_edge, config.instant_depth, config.anchor_threshold
+        )
+        for m in (edge, instant, sustained):
+            assert m["negative_margin"] == pytest.approx(m["threshold"] - m["hardest_negative"])
+            assert m["positive_margin"] == pytest.approx(m["hardest_positive"] - m["threshold"])
+    assert margins["trials"]["instant"]["negatives"] == sum(
+        e["n"] for label, e in trials["by_label"].items() if label in ("hover", "disturbance", "empty")
+    )
     out = capsys.readouterr().out
     assert "precision / recall / F1" in out
+    assert "margins trials, instant" in out
 
 
 def test_calibrate_writes_a_fragment_that_eval_accepts(dataset, tmp_path, capsys):

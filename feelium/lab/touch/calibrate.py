@@ -9,24 +9,48 @@ from the contact clip's contact frames (positives) and the hover clip's frames
   middle of the range of equally good thresholds, so the margin to both sides
   is the same; the clips are then replayed with it, because the anchoring
   score counts from each landing on a contact edge;
-- ``anchor_threshold``: the sustained-anchoring score threshold with the best
-  balanced accuracy;
-- ``instant_depth``: just above the deepest core any hover frame showed (plus
-  a small margin), so the instant gate never fires on that hover; it is kept
-  at least as high as the fitted anchor threshold.
+- ``anchor_threshold`` and ``instant_depth`` by the margin rule below, the
+  instant gate kept at least as high as the anchor threshold.
+
+**The margin rule** (issue 17, point 5). A threshold fitted just above the
+hardest hover of one minute of clips fires on the first hover that comes a
+little closer. So each depth gate's threshold is placed from the two hardest
+cases, not from the best balanced accuracy alone:
+
+- the hardest negative ``n``: the largest score of any hover frame (for the
+  instant gate any hover frame's core depth, landed or not: a core one edge
+  wobble away from landing is as close as a landed one);
+- the hardest positive ``p``: the smallest, over the contact clip's presses,
+  of the press's largest score (a press is detected when its score passes
+  once, so that is what must clear the threshold);
+- ``sigma``: the spread (standard deviation) of the hover's closest
+  approaches, its frames' nonzero scores in their top ``CLOSEST_SHARE``: how
+  much one close approach differs from the next, so how much closer than the
+  hardest one the next may plausibly come;
+- ``threshold = n + max(MARGIN_FRACTION * (p - n), MARGIN_SIGMAS * sigma)``:
+  half the gap (equal margins to both sides), and never closer to the hardest
+  hover than ``MARGIN_SIGMAS`` spreads.
+
+When the rule cannot hold (``p <= n``, or ``n + MARGIN_SIGMAS * sigma >= p``:
+the clips do not separate presses from hovers by that much), the threshold
+falls back to the best balanced accuracy (the paper's fit) and the fit carries
+a warning saying which gate and by how much; `calibrate touch` prints it and
+writes it into the fragment, so the thin margin is never silent.
 
 The remaining 40 % is left for `feelium eval` to judge the fit.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from feelium.lab.touch.evaluate import balanced_accuracy_curve, fit_threshold, split_clip
 
-INSTANT_MARGIN = 0.04
+MARGIN_FRACTION = 0.5  # the threshold sits this far into the gap from the hardest hover to the hardest press
+MARGIN_SIGMAS = 2.0  # ... and at least this many hover spreads above the hardest hover
+CLOSEST_SHARE = 0.1  # the hover spread is that of its closest approaches: this top share of its nonzero scores
 
 
 @dataclass(frozen=True)
@@ -42,12 +66,43 @@ class ClipSeries:
 
 
 @dataclass(frozen=True)
+class GateFit:
+    """One depth gate's threshold and the cases it was placed between."""
+
+    threshold: float
+    hardest_negative: float
+    hardest_positive: float
+    sigma: float
+    warning: str | None  # set when the margin rule could not hold and the balanced-accuracy fit was used
+
+    def margins(self) -> dict[str, float]:
+        return {
+            "hardest_negative": round(self.hardest_negative, 4),
+            "hardest_positive": round(self.hardest_positive, 4),
+            "negative_margin": round(self.threshold - self.hardest_negative, 4),
+            "positive_margin": round(self.hardest_positive - self.threshold, 4),
+        }
+
+
+@dataclass(frozen=True)
 class Fit:
     contact_edge: float
-    anchor_threshold: float
-    instant_depth: float
+    anchor: GateFit
+    instant: GateFit
     positives: int
     negatives: int
+
+    @property
+    def anchor_threshold(self) -> float:
+        return self.anchor.threshold
+
+    @property
+    def instant_depth(self) -> float:
+        return self.instant.threshold
+
+    @property
+    def warnings(self) -> list[str]:
+        return [g.warning for g in (self.anchor, self.instant) if g.warning]
 
     def values(self) -> dict[str, float]:
         return {
@@ -56,12 +111,27 @@ class Fit:
             "instant_depth": round(self.instant_depth, 4),
         }
 
+    def summary(self) -> list[str]:
+        """One line per depth gate: threshold, hardest hover and press, margins; then the warnings."""
+        lines = []
+        for name, gate in (("anchor_threshold", self.anchor), ("instant_depth", self.instant)):
+            m = gate.margins()
+            lines.append(
+                f"{name} {gate.threshold:.4f}: hardest hover {m['hardest_negative']:.4f} "
+                f"(margin {m['negative_margin']:+.4f}), hardest press {m['hardest_positive']:.4f} "
+                f"(margin {m['positive_margin']:+.4f}), hover spread {gate.sigma:.4f}"
+            )
+        return lines + [f"warning: {w}" for w in self.warnings]
+
     def to_toml(self) -> str:
         lines = [
             "# Fitted by `feelium calibrate touch` on the first 60 % of the contact and hover clips",
             f"# ({self.positives} contact frames, {self.negatives} hover frames).",
-            "[touch]",
+            f"# Margin rule: threshold = hardest hover + max({MARGIN_FRACTION} x gap to the hardest press, "
+            f"{MARGIN_SIGMAS} x hover spread).",
         ]
+        lines += [f"# {line}" for line in self.summary()]
+        lines.append("[touch]")
         lines += [f"{key} = {value!r}" for key, value in self.values().items()]
         return "\n".join(lines) + "\n"
 
@@ -118,17 +188,66 @@ def fit_edge(clips: list[ClipSeries]) -> float:
     return fit_centred_threshold(*_fit_samples(clips, "edge"))
 
 
+def _press_maxima(clips: list[ClipSeries], series: str) -> np.ndarray:
+    """The largest value of ``series`` over each press (run of contact frames) of the contact clips.
+
+    Only presses that end inside the first 60 % count (one cut by the split is
+    not a shallower press, only a shorter look at one), unless none does: then
+    the contact runs inside the first 60 %, cut or not.
+    """
+    whole: list[float] = []
+    cut: list[float] = []
+    for clip in clips:
+        if clip.label != "contact":
+            continue
+        fit = split_clip(clip.t)
+        values = getattr(clip, series)
+        whole += [float(values[a:b].max()) for a, b in _runs(clip.contact) if b < fit.size and fit[b]]
+        cut += [float(values[a:b].max()) for a, b in _runs(clip.contact & fit)]
+    return np.asarray(whole or cut, float)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of each run of True in ``mask``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def hardest_cases(press_maxima: np.ndarray, hover: np.ndarray) -> tuple[float, float, float]:
+    """(hardest hover n, hardest press p, hover spread sigma) as the margin rule defines them."""
+    seen = hover[hover > 0.0]
+    closest = seen[seen >= np.quantile(seen, 1.0 - CLOSEST_SHARE)] if seen.size else seen
+    return float(hover.max()), float(press_maxima.min()), float(closest.std()) if closest.size > 1 else 0.0
+
+
+def margin_threshold(n: float, p: float, sigma: float) -> float | None:
+    """The margin rule's threshold between hardest hover ``n`` and hardest press ``p``; None when it cannot hold."""
+    margin = max(MARGIN_FRACTION * (p - n), MARGIN_SIGMAS * sigma)
+    return n + margin if p > n and n + margin < p else None
+
+
+def _gate_fit(name: str, pos_frames: np.ndarray, hover: np.ndarray, press_maxima: np.ndarray) -> GateFit:
+    """One gate by the margin rule, else by balanced accuracy with a warning naming the gate and the gap."""
+    n, p, sigma = hardest_cases(press_maxima, hover)
+    ruled = margin_threshold(n, p, sigma)
+    if ruled is not None:
+        return GateFit(ruled, n, p, sigma, None)
+    fallback = fit_threshold(pos_frames, hover)
+    assert fallback is not None
+    warning = (
+        f"{name}: the hardest press ({p:.4f}) is not {MARGIN_SIGMAS:g} hover spreads ({MARGIN_SIGMAS * sigma:.4f}) "
+        f"above the hardest hover ({n:.4f}); fitted by balanced accuracy instead ({fallback:.4f}): "
+        "a hover a little closer than these clips' may fire; record more or closer hovers, or check the setup"
+    )
+    return GateFit(float(fallback), n, p, sigma, warning)
+
+
 def fit_gates(clips: list[ClipSeries], contact_edge: float) -> Fit:
     """Fit the depth thresholds on clips replayed with ``contact_edge``; ValueError naming what is missing."""
     pos, neg = _fit_samples(clips, "anchor")
-    threshold = fit_threshold(pos, neg)
-    assert threshold is not None
-    _, hover_core = _fit_samples(clips, "core_depth")
-    instant = float(min(max(float(hover_core.max()) + INSTANT_MARGIN, threshold), 0.99))
-    return Fit(
-        contact_edge=contact_edge,
-        anchor_threshold=float(threshold),
-        instant_depth=instant,
-        positives=int(pos.size),
-        negatives=int(neg.size),
-    )
+    pos_core, hover_core = _fit_samples(clips, "core_depth")
+    anchor = _gate_fit("anchor_threshold", pos, neg, _press_maxima(clips, "anchor"))
+    instant = _gate_fit("instant_depth", pos_core, hover_core, _press_maxima(clips, "core_depth"))
+    if instant.threshold < anchor.threshold:  # a press deep enough for the sustained gate is never refused at once
+        instant = replace(instant, threshold=anchor.threshold)
+    return Fit(contact_edge=contact_edge, anchor=anchor, instant=instant, positives=int(pos.size), negatives=int(neg.size))

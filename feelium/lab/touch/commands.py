@@ -14,11 +14,12 @@ import numpy as np
 
 from feelium.daemon.config import load_config
 from feelium.lab.plot import Series, line_plot
-from feelium.recording import Recording, RecordingError, find_recordings
+from feelium.recording import NEGATIVE_LABELS, Recording, RecordingError, find_recordings
 from feelium.lab.touch.skips import Skips
 from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
+from feelium.lab.touch.margins import GateSeries, GateThresholds
 from feelium.lab.touch.replay import ReplayResult, relative_name, replay_recording
 
 
@@ -132,8 +133,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(text, encoding="utf-8")
         print(f"wrote {args.out}: " + ", ".join(f"{k} = {v}" for k, v in fit.values().items()))
+        for line in fit.summary():
+            print(line)
     else:
         sys.stdout.write(text)
+    for warning in fit.warnings:
+        print(f"feelium calibrate touch: warning: {warning}", file=sys.stderr)
     return skips.finish()
 
 
@@ -145,13 +150,16 @@ def scoring_input(root: Path, result: ReplayResult) -> TrialData | ClipData:
     labels = result.recording.labels
     assert labels is not None
     if labels.clip:
-        return ClipData(labels, result.t, result.anchor)
+        return ClipData(labels, result.t, result.anchor, result.core_depth, result.edge)
     return TrialData(
         name=relative_name(root, result.recording.path),
         labels=labels,
         events=result.events,
         activity=bool(result.activity.any()),
         max_area=float(result.area.max()) if result.area.size else 0.0,
+        series=GateSeries(
+            result.t, result.anchor, result.core_depth, result.edge, labels.contacts, labels.label in NEGATIVE_LABELS
+        ),
     )
 
 
@@ -179,7 +187,8 @@ def evaluate_dataset(
         raise RecordingError(root, "holds no labelled recording to evaluate")
     seconds = np.concatenate(timings) if timings else np.zeros(0)
     width, height = (config.width, config.height)
-    report = build_report(dataset_name or str(root), trials, clips, seconds, width, height)
+    gates = GateThresholds(config.contact_edge, config.instant_depth, config.anchor_threshold, config.anchor_min_age_s)
+    report = build_report(dataset_name or str(root), trials, clips, seconds, width, height, gates)
     return report, clips
 
 
@@ -187,6 +196,7 @@ def run_eval(args: argparse.Namespace) -> int:
     config = _touch_config(args.config)
     root = Path(args.dataset)
     fitted: dict[str, float] | None = None
+    fit_warnings: list[str] = []
     if args.fit_on_clips:
         try:
             # quiet: the scoring pass below meets the same bad recordings and reports them once
@@ -197,10 +207,14 @@ def run_eval(args: argparse.Namespace) -> int:
             return 1
         fitted = fit.values()
         config = replace(config, **fitted)
+        fit_warnings = fit.warnings
+        for warning in fit_warnings:
+            print(f"feelium eval: --fit-on-clips: warning: {warning}", file=sys.stderr)
     skips = Skips("eval")
     report, clips = evaluate_dataset(root, config, dataset_name=args.dataset, skips=skips)
     report["touch_config"] = {
         "fitted_on_clips": fitted is not None,
+        "fit_warnings": fit_warnings,
         "contact_edge": config.contact_edge,
         "instant_depth": config.instant_depth,
         "anchor_threshold": config.anchor_threshold,
@@ -253,6 +267,29 @@ def _fmt(value: Any, digits: int = 3) -> str:
     return str(value)
 
 
+def _margin_rows(margins: dict[str, Any] | None) -> list[tuple[str, str]]:
+    """One row per gate and sample: hardest negative and positive scores, each with its margin to the threshold."""
+    rows: list[tuple[str, str]] = []
+    for sample in ("trials", "clips"):
+        gates = (margins or {}).get(sample)
+        if not gates:
+            continue
+        for gate, m in gates.items():
+            rows.append(
+                (
+                    f"margins {sample}, {gate}",
+                    f"threshold {m['threshold']:.3f}: hardest negative {_fmt(m['hardest_negative'])} "
+                    f"({_signed(m['negative_margin'])}), hardest positive {_fmt(m['hardest_positive'])} "
+                    f"({_signed(m['positive_margin'])})",
+                )
+            )
+    return rows
+
+
+def _signed(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:+.3f}"
+
+
 def format_report(report: dict[str, Any]) -> str:
     """A readable table of the report."""
     t = report["trials"]
@@ -297,6 +334,7 @@ def format_report(report: dict[str, Any]) -> str:
                 f"{sp['ms_per_frame']['median']:.3f} ms median, {sp['ms_per_frame']['p95']:.3f} ms p95, {sp['fps']:.0f} fps",
             )
         )
+    rows += _margin_rows(report.get("margins"))
     cfg = report.get("touch_config")
     if cfg:
         rows.append(

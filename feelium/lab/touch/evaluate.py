@@ -9,12 +9,13 @@ null), never omitted and never invented.
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from feelium.events import TouchEvent
+from feelium.lab.touch.margins import GateSeries, GateThresholds, margins
 from feelium.recording import NEGATIVE_LABELS, TOUCH_LABELS, Contact, Labels
 
 WIDEN_BEFORE_S = 0.2
@@ -46,6 +47,7 @@ class TrialData:
     events: list[TouchEvent]
     activity: bool
     max_area: float
+    series: GateSeries | None = None  # per-frame gate scores, for the margins (None: not kept)
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,8 @@ class ClipData:
     labels: Labels
     t: np.ndarray
     anchor: np.ndarray
+    core_depth: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    edge: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def group_touches(events: list[TouchEvent]) -> list[Touch]:
@@ -336,6 +340,26 @@ def speed_report(seconds_per_frame: np.ndarray, width: int, height: int) -> dict
     }
 
 
+def score_margins(trials: list[TrialData], clips: list[ClipData], gates: GateThresholds) -> dict[str, Any]:
+    """Each gate's margins (:mod:`feelium.lab.touch.margins`) on the trials and, apart, on the clips.
+
+    Trials: one score per trial, contacts widened as the trial scoring widens
+    them. Clips: the hover clip's frames against each press of the contact clip
+    (the clips are where ``calibrate touch`` fits the thresholds). A side with
+    no trial or clip is null.
+    """
+    kept = [t.series for t in trials if t.series is not None and t.labels.label in TOUCH_LABELS + NEGATIVE_LABELS]
+    clip_series = [
+        GateSeries(c.t, c.anchor, c.core_depth, c.edge, c.labels.contacts, c.labels.label == "hover")
+        for c in clips
+        if c.labels.label in ("contact", "hover") and c.core_depth.size == c.t.size
+    ]
+    return {
+        "trials": margins(kept, gates, widen=(WIDEN_BEFORE_S, WIDEN_AFTER_S)) if kept else None,
+        "clips": margins(clip_series, gates, per_contact=True) if clip_series else None,
+    }
+
+
 def build_report(
     dataset: str,
     trials: list[TrialData],
@@ -343,8 +367,9 @@ def build_report(
     seconds_per_frame: np.ndarray,
     width: int,
     height: int,
+    gates: GateThresholds | None = None,
 ) -> dict[str, Any]:
-    """The full version-1 report."""
+    """The full version-1 report; with ``gates``, the extra ``margins`` key (else null)."""
     scored = score_trials(trials)
     return {
         "version": 1,
@@ -356,4 +381,5 @@ def build_report(
         "localisation": scored["localisation"],
         "latency_ms": scored["latency_ms"],
         "speed": speed_report(seconds_per_frame, width, height),
+        "margins": score_margins(trials, clips, gates) if gates is not None else None,
     }

@@ -28,11 +28,10 @@ cut straddles frames. Before each trial the pipeline has watched
 :data:`WARMUP_S` of the same face without hands (a blimp shows the face all the
 time; every condition gets the same warm-up).
 
-Margins (issue 17, point 5): per condition, the sustained-anchoring score of the
-hardest negative (its largest score anywhere in the trial) and of the hardest
-positive (its largest score inside the widened contact windows), minus the
-anchor threshold; a negative margin on the negative side means a hover at least
-that close passes the gate.
+Margins (issue 17, point 5): per condition and gate (instant and sustained),
+the hardest negative's and the hardest positive's score against the gate's
+threshold (:mod:`feelium.lab.touch.margins`); a negative margin on the negative
+side means a hover at least that close passes the gate.
 """
 
 from __future__ import annotations
@@ -52,6 +51,7 @@ from feelium.events import TouchEvent
 from feelium.lab.projector.facevideo import sim_calibration
 from feelium.lab.sim import protocol
 from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, score_trials
+from feelium.lab.touch.margins import GateSeries, GateThresholds, margins
 from feelium.projector.backlight import BacklightPredictor
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
@@ -82,9 +82,14 @@ class FaceScript:
     black_s: float = 0.3  # black between them
     sway_px: tuple[float, float] = (24.0, 16.0)  # head motion amplitude in canvas px (x, y)
     sway_hz: tuple[float, float] = (0.3, 0.45)
+    # The light sweep (:mod:`feelium.lab.touch.dimlight`): when set, the video instead fades to black (over
+    # ``fade_s``) by this trial time and stays black, so the whole trial is lit by the sensing floor alone.
+    black_from_s: float | None = None
 
-    def brightness(self, ts: float) -> float:
-        """Fade factor (0 = black) at script time ``ts``."""
+    def brightness(self, ts: float, trial_t: float = 0.0) -> float:
+        """Fade factor (0 = black) at script time ``ts`` (trial time ``trial_t``)."""
+        if self.black_from_s is not None:
+            return min(max((self.black_from_s - trial_t) / self.fade_s, 0.0), 1.0)
         p = ts % self.fade_every_s - self.fade_at_s
         if p < 0.0 or p >= 2 * self.fade_s + self.black_s:
             return 1.0
@@ -128,7 +133,7 @@ class FaceVideo:
         image = cv2.warpAffine(image, m, (w, h), borderMode=cv2.BORDER_REPLICATE)
         if scene == 2:
             image = image[:, ::-1].copy()
-        fade = s.brightness(ts)
+        fade = s.brightness(ts, ts - self.offset_s)
         if fade < 1.0:
             image = (image.astype(np.float32) * fade).astype(np.uint8)
         return image
@@ -151,9 +156,7 @@ class _Cache:
 
 @dataclass
 class TrialRun:
-    data: TrialData
-    score_max: float  # hardest-negative side: largest anchoring score in the trial
-    score_in_contact: float | None  # positive side: largest score inside the widened contacts (None if none)
+    data: TrialData  # with the per-frame gate series of the trial (warm-up left out)
     uncertain_frames: int
 
 
@@ -163,6 +166,7 @@ class _Setup:
     projector: ProjectorConfig
     touch: TouchConfig
     script: FaceScript
+    conditions: tuple[str, ...] = CONDITIONS
 
 
 class _Experiment:
@@ -207,15 +211,16 @@ class _Experiment:
 
         def no_spread(t: float) -> dict[str, np.ndarray]:
             return {"projected_light": compensated(t)["projected_light"]}
-        static = self._render(script, session, item, None)
-        face = self._render(script, session, item, hook)
-        runs = {
-            "static": self._replay(static, script, item, cfg, lambda t: {}),
-            "face_divided": self._replay(face, script, item, cfg, divided),
-            "face_compensated": self._replay(face, script, item, cfg, compensated),
-            "face_no_spread": self._replay(face, script, item, cfg, no_spread),
+        wanted = self.setup.conditions
+        static = self._render(script, session, item, None) if "static" in wanted else []
+        face = self._render(script, session, item, hook) if set(wanted) - {"static"} else []
+        feeds: dict[str, tuple[list[tuple[float, np.ndarray]], Callable[[float], dict[str, np.ndarray]]]] = {
+            "static": (static, lambda t: {}),
+            "face_divided": (face, divided),
+            "face_compensated": (face, compensated),
+            "face_no_spread": (face, no_spread),
         }
-        return runs
+        return {name: self._replay(feeds[name][0], script, item, cfg, feeds[name][1]) for name in wanted}
 
     def _render(self, script: Any, session: Session, item: protocol.Item, hook: Any) -> list[tuple[float, np.ndarray]]:
         """Warm-up (hand-free) frames before 0, then the trial's frames, as the camera captures them."""
@@ -237,10 +242,9 @@ class _Experiment:
     ) -> TrialRun:
         pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
         labels = script.labels()
-        windows = [(c.t_on - WIDEN_BEFORE_S, c.t_off + WIDEN_AFTER_S) for c in labels.contacts]
         events: list[TouchEvent] = []
-        activity, max_area, score_max = False, 0.0, 0.0
-        in_contact: float | None = None
+        activity, max_area = False, 0.0
+        rows: list[tuple[float, float, float, float]] = []
         for t, frame in frames:
             result = pipeline.process(t, frame, **inputs(t))
             if t < 0.0:
@@ -248,12 +252,12 @@ class _Experiment:
             events.extend(result.events)
             activity |= result.activity
             max_area = max(max_area, float(result.area))
-            score_max = max(score_max, result.anchor)
-            if any(w0 <= t <= w1 for w0, w1 in windows):
-                in_contact = max(in_contact or 0.0, result.anchor)
+            rows.append((t, result.anchor, result.core_depth, result.edge))
         events.extend(pipeline.finish())
-        data = TrialData(item.name, labels, events, activity, max_area)
-        return TrialRun(data, score_max, in_contact, pipeline.uncertain_frames)
+        t, anchor, core, edge = (np.asarray(c, float) for c in zip(*rows)) if rows else (np.zeros(0),) * 4
+        series = GateSeries(t, anchor, core, edge, labels.contacts, not labels.contacts)
+        data = TrialData(item.name, labels, events, activity, max_area, series)
+        return TrialRun(data, pipeline.uncertain_frames)
 
 
 _WORKER: _Experiment | None = None
@@ -270,23 +274,10 @@ def _worker_trial(item: protocol.Item) -> dict[str, TrialRun]:
     return _WORKER.trial(item)
 
 
-def margins(runs: list[TrialRun], threshold: float) -> dict[str, float | None]:
-    """Hardest negative's and hardest positive's anchoring score, and their distance to ``threshold``."""
-    negatives = [r.score_max for r in runs if not r.data.labels.contacts]
-    positives = [r.score_in_contact for r in runs if r.data.labels.contacts and r.score_in_contact is not None]
-    hardest_neg = max(negatives) if negatives else None
-    hardest_pos = min(positives) if positives else None
-    return {
-        "threshold": threshold,
-        "hardest_negative": hardest_neg,
-        "hardest_positive": hardest_pos,
-        "negative_margin": None if hardest_neg is None else round(threshold - hardest_neg, 4),
-        "positive_margin": None if hardest_pos is None else round(hardest_pos - threshold, 4),
-    }
-
-
-def summarise(runs: list[TrialRun], threshold: float) -> dict[str, Any]:
+def summarise(runs: list[TrialRun], touch: TouchConfig) -> dict[str, Any]:
     scored = score_trials([r.data for r in runs])
+    gates = GateThresholds(touch.contact_edge, touch.instant_depth, touch.anchor_threshold, touch.anchor_min_age_s)
+    series = [r.data.series for r in runs if r.data.series is not None]
     trials = scored["trials"]
     return {
         "recall": trials["recall"],
@@ -297,7 +288,7 @@ def summarise(runs: list[TrialRun], threshold: float) -> dict[str, Any]:
         "negatives": trials["fp"] + trials["tn"],
         "localisation_error_px": scored["localisation"]["error_px"],
         "uncertain_frames": sum(r.uncertain_frames for r in runs),
-        "margins": margins(runs, threshold),
+        "margins": margins(series, gates, widen=(WIDEN_BEFORE_S, WIDEN_AFTER_S)),
         "by_label": trials["by_label"],
     }
 
@@ -310,17 +301,18 @@ def run_experiment(
     touch: TouchConfig = TouchConfig(),
     script: FaceScript = FaceScript(),
     labels: tuple[str, ...] | None = None,
+    conditions: tuple[str, ...] = CONDITIONS,
     jobs: int = 1,
     progress: Callable[[int, int, str], None] | None = None,
 ) -> dict[str, Any]:
     """Score every condition over the protocol's trials at ``scale``."""
-    setup = _Setup(seed, projector, touch, script)
+    setup = _Setup(seed, projector, touch, script, conditions)
     items = [i for i in protocol.plan(scale) if not i.clip and (labels is None or i.label in labels)]
-    per: dict[str, list[TrialRun]] = {name: [] for name in CONDITIONS}
+    per: dict[str, list[TrialRun]] = {name: [] for name in conditions}
 
     def collect(stream: Iterator[dict[str, TrialRun]]) -> None:
         for n, (item, runs) in enumerate(zip(items, stream), start=1):
-            for name in CONDITIONS:
+            for name in conditions:
                 per[name].append(runs[name])
             if progress is not None:
                 progress(n, len(items), item.name)
@@ -337,7 +329,7 @@ def run_experiment(
         "trials": len(items),
         "latency_s": {"true": TRUE_LATENCY_S, "assumed": touch.projector_latency_s, "sigma": touch.projector_latency_sigma_s},
         "warmup_s": WARMUP_S,
-        "conditions": {name: summarise(runs, touch.anchor_threshold) for name, runs in per.items()},
+        "conditions": {name: summarise(runs, touch) for name, runs in per.items()},
     }
 
 
@@ -345,21 +337,25 @@ def format_table(report: dict[str, Any]) -> str:
     lines = [
         f"face on the skin: {report['trials']} trials (scale {report['scale']}, seed {report['seed']})",
         f"{'condition':<18}{'recall':>8}{'neg fired':>11}{'loc med px':>12}{'uncertain':>11}"
-        f"{'hardest neg':>13}{'margin':>8}{'hardest pos':>13}{'margin':>8}",
+        f"{'gate':>11}{'hardest neg':>13}{'margin':>8}{'hardest pos':>13}{'margin':>8}",
     ]
 
     def num(v: float | None, fmt: str = ".3f") -> str:
         return "-" if v is None else format(v, fmt)
 
     for name, c in report["conditions"].items():
-        m = c["margins"]
         loc = c["localisation_error_px"]
-        lines.append(
-            f"{name:<18}{num(c['recall']):>8}{c['negatives_fired']:>6} / {c['negatives']:<3}"
-            f"{num(loc['median'] if loc else None, '.2f'):>12}{c['uncertain_frames']:>11}"
-            f"{num(m['hardest_negative']):>13}{num(m['negative_margin'], '+.3f'):>8}"
-            f"{num(m['hardest_positive']):>13}{num(m['positive_margin'], '+.3f'):>8}"
-        )
+        for k, (gate, m) in enumerate(c["margins"].items()):
+            head = (
+                f"{name:<18}{num(c['recall']):>8}{c['negatives_fired']:>6} / {c['negatives']:<3}"
+                f"{num(loc['median'] if loc else None, '.2f'):>12}{c['uncertain_frames']:>11}"
+                if k == 0
+                else " " * 61
+            )
+            lines.append(
+                f"{head}{gate:>11}{num(m['hardest_negative']):>13}{num(m['negative_margin'], '+.3f'):>8}"
+                f"{num(m['hardest_positive']):>13}{num(m['positive_margin'], '+.3f'):>8}"
+            )
     return "\n".join(lines)
 
 
