@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -118,11 +119,27 @@ class FaceModel:
     # --- what the pipeline and the simulator need -----------------------------------------------
 
     def mask(self) -> np.ndarray:
-        """The face on the camera frame, (height, width) bool: pixel centres whose ``(u, v)`` lie in ``[0, 1)``."""
+        """The face on the camera frame, (height, width) bool, read-only: pixel centres whose ``(u, v)`` lie in
+        ``[0, 1)``. Computed once per model (a megapixel frame takes a second)."""
+        return self._mask
+
+    @cached_property
+    def _mask(self) -> np.ndarray:
         ys, xs = np.mgrid[0 : self.height, 0 : self.width].astype(np.float64)
         u, v = self.to_uv(xs, ys)
         with np.errstate(invalid="ignore"):
-            return (u >= 0.0) & (u < 1.0) & (v >= 0.0) & (v < 1.0)
+            mask = (u >= 0.0) & (u < 1.0) & (v >= 0.0) & (v < 1.0)
+        mask.setflags(write=False)
+        return mask
+
+    def distance_mm(self, u0: ArrayLike, v0: ArrayLike, u1: ArrayLike, v1: ArrayLike) -> np.ndarray:
+        """Distance on the membrane between two skin points (mm along the envelope: the great circle)."""
+        a = np.stack(self.surface(u0, v0))
+        b = np.stack(self.surface(u1, v1))
+        a[2] -= self.camera_behind_mm  # from the centre
+        b[2] -= self.camera_behind_mm
+        cross = np.linalg.norm(np.cross(a, b, axis=0), axis=0)
+        return self.radius_mm * np.arctan2(cross, np.sum(a * b, axis=0))
 
     def roi(self) -> tuple[int, int, int, int]:
         """The face's bounding box ``[x, y, w, h]`` in camera pixels: the ROI the working resolution is cut from."""

@@ -83,3 +83,14 @@ def test_json_round_trip_and_errors_name_the_field():
         FaceModel.from_json({k: val for k, val in obj.items() if k != "cx"})
     with pytest.raises(ValueError, match="camera_behind_mm"):
         FaceModel.from_json({**obj, "camera_behind_mm": 400.0})
+
+
+def test_distance_on_the_membrane_is_the_arc_of_the_azimuth_on_the_equator():
+    assert float(FACE.distance_mm(0.5, 0.5, 0.8, 0.5)) == pytest.approx(320.0 * math.radians(30.0))
+    assert float(FACE.distance_mm(0.3, 0.2, 0.3, 0.2)) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_mask_is_read_only_and_computed_once():
+    assert FACE.mask() is FACE.mask()
+    with pytest.raises(ValueError):
+        FACE.mask()[0, 0] = True
