@@ -132,7 +132,7 @@ class SceneRenderer:
         scale = float(self.face.px_per_mm(np.clip(np.nan_to_num(u, nan=0.5), 0, 1), np.clip(np.nan_to_num(v, nan=0.5), 0, 1)))
         return replace(self.session.shadow, px_per_mm=scale)
 
-    def _shadow(self, state: SceneState) -> Shadow:
+    def shadow(self, state: SceneState) -> Shadow:
         """Occlusion and contact of everything outside: in one pass on the flat patch, hand by hand on the face."""
         s = self.session
         if self.face is None:
@@ -175,7 +175,7 @@ class SceneRenderer:
         for sub in states:
             if not (sub.hands or sub.blobs or sub.room != 1.0):
                 continue
-            found = self._shadow(sub)
+            found = self.shadow(sub)
             shadow = found.lit_by(s.shadow, sub.room, lit)
             transmission = shadow if transmission is None else transmission + shadow
             if self._room is not None:
