@@ -14,8 +14,9 @@ the real pipeline with the same face model, and reports per zone:
 with the zone taken as ``max(|u - 0.5|, |v - 0.5|) / 0.5`` of the target.
 Per zone: trial recall, negatives (hovers) fired, false touches (touches
 outside every widened contact, in any trial), localisation error of the
-landing (tap, hold, swipe) in camera pixels and in mm along the membrane
-(the great circle between the reported and the true skin point), and the
+landing in camera pixels and in mm along the membrane (the great circle
+between the reported and the true skin point; taps and holds, as `feelium
+eval` scores it, and the swipes' landings apart: a moving finger), and the
 zone's local scale and back-light level. Every parameter is stated below or
 in :mod:`feelium.skin.face`, none was chosen from detector scores; the
 ``[touch]`` settings are the shipped defaults, with the working resolution
@@ -215,6 +216,7 @@ def _stats(values: list[float]) -> dict[str, float] | None:
 def summarise(results: list[Result]) -> dict[str, Any]:
     """One zone's figures (or all zones')."""
     trials = score_trials([r.data for r in results])["trials"]
+    still = [r for r in results if r.trial.label in ("tap", "hold")]
     return {
         "trials": len(results),
         "recall": trials["recall"],
@@ -223,8 +225,9 @@ def summarise(results: list[Result]) -> dict[str, Any]:
         "negatives_fired": trials["fp"],
         "negatives": trials["fp"] + trials["tn"],
         "false_touches": sum(r.false_touches for r in results),
-        "localisation_px": _stats([r.error_px for r in results if r.error_px is not None]),
-        "localisation_mm": _stats([r.error_mm for r in results if r.error_mm is not None]),
+        "localisation_px": _stats([r.error_px for r in still if r.error_px is not None]),
+        "localisation_mm": _stats([r.error_mm for r in still if r.error_mm is not None]),
+        "swipe_landing_px": _stats([r.error_px for r in results if r.trial.label == "swipe" and r.error_px is not None]),
         "px_per_mm": {"min": min(r.px_per_mm for r in results), "max": max(r.px_per_mm for r in results)},
         "backlight": {"min": min(r.light for r in results), "max": max(r.light for r in results)},
         "by_label": trials["by_label"],
@@ -269,6 +272,22 @@ def run_experiment(
         "roi": list(face.roi()),
         "zones": {z: summarise([r for r in results if r.trial.zone == z]) for z in ZONES},
         "all": summarise(results),
+        "trials": [_row(r) for r in results],
+    }
+
+
+def _row(r: Result) -> dict[str, Any]:
+    """One trial in the report: where it was aimed and what came out."""
+    return {
+        "name": r.trial.name,
+        "session": r.trial.session,
+        "uv": [round(r.target_uv[0], 4), round(r.target_uv[1], 4)],
+        "touches": len(group_touches(r.data.events)),
+        "false_touches": r.false_touches,
+        "error_px": r.error_px,
+        "error_mm": r.error_mm,
+        "px_per_mm": r.px_per_mm,
+        "backlight": r.light,
     }
 
 
@@ -279,17 +298,19 @@ def format_table(report: dict[str, Any]) -> str:
     lines = [
         f"whole face: {report['all']['trials']} trials ({report['per_cell']} per zone x label, seed {report['seed']})",
         f"{'zone':<8}{'recall':>8}{'neg fired':>11}{'false':>7}{'loc px med/p95':>16}{'loc mm med/p95':>16}"
-        f"{'px/mm':>12}{'back-light':>12}",
+        f"{'swipe px med/max':>18}{'px/mm':>12}{'back-light':>12}",
     ]
     for name, z in [*report["zones"].items(), ("all", report["all"])]:
         px, mm = z["localisation_px"], z["localisation_mm"]
         locs = "-" if px is None else f"{px['median']:.2f} / {px['p95']:.2f}"
         locm = "-" if mm is None else f"{mm['median']:.2f} / {mm['p95']:.2f}"
+        sw = z["swipe_landing_px"]
+        swipe = "-" if sw is None else f"{sw['median']:.2f} / {sw['max']:.2f}"
         scale = f"{z['px_per_mm']['min']:.2f}-{z['px_per_mm']['max']:.2f}"
         light = f"{z['backlight']['min']:.2f}-{z['backlight']['max']:.2f}"
         lines.append(
             f"{name:<8}{num(z['recall'], '.3f'):>8}{z['negatives_fired']:>6} / {z['negatives']:<3}{z['false_touches']:>7}"
-            f"{locs:>16}{locm:>16}{scale:>12}{light:>12}"
+            f"{locs:>16}{locm:>16}{swipe:>18}{scale:>12}{light:>12}"
         )
     return "\n".join(lines)
 
