@@ -57,7 +57,8 @@ class TouchEvent:
     """One phase of one contact on the membrane.
 
     ``t`` is the frame's time (in the daemon, its monotonic clock); ``x``/``y`` are camera pixels at the
-    recording's full resolution; ``u``/``v`` run 0..1 across the ROI. ``kind`` is the gesture in time (the
+    recording's full resolution; ``u``/``v`` run 0..1 across the ROI, or across the whole front face with a face model
+    (:mod:`feelium.skin.face`: azimuth and elevation on the envelope). ``kind`` is the gesture in time (the
     spec's tap/hold/swipe); ``shape`` says what touched (finger, palm or hug) and its footprint.
     """
 

@@ -12,6 +12,10 @@ The rear camera sees the membrane lit from inside by a laser projector through a
   camera: a fabric texture (fine weave plus large wrinkles), welded seams that
   cross the patch, and the blackened envelope outside the sensitive patch (ROI).
 
+Over the whole front face (:func:`face_backlight`, a :class:`feelium.skin.face.FaceModel`) the membrane is
+the curved envelope: the same lens falloff and hot spot, times the irradiance a point projector at the rear
+camera's position gives the sphere, and the envelope is blackened outside the face instead of the ROI.
+
 Laser banding (:func:`laser_banding`) is the one time-varying part of the
 projector: a MEMS laser-scanning projector and a rolling-shutter camera beat, so
 a faint horizontal stripe pattern drifts down the image.
@@ -25,6 +29,10 @@ from dataclasses import asdict, dataclass
 
 import cv2
 import numpy as np
+
+from feelium.skin.face import FaceModel
+
+REFERENCE_WIDTH = 640  # frame width the sessions' pixel lengths (throw, hot spot) are stated for
 
 
 @dataclass(frozen=True)
@@ -70,10 +78,54 @@ def backlight(params: OpticsParams, width: int, height: int, roi: tuple[int, int
     return b.astype(np.float32)
 
 
+def face_backlight(params: OpticsParams, face: FaceModel) -> np.ndarray:
+    """Projector irradiance ``B`` over the whole curved face in camera DN, (H, W) float32.
+
+    Two stated factors. The lens: the session's falloff and hot spot
+    (:func:`backlight`'s formula), with its pixel lengths scaled from a
+    :data:`REFERENCE_WIDTH` frame to this one, so a session's unevenness means
+    the same share of the image. The envelope: a point projector on the axis at
+    the rear camera's position (the two sit together at the rear), whose
+    equidistant fisheye spreads uniform pixels over solid angle as
+    ``theta / sin(theta)``, lighting the sphere at distance ``d`` and incidence
+    ``i``: ``theta / sin(theta) * cos(i) / d^2``. Normalised so the brightest
+    point on the face equals ``params.level``.
+    """
+    width, height = face.width, face.height
+    k = width / REFERENCE_WIDTH
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float64)
+    cx = width / 2.0 + params.center_dx * k
+    cy = height / 2.0 + params.center_dy * k
+    cos4 = 1.0 / (1.0 + ((xs - cx) ** 2 + (ys - cy) ** 2) / (params.throw_px * k) ** 2) ** 2
+    hx, hy = cx + params.hotspot_dx * k, cy + params.hotspot_dy * k
+    hot = params.hotspot_gain * np.exp(-((xs - hx) ** 2 + (ys - hy) ** 2) / (2.0 * (params.hotspot_sigma * k) ** 2))
+    # The envelope point each pixel sees, from the camera (= the projector), and the sphere's normal there.
+    u, v = face.to_uv(xs, ys)
+    px, py, pz = face.surface(np.nan_to_num(u, nan=0.5), np.nan_to_num(v, nan=0.5))
+    dist = np.sqrt(px * px + py * py + pz * pz)
+    theta = np.arccos(np.clip(pz / dist, -1.0, 1.0))
+    spread = np.where(theta > 1e-9, theta / np.maximum(np.sin(theta), 1e-12), 1.0)
+    normal_z = (pz - face.camera_behind_mm) / face.radius_mm  # outward normal (P - centre) / R
+    incidence = (px * px + py * py) / (dist * face.radius_mm) + pz * normal_z / dist
+    b = cos4 * (1.0 + hot) * spread * np.clip(incidence, 0.0, 1.0) / (dist * dist)
+    b *= params.level / float(b[face.mask()].max())
+    return b.astype(np.float32)
+
+
 def membrane_transmission(
-    params: OpticsParams, width: int, height: int, roi: tuple[int, int, int, int], rng: np.random.Generator
+    params: OpticsParams,
+    width: int,
+    height: int,
+    roi: tuple[int, int, int, int],
+    rng: np.random.Generator,
+    *,
+    face: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Membrane transmission ``T`` (H, W) float32: texture and seams in the ROI, black envelope outside."""
+    """Membrane transmission ``T`` (H, W) float32: texture and seams in the ROI, black envelope outside.
+
+    ``face`` (bool (H, W)): the light-scattering front face; the envelope is blackened outside it instead of
+    outside the ROI rectangle.
+    """
     weave = cv2.GaussianBlur(rng.standard_normal((height, width)).astype(np.float32), (0, 0), 1.2)
     weave /= max(float(weave.std()), 1e-6)
     coarse = rng.standard_normal((height // 16 + 2, width // 16 + 2)).astype(np.float32)
@@ -96,7 +148,10 @@ def membrane_transmission(
     t *= seams
 
     patch = np.zeros((height, width), np.float32)
-    patch[y : y + h, x : x + w] = 1.0
+    if face is None:
+        patch[y : y + h, x : x + w] = 1.0
+    else:
+        patch[face] = 1.0
     patch = cv2.GaussianBlur(patch, (0, 0), 1.5)
     t = t * (params.envelope_transmission + (1.0 - params.envelope_transmission) * patch)
     return np.clip(t, 0.0, None).astype(np.float32)

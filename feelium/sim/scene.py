@@ -5,7 +5,10 @@
 ``B`` is the session's back-light (times laser banding and, when the projector
 helper supplies one, a projected image's factor), ``T`` the membrane, ``S`` the
 shadow of whatever is outside (hands, a body) and ``exposure`` a script's own
-exposure change (auto-exposure hunting in an empty scene). The renderer is
+exposure change (auto-exposure hunting in an empty scene). Given a
+:class:`feelium.skin.face.FaceModel`, the membrane is the whole curved front
+face: back-light over the face, envelope black off it, and each hand drawn at
+the local scale (px per mm) of the face where its fingertip is. The renderer is
 pure: camera time and scene state in, an 8-bit frame out; its only state is the
 RNG that draws the noise.
 """
@@ -14,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -22,9 +25,10 @@ import numpy as np
 from feelium.sim.body import Lean
 from feelium.sim.camera import SensorParams, expose, gain_at
 from feelium.sim.hand import Blob, HandPose, hand_parts
-from feelium.sim.optics import OpticsParams, backlight, laser_banding, membrane_transmission
+from feelium.sim.optics import OpticsParams, backlight, face_backlight, laser_banding, membrane_transmission
 from feelium.sim.room import AutoExposure, RoomLight, lamp_image
-from feelium.sim.shadow import Ellipse, Part, ShadowParams, render_shadow
+from feelium.sim.shadow import Ellipse, Part, Shadow, ShadowParams, render_shadow
+from feelium.skin.face import FaceModel
 
 WIDTH, HEIGHT = 640, 480
 ROI = (64, 48, 512, 384)
@@ -80,20 +84,26 @@ class SceneRenderer:
         gain_phase: float | None = None,
         projected_share_only: bool = False,
         room_light: RoomLight | None = None,
+        face: FaceModel | None = None,
     ) -> None:
         """``projected_share_only``: the projected factor scales only the projector's share of the membrane's
         light (``1 - outside_share``), not the room light coming in through it (the physical model; the
         default scales both, as the projector experiments were built on). ``room_light``: a lit room's own
         light through the membrane (:mod:`feelium.sim.room`), with the camera's auto-exposure following it;
-        frames must then be asked for in time order."""
+        frames must then be asked for in time order. ``face``: the whole curved front face (its frame size wins
+        over ``width``/``height``), see the module docstring."""
+        if face is not None:
+            width, height = face.width, face.height
+        self.face = face
         self.session = session
         self.width, self.height, self.roi = width, height, roi
         self._rng = rng
         self._projected = projected
         self._share_only = projected_share_only
-        self.backlight = backlight(session.optics, width, height, roi)
+        on_face = None if face is None else face.mask()
+        self.backlight = backlight(session.optics, width, height, roi) if face is None else face_backlight(session.optics, face)
         self.membrane = membrane_transmission(
-            session.optics, width, height, roi, np.random.default_rng(session.membrane_seed)
+            session.optics, width, height, roi, np.random.default_rng(session.membrane_seed), face=on_face
         )
         self._lit = (self.backlight * self.membrane).astype(np.float32)
         self._gain_phase = float(rng.uniform(0, 2 * np.pi)) if gain_phase is None else gain_phase
@@ -116,6 +126,34 @@ class SceneRenderer:
             parts += p
             contacts += c
         return parts, contacts
+
+    def local_shadow(self, x: float, y: float) -> ShadowParams:
+        """The session's shadow parameters at camera pixel ``(x, y)`` of the face: its local px per mm.
+
+        A hand is drawn at the scale where its fingertip is (a hand spans a few
+        degrees of the face, over which the scale changes by a few per cent).
+        """
+        assert self.face is not None
+        u, v = self.face.to_uv(x, y)
+        scale = float(self.face.px_per_mm(np.clip(np.nan_to_num(u, nan=0.5), 0, 1), np.clip(np.nan_to_num(v, nan=0.5), 0, 1)))
+        return replace(self.session.shadow, px_per_mm=scale)
+
+    def shadow(self, state: SceneState) -> Shadow:
+        """Occlusion and contact of everything outside: in one pass on the flat patch, hand by hand on the face."""
+        s = self.session
+        if self.face is None:
+            parts, contacts = self.parts(state)
+            return render_shadow(parts, contacts, s.shadow, self.width, self.height)
+        centre = self.local_shadow(*(float(c) for c in self.face.to_camera(0.5, 0.5)))
+        blobs = [part for blob in state.blobs for part in blob.parts()]
+        found = render_shadow(blobs, [], centre, self.width, self.height)
+        for hand in state.hands:
+            local = self.local_shadow(hand.x, hand.y)
+            parts, contacts = hand_parts(hand, local.px_per_mm)
+            one = render_shadow(parts, contacts, local, self.width, self.height)
+            np.maximum(found.occlusion, one.occlusion, out=found.occlusion)
+            np.maximum(found.contact, one.contact, out=found.contact)
+        return found
 
     def signal(self, t: float, state: SceneState | Sequence[SceneState]) -> np.ndarray:
         """The noiseless signal in DN (H, W) float32 at camera time ``t``.
@@ -141,10 +179,9 @@ class SceneRenderer:
         transmission: np.ndarray | None = None
         open_sky: np.ndarray | None = None  # mean over sub-samples of 1 - occlusion (the room light let through)
         for sub in states:
-            parts, contacts = self.parts(sub)
-            if not (parts or contacts or sub.room != 1.0):
+            if not (sub.hands or sub.blobs or sub.room != 1.0):
                 continue
-            found = render_shadow(parts, contacts, s.shadow, self.width, self.height)
+            found = self.shadow(sub)
             shadow = found.lit_by(s.shadow, sub.room, lit)
             transmission = shadow if transmission is None else transmission + shadow
             if self._room is not None:

@@ -3,7 +3,8 @@
 Pure and frame-by-frame: time comes in with every frame, nothing reads a clock
 or does I/O, so the daemon, `feelium replay`, `feelium eval` and the tests run
 exactly the same code. Stages (each its own module):
-geometry (ROI at working resolution) -> reference (exposure gain, adaptive
+geometry (ROI at working resolution; with a face model, only the face inside it,
+:mod:`feelium.skin.face`) -> reference (exposure gain, adaptive
 reference) -> depth (relative shadow depth, masked) -> candidates (components
 of smoothed depth split into contacts, fingertip as core centroid, footprint
 shape) -> gates + tracker (events).
@@ -30,6 +31,7 @@ from feelium.touch.settle import depth_uncertainty
 from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
 from feelium.skin.coords import inside_roi, skin_uv
+from feelium.skin.face import FaceModel
 
 BACKLIGHT_MIN = 0.05  # predicted back-light scale below which a pixel carries no signal
 
@@ -59,14 +61,26 @@ class TouchPipeline:
         roi: tuple[int, int, int, int] | None,
         *,
         plain: bool = False,
+        face: FaceModel | None = None,
     ) -> None:
         """frame_size = (width, height) of the camera frames fed in; roi = [x, y, w, h] in those pixels.
+
+        ``face``: the whole front face (:class:`feelium.skin.face.FaceModel`, for this frame size). The sensitive
+        area is then the face, not the rectangle: pixels off the face carry no depth and teach the reference
+        nothing, a shadow centred off it is dropped, and u, v are the face's (azimuth, elevation on the envelope).
+        The ROI stays the box the working image is cut from (the face's bounding box when ``roi`` is None).
+        Without it the pipeline is the paper's rectangle, unchanged.
 
         ``plain=True`` runs the same algorithm the plain way (float64, whole
         frame at camera resolution, candidates outside the ROI dropped); it is
         the speed and accuracy baseline of `feelium bench touch`.
         """
         self.config = config
+        if face is not None:
+            if (face.width, face.height) != tuple(frame_size):
+                raise ValueError(f"face model is for {face.width}x{face.height} frames, camera is {frame_size}")
+            roi = face.roi() if roi is None else roi
+        self.face = face
         self.plain = plain
         if plain:
             self.geometry = WorkingGeometry.build(frame_size, None, frame_size, np.float64)
@@ -74,6 +88,7 @@ class TouchPipeline:
         else:
             self.geometry = WorkingGeometry.build(frame_size, roi, (config.width, config.height), np.float32)
             self._roi = self.geometry.roi
+        self._off_face = None if face is None else self._cut_off_face(face)
         self.reference = AdaptiveReference(
             tau_s=config.reference_tau_s,
             bright_tau_s=config.reference_bright_tau_s,
@@ -155,6 +170,8 @@ class TouchPipeline:
         if self._last_t is not None and t <= self._last_t:
             raise ValueError(f"frame time {t} does not follow the previous frame time {self._last_t}")
         work, unusable = self._prepare(frame, backlight_gain)
+        if self._off_face is not None:
+            unusable = self._off_face if unusable is None else (unusable | self._off_face)
         light = None if projected_light is None else self._cut_light(projected_light, "light")
         spread = None
         if light is not None and projected_spread is not None:
@@ -170,7 +187,7 @@ class TouchPipeline:
         ref = self.reference
         if ref.image is None:
             ref.initialise(t, work)
-            self._shadow = np.zeros(work.shape, bool)
+            self._shadow = np.zeros(work.shape, bool) if self._off_face is None else self._off_face.copy()
             self._deep = None
             return FrameResult(t, (), False, 0.0, 0.0, 0, (), 0.0)
         cfg = self.config
@@ -191,6 +208,8 @@ class TouchPipeline:
             signed=True,
             scratch=buf,
         )
+        if self._off_face is not None:
+            depth[self._off_face] = 0.0  # the black envelope: no back-light, no signal
         if self._sigma > 0.2:
             smooth = cv2.GaussianBlur(
                 depth, (0, 0), self._sigma, dst=buf.like("smooth", depth), borderType=cv2.BORDER_REPLICATE
@@ -227,9 +246,15 @@ class TouchPipeline:
         kept = []
         for cand in candidates:
             cx, cy = self.geometry.to_camera(cand.x, cand.y)
-            if self.plain and not inside_roi(self._roi, cx, cy):
+            if self.face is not None:
+                fu, fv = self.face.to_uv(cx, cy)
+                u, v = float(fu), float(fv)
+                if not (0.0 <= u < 1.0 and 0.0 <= v < 1.0):  # NaN fails too
+                    continue
+            elif self.plain and not inside_roi(self._roi, cx, cy):
                 continue
-            u, v = skin_uv(self._roi, cx, cy)
+            else:
+                u, v = skin_uv(self._roi, cx, cy)
             area_px = int(round(cand.area * self.geometry.area_scale))
             edge = cand.edge * self._per_camera_px
             cov = self.geometry.cov_to_camera(cand.footprint_cov)
@@ -320,6 +345,12 @@ class TouchPipeline:
         work /= light
         work[unusable] = float(self.config.saturation_level)
         return work, unusable
+
+    def _cut_off_face(self, face: FaceModel) -> np.ndarray:
+        """Working pixels of the ROI that lie mostly off the face (bool, working size)."""
+        x, y, w, h = self.geometry.roi
+        on = face.mask()[y : y + h, x : x + w].astype(np.float32)
+        return self.geometry.cut_roi(on) < 0.5
 
     def _cut_light(self, projected_light: np.ndarray, name: str, *, unknown: float = 0.0) -> np.ndarray:
         """The predicted light (or its spread) over the ROI at working resolution; NaN and inf become ``unknown`` (no

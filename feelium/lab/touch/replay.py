@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from feelium.events import TouchEvent
-from feelium.recording import Recording
+from feelium.recording import Recording, RecordingError
+from feelium.skin.face import FaceModel
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import FrameResult, TouchPipeline
 
@@ -38,6 +39,27 @@ class ReplayResult:
     work_size: tuple[int, int] = (0, 0)
 
 
+def face_of(recording: Recording) -> FaceModel | None:
+    """The recording's optional whole-face model (``meta["face"]``, docs/recording-format.md), None without one.
+
+    A recording without it is the paper's rectangle (its ``roi``), exactly as before.
+    """
+    raw = recording.meta.raw.get("face")
+    if raw is None:
+        return None
+    where = recording.path / "meta.json"
+    try:
+        face = FaceModel.from_json(raw)
+    except ValueError as exc:
+        raise RecordingError(where, str(exc)) from exc
+    camera = recording.meta.camera
+    if (face.width, face.height) != (camera.width, camera.height):
+        raise RecordingError(
+            where, f"face: the model is for {face.width}x{face.height} frames, the camera's are {camera.width}x{camera.height}"
+        )
+    return face
+
+
 def replay_recording(
     recording: Recording,
     config: TouchConfig,
@@ -48,7 +70,8 @@ def replay_recording(
 ) -> ReplayResult:
     """Feed every frame of ``recording`` through a fresh pipeline; ``on_frame`` sees each result."""
     meta = recording.meta
-    pipeline = TouchPipeline(config, (meta.camera.width, meta.camera.height), meta.roi, plain=plain)
+    size = (meta.camera.width, meta.camera.height)
+    pipeline = TouchPipeline(config, size, meta.roi, plain=plain, face=face_of(recording))
     out = ReplayResult(recording=recording)
     ts, act, anc, area, dmax, core, edge, spf, cpu = [], [], [], [], [], [], [], [], []
     for t, frame in frames if frames is not None else recording.frames(gray=True):
