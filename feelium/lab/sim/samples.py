@@ -22,8 +22,8 @@ from feelium.recording import Recording, RecordingWriter, ThermalData
 
 SEED = 7
 SCALE = 0.02  # the smallest plan that has one trial of each label
-LEAD_S = 0.8  # hand-free frames kept before the first contact (or before the middle of a negative)
-TAIL_S = 0.4  # frames kept after the last contact
+LEAD_S = 0.45  # hand-free frames kept before the first contact (or either side of the middle of a negative)
+TAIL_S = 0.15  # frames kept after the last contact
 SAMPLES = {"s1/s1-tap-001": "tap", "s1/s1-hover-001": "hover"}
 
 
@@ -33,7 +33,7 @@ def window(recording: Recording) -> tuple[float, float]:
     if contacts:
         return contacts[0].t_on - LEAD_S, contacts[-1].t_off + TAIL_S
     middle = float(recording.timestamps[len(recording.timestamps) // 2])
-    return middle - LEAD_S, middle + TAIL_S + 0.3
+    return middle - LEAD_S, middle + LEAD_S
 
 
 def cut(source: Recording, out: Path) -> Path:
