@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -15,3 +16,18 @@ def emit_report(table: str, result: dict[str, Any], json_path: str | None) -> No
         Path(json_path).write_text(text + "\n", encoding="utf-8")
     else:
         print(text)
+
+
+def print_progress(n: int, total: int, name: str) -> None:
+    """One progress line on stderr, rewritten in place, for an experiment that takes minutes."""
+    print(f"\r{n}/{total} {name:<30}", end="", file=sys.stderr, flush=True)
+
+
+def finish_experiment(table: str, report: dict[str, Any], json_path: str | None, *, progressed: bool = True) -> int:
+    """The end of a lab experiment's run: close the progress line, write the JSON if asked, print the table."""
+    if progressed:
+        print(file=sys.stderr)
+    if json_path:
+        Path(json_path).write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+    print(table)
+    return 0

@@ -19,13 +19,13 @@ the gates' margins.
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from feelium.lab.report import finish_experiment, print_progress
 from feelium.lab.touch.faceon import FaceScript, FaceVideo, _Experiment, _Setup, run_experiment
 from feelium.projector.config import ProjectorConfig
 from feelium.sim.scene import ROI
@@ -94,7 +94,6 @@ def format_table(report: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """``python -m feelium.lab.touch.dimlight [--floors 0.45,0.6] [--scale S] [--jobs N] [--json FILE]``."""
     import argparse
-    import json
 
     parser = argparse.ArgumentParser(prog="python -m feelium.lab.touch.dimlight", description=__doc__.splitlines()[0])
     parser.add_argument("--floors", default=",".join(str(f) for f in FLOORS), help="sensing floors, comma-separated")
@@ -110,14 +109,9 @@ def main(argv: list[str] | None = None) -> int:
         seed=args.seed,
         labels=tuple(args.labels.split(",")),
         jobs=args.jobs,
-        progress=lambda n, total, name: print(f"\r{n}/{total} {name:<30}", end="", file=sys.stderr, flush=True),
+        progress=print_progress,
     )
-    print(file=sys.stderr)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(report, f, indent=1)
-    print(format_table(report))
-    return 0
+    return finish_experiment(format_table(report), report, args.json)
 
 
 if __name__ == "__main__":

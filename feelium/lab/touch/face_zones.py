@@ -37,6 +37,7 @@ import cv2
 import numpy as np
 
 from feelium.events import TouchEvent
+from feelium.lab.report import finish_experiment, print_progress
 from feelium.lab.sim import protocol, scripts
 from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_trials
 from feelium.sim.camera import frame_times
@@ -318,8 +319,6 @@ def format_table(report: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """``python -m feelium.lab.touch.face_zones [--per-cell N] [--seed S] [--jobs J] [--json FILE]``."""
     import argparse
-    import json
-    import sys
 
     parser = argparse.ArgumentParser(prog="python -m feelium.lab.touch.face_zones", description=__doc__.splitlines()[0])
     parser.add_argument("--per-cell", type=int, default=3, help="trials per zone and label (default 3: 36 trials)")
@@ -331,14 +330,9 @@ def main(argv: list[str] | None = None) -> int:
         per_cell=args.per_cell,
         seed=args.seed,
         jobs=args.jobs,
-        progress=lambda n, total, name: print(f"\r{n}/{total} {name:<30}", end="", file=sys.stderr, flush=True),
+        progress=print_progress,
     )
-    print(file=sys.stderr)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(report, f, indent=1)
-    print(format_table(report))
-    return 0
+    return finish_experiment(format_table(report), report, args.json)
 
 
 if __name__ == "__main__":

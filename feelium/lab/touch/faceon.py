@@ -49,6 +49,7 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.lab.projector.facevideo import sim_calibration
+from feelium.lab.report import finish_experiment, print_progress
 from feelium.lab.sim import protocol
 from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, score_trials
 from feelium.lab.touch.margins import GateSeries, GateThresholds, margins
@@ -437,7 +438,6 @@ def main(argv: list[str] | None = None) -> int:
     """``python -m feelium.lab.touch.faceon [--scale S] [--jobs N] [--json FILE]``: the table, and the report."""
     import argparse
     import json
-    import sys
 
     parser = argparse.ArgumentParser(prog="python -m feelium.lab.touch.faceon", description=__doc__.splitlines()[0])
     parser.add_argument("--scale", type=float, default=0.3, help="share of the paper's 228 trials (default 0.3)")
@@ -453,14 +453,9 @@ def main(argv: list[str] | None = None) -> int:
         scale=args.scale,
         seed=args.seed,
         jobs=args.jobs,
-        progress=lambda n, total, name: print(f"\r{n}/{total} {name:<30}", end="", file=sys.stderr, flush=True),
+        progress=print_progress,
     )
-    print(file=sys.stderr)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(report, f, indent=1)
-    print(format_table(report))
-    return 0
+    return finish_experiment(format_table(report), report, args.json)
 
 
 if __name__ == "__main__":

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from feelium.events import TouchEvent
+from feelium.lab.report import finish_experiment
 from feelium.sim.camera import frame_times
 from feelium.sim.hand import hand_parts
 from feelium.sim.hand_paths import HandTrack, Keyframe, LeanTrack, Tremor
@@ -267,7 +268,6 @@ def format_table(report: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """``python -m feelium.lab.touch.multitouch [--reps N] [--seed S] [--scene NAME ...] [--json FILE]``."""
     import argparse
-    import json
 
     parser = argparse.ArgumentParser(prog="python -m feelium.lab.touch.multitouch", description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=1)
@@ -276,11 +276,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", help="write the report here")
     args = parser.parse_args(argv)
     report = run_experiment(seed=args.seed, reps=args.reps, scenes=tuple(args.scene or SCENES))
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(report, f, indent=1)
-    print(format_table(report))
-    return 0
+    return finish_experiment(format_table(report), report, args.json, progressed=False)
 
 
 if __name__ == "__main__":
