@@ -44,6 +44,11 @@ HEART_S = 2.0
 GLIDE_S = 0.8
 FADE_S = 1.5
 PROMPT_S = 4.0
+# A drawing round lasts while someone keeps drawing or guessing, so without bounds its strokes pile up: a
+# 30-minute soak drew ~1200 strokes and the projector's frame cost grew 3.5x with them. The oldest strokes
+# leave the skin beyond MAX_STROKES, and a stroke that keeps going past MAX_STROKE_POINTS goes on as a new one.
+MAX_STROKES = 64
+MAX_STROKE_POINTS = 256
 _STALE_MOTION_S = 0.3  # a motion reply more late than this is dropped, never sent out of time
 
 
@@ -216,6 +221,10 @@ class InteractionEngine:
             contact.points.append((contact.u, contact.v))
         if contact.stroke is None and not contact.palm and contact.length >= self.config.stroke_min_px and contact.area < self.config.palm_area_px:
             self._start_stroke(contact, now)
+        if contact.stroke is not None and len(contact.points) > MAX_STROKE_POINTS:
+            self._emit("drawing", "stroke_end", now, contact, stroke=contact.stroke)
+            contact.points, contact.sent_points = contact.points[-1:], 0
+            self._start_stroke(contact, now)
         if contact.stroke is not None:
             new = contact.points[contact.sent_points :]
             if new:
@@ -236,6 +245,10 @@ class InteractionEngine:
             self._answer("prompt", Answer("prompt", now, 0.5, 0.93, now + PROMPT_S, {"text": f"draw: {display_word(entry)}"}))
         self._strokes += 1
         contact.stroke = self._strokes
+        old = self._strokes - MAX_STROKES
+        self._answers.pop(f"stroke:{old}", None)
+        if self._round is not None:
+            self._round.strokes.pop(old, None)
 
     def _on_up(self, contact: _Contact, event: TouchEvent, now: float) -> None:
         if contact.stroke is not None:

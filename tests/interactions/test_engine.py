@@ -181,3 +181,25 @@ def test_events_without_coordinates_are_counted_and_ignored():
 def test_bad_region_config_is_rejected_with_its_name():
     with pytest.raises(ValueError, match="interactions.head"):
         InteractionEngine(InteractionsConfig(head=(0.5, 0.2, 0.3)))
+
+
+def test_a_drawing_that_never_ends_keeps_only_its_latest_strokes_and_points():
+    """A round kept alive by strokes and wrong guesses must not pile strokes up for the projector to draw."""
+    from feelium.interactions.engine import MAX_STROKE_POINTS, MAX_STROKES
+
+    d = Driver()
+    items = []
+    for n in range(MAX_STROKES + 20):
+        t = 1.0 + 1.0 * n
+        items += swipe(n + 1, t, [at_uv(0.3 + 0.02 * k, 0.5) for k in range(6)])
+        if n % 5 == 4:
+            items.append(WearerAction("guess", t + 0.6, {"word": "definitely wrong"}))
+    d.feed(items)
+    strokes = [a for a in d.engine.answers(d.now) if a.kind == "stroke"]
+    assert len(strokes) == MAX_STROKES  # the round is still on (no idle gap), its oldest strokes gone
+    assert ("drawing", "end") not in d.names()
+
+    long = [at_uv(0.1 + 0.8 * (k % 100) / 100, 0.3 + 0.3 * (k // 100) / 5) for k in range(2 * MAX_STROKE_POINTS + 10)]
+    d.feed(swipe(999, d.now + 1.0, long, step=0.02))
+    assert all(len(a.detail["points"]) <= MAX_STROKE_POINTS + 1 for a in d.engine.answers(d.now) if a.kind == "stroke")
+    assert len([a for a in d.engine.answers(d.now) if a.kind == "stroke"]) == MAX_STROKES
