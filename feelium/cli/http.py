@@ -26,7 +26,7 @@ def register(registry: CommandRegistry) -> None:
     )
     rotate.add_argument("--config", help="TOML config file (default: built-in defaults)")
     for name, help in (
-        ("link", "Headset link: motion round trip, stop under a flood, touch-event latency per transport, MJPEG fps with a stalled client, speech delay and jitter."),
+        ("link", "Headset link: motion round trip, stop under a flood, touch-event latency per transport, MJPEG fps with a stalled client, speech delay and jitter, RSS under abuse."),
         ("http", "The same as `feelium bench link` (its former name)."),
     ):  # fmt: skip
         bench = registry.subcommand("bench", name, help, _bench)
@@ -35,6 +35,8 @@ def register(registry: CommandRegistry) -> None:
         bench.add_argument("--fps", type=float, default=30.0, help="rate of the synthetic 640x480 front video (default 30)")
         bench.add_argument("--speech-seconds", type=float, default=10.0,
                            help="speech streamed vs long-polled, measured together for this long (default 10)")
+        bench.add_argument("--no-abuse", action="store_true",
+                           help="skip the abuse phase (a real sim daemon under hostile clients, its RSS per phase; ~30 s)")
         bench.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
 
 def _url(args: argparse.Namespace) -> int:

@@ -40,7 +40,7 @@ async def client(aiohttp_client, hub: Hub, http_config: HttpConfig):  # type: ig
 def live(tmp_path_factory):  # type: ignore[no-untyped-def]
     """One real sim-mode daemon for every end-to-end test of the headset link (stopped when tests/http ends:
     left running, it would take half a core from the rest of the suite)."""
-    from tests.http.live_daemon import start_daemon, stop_daemon
+    from feelium.lab.daemon.live import start_daemon, stop_daemon
 
     daemon = start_daemon(tmp_path_factory.mktemp("live"))
     yield daemon

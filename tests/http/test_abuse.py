@@ -13,7 +13,7 @@ import pytest
 
 from feelium.http.app import create_app, link_of
 from tests.http.http_support import AUTH, TOKEN, FakeScene
-from tests.http.test_limit_cores import declare_size
+from feelium.lab.http.abuse import declare_size
 
 MOTION = "/api/v1/motion"
 

@@ -13,7 +13,7 @@ from feelium.lab.http.bench import bench_http_command
 @pytest.mark.slow
 def test_bench_http_runs_small_and_reports_every_key(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     out = tmp_path / "http.json"
-    args = argparse.Namespace(requests=10, seconds=0.3, fps=30.0, speech_seconds=0.5, json=str(out))
+    args = argparse.Namespace(requests=10, seconds=0.3, fps=30.0, speech_seconds=0.5, no_abuse=True, json=str(out))  # abuse: test_live_abuse
     assert bench_http_command(args) == 0
     result = json.loads(out.read_text())
 
@@ -44,6 +44,7 @@ def test_bench_http_runs_small_and_reports_every_key(tmp_path, capsys) -> None: 
     table = capsys.readouterr().out
     assert "POST /motion round trip" in table and "3 readers + 1 stalled" in table and "slow reader" in table
     assert "GET /speech/stream WebSocket" in table and "`stop` from a bystander, during a flood" in table
+    assert "rss_under_abuse" not in result
 
 
 def test_bench_http_rejects_a_meaningless_size(capsys) -> None:  # type: ignore[no-untyped-def]

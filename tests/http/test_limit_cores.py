@@ -12,6 +12,7 @@ from feelium.http.params import json_depth
 from feelium.http.ratelimit import ClientBuckets
 from feelium.http.slots import SlotsFull, StreamSlots
 from feelium.jpeginfo import JpegHeaderError, jpeg_size, reduction_for
+from feelium.lab.http.abuse import declare_size
 
 
 def test_one_clients_flood_leaves_anothers_bucket_full() -> None:
@@ -102,12 +103,6 @@ def _jpeg(h: int, w: int, **flags: int) -> bytes:
     ok, buf = cv2.imencode(".jpg", np.zeros((h, w, 3), np.uint8), params)
     assert ok
     return buf.tobytes()
-
-
-def declare_size(jpeg: bytes, width: int, height: int) -> bytes:
-    """The same JPEG with its frame header claiming another size (what a hostile upload does)."""
-    i = jpeg.index(b"\xff\xc0") if b"\xff\xc0" in jpeg else jpeg.index(b"\xff\xc2")
-    return jpeg[: i + 5] + height.to_bytes(2, "big") + width.to_bytes(2, "big") + jpeg[i + 9 :]
 
 
 def test_jpeg_size_from_the_header_of_baseline_and_progressive_files() -> None:

@@ -3,16 +3,12 @@
 from __future__ import annotations
 
 import asyncio
-import math
 from pathlib import Path
 
 import aiohttp
-import cv2
-import numpy as np
 import pytest
 
-from feelium.http.config import HttpConfig
-from tests.http.test_limit_cores import declare_size
+from feelium.lab.http.abuse import RSS_GROWTH_GOAL_MB, Abuser, measure_phase
 
 pytestmark = pytest.mark.slow
 
@@ -36,48 +32,36 @@ async def test_a_flood_then_stop_from_the_flooder_and_from_another_client(live):
         assert await post(live.auth, "stop") == 200  # leave the lease with the id-less client the other tests are
 
 
-def _rss_kb(pid: int) -> dict[str, int]:
-    fields = {}
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        name, _, value = line.partition(":")
-        if name in ("VmRSS", "VmHWM"):
-            fields[name] = int(value.split()[0])
-    return fields
-
-
-def _progressive_jpeg(side: int) -> bytes:
-    coarse = np.random.default_rng(5).integers(0, 255, (side // 16, side // 16, 3), np.uint8)
-    image = cv2.resize(coarse, (side, side), interpolation=cv2.INTER_CUBIC)
-    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_PROGRESSIVE, 1,
-                                            cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444])  # fmt: skip
-    assert ok
-    return buf.tobytes()
+async def _phase(live, name: str) -> dict:  # type: ignore[no-untyped-def]
+    async with aiohttp.ClientSession(connector=aiohttp.TCPConnector(limit=0)) as session:
+        abuser = Abuser(live, session, write_timeout_s=0.5)  # the live daemon's (tests' short timeouts)
+        return await measure_phase(abuser, getattr(abuser, name))
 
 
 @pytest.mark.skipif(not Path("/proc/self/clear_refs").exists(), reason="peak RSS reset is Linux's")
 async def test_face_uploads_grow_the_daemons_rss_by_less_than_50_mb(live):
-    """The daemon's peak RSS (reset first) while it refuses an 8000x8000 face and shows the largest it admits."""
-    pid = live.process.pid
-    side = math.isqrt(HttpConfig().max_face_pixels)
-    largest = _progressive_jpeg(side)
-    assert len(largest) <= HttpConfig().max_face_bytes
-    huge = declare_size(_progressive_jpeg(64), 8000, 8000)
-    Path(f"/proc/{pid}/clear_refs").write_text("5")  # VmHWM := VmRSS
-    before = _rss_kb(pid)["VmRSS"]
-    headers = live.auth | {"Content-Type": "image/jpeg"}
-    async with aiohttp.ClientSession() as session:
-        async with session.put(f"{live.api}/face", data=huge, headers=headers) as resp:
-            assert resp.status == 413 and (await resp.json())["error"] == "image_too_large"
-        faces = live.health()["services"]["projector"]["faces"]
-        for _ in range(3):
-            async with session.put(f"{live.api}/face", data=largest, headers=headers) as resp:
-                assert resp.status == 200
-            for _ in range(100):  # the projector decodes it on its next tick
-                if live.health()["services"]["projector"]["faces"] > faces:
-                    break
-                await asyncio.sleep(0.05)
-            faces = live.health()["services"]["projector"]["faces"]
-    growth_mb = (_rss_kb(pid)["VmHWM"] - before) / 1024.0
-    print(f"daemon peak RSS growth over 3 uploads of a {side}x{side} progressive face: {growth_mb:.1f} MB")
-    assert faces >= 3
-    assert growth_mb < 50.0
+    """The daemon's peak RSS (reset first) while it refuses an 8000x8000 face and shows the largest it admits
+    three times; `feelium bench link` runs the same phase with the shipped limits."""
+    faces = live.health()["services"]["projector"]["faces"]
+    result = await _phase(live, "face_uploads")
+    print(f"daemon peak RSS growth over 3 uploads of the largest admitted face: {result['rss_peak_growth_mb']} MB")
+    assert result["statuses"] == {"200": 3, "413": 1}
+    assert live.health()["services"]["projector"]["faces"] >= faces + 3  # each one was decoded and shown
+    assert result["rss_peak_growth_mb"] < RSS_GROWTH_GOAL_MB
+    assert result["server_errors"] == 0 and result["stop_accepted_after"]
+
+
+async def test_hostile_bodies_get_4xx_and_stop_still_wins(live):
+    result = await _phase(live, "hostile_bodies")
+    assert result["server_errors"] == 0 and result["stop_accepted_after"]
+    assert set(result["statuses"]) == {"400", "413", "415"}
+
+
+async def test_stream_slots_held_by_stalled_readers_come_back(live):
+    """More never-reading MJPEG clients than slots: the surplus is refused with 429, the rest are dropped after
+    the write timeout, and a fresh reader then gets its stream."""
+    result = await _phase(live, "stalled_streams")
+    statuses = result["statuses"]
+    assert statuses == {"200": 16 + 1, "429": 24 - 16}  # 16 slots in all; the +1 is the fresh reader
+    assert result["fresh_reader_status"] == 200 and result["server_errors"] == 0
+    assert result["stop_accepted_after"]

@@ -1,5 +1,6 @@
 """``feelium bench link`` (alias ``bench http``): motion round trip, `stop` under a flood, touch-event latency per
-transport, MJPEG rate with a stalled client, speech delay and jitter streamed vs long-polled.
+transport, MJPEG rate with a stalled client, speech delay and jitter streamed vs long-polled, and (unless
+``--no-abuse``) the daemon's memory under hostile clients (``feelium.lab.http.abuse``).
 
 The server runs on its own thread and event loop (as in the daemon), the
 clients on this one, both on 127.0.0.1; every number has a baseline measured
@@ -33,6 +34,7 @@ from feelium.http.speech_stream import decode_frame
 from feelium.http.video import BOUNDARY
 from feelium.hub import Hub
 from feelium.motion import DEFAULT_HOLD_S, DeadManCommands, MotionCommand
+from feelium.lab.http.abuse import format_abuse, run_abuse
 from feelium.lab.report import emit_report
 
 TOKEN = "bench-token-0123456789abcdef"
@@ -543,7 +545,7 @@ async def bench_speech(server: ServerThread, seconds: float) -> dict[str, Any]:
     return out
 
 
-async def run_bench(n: int, seconds: float, fps: float, speech_seconds: float = 10.0) -> dict[str, Any]:
+async def run_bench(n: int, seconds: float, fps: float, speech_seconds: float = 10.0, abuse: bool = True) -> dict[str, Any]:
     config = replace(HttpConfig(), motion_rate_per_s=1000.0, motion_burst=1000, stream_write_timeout_s=1.0,
                      event_ring_size=4096, keepalive_s=5.0)  # fmt: skip
     with ServerThread(config) as server:
@@ -553,7 +555,10 @@ async def run_bench(n: int, seconds: float, fps: float, speech_seconds: float = 
             "mjpeg_4_clients_1_stalled": await bench_mjpeg(server, seconds, fps),
             "speech_stream_vs_long_poll": await bench_speech(server, speech_seconds),
         }
-    return result | {"stop_under_flood": await bench_stop_under_flood(max(10, n // 3))}
+    result["stop_under_flood"] = await bench_stop_under_flood(max(10, n // 3))
+    if abuse:
+        result["rss_under_abuse"] = await run_abuse()
+    return result
 
 
 def format_table(result: dict[str, Any]) -> str:
@@ -621,6 +626,8 @@ def format_table(result: dict[str, Any]) -> str:
         f"stream / long-poll: delay median {sp['ratio_delay_median_stream_vs_long_poll']}, "
         f"abs(gap - 40 ms) p99 {sp['ratio_gap_dev_p99_stream_vs_long_poll']}",
     ]
+    if "rss_under_abuse" in result:
+        lines += format_abuse(result["rss_under_abuse"])
     return "\n".join(lines)
 
 
@@ -632,6 +639,6 @@ def bench_http_command(args: Any) -> int:
     if speech_seconds <= 0:
         print("feelium bench link: --speech-seconds > 0 please", file=sys.stderr)
         return 2
-    result = asyncio.run(run_bench(args.requests, args.seconds, args.fps, speech_seconds))
+    result = asyncio.run(run_bench(args.requests, args.seconds, args.fps, speech_seconds, not getattr(args, "no_abuse", False)))
     emit_report(format_table(result), result, args.json)
     return 0

@@ -1,4 +1,6 @@
-"""A real ``feelium run --sim`` on a loopback port, for end-to-end tests and the benchmark."""
+"""A real ``feelium run --sim`` on a loopback port, for the end-to-end tests of the headset link and for
+``feelium bench link``'s abuse phase (which needs the whole daemon: its projector decodes faces, its memory is what
+counts)."""
 
 from __future__ import annotations
 
@@ -49,7 +51,15 @@ class LiveDaemon:
         return self.log_path.read_text(errors="replace")[-4000:]
 
 
-def start_daemon(tmp: Path, extra_toml: str = "", startup_s: float = 60.0) -> LiveDaemon:
+# Short waits so the tests' clients are dropped or answered quickly; the benchmark keeps the shipped ones.
+TEST_TIMEOUTS = """
+longpoll_max_s = 1.0
+stream_write_timeout_s = 0.5
+keepalive_s = 1.0
+"""
+
+
+def start_daemon(tmp: Path, extra_toml: str = "", startup_s: float = 60.0, http_toml: str = TEST_TIMEOUTS) -> LiveDaemon:
     """Start the daemon in sim mode and wait (bounded) until the API answers and a front frame exists."""
     port = free_port()
     config = tmp / "feelium.toml"
@@ -60,10 +70,7 @@ host = "127.0.0.1"
 port = {port}
 token = "{TOKEN}"
 token_file = "{tmp / 'token'}"
-longpoll_max_s = 1.0
-stream_write_timeout_s = 0.5
-keepalive_s = 1.0
-
+{http_toml}
 [audio]
 backend = "sim"
 
