@@ -94,6 +94,25 @@ def _pair(args: argparse.Namespace) -> int:
     print("In the headset app, enter the blimp's address and this code. The blimp is at:")
     for address in client_urls(config):
         print(f"  {address}")
+    if config.tls_cert:
+        return _print_pin(config.tls_cert, host, config.port)
+    return 0
+
+
+def _print_pin(cert_path: str, host: str, port: int) -> int:
+    """The certificate fingerprint the headset pins, checked against what the running daemon serves."""
+    from feelium.http.certificate import pem_file_fingerprint, served_fingerprint
+
+    try:
+        pin, served = pem_file_fingerprint(cert_path), served_fingerprint(host, port)
+    except (OSError, ValueError) as exc:
+        print(f"feelium: cannot read the certificate's fingerprint: {exc}", file=sys.stderr)
+        return 1
+    print(f"certificate SHA-256 (pin it in the headset app): {pin}")
+    if served != pin:
+        print(f"feelium: the daemon serves another certificate ({served}) than {cert_path}: restart it "
+              "(`systemctl restart feelium`) before pinning", file=sys.stderr)  # fmt: skip
+        return 1
     return 0
 
 

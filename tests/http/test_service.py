@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import hashlib
 import json
 import logging
 import shutil
@@ -176,3 +177,29 @@ def test_redact_hides_every_form_of_the_token() -> None:
     assert redact("GET /x?a=1&token=s3cr3t&b=2 HTTP/1.1") == "GET /x?a=1&token=<redacted>&b=2 HTTP/1.1"
     assert redact("Authorization: Bearer s3cr3t") == "Authorization: Bearer <redacted>"
     assert redact("b'GET /x?TOKEN=s3cr3t'") == "b'GET /x?TOKEN=<redacted>'"
+
+
+@pytest.mark.skipif(shutil.which("openssl") is None, reason="needs the openssl command to make a test certificate")
+async def test_feelium_pair_prints_the_pin_openssl_gives_and_refuses_a_stale_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The fingerprint `feelium pair` prints is the SHA-256 of the DER certificate (as docs/visionos.md computes it
+    with openssl) and the one the running daemon serves; a certificate file replaced under a running daemon is
+    refused, since pinning it would lock the headset out of the daemon still serving the old one."""
+    from feelium.cli import main
+
+    cert, key = _self_signed(tmp_path)
+    der = subprocess.run(["openssl", "x509", "-in", str(cert), "-outform", "der"], check=True, capture_output=True).stdout
+    expected = ":".join(f"{b:02X}" for b in hashlib.sha256(der).digest())
+    service, task = await _started(_loopback(tls_cert=str(cert), tls_key=str(key)))
+    try:
+        config = tmp_path / "feelium.toml"
+        config.write_text(f'[http]\nport = {service.port}\ntoken = "{TOKEN}"\ntls_cert = "{cert}"\ntls_key = "{key}"\n')
+        assert await asyncio.to_thread(main, ["pair", "--config", str(config)]) == 0
+        out = capsys.readouterr().out
+        assert f"certificate SHA-256 (pin it in the headset app): {expected}" in out and "pairing code:" in out
+        other = tmp_path / "other"
+        other.mkdir()
+        cert.write_bytes(_self_signed(other)[0].read_bytes())  # replaced on disk, the daemon not restarted
+        assert await asyncio.to_thread(main, ["pair", "--config", str(config)]) == 1
+        assert "serves another certificate" in capsys.readouterr().err
+    finally:
+        await _stopped(service, task)
