@@ -22,13 +22,22 @@ def register(registry: CommandRegistry) -> None:
     rec.add_argument("--session", default="", help="free text grouping recordings taken under the same conditions")
     lens = registry.subcommand(
         "calibrate", "lens",
-        "Fit the front fisheye's lens model (OpenCV fisheye K, D) from views of a printed chessboard and save it where "
-        "the daemon serves it (GET /lens). Show the whole board, tilted, all over the image, edges included.",
+        "Fit the front fisheye's lens model (OpenCV fisheye K, D) from views of a printed chessboard or ChArUco board "
+        "and save it where the daemon serves it (GET /lens). Show the board, tilted, all over the image, edges included "
+        "(a chessboard must be seen whole; a ChArUco board may hang over the edge).",
         _calibrate_lens,
     )  # fmt: skip
     lens.add_argument("source", nargs="?", help="a folder of images, a video file, or a recording (its camera.mkv)")
-    lens.add_argument("--pattern", default="9x6", help="inner corners of the chessboard, COLSxROWS (default 9x6)")
-    lens.add_argument("--square-mm", type=float, default=25.0, help="printed square size in mm (sets no lens value; default 25)")
+    lens.add_argument("--board", choices=("chessboard", "charuco"), default="chessboard",
+                      help="the printed target (default chessboard); charuco counts partial views, near the rim too")
+    lens.add_argument("--pattern", help="chessboard: inner corners COLSxROWS (default 9x6); "
+                      "charuco: squares COLSxROWS (default 7x5)")
+    lens.add_argument("--square-mm", type=float, help="printed square size in mm (sets no lens value; "
+                      "default 25 for a chessboard, 35 for ChArUco)")
+    lens.add_argument("--marker-mm", type=float, help="charuco: printed marker size in mm (default 0.75 of a square)")
+    lens.add_argument("--dictionary", default="DICT_4X4_50", help="charuco: the ArUco dictionary (default DICT_4X4_50)")
+    lens.add_argument("--write-board", metavar="PNG",
+                      help="charuco: write the board to print (300 dpi, at --square-mm) and exit")
     lens.add_argument("--every", type=int, default=1, help="use every Nth image or frame (default 1)")
     lens.add_argument("--config", help="TOML config file; the lens is saved beside it ([front_camera] lens_file)")
     lens.add_argument("--out", help="where to save the lens JSON (default: [front_camera] lens_file; with --synthetic: not saved)")
@@ -120,10 +129,12 @@ def _calibrate_lens(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from feelium.cameras.lens import save_lens
-    from feelium.lab.lens.calibrate import Board, LensCalibrationError, calibrate, read_views
+    from feelium.lab.lens.calibrate import LensCalibrationError, calibrate, read_views
 
     try:
-        board = Board.parse(args.pattern, args.square_mm)
+        board = _target(args)
+        if args.write_board:
+            return _write_board(board, Path(args.write_board))
         if args.synthetic:
             from feelium.lab.lens.synthetic import TRUTH, recovery_error, synthetic_views
 
@@ -153,6 +164,38 @@ def _calibrate_lens(args: argparse.Namespace) -> int:
     return 0
 
 
+def _target(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    """The board the options describe (a ``LensCalibrationError`` names what is wrong)."""
+    from feelium.lab.lens.calibrate import Board, CharucoBoard, LensCalibrationError
+
+    if args.board == "chessboard":
+        if args.write_board or args.marker_mm is not None:
+            raise LensCalibrationError("--write-board and --marker-mm are for --board charuco")
+        return Board.parse(args.pattern or "9x6", args.square_mm or 25.0)
+    square = args.square_mm or 35.0
+    return CharucoBoard.parse(args.pattern or "7x5", square, args.marker_mm or 0.75 * square, args.dictionary)
+
+
+PRINT_DPI = 300
+
+
+def _write_board(board, path: "Path") -> int:  # type: ignore[no-untyped-def]
+    """The ChArUco board as a PNG to print at ``PRINT_DPI`` (then measure a square: that is ``--square-mm``)."""
+    import sys
+
+    import cv2
+
+    px = round(board.square_m * 1000.0 / 25.4 * PRINT_DPI)
+    margin = px // 4  # 7x5 squares of 35 mm then print 262 x 192 mm: inside an A4 page's printable area
+    image = board.opencv.generateImage((board.cols * px + 2 * margin, board.rows * px + 2 * margin), marginSize=margin)
+    if not cv2.imwrite(str(path), image, [cv2.IMWRITE_PNG_COMPRESSION, 9]):
+        print(f"feelium calibrate lens: cannot write {path}", file=sys.stderr)
+        return 1
+    print(f"wrote {path}: {board.cols}x{board.rows} squares of {board.square_m * 1000:g} mm at {PRINT_DPI} dpi "
+          f"({board.dictionary}); print at 100 %, measure a square and pass it as --square-mm")  # fmt: skip
+    return 0
+
+
 def _lens_out(args: argparse.Namespace) -> "Path | None":
     """Where to save: ``--out``, else (not for a synthetic run) the config's ``[front_camera] lens_file``."""
     from pathlib import Path
@@ -178,7 +221,7 @@ def _write_views(folder: "Path", views: list) -> None:
 def _print_lens(summary: dict) -> None:
     lens = summary["lens"]
     (fx, _, cx), (_, fy, cy), _ = lens["K"]
-    print(f"views with the whole board: {summary['views_used']} (without: {summary['views_without_board']})")
+    print(f"views with the board: {summary['views_used']} (without: {summary['views_without_board']})")
     print(f"RMS reprojection error: {summary['rms_px']} px (worst view {summary['worst_view']}: {summary['worst_view_rms_px']} px)")
     print(f"{lens['width']}x{lens['height']}: fx {fx:.3f} fy {fy:.3f} cx {cx:.3f} cy {cy:.3f} D {[round(k, 6) for k in lens['D']]}")
     if "recovery_error" in summary:
