@@ -128,6 +128,7 @@ def query_number(request: web.Request, name: str, default: float, lo: float, hi:
     except ValueError:
         kind = "an integer" if integer else "a number"
         raise ApiError(400, f"query parameter {name} must be {kind}, got {raw[:40]!r}") from None
-    if not (math.isfinite(value) and lo <= value <= hi):
+    # the bounds first: math.isfinite(10**400) overflows converting the int to a float
+    if not (lo <= value <= hi and math.isfinite(value)):
         raise ApiError(400, f"query parameter {name} must be within {lo:g}..{hi:g}, got {raw[:40]}")
     return value

@@ -223,6 +223,18 @@ async def test_huge_and_non_finite_numbers_are_400(client, hub, path, raw):
 
 
 @pytest.mark.parametrize(
+    "query",
+    ["/api/v1/speech?timeout=0&after=1" + "0" * 400, "/api/v1/speech?timeout=0&after=-1" + "0" * 400,
+     "/api/v1/speech/stream?rate=1" + "0" * 400, "/api/v1/speech/stream?rate=nan", "/api/v1/events?timeout=1e400"],
+    ids=["after-10e400", "after-minus-10e400", "rate-10e400", "rate-nan", "timeout-1e400"],
+)
+async def test_huge_numbers_in_a_query_are_400(client, query):
+    """An integer too large for a float once reached math.isfinite and was answered 500."""
+    body = await error_of(await client.get(query, headers=A), 400)
+    assert "query parameter" in body["message"]
+
+
+@pytest.mark.parametrize(
     "raw",
     ["[" * 5000 + "]" * 5000, '{"command": ' + "[" * 5000 + "]" * 5000 + "}", '{"a":' * 2500 + "1" + "}" * 2500],
     ids=["array", "in-a-field", "objects"],
