@@ -1,7 +1,9 @@
 """Simulated cameras: the rear camera renders the live scene simulator, the front one a fisheye room.
 
 Both pace themselves at the configured rate on a monotonic clock and stamp
-each frame with the time it was due, like a sensor's own timestamp.
+each frame with the time it was due on the daemon's clock (as the Pi's cameras
+do), so a frame's age and a touch's latency mean the same in simulation as on
+the blimp; the simulators themselves run on a clock starting near 0.
 """
 
 from __future__ import annotations
@@ -70,7 +72,7 @@ class SimRearCamera:
         if self._closed:
             return None
         t = self._pacer.wait()
-        return Frame(t=t, image=self.scene.frame(t), roi=self.scene.roi)
+        return Frame(t=t + self.scene.origin, image=self.scene.frame(t), roi=self.scene.roi)
 
     def close(self) -> None:
         self._closed = True
@@ -93,15 +95,15 @@ class SimFrontCamera:
         sleep: Callable[[float], None] = time.sleep,
     ) -> None:
         self._room = SimFisheyeRoom(width, height, seed=seed)
-        origin = clock()
-        self._pacer = Pacer(fps, clock=lambda: clock() - origin, sleep=sleep)
+        self._origin = clock()
+        self._pacer = Pacer(fps, clock=lambda: clock() - self._origin, sleep=sleep)
         self._closed = False
 
     def read(self) -> Frame | None:
         if self._closed:
             return None
         t = self._pacer.wait()
-        return Frame(t=t, image=self._room.frame(t))
+        return Frame(t=t + self._origin, image=self._room.frame(t))
 
     def close(self) -> None:
         self._closed = True

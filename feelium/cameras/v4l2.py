@@ -50,8 +50,7 @@ class V4l2Camera:
         self._capture.set(cv2.CAP_PROP_FPS, fps)
         self._capture.set(cv2.CAP_PROP_BUFFERSIZE, 1)  # newest frame, not a queue of stale ones
         self._size = (width, height)
-        self._clock = clock
-        self._origin = clock()
+        self._clock = clock  # the daemon's (monotonic): frames are stamped on the clock the API gives
         self._guard = ClosableReader()
 
     def read(self) -> Frame | None:
@@ -63,7 +62,7 @@ class V4l2Camera:
                 raise OSError("the V4L2 camera stopped delivering frames (unplugged?)")
             if (image.shape[1], image.shape[0]) != self._size:
                 image = cv2.resize(image, self._size, interpolation=cv2.INTER_AREA)
-            return Frame(t=self._clock() - self._origin, image=image)
+            return Frame(t=self._clock(), image=image)
 
     def close(self) -> None:
         self._guard.close(self._capture.release)

@@ -66,7 +66,6 @@ def build_touch(config: Config, hub: Hub) -> Service | None:
         debug_video_fps=config.rear_camera.debug_video_fps,
         annotation=load_projector_annotation(config),
         projected=load_projected_light(config, source.backend),
-        camera_clock_offset_s=getattr(source.scene, "origin", 0.0),  # the simulated camera counts from its start
         stale_after_s=config.rear_camera.stale_after_s,
     )
 

@@ -87,13 +87,12 @@ class TouchService:
         overlay: Overlay = _default_overlay,
         annotation: ProjectorAnnotation | None = None,
         projected: ProjectedFactory | None = None,
-        camera_clock_offset_s: float = 0.0,
         stale_after_s: float = 2.0,
     ) -> None:
         """``projected``: how to predict the light of each projector frame (``hub.projector_video``), which then
         goes with every camera frame as ``projected_light`` (see :mod:`feelium.touch.projected`); ``None`` when
-        the camera's frames hold no projection. ``camera_clock_offset_s``: the daemon's clock minus the camera's
-        (the simulated camera counts from its start)."""
+        the camera's frames hold no projection. Camera frames are stamped on the daemon's clock, the projector's
+        frames too."""
         self.source = source
         self.hub = hub
         self.touch_config = touch_config
@@ -102,7 +101,6 @@ class TouchService:
         self.overlay = overlay
         self.annotation = annotation
         self.projected = projected
-        self.camera_clock_offset_s = camera_clock_offset_s
         self.stale_after_s = stale_after_s
         self.projector_history = ProjectorHistory()
         self._exposure_light: ExposureLight | None = None
@@ -195,7 +193,7 @@ class TouchService:
 
     def _step(self, pipeline: Any, frame: Frame, want_debug: bool) -> tuple[Any, np.ndarray | None]:
         """Worker-thread part: the pipeline and, at the debug rate, the overlay."""
-        projected = self._projected_light(frame.t + self.camera_clock_offset_s)
+        projected = self._projected_light(frame.t)
         if projected is None:
             result = pipeline.process(frame.t, frame.image)
         else:

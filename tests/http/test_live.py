@@ -137,6 +137,7 @@ async def test_a_simulated_touch_reaches_long_poll_sse_and_websocket(live):
         ]
         await asyncio.sleep(0.3)
         x, y = sim["width"] / 2, sim["height"] / 2
+        pressed_at = await _daemon_clock(session, live.api)
         async with session.post(f"{live.api}/sim/press", json={"x": x, "y": y}) as resp:
             assert resp.status == 202
         try:
@@ -149,3 +150,22 @@ async def test_a_simulated_touch_reaches_long_poll_sse_and_websocket(live):
     assert got[0] == got[1] == got[2]  # one envelope, three transports
     event = got[0]["event"]
     assert abs(event["x"] - x) < 40 and abs(event["y"] - y) < 40, event
+    assert pressed_at <= event["t"] <= pressed_at + 5.0  # on the daemon's clock, stamped after the press
+
+
+async def _daemon_clock(session: aiohttp.ClientSession, api: str) -> float:
+    async with session.get(f"{api}/clock") as resp:
+        return (await resp.json())["t"]
+
+
+async def test_every_camera_frame_is_stamped_on_the_daemon_clock(live):
+    """``X-Feelium-Capture-T`` of the front, rear and projector frames is on the clock ``GET /clock`` gives, so a
+    headset measures a frame's age with it (the simulated cameras once counted from their own start)."""
+    async with aiohttp.ClientSession(headers=live.auth) as session:
+        for camera in ("front", "rear", "projector"):
+            before = await _daemon_clock(session, live.api)
+            async with session.get(f"{live.api}/video/{camera}.jpg") as resp:
+                assert resp.status == 200, camera
+                captured = float(resp.headers["X-Feelium-Capture-T"])
+            after = await _daemon_clock(session, live.api)
+            assert before - 5.0 <= captured <= after, (camera, before, captured, after)

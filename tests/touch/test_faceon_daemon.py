@@ -69,7 +69,6 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
     touch = TouchService(
         CameraSource("sim", lambda: SimRearCamera(shared, fps=15.0), shared), hub, TouchConfig(),
         debug_video_fps=0.0, projected=lambda size: BacklightPredictor(projector_cfg, calibration, size).gain,
-        camera_clock_offset_s=shared.origin,
     )  # fmt: skip
     projector = ProjectorService(
         projector_cfg, dataclasses.replace(InteractionsConfig(), enabled=False), hub, SimDisplay(), calibration
