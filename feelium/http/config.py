@@ -41,6 +41,10 @@ class HttpConfig:
         2_000_000, "Largest face upload: one JPEG, or all frames of a looping avatar (413 above).", min=1024, max=16_000_000
     )
     max_avatar_frames: int = setting(64, "Most frames a looping avatar may have.", min=1, max=1000)
+    max_uploads_in_flight: int = setting(
+        2, "Face uploads whose bodies are read at once, all clients together; one more gets 429 at once, before its "
+        "body is read, so concurrent uploads cannot stack megabytes on a 512 MB board.", min=1, max=16,
+    )
     max_speech_bytes: int = setting(
         256_000, "Largest speech upload (one WAV chunk; 413 above).", min=1024, max=4_000_000
     )

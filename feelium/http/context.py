@@ -60,6 +60,7 @@ class LinkContext:
     wall_clock: Callable[[], float] = time.time  # only for GET /clock: every other time is hub.clock
     last_request_at: float | None = None
     last_motion_at: float | None = None
+    uploads_in_flight: int = 0  # face bodies being read now ([http] max_uploads_in_flight)
 
     def count(self, name: str, n: int = 1) -> None:
         self.counters[name] = self.counters.get(name, 0) + n

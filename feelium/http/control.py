@@ -15,6 +15,7 @@ from feelium.events import WearerAction
 from feelium.http.auth import presented_token
 from feelium.http.clients import client_of
 from feelium.http.clock import CAPTURE_HEADER, read_clocks
+from feelium.http.config import HttpConfig
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
 from feelium.http.face import ImageTooLarge, JpegError, check_jpeg
@@ -151,16 +152,19 @@ async def put_face(request: web.Request) -> web.Response:
     cfg = link.config
     ctype = request.content_type
     fps = query_number(request, "fps", 12.0, 0.5, 60.0)
-    if ctype == "image/jpeg":
-        frames = [await read_body(request, cfg.max_face_bytes)]
-    elif ctype in ("multipart/form-data", "multipart/mixed"):
-        if request.content_length is not None and request.content_length > cfg.max_face_bytes:
-            raise ApiError(413, f"avatar of {request.content_length} bytes exceeds the limit of {cfg.max_face_bytes} bytes")
-        frames = await _avatar_frames(request, cfg.max_face_bytes, cfg.max_avatar_frames)
-        if not frames:
-            raise ApiError(400, "the avatar has no frames")
-    else:
+    if ctype not in ("image/jpeg", "multipart/form-data", "multipart/mixed"):
         raise ApiError(415, f"expected image/jpeg or multipart/form-data of JPEG frames, got {ctype}")
+    client, now = client_of(request), link.hub.clock()
+    if not link.action_limit.has_token(client, now):  # refused before its megabytes are read
+        charge(link.action_limit, client, now, "wearer actions and face uploads")
+    if link.uploads_in_flight >= cfg.max_uploads_in_flight:
+        raise ApiError(429, f"{link.uploads_in_flight} face uploads are being received; retry in a second",
+                       "uploads_busy", headers={"Retry-After": "1"})  # fmt: skip
+    link.uploads_in_flight += 1
+    try:
+        frames = await _face_frames(request, ctype, cfg)
+    finally:
+        link.uploads_in_flight -= 1
     try:
         for i, frame in enumerate(frames):
             check_jpeg(frame, cfg.max_face_pixels, "body" if len(frames) == 1 else f"frame {i}")
@@ -168,9 +172,21 @@ async def put_face(request: web.Request) -> web.Response:
         raise ApiError(413, str(exc), "image_too_large") from exc
     except JpegError as exc:
         raise ApiError(400, str(exc)) from exc
-    charge(link.action_limit, client_of(request), link.hub.clock(), "wearer actions and face uploads")
+    charge(link.action_limit, client, link.hub.clock(), "wearer actions and face uploads")
     link.face.show(frames, fps)
     return web.json_response({"frames": len(frames), "fps": fps if len(frames) > 1 else None, "bytes": sum(map(len, frames))})
+
+
+async def _face_frames(request: web.Request, ctype: str, cfg: HttpConfig) -> list[bytes]:
+    """The JPEG frames of a face upload, read within the size limits."""
+    if ctype == "image/jpeg":
+        return [await read_body(request, cfg.max_face_bytes)]
+    if request.content_length is not None and request.content_length > cfg.max_face_bytes:
+        raise ApiError(413, f"avatar of {request.content_length} bytes exceeds the limit of {cfg.max_face_bytes} bytes")
+    frames = await _avatar_frames(request, cfg.max_face_bytes, cfg.max_avatar_frames)
+    if not frames:
+        raise ApiError(400, "the avatar has no frames")
+    return frames
 
 
 async def delete_face(request: web.Request) -> web.Response:

@@ -282,6 +282,7 @@ ERROR_CODES: dict[str, tuple[int, str]] = {
     "image_too_large": (413, "A face JPEG declaring more than max_face_pixels."),
     "unsupported_media_type": (415, "Wrong Content-Type (JSON bodies must be application/json, UTF-8)."),
     "too_many_requests": (429, "This client's rate limit or a stream limit (with Retry-After)."),
+    "uploads_busy": (429, "[http] max_uploads_in_flight face uploads are being received already (Retry-After: 1)."),
     "internal": (500, "A bug (logged and counted); never the answer to a bad request."),
 }  # fmt: skip
 

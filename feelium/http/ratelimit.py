@@ -39,6 +39,11 @@ class TokenBucket:
         self.rejected += 1
         return False
 
+    def has_token(self, now: float) -> bool:
+        """Whether :meth:`take` would succeed now, without taking (to refuse a big body before reading it)."""
+        self._refill(now)
+        return self._tokens >= 1.0
+
     def retry_after(self, now: float) -> float:
         """Seconds until the next token."""
         self._refill(now)
@@ -74,6 +79,10 @@ class ClientBuckets:
             return True
         self.rejected += 1
         return False
+
+    def has_token(self, client: str, now: float) -> bool:
+        """Whether ``client`` could be charged now (nothing is taken)."""
+        return self._bucket(client, now).has_token(now)
 
     def retry_after(self, client: str, now: float) -> float:
         """Seconds until ``client`` may send again."""

@@ -315,3 +315,23 @@ async def test_an_avatar_with_one_oversized_frame_is_refused(client, hub):
 
 async def test_a_face_without_a_frame_header_is_400(client, hub):
     await error_of(await client.put("/api/v1/face", data=b"\xff\xd8\xff\xe0\x00\x02\xff\xd9", headers=A | {"Content-Type": "image/jpeg"}), 400)
+
+
+async def test_face_uploads_past_the_daemon_wide_gate_are_refused_before_their_body_is_read(client, hub):
+    """While ``max_uploads_in_flight`` bodies are being read, one more upload, from any client id, gets 429 at
+    once: ids are free to pick, so only a daemon-wide gate keeps concurrent megabytes off a 512 MB board."""
+    link = client.link
+    link.uploads_in_flight = link.config.max_uploads_in_flight  # as if that many were being received
+    body = await error_of(await client.put("/api/v1/face", data=_small_jpeg(), headers=B | {"Content-Type": "image/jpeg"}), 429)
+    assert body["error"] == "uploads_busy" and hub.face.get() is None
+    link.uploads_in_flight = 0
+    resp = await client.put("/api/v1/face", data=_small_jpeg(), headers=B | {"Content-Type": "image/jpeg"})
+    assert resp.status == 200 and link.uploads_in_flight == 0  # released after the read
+
+
+async def test_a_client_without_a_token_left_is_refused_before_its_face_is_read(client, http_config):
+    for _ in range(http_config.action_burst):
+        assert (await client.post("/api/v1/actions/heart", headers=A)).status == 202
+    not_a_jpeg = b"x" * 100  # would be a 400 if it were read: the 429 comes first
+    body = await error_of(await client.put("/api/v1/face", data=not_a_jpeg, headers=A | {"Content-Type": "image/jpeg"}), 429)
+    assert "limited" in body["message"]

@@ -51,6 +51,17 @@ async def test_face_uploads_grow_the_daemons_rss_by_less_than_50_mb(live):
     assert result["server_errors"] == 0 and result["stop_accepted_after"]
 
 
+@pytest.mark.skipif(not Path("/proc/self/clear_refs").exists(), reason="peak RSS reset is Linux's")
+async def test_concurrent_face_uploads_from_many_client_ids_stay_under_50_mb(live):
+    """96 of the largest faces, 24 at a time from as many client ids: the daemon-wide upload gate refuses what it
+    cannot read at once (429 before the body is read), so memory does not stack (58 MB before the gate)."""
+    result = await _phase(live, "concurrent_uploads")
+    print(f"daemon peak RSS growth over 4 x 24 concurrent uploads: {result['rss_peak_growth_mb']} MB, {result['statuses']}")
+    assert set(result["statuses"]) == {"200", "429"} and result["statuses"]["200"] >= 4  # the gate turned some away
+    assert result["rss_peak_growth_mb"] < RSS_GROWTH_GOAL_MB
+    assert result["server_errors"] == 0 and result["stop_accepted_after"]
+
+
 async def test_hostile_bodies_get_4xx_and_stop_still_wins(live):
     result = await _phase(live, "hostile_bodies")
     assert result["server_errors"] == 0 and result["stop_accepted_after"]

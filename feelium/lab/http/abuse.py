@@ -36,6 +36,8 @@ FLOOD_CLIENTS = 4
 FLOOD_IN_FLIGHT = 8
 STALLED_STREAMS = 24  # more than the shipped 16 slots, from 6 clients of 4 streams each
 SILENT_SUBSCRIBERS = 50
+CONCURRENT_UPLOADS = 24
+CONCURRENT_ROUNDS = 4
 HOSTILE_REPEATS = 20
 SOCKET_BUFFER_BYTES = 4096
 
@@ -107,6 +109,15 @@ class Abuser:
                 if self.daemon.health()["services"]["projector"]["faces"] > faces:
                     break
                 await asyncio.sleep(0.05)
+
+    async def concurrent_uploads(self) -> None:
+        """Four rounds of 24 of the largest admitted faces sent at once, each from a client id of its own (ids are
+        free to pick), so no per-client limit holds them back: only the daemon-wide upload gate does."""
+        largest = progressive_jpeg(math.isqrt(HttpConfig().max_face_pixels), seed=6)
+        jpeg = {"Content-Type": "image/jpeg"}
+        for round_ in range(CONCURRENT_ROUNDS):
+            await asyncio.gather(*(self.request("PUT", "/face", f"uploader-{round_}-{i}", data=largest, headers=jpeg)
+                                   for i in range(CONCURRENT_UPLOADS)))  # fmt: skip
 
     async def motion_flood(self) -> None:
         """Several clients, each keeping motion requests in flight far past its rate limit."""
@@ -217,7 +228,7 @@ async def run_abuse() -> dict[str, Any]:
             async with aiohttp.ClientSession(connector=connector) as session:
                 abuser = Abuser(daemon, session, HttpConfig().stream_write_timeout_s)
                 phases = {name: await measure_phase(abuser, getattr(abuser, name)) for name in (
-                    "idle", "face_uploads", "motion_flood", "hostile_bodies", "stalled_streams", "silent_subscribers")}  # fmt: skip
+                    "idle", "face_uploads", "concurrent_uploads", "motion_flood", "hostile_bodies", "stalled_streams", "silent_subscribers")}  # fmt: skip
             alive = daemon.process.poll() is None and "services" in daemon.health()
         finally:
             stop_daemon(daemon)
