@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import re
+from urllib.parse import parse_qsl, unquote
 
 from aiohttp import web
 from aiohttp.abc import AbstractAccessLogger
@@ -27,23 +28,46 @@ log = logging.getLogger(__name__)
 
 MAX_MESSAGE = 300
 _SECRETS = re.compile(r"(?i)(token=|bearer\s+)[^&\s'\"]+")
+# A token has at least 16 characters (feelium.http.auth), so no part of a URL that long is ever logged whole,
+# wherever a client put it (a path segment, a query value, under a percent-encoded key).
+SECRET_MIN_CHARS = 16
+_LONG_WITH_DIGIT = re.compile(r"[^\s/?&=;'\"]*[0-9_][^\s/?&=;'\"]*")
 
 
 def redact(text: str) -> str:
-    """``text`` with every ``token=...`` value and ``Bearer ...`` credential replaced by ``<redacted>``."""
-    return _SECRETS.sub(lambda m: m.group(1) + "<redacted>", text)
+    """Free text (a rejected request line) with its percent-escapes decoded, every ``token=...`` value and
+    ``Bearer ...`` credential replaced by ``<redacted>``, and any other long run holding a digit elided."""
+    text = _SECRETS.sub(lambda m: m.group(1) + "<redacted>", unquote(text))
+    return _LONG_WITH_DIGIT.sub(lambda m: m.group(0) if len(m.group(0)) < SECRET_MIN_CHARS else "<elided>", text)
+
+
+def _shown(part: str) -> str:
+    return part if len(part) < SECRET_MIN_CHARS else f"<{len(part)} chars>"
+
+
+def loggable_target(path_qs: str) -> str:
+    """A request target for the log: path segments and query keys and values decoded, the ``token`` value
+    redacted, and anything of a token's length or more shown only as its length."""
+    path, sep, query = path_qs.partition("?")
+    shown = "/".join(_shown(unquote(segment)) for segment in path.split("/"))
+    if sep:
+        pairs = parse_qsl(query, keep_blank_values=True)
+        shown += "?" + "&".join(
+            f"{_shown(key)}={'<redacted>' if key.strip().lower() == 'token' else _shown(value)}" for key, value in pairs
+        )
+    return shown
 
 
 class RedactingAccessLogger(AbstractAccessLogger):
     """One debug line per request: address, method, path with its query redacted, status, bytes, milliseconds.
 
-    No headers are logged at all (so no ``Authorization``), and query strings pass :func:`redact`.
+    No headers are logged at all (so no ``Authorization``), and the target passes :func:`loggable_target`.
     """
 
     def log(self, request: BaseRequest, response: web.StreamResponse, time: float) -> None:
         self.logger.debug(
             "%s %s %s %d %d %.1fms",
-            request.remote, request.method, redact(request.path_qs), response.status, response.body_length, time * 1000.0,
+            request.remote, request.method, loggable_target(request.raw_path), response.status, response.body_length, time * 1000.0,
         )
 
     @property

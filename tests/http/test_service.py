@@ -177,6 +177,26 @@ def test_redact_hides_every_form_of_the_token() -> None:
     assert redact("GET /x?a=1&token=s3cr3t&b=2 HTTP/1.1") == "GET /x?a=1&token=<redacted>&b=2 HTTP/1.1"
     assert redact("Authorization: Bearer s3cr3t") == "Authorization: Bearer <redacted>"
     assert redact("b'GET /x?TOKEN=s3cr3t'") == "b'GET /x?TOKEN=<redacted>'"
+    assert redact(f"GET /x?to%6ben={TOKEN} HTTP/1.1") == "GET /x?token=<redacted> HTTP/1.1"  # an encoded key
+    assert TOKEN not in redact(f"GET /api/v1/nothing/{TOKEN} HTTP/1.1")  # a token anywhere else
+    assert redact("GET /api/v1/state HTTP/1.1: Invalid Content-Length") == "GET /api/v1/state HTTP/1.1: Invalid Content-Length"
+
+
+@pytest.mark.parametrize(
+    "target, logged",
+    [
+        (f"/api/v1/state?token={TOKEN}&client=a", "/api/v1/state?token=<redacted>&client=a"),
+        (f"/api/v1/state?to%6ben={TOKEN}", "/api/v1/state?token=<redacted>"),  # the key decoded, as auth decodes it
+        (f"/api/v1/state?%54OKEN={TOKEN}", "/api/v1/state?TOKEN=<redacted>"),
+        (f"/api/v1/nothing/{TOKEN}", f"/api/v1/nothing/<{len(TOKEN)} chars>"),  # a 404 with the token in its path
+        (f"/api/v1/events?after=12&note={TOKEN}", f"/api/v1/events?after=12&note=<{len(TOKEN)} chars>"),
+        ("/api/v1/video/front.mjpeg?fps=10", "/api/v1/video/front.mjpeg?fps=10"),
+    ],
+)
+def test_the_access_log_target_never_carries_a_token(target: str, logged: str) -> None:
+    from feelium.http.server import loggable_target
+
+    assert loggable_target(target) == logged
 
 
 @pytest.mark.skipif(shutil.which("openssl") is None, reason="needs the openssl command to make a test certificate")
