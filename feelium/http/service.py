@@ -74,6 +74,7 @@ class HttpService:
         self.token = token
         self.app = app
         self.port: int | None = None
+        self.listening = False  # only once the socket is bound does the headset have a link
         self._runner: web.AppRunner | None = None
         self._stopped = asyncio.Event()
 
@@ -89,10 +90,12 @@ class HttpService:
             server = getattr(site, "_server", None)
             sockets = getattr(server, "sockets", None) or []
             self.port = sockets[0].getsockname()[1] if sockets else self.config.port
+            self.listening = True
             urls = client_urls(self.config, self.port)
             log.info("headset client at %s (the token: feelium http-url, or pair with feelium pair)", ", ".join(urls))
             await self._stopped.wait()
         finally:
+            self.listening = False
             self._runner = None
             await runner.cleanup()
 
@@ -100,8 +103,11 @@ class HttpService:
         self._stopped.set()
 
     def health(self) -> dict[str, Any]:
+        """The link's counters; ``starting`` until the socket is bound, so a restart that cannot bind (port taken)
+        never reads ok between its crashes."""
         link = link_of(self.app)
-        return {
+        listening = {} if self.listening else {"condition": "starting", "reason": f"not listening on {self.config.host}:{self.config.port} yet"}
+        return listening | {
             "port": self.port,
             "last_seq": link.events.ring.last_seq,
             "motion_rate_limited": link.motion_limit.rejected,

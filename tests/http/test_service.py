@@ -7,6 +7,7 @@ import hashlib
 import json
 import logging
 import shutil
+import socket
 import ssl
 import subprocess
 import sys
@@ -223,3 +224,30 @@ async def test_feelium_pair_prints_the_pin_openssl_gives_and_refuses_a_stale_one
         assert "serves another certificate" in capsys.readouterr().err
     finally:
         await _stopped(service, task)
+
+
+async def test_a_taken_port_reads_failed_or_starting_never_ok_between_restarts(caplog: pytest.LogCaptureFixture) -> None:
+    """The http service restarted into a port another process holds crashes at each bind: its health must not
+    say ok in between (a review saw ``http: ok (was failed)`` while the daemon had no headset link)."""
+    from feelium.daemon.config import DaemonConfig
+    from feelium.daemon.supervisor import Supervisor
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        service = build_http(replace(Config(), http=replace(_loopback(), port=port)), Hub())
+        assert service is not None and service.health()["condition"] == "starting"
+        fast = DaemonConfig(restart_initial_s=0.01, restart_max_s=0.05, stop_timeout_s=0.2, shutdown_budget_s=1.0)
+        supervisor = Supervisor([service], fast)
+        supervisor.start()
+        states = set()
+        try:
+            for _ in range(60):
+                await asyncio.sleep(0.01)
+                states.add(supervisor.report()["services"]["http"]["state"])
+        finally:
+            await supervisor.shutdown()
+    assert supervisor.records["http"].crashes >= 2
+    assert "ok" not in states and "failed" in states, states
+    assert "http: ok" not in caplog.text
