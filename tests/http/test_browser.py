@@ -29,6 +29,7 @@ PLAIN_HOST = f"{socket.gethostname().split('.')[0]}.local"
 CHROMIUM_ARGS = [
     "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
     "--disable-component-update", "--disable-sync", f"--host-resolver-rules=MAP {PLAIN_HOST} 127.0.0.1",
+    "--use-fake-device-for-media-stream", "--use-fake-ui-for-media-stream", "--autoplay-policy=no-user-gesture-required",
 ]  # fmt: skip
 
 
@@ -358,6 +359,50 @@ def test_immersive_mode_keeps_stop_reachable(live, browser):  # type: ignore[no-
     finally:
         context.close()
     assert page.errors == []
+
+
+def test_speech_both_ways_streams_on_one_websocket_within_the_limits(live, browser):  # type: ignore[no-untyped-def]
+    """Listening reads the room's audio from GET /speech/stream (no polling); talking, from Chromium's fake
+    microphone, sends chunks on the same socket under the 20/s speech limit (2048-sample buffers at 48 kHz were
+    23 POSTs a second, and 14 % of them were refused)."""
+    page = open_wearer(browser, live)
+    received, sent, sockets, polls = [], [], [], []
+
+    def on_socket(ws):  # type: ignore[no-untyped-def]
+        if "/speech/stream" in ws.url:
+            sockets.append(ws)
+            ws.on("framereceived", lambda payload: isinstance(payload, bytes) and received.append(payload))
+            ws.on("framesent", lambda payload: isinstance(payload, bytes) and sent.append((time.monotonic(), len(payload))))
+
+    page.on("websocket", on_socket)
+    page.on("request", lambda r: polls.append(r.url) if re.search(r"/speech(\?|$)", r.url) else None)
+    refused_before = live.health()["services"]["http"]["speech_rate_limited"]
+    try:
+        page.click("#listen-btn")
+        deadline = time.monotonic() + 10
+        while len(received) < 10 and time.monotonic() < deadline:
+            page.wait_for_timeout(100)
+        assert len(received) >= 10 and len(sockets) == 1  # 40 ms frames of the simulated room
+        box = page.locator("#talk-btn").bounding_box()
+        page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        page.mouse.down()
+        page.wait_for_timeout(2000)
+        page.mouse.up()
+        page.wait_for_timeout(300)
+        assert len(sockets) == 1  # talking went on the socket listening opened
+        assert len(sent) >= 10, sent
+        span = sent[-1][0] - sent[0][0]
+        assert (len(sent) - 1) / span < 15.0, (len(sent), span)  # well under the 20/s limit
+        page.click("#listen-btn")  # neither listening nor talking: the socket closes
+        page.wait_for_function("true", timeout=1000)
+        deadline = time.monotonic() + 5
+        while not sockets[0].is_closed() and time.monotonic() < deadline:
+            page.wait_for_timeout(100)
+        assert sockets[0].is_closed()
+    finally:
+        page.close()
+    assert polls == [] and page.errors == []
+    assert live.health()["services"]["http"]["speech_rate_limited"] == refused_before
 
 
 def test_plain_http_explains_why_face_and_talk_are_off(live, browser):  # type: ignore[no-untyped-def]

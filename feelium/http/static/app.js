@@ -152,59 +152,83 @@ if (!mediaAllowed) {
     + `https://${location.host}/ instead. Listening works either way.`;
 }
 
-let faceTimer = null;
+// The face: one frame at a time, the next no sooner than FACE_PERIOD_MS after the last was sent, under the
+// per-client action limit (4/s, shared with the wearer's actions); a frame refused with 429 is just skipped.
+const FACE_PERIOD_MS = 300;
+let faceOn = false;
 $("#face-btn").addEventListener("click", async (e) => {
-  if (faceTimer) { clearInterval(faceTimer); faceTimer = null; e.target.classList.remove("on"); return; }
+  if (faceOn) { faceOn = false; e.target.classList.remove("on"); return; }
   const stream = await navigator.mediaDevices.getUserMedia({ video: { width: 320, height: 240 } });
   const cam = Object.assign(document.createElement("video"), { srcObject: stream, muted: true, playsInline: true });
   await cam.play();
   const c = Object.assign(document.createElement("canvas"), { width: 320, height: 240 });
-  e.target.classList.add("on");
-  faceTimer = setInterval(() => {
+  faceOn = true; e.target.classList.add("on");
+  while (faceOn) {
+    const sent = performance.now();
     c.getContext("2d").drawImage(cam, 0, 0, c.width, c.height);
-    c.toBlob((b) => b && Feelium.call("PUT", "/face", b, "image/jpeg").catch((err) => say(err.message, "error")), "image/jpeg", 0.7);
-  }, 200);
+    const jpeg = await new Promise((done) => c.toBlob(done, "image/jpeg", 0.7));
+    try { if (jpeg) await Feelium.call("PUT", "/face", jpeg, "image/jpeg"); }
+    catch (err) { if (err.status !== 429) say(err.message, "error"); }
+    await new Promise((r) => setTimeout(r, Math.max(0, FACE_PERIOD_MS - (performance.now() - sent))));
+  }
+  stream.getTracks().forEach((t) => t.stop());
 });
 
-// PCM16 WAV chunks both ways
-function wav(samples, rate) {
-  const buf = new ArrayBuffer(44 + samples.length * 2), d = new DataView(buf);
-  const str = (o, s) => [...s].forEach((ch, i) => d.setUint8(o + i, ch.charCodeAt(0)));
-  str(0, "RIFF"); d.setUint32(4, 36 + samples.length * 2, true); str(8, "WAVEfmt "); d.setUint32(16, 16, true);
-  d.setUint16(20, 1, true); d.setUint16(22, 1, true); d.setUint32(24, rate, true); d.setUint32(28, rate * 2, true);
-  d.setUint16(32, 2, true); d.setUint16(34, 16, true); str(36, "data"); d.setUint32(40, samples.length * 2, true);
-  samples.forEach((s, i) => d.setInt16(44 + i * 2, Math.max(-1, Math.min(1, s)) * 32767, true));
-  return new Blob([buf], { type: "audio/wav" });
+// Speech both ways on one WebSocket (GET /speech/stream, docs/api.md): binary frames of the room's audio in,
+// PCM16 chunks of the wearer's voice out. Open while listening or talking.
+const TALK_CHUNK_S = 0.08; // ~12 chunks a second, well under the 20/s speech limit
+let audioCtx = null, speech = null, listening = false, talking = false, playAt = 0;
+function speechSocket() {
+  if (speech && speech.readyState <= WebSocket.OPEN) return speech;
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  speech = new WebSocket(`${scheme}://${location.host}${Feelium.streamUrl("/speech/stream", { rate: audioCtx.sampleRate })}`);
+  speech.binaryType = "arraybuffer";
+  speech.onmessage = (m) => { if (listening && m.data instanceof ArrayBuffer) play(m.data); };
+  speech.onclose = () => { speech = null; if (listening || talking) setTimeout(() => (listening || talking) && speechSocket(), 1000); };
+  return speech;
 }
-let audioCtx = null, talking = false;
+function closeSpeechIfIdle() { if (!listening && !talking && speech) speech.close(); }
+function play(frame) {
+  const d = new DataView(frame), headerBytes = d.getUint16(2, true), rate = d.getUint32(4, true);
+  const pcm = new Int16Array(frame, headerBytes, (frame.byteLength - headerBytes) >> 1);
+  const buf = audioCtx.createBuffer(1, pcm.length, rate), ch = buf.getChannelData(0);
+  for (let i = 0; i < pcm.length; i++) ch[i] = pcm[i] / 32768;
+  const node = audioCtx.createBufferSource(); node.buffer = buf; node.connect(audioCtx.destination);
+  // keep at most ~300 ms queued, so lateness never accumulates
+  playAt = Math.max(playAt, audioCtx.currentTime + 0.05);
+  if (playAt > audioCtx.currentTime + 0.3) playAt = audioCtx.currentTime + 0.05;
+  node.start(playAt); playAt += buf.duration;
+}
+let pending = [];
 async function micSetup() {
-  audioCtx = audioCtx || new AudioContext();
   const stream = await navigator.mediaDevices.getUserMedia({ audio: true });
   const src = audioCtx.createMediaStreamSource(stream), proc = audioCtx.createScriptProcessor(2048, 1, 1);
-  proc.onaudioprocess = (ev) => { if (talking) Feelium.call("POST", "/speech", wav(ev.inputBuffer.getChannelData(0), audioCtx.sampleRate), "audio/wav").catch(() => {}); };
+  proc.onaudioprocess = (ev) => {
+    if (!talking) { pending = []; return; }
+    pending.push(Float32Array.from(ev.inputBuffer.getChannelData(0)));
+    if (pending.reduce((n, b) => n + b.length, 0) < TALK_CHUNK_S * audioCtx.sampleRate) return;
+    const samples = new Int16Array(pending.reduce((n, b) => n + b.length, 0));
+    let i = 0;
+    for (const b of pending) for (const s of b) samples[i++] = Math.max(-1, Math.min(1, s)) * 32767;
+    pending = [];
+    if (speech && speech.readyState === WebSocket.OPEN) speech.send(samples.buffer);
+  };
   src.connect(proc); proc.connect(audioCtx.destination);
 }
+let micReady = false;
 const talk = $("#talk-btn");
-talk.addEventListener("pointerdown", async () => { if (!audioCtx) await micSetup(); talking = true; talk.classList.add("on"); });
-for (const ev of ["pointerup", "pointerleave"]) talk.addEventListener(ev, () => { talking = false; talk.classList.remove("on"); });
-let listening = false;
-$("#listen-btn").addEventListener("click", async (e) => {
+talk.addEventListener("pointerdown", async () => {
+  audioCtx = audioCtx || new AudioContext();
+  if (!micReady) { await micSetup(); micReady = true; }
+  talking = true; talk.classList.add("on"); speechSocket();
+});
+for (const ev of ["pointerup", "pointerleave"]) {
+  talk.addEventListener(ev, () => { talking = false; talk.classList.remove("on"); closeSpeechIfIdle(); });
+}
+$("#listen-btn").addEventListener("click", (e) => {
   listening = !listening; e.target.classList.toggle("on", listening);
   audioCtx = audioCtx || new AudioContext();
-  let after = 0, playAt = 0;
-  while (listening) {
-    try {
-      const r = await Feelium.call("GET", `/speech?after=${after}&timeout=2`);
-      if (!r) continue;
-      after = Number(r.resp.headers.get("X-Speech-Seq"));
-      const buf = await audioCtx.decodeAudioData(await r.data.arrayBuffer());
-      const node = audioCtx.createBufferSource(); node.buffer = buf; node.connect(audioCtx.destination);
-      // keep at most ~300 ms queued, so lateness never accumulates
-      playAt = Math.max(playAt, audioCtx.currentTime + 0.05);
-      if (playAt > audioCtx.currentTime + 0.3) playAt = audioCtx.currentTime + 0.05;
-      node.start(playAt); playAt += buf.duration;
-    } catch (err) { say(`Listening stopped for a second: ${err.message}`, "error"); await new Promise((r) => setTimeout(r, 1000)); }
-  }
+  if (listening) speechSocket(); else closeSpeechIfIdle();
 });
 
 // For the console and the browser tests: the lens in use and the view.
