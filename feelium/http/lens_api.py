@@ -12,6 +12,7 @@ from aiohttp import web
 
 from feelium.http.context import ctx
 from feelium.http.errors import ApiError
+from feelium.skin.face import FACE_AZIMUTH_DEG, FACE_ELEVATION_DEG
 
 LENS_SCHEMA: dict[str, Any] = {
     "type": "object",
@@ -35,6 +36,14 @@ LENS_SCHEMA: dict[str, Any] = {
             "nominal: an uncalibrated 180-degree equidistant stand-in.",
         },
         "rms_px": {"type": ["number", "null"], "description": "RMS reprojection error of the calibration (pixels); null unless calibrated."},
+        "skin_patch_deg": {
+            "type": "array", "minItems": 2, "maxItems": 2, "items": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 180},
+            "description": "Where touches are in this view: the skin's u, v (0..1, u right, v down) span these degrees of "
+            "azimuth and elevation around the optical axis, (0.5, 0.5) on it. A touch at u, v is the direction "
+            "azimuth = (u - 0.5) * skin_patch_deg[0], elevation = (0.5 - v) * skin_patch_deg[1] (up positive): "
+            "camera axes (cos el sin az, -sin el, cos el cos az); project it with K and D. The envelope's geometry "
+            "(the face centred on the front camera's axis) is assumed, not measured.",
+        },
     },
 }  # fmt: skip
 
@@ -58,4 +67,4 @@ async def get_lens(request: web.Request) -> web.Response:
     lens = ctx(request).hub.front_lens
     if lens is None:
         raise ApiError(404, "the front camera is off: there is no video to place anything in", "no_lens")
-    return web.json_response(lens)
+    return web.json_response(lens | {"skin_patch_deg": [FACE_AZIMUTH_DEG, FACE_ELEVATION_DEG]})

@@ -33,6 +33,11 @@ import numpy as np
 ArrayLike = float | np.ndarray
 FIELDS = ("width", "height", "focal_px", "cx", "cy", "radius_mm", "camera_behind_mm", "azimuth_deg", "elevation_deg")
 _DIFF = 1e-4  # step in u, v for the local scale (finite differences)
+# The front face spans these degrees of azimuth and elevation around the front axis (skin u, v = 0..1 across
+# them). An assumption of the envelope's geometry (the face centred on the front camera's axis), stated, not
+# measured: the browser client and GET /lens (``skin_patch_deg``) place touches in the fisheye view with it.
+FACE_AZIMUTH_DEG = 100.0
+FACE_ELEVATION_DEG = 75.0
 
 
 @dataclass(frozen=True)
@@ -46,8 +51,8 @@ class FaceModel:
     cy: float
     radius_mm: float = 320.0  # 64 cm envelope
     camera_behind_mm: float = 240.0  # the rear camera on the front axis, this far behind the centre
-    azimuth_deg: float = 100.0  # the face's extent (the browser client's assumption)
-    elevation_deg: float = 75.0
+    azimuth_deg: float = FACE_AZIMUTH_DEG  # the face's extent, served to headsets in GET /lens
+    elevation_deg: float = FACE_ELEVATION_DEG
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0:

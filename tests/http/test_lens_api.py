@@ -28,6 +28,21 @@ async def test_lens_is_served_with_the_token_only(client, hub):
     assert (await client.get("/api/v1/lens")).status == 401
 
 
+async def test_the_lens_says_where_the_skin_is_as_the_browser_places_it(client, hub):
+    """``skin_patch_deg`` is the face's extent (feelium.skin.face) and the browser client's own default, so a
+    native app places a touch's u, v in the dome exactly as the browser does."""
+    from pathlib import Path
+
+    from feelium.skin.face import FaceModel
+
+    hub.front_lens = sim_lens(640, 480).to_json()
+    body = await (await client.get("/api/v1/lens", headers=AUTH)).json()
+    face = FaceModel(640, 480, 200.0, 320.0, 240.0)
+    assert body["skin_patch_deg"] == [face.azimuth_deg, face.elevation_deg]
+    lens_js = (Path(__file__).parents[2] / "feelium/http/static/lens.js").read_text()
+    assert f"SKIN_PATCH_DEG = [{face.azimuth_deg:g}, {face.elevation_deg:g}]" in lens_js
+
+
 async def test_no_front_camera_no_lens(client):
     resp = await client.get("/api/v1/lens", headers=AUTH)
     assert resp.status == 404 and (await resp.json())["error"] == "no_lens"

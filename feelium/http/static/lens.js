@@ -9,10 +9,11 @@
 // fisheye model that is K with f = radius / (pi / 2) and D = 0 (theta_d = theta): what /lens serves as "nominal".
 const FALLBACK_FOV_DEG = 180;
 
-// Where the sensitive patch of skin is, seen from the front camera. ASSUMPTION (until the API states it): the
-// patch is the blimp's face, centred on the front camera's optical axis; u runs to the wearer's right and v
-// downwards (the rear camera looks outwards from inside, as the wearer does), and the patch spans these angles
-// of azimuth and elevation around the camera. A /lens answer with "skin_patch_deg" overrides them.
+// Where the sensitive patch of skin is, seen from the front camera: the blimp's face, centred on the front
+// camera's optical axis; u runs to the wearer's right and v downwards (the rear camera looks outwards from
+// inside, as the wearer does), and the patch spans these angles of azimuth and elevation around the camera.
+// GET /lens serves them as "skin_patch_deg" (an assumed geometry, feelium/skin/face.py); these are for a daemon
+// older than that field.
 export const SKIN_PATCH_DEG = [100, 75];
 
 const rad = (deg) => (deg * Math.PI) / 180;
