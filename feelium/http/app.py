@@ -51,12 +51,13 @@ def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettin
         speech=SpeechFeed(hub.bus, speech.capture_keep_ms),
         videos=videos,
         face=FacePlayer(hub),
-        motion_limit=ClientBuckets(config.motion_rate_per_s, config.motion_burst),
-        action_limit=ClientBuckets(config.action_rate_per_s, config.action_burst),
-        speech_limit=ClientBuckets(config.speech_rate_per_s, config.speech_burst),
+        motion_limit=ClientBuckets(config.motion_rate_per_s, config.motion_burst, clients_per_address=config.clients_per_address),
+        action_limit=ClientBuckets(config.action_rate_per_s, config.action_burst, clients_per_address=config.clients_per_address),
+        speech_limit=ClientBuckets(config.speech_rate_per_s, config.speech_burst, clients_per_address=config.clients_per_address),
         lease=ControlLease(config.control_lease_s),
-        streams=StreamSlots(config.max_stream_clients, config.max_streams_per_client),
-        speech_streams=StreamSlots(config.max_speech_streams, config.max_speech_streams_per_client, "speech streams"),
+        streams=StreamSlots(config.max_stream_clients, config.max_streams_per_client, per_address=config.max_streams_per_address),
+        speech_streams=StreamSlots(config.max_speech_streams, config.max_speech_streams_per_client, "speech streams",
+                                   per_address=config.max_speech_streams_per_address),
     )
 
 

@@ -8,7 +8,9 @@ device (or behind one NAT) are one client unless they send different ids.
 An id is no secret and proves nothing: it only keeps honest clients apart;
 every client is already authenticated by the token. An id outside the
 pattern is ignored rather than refused, so a client's ``stop`` never fails
-on its id.
+on its id. Since ids are free to pick, the limits also hold per address
+(``[http] clients_per_address``): new ids from one device add nothing
+beyond that.
 """
 
 from __future__ import annotations
@@ -27,6 +29,11 @@ def client_key(remote: str | None, client_id: str | None) -> str:
     """The client's identity: ``address`` or ``address/id``."""
     address = remote or "local"
     return address if not client_id else f"{address}/{client_id}"
+
+
+def address_of(client: str) -> str:
+    """The address part of a client key: what an id cannot change."""
+    return client.split("/", 1)[0]
 
 
 def client_of(request: web.Request) -> str:

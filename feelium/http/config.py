@@ -68,6 +68,10 @@ class HttpConfig:
         "it, and another client may then steer without taking over.",
         min=0.5, max=600.0,
     )
+    clients_per_address: int = setting(
+        4, "Client ids are free to pick, so the motion, action and speech limits also hold per address at this "
+        "many times one client's (a device with a browser and an app fits).", min=1, max=64,
+    )
     action_rate_per_s: float = setting(
         4.0, "Sustained wearer actions and face uploads per second accepted from one client; 429 above.",
         min=0.1, max=1000.0,
@@ -97,11 +101,18 @@ class HttpConfig:
     max_streams_per_client: int = setting(
         4, "Concurrent MJPEG streams of one client (all cameras); more get 429.", min=1, max=1000
     )
+    max_streams_per_address: int = setting(
+        8, "Concurrent MJPEG streams from one address, whatever client ids it sends (ids are free to pick): below "
+        "max_stream_clients, so another device always finds a slot; more get 429.", min=1, max=1000
+    )
     max_speech_streams: int = setting(
         8, "Concurrent speech streams (GET /speech/stream) in total; more get 429.", min=1, max=1000
     )
     max_speech_streams_per_client: int = setting(
         2, "Concurrent speech streams of one client; more get 429.", min=1, max=100
+    )
+    max_speech_streams_per_address: int = setting(
+        4, "Concurrent speech streams from one address, whatever client ids it sends; more get 429.", min=1, max=1000
     )
     speech_stream_backlog_ms: int = setting(
         200, "Room audio a speech stream may have unacknowledged on its socket; a frame beyond it is dropped "

@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 
+from feelium.http.clients import address_of
+
 
 class TokenBucket:
     """``rate`` tokens per second up to ``burst``; each accepted request takes one."""
@@ -51,43 +53,57 @@ class TokenBucket:
 
 
 class ClientBuckets:
-    """A :class:`TokenBucket` per client key, at most ``max_clients`` remembered."""
+    """A :class:`TokenBucket` per client key, at most ``max_clients`` remembered; with ``clients_per_address``,
+    also one per address at that many times the rate and burst, charged with every request of its clients
+    (an id is free to pick, an address is not)."""
 
-    def __init__(self, rate: float, burst: int, max_clients: int = 256) -> None:
+    def __init__(self, rate: float, burst: int, max_clients: int = 256, clients_per_address: int | None = None) -> None:
         if max_clients < 1:
             raise ValueError("max_clients must be at least 1")
+        if clients_per_address is not None and clients_per_address < 1:
+            raise ValueError("clients_per_address must be at least 1")
         TokenBucket(rate, burst, 0.0)  # validate the parameters now, not at the first request
         self.rate = rate
         self.burst = burst
         self.max_clients = max_clients
+        self.clients_per_address = clients_per_address
         self._buckets: OrderedDict[str, TokenBucket] = OrderedDict()
         self.rejected = 0
 
-    def _bucket(self, client: str, now: float) -> TokenBucket:
-        bucket = self._buckets.get(client)
+    def _bucket(self, key: str, now: float, scale: int = 1) -> TokenBucket:
+        bucket = self._buckets.get(key)
         if bucket is None:
             if len(self._buckets) >= self.max_clients:
                 self._buckets.popitem(last=False)
-            bucket = self._buckets[client] = TokenBucket(self.rate, self.burst, now)
+            bucket = self._buckets[key] = TokenBucket(self.rate * scale, self.burst * scale, now)
         else:
-            self._buckets.move_to_end(client)
+            self._buckets.move_to_end(key)
         return bucket
 
+    def _buckets_of(self, client: str, now: float) -> list[TokenBucket]:
+        buckets = [self._bucket(client, now)]
+        address = address_of(client)
+        if self.clients_per_address is not None and address != client:
+            buckets.append(self._bucket(f"address {address}", now, self.clients_per_address))
+        return buckets
+
     def take(self, client: str, now: float) -> bool:
-        """Charge one request to ``client``; ``False`` when its bucket is empty."""
-        if self._bucket(client, now).take(now):
+        """Charge one request to ``client`` (and its address); ``False`` when either bucket is empty."""
+        buckets = self._buckets_of(client, now)
+        if all(b.has_token(now) for b in buckets):
+            for bucket in buckets:
+                bucket.take(now)
             return True
         self.rejected += 1
         return False
 
     def has_token(self, client: str, now: float) -> bool:
         """Whether ``client`` could be charged now (nothing is taken)."""
-        return self._bucket(client, now).has_token(now)
+        return all(b.has_token(now) for b in self._buckets_of(client, now))
 
     def retry_after(self, client: str, now: float) -> float:
         """Seconds until ``client`` may send again."""
-        bucket = self._buckets.get(client)
-        return 0.0 if bucket is None else bucket.retry_after(now)
+        return max(b.retry_after(now) for b in self._buckets_of(client, now))
 
     def __len__(self) -> int:
         return len(self._buckets)

@@ -97,6 +97,14 @@ async def test_wearer_actions_face_and_speech_are_limited_per_client(client, htt
     assert codes == [202] * http_config.speech_burst + [429]
 
 
+async def test_new_client_ids_from_one_address_do_not_multiply_its_allowance(client, http_config):
+    """40 hearts, each from a client id of its own, from one address: the address's bucket (clients_per_address
+    times one client's) refuses the rest, as it would a device that invents an id per request."""
+    codes = [(await client.post("/api/v1/actions/heart", headers=as_client(f"id{i}"))).status for i in range(40)]
+    allowed = http_config.action_burst * http_config.clients_per_address
+    assert codes.count(202) == allowed and codes.count(429) == 40 - allowed
+
+
 def _wav(samples: int) -> bytes:
     from feelium.wav import encode_wav
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from feelium.http.clients import client_key
 from feelium.http.lease import ControlLease
@@ -75,6 +77,29 @@ def test_stream_slots_per_client_and_in_total() -> None:
     assert slots.in_use == 3 and slots.held_by("a") == 1 and slots.refused == 2
     with pytest.raises(ValueError):
         slots.release("nobody")
+
+
+@given(ids=st.lists(st.integers(0, 10_000), min_size=1, max_size=200), per_address=st.integers(1, 6))
+def test_new_client_ids_from_one_address_get_no_more_than_the_address_allows(ids: list[int], per_address: int) -> None:
+    """Ids are free to pick: however many a device invents, at one instant its requests are capped by its
+    address's bucket (per-address times one client's burst), and another address keeps its own allowance."""
+    limits = ClientBuckets(rate=4.0, burst=3, clients_per_address=per_address)
+    accepted = sum(limits.take(client_key("10.0.0.9", f"id-{i}"), 0.0) for i in ids)
+    each_id = sum(min(ids.count(i), 3) for i in set(ids))  # what per-client buckets alone would accept
+    assert accepted == min(each_id, 3 * per_address)
+    assert limits.take(client_key("10.0.0.2", "other"), 0.0)
+
+
+def test_stream_slots_per_address_whatever_the_ids() -> None:
+    slots = StreamSlots(total=16, per_client=4, per_address=8)
+    for i in range(8):
+        slots.acquire(f"10.0.0.9/reader-{i}")
+    with pytest.raises(SlotsFull, match="this address already has 8"):
+        slots.acquire("10.0.0.9/reader-new")
+    slots.acquire("10.0.0.2/headset")  # another device still finds a slot
+    slots.release("10.0.0.9/reader-0")
+    slots.acquire("10.0.0.9/reader-new")
+    assert slots.in_use == 9 and slots.refused == 1
 
 
 def test_client_key() -> None:
