@@ -58,6 +58,10 @@ def _mdns(args: argparse.Namespace) -> int:
     if config.port == 0:
         print("feelium mdns-service: [http] port is 0 (any free port); advertise a fixed port", file=sys.stderr)
         return 1
+    if config.host.startswith("127.") or config.host in ("localhost", "::1"):
+        print(f"feelium mdns-service: [http] host is {config.host}, which no other device can reach; bind 0.0.0.0 "
+              "(or the Wi-Fi address) before advertising the blimp", file=sys.stderr)  # fmt: skip
+        return 1
     sys.stdout.write(avahi_service_file(config.port, tls=bool(config.tls_cert)))
     return 0
 

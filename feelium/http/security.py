@@ -58,11 +58,12 @@ def make_host_middleware(allowed: HostAllowList) -> Callable[..., Awaitable[web.
         host = request.headers.get("Host")
         if not allowed.allows(host, local_address(request)):
             ctx(request).count("host_not_allowed")
-            return error_response(
-                403,
-                f"Host {str(host)[:80]!r} is not one of this blimp's names; add it to [http] allowed_hosts if it is",
-                "host_not_allowed",
+            message = (
+                "the request has no Host header (HTTP/1.1 requires one; the blimp checks it against DNS rebinding)"
+                if host is None
+                else f"Host {host[:80]!r} is not one of this blimp's names; add it to [http] allowed_hosts if it is"
             )
+            return error_response(403, message, "host_not_allowed")
         return await handler(request)
 
     return host_check

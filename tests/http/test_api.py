@@ -564,6 +564,15 @@ async def test_a_host_that_is_not_the_blimps_is_refused_before_the_token_is_look
     assert client.link.counters["host_not_allowed"] == 3
 
 
+async def test_a_request_without_a_host_header_is_told_so(client):
+    reader, writer = await asyncio.open_connection(client.server.host, client.server.port)
+    writer.write(b"GET /api/v1/health HTTP/1.0\r\n\r\n")
+    await writer.drain()
+    answer = await asyncio.wait_for(reader.read(), 5)
+    writer.close()
+    assert answer.startswith(b"HTTP/1.0 403") and b"no Host header" in answer and b"None" not in answer
+
+
 @pytest.mark.parametrize("host", ["localhost:8080", "LOCALHOST", "blimp.local", "blimp", "127.0.0.1:1234"])
 async def test_the_blimps_own_names_and_the_address_the_connection_arrived_on_are_served(aiohttp_client, hub, http_config, monkeypatch, host):
     monkeypatch.setattr("feelium.http.app.socket.gethostname", lambda: "blimp")

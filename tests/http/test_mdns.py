@@ -35,11 +35,15 @@ def test_a_port_no_client_can_reach_is_refused(port: int) -> None:
 
 def test_the_command_advertises_the_configured_server(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     config = tmp_path / "feelium.toml"
-    config.write_text("[http]\nport = 9123\n")
+    config.write_text('[http]\nhost = "0.0.0.0"\nport = 9123\n')
     assert main(["mdns-service", "--config", str(config)]) == 0
     _, _, port, txt = parsed(capsys.readouterr().out)
     assert port == 9123 and "scheme=http" in txt
 
-    config.write_text("[http]\nport = 0\n")
+    config.write_text('[http]\nhost = "0.0.0.0"\nport = 0\n')
     assert main(["mdns-service", "--config", str(config)]) == 1
     assert "port is 0" in capsys.readouterr().err
+
+    config.write_text("[http]\nport = 9123\n")  # the default host, loopback: nobody else could reach it
+    assert main(["mdns-service", "--config", str(config)]) == 1
+    assert "no other device can reach" in capsys.readouterr().err
