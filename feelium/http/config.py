@@ -52,9 +52,10 @@ class HttpConfig:
         8, "Deepest nesting of arrays and objects in a JSON body (400 above); the API's bodies are flat.", min=2, max=64
     )
     max_face_pixels: int = setting(
-        4_194_304,
+        2_073_600,
         "Largest face or avatar frame in pixels (width x height, read from the JPEG header before decoding; 413 "
-        "above). 2048x2048 keeps even a progressive JPEG's decode under 50 MB on a 512 MB board.",
+        "above). 1920x1080 fits a video frame whole, and keeps a progressive JPEG's decode (all its coefficients "
+        "until the last scan, however reduced) near 15 MB on a 512 MB board; the skin canvas needs only 512x384.",
         min=4096, max=67_108_864,
     )
     motion_rate_per_s: float = setting(
