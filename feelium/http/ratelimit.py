@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 
+from feelium.http.errors import ApiError
+
 
 class TokenBucket:
     """``rate`` tokens per second up to ``burst``; each accepted request takes one."""
@@ -82,3 +84,14 @@ class ClientBuckets:
 
     def __len__(self) -> int:
         return len(self._buckets)
+
+
+def charge(limit: ClientBuckets, client: str, now: float, what: str) -> None:
+    """Take one request from ``client``'s bucket or answer 429 with ``Retry-After``."""
+    if not limit.take(client, now):
+        wait = limit.retry_after(client, now)
+        raise ApiError(
+            429,
+            f"{what} are limited to {limit.rate:g}/s per client; retry in {wait:.2f} s",
+            headers={"Retry-After": str(max(1, math.ceil(wait)))},
+        )

@@ -116,14 +116,16 @@ async def _lag_probe(lags_ms: list[float], stop: asyncio.Event) -> None:
         lags_ms.append(1000.0 * max(0.0, time.perf_counter() - due))
 
 
-def _start_headset(port: int, seconds: float) -> subprocess.Popen[str]:
+def _start_headset(port: int, seconds: float, motion_transport: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "feelium.lab.daemon.headset", f"http://127.0.0.1:{port}/api/v1", TOKEN, str(seconds)],
+        [sys.executable, "-m", "feelium.lab.daemon.headset", f"http://127.0.0.1:{port}/api/v1", TOKEN, str(seconds), motion_transport],
         stdout=subprocess.PIPE, text=True,
     )
 
 
-async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: float, cgroup: Path | None) -> dict[str, Any]:
+async def _measure(
+    config: Config, cameras: Cameras, seconds: float, warmup_s: float, cgroup: Path | None, motion_transport: str = "websocket"
+) -> dict[str, Any]:
     """Run the daemon; measure over ``seconds`` after the warm-up while the headset process drives it."""
     ledger = Ledger()
     loop = asyncio.get_running_loop()
@@ -140,7 +142,7 @@ async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: f
         await started.wait()
         while not isinstance(port := hub.health()["services"]["http"].get("port"), int):
             await asyncio.sleep(0.05)  # bound once the http service has started
-        headset = _start_headset(port, seconds + warmup_s)
+        headset = _start_headset(port, seconds + warmup_s, motion_transport)
         try:
             if cgroup is not None:
                 out["cpu_quota"] = {"cgroup": str(cgroup), "quota_period_us": join(cgroup)}  # after the children started
@@ -226,7 +228,7 @@ def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, fro
     rows["front_camera"]["late_frames_total"] = cameras.front.late
     rows["flight"]["link_losses"] = int(_delta(first, last, "flight", "link_losses"))  # a starved board process shows here
     moves = headset["motion"]
-    rows["headset_motion"] = {"rate_hz": moves["rate_hz"], "target_hz": moves["target_hz"], "miss_kind": "counted",
+    rows["headset_motion"] = {"transport": moves["transport"], "rate_hz": moves["rate_hz"], "target_hz": moves["target_hz"], "miss_kind": "counted",
                               "miss_pct": round(100.0 * moves["late"] / max(moves["sent"], 1), 2),
                               "rtt_ms_p50": moves["rtt_ms_p50"], "rtt_ms_p99": moves["rtt_ms_p99"]}
     for name, kinds in measured["charged"].items():
@@ -246,6 +248,7 @@ def bench_board(
     rear_fps: float = 30.0,
     warmup_s: float = WARMUP_S,
     cgroup: Path | None = None,
+    motion_transport: str = "websocket",
 ) -> dict[str, Any]:
     """Start the board process, run and measure the daemon for ``minutes``, project; every number in one dict."""
     board = subprocess.Popen([sys.executable, "-m", "feelium.lab.daemon.board_server"], stdout=subprocess.PIPE, text=True)
@@ -256,7 +259,7 @@ def bench_board(
         malloc = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
         cameras = prepare(config, front_fps)
         load_before = os.getloadavg()[0]
-        measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup))
+        measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
         load_after = os.getloadavg()[0]
     finally:
         board.kill()
@@ -337,6 +340,7 @@ def bench_board_command(args: argparse.Namespace) -> int:
         print("feelium bench board: --minutes must be positive", file=sys.stderr)
         return 2
     cgroup = Path(args.cgroup) if args.cgroup else None
-    result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps, cgroup=cgroup)
+    result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps, cgroup=cgroup,
+                         motion_transport=args.motion_transport)
     emit_report(format_table(result), result, args.json)
     return 0
