@@ -131,8 +131,12 @@ async def websocket(request: web.Request) -> web.StreamResponse:
             if msg.type == WSMsgType.ERROR:
                 return
             if msg.type == WSMsgType.TEXT and (reply := motion_message(link, client, msg.data)) is not None:
-                async with asyncio.timeout(timeout):
-                    await ws.send_json(reply)
+                try:  # the command is applied already; a client that reads nothing is dropped as a stalled stream
+                    async with asyncio.timeout(timeout):
+                        await ws.send_json(reply)
+                except (asyncio.TimeoutError, ConnectionError):
+                    link.count("stalled_clients_dropped")
+                    return
 
     reader = asyncio.create_task(drain_incoming())
     try:

@@ -93,7 +93,7 @@ def motion_message(link: LinkContext, client: str, text: str) -> dict[str, Any] 
     link.count("motion_socket_messages")
     body = {k: v for k, v in value.items() if k not in ("type", "id")}
     ref = value.get("id")
-    if ref is not None and not (_valid_id(ref)):
+    if ref is not None and not _valid_id(ref):
         return _reply(None, ApiError(400, f"id must be an integer 0..2^53 or a string of at most {MAX_ID_CHARS} characters"))
     try:
         return {"type": "motion_reply", "id": ref, "status": 200, "body": apply_motion(link, client, body)}
