@@ -36,6 +36,14 @@ def register(registry: CommandRegistry) -> None:
     board.add_argument("--front-fps", type=float, help="front camera and MJPEG rate (default: [front_camera] fps)")
     board.add_argument("--json", metavar="FILE", help="also write the results as JSON here")
     board.add_argument("--cgroup", metavar="DIR", help="join this existing cgroup (a CPU quota) for the measured window")
+    board.add_argument(
+        "--motion-transport", choices=("websocket", "http"), default="websocket",
+        help="how the headset sends its 20 Hz motion: messages on the events WebSocket (default) or POST /motion",
+    )
+    board.add_argument(
+        "--projected-light", choices=("on", "off"), default="on",
+        help="touch compensates the projector's light with a simulated calibration, as on the blimp (default on)",
+    )
     soak = registry.subcommand(
         "bench", "soak", "The board bench run long (30 min): RSS, growth after warm-up, rates held (docs/daemon.md).",
         _bench_soak,

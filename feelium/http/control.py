@@ -20,34 +20,12 @@ from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
 from feelium.http.face import ImageTooLarge, JpegError, check_jpeg
 from feelium.http.params import check_keys, number_field, query_number, read_body, read_json_object
-from feelium.http.ratelimit import ClientBuckets
-from feelium.motion import DEFAULT_HOLD_S, MOTION_NAMES, NEUTRAL_NAMES
+from feelium.http.motion_api import apply_motion, motion_json
+from feelium.http.ratelimit import charge
 
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
 MAX_WORD = 40
 MAX_CAMERA_PX = 65535.0  # bound of a simulated press coordinate (a live camera is far smaller: 409 beyond it)
-
-
-def _motion_json(cmd, now: float) -> dict:  # type: ignore[no-untyped-def]
-    if cmd is None:
-        return {"command": "stop", "active": False, "remaining_ms": 0, "source": None}
-    return {
-        "command": cmd.name,
-        "active": True,
-        "remaining_ms": round(1000.0 * max(0.0, cmd.expires_at - now), 1),
-        "source": cmd.source,
-    }
-
-
-def charge(limit: ClientBuckets, client: str, now: float, what: str) -> None:
-    """Take one request from ``client``'s bucket or answer 429 with ``Retry-After``."""
-    if not limit.take(client, now):
-        wait = limit.retry_after(client, now)
-        raise ApiError(
-            429,
-            f"{what} are limited to {limit.rate:g}/s per client; retry in {wait:.2f} s",
-            headers={"Retry-After": str(max(1, math.ceil(wait)))},
-        )
 
 
 async def _json_body(request: web.Request, link: LinkContext, *, required: bool = True) -> dict[str, Any]:
@@ -55,49 +33,17 @@ async def _json_body(request: web.Request, link: LinkContext, *, required: bool 
 
 
 async def post_motion(request: web.Request) -> web.Response:
-    """A dead-man motion command: it lapses unless refreshed within ``hold_ms``.
-
-    The body is read and validated first; a ``stop`` is then applied at once, before any rate limit or
-    lease, from any client. Only other commands are charged to the client's bucket and need the lease.
-    """
+    """A dead-man motion command: it lapses unless refreshed within ``hold_ms`` (rules: :func:`apply_motion`)."""
     link = ctx(request)
     client = client_of(request)
     body = await _json_body(request, link)
-    check_keys(body, {"command", "hold_ms", "take_over"})
-    name = body.get("command")
-    if not isinstance(name, str) or name not in MOTION_NAMES:
-        raise ApiError(400, f"command must be one of {', '.join(MOTION_NAMES)}, got {str(name)[:40]!r}")
-    max_ms = 1000.0 * link.hub.motion.max_hold_s
-    hold_ms = number_field(body, "hold_ms", 1000.0 * DEFAULT_HOLD_S, 1.0, max_ms)
-    assert hold_ms is not None
-    take_over = body.get("take_over", False)
-    if not isinstance(take_over, bool):
-        raise ApiError(400, "take_over must be true or false")
-    now = link.hub.clock()
-    if name in NEUTRAL_NAMES:
-        cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
-        link.lease.stopped_by(client, now)
-        link.count("motion_stops")
-    else:
-        charge(link.motion_limit, client, now, "motion commands")
-        holder = link.lease.claim(client, now, take_over)
-        if holder is not None:
-            raise ApiError(
-                409,
-                f"{holder.client} is steering; send the command with \"take_over\": true to take control, "
-                f"or wait until its lease lapses ({link.lease.lease_s:g} s after its last motion command)",
-                "not_in_control",
-                extra={"controller": holder.client, "lease_remaining_s": round(holder.expires_at - now, 3), "you": client},
-            )
-        cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
-    link.last_motion_at = now
-    return web.json_response(_motion_json(link.hub.motion.active(now), now) | {"accepted": cmd.name, "controller": client})
+    return web.json_response(apply_motion(link, client, body))
 
 
 async def get_motion(request: web.Request) -> web.Response:
     link = ctx(request)
     now = link.hub.clock()
-    return web.json_response(_motion_json(link.hub.motion.active(now), now))
+    return web.json_response(motion_json(link.hub.motion.active(now), now))
 
 
 async def post_action(request: web.Request) -> web.Response:
@@ -306,7 +252,7 @@ async def get_state(request: web.Request) -> web.Response:
     body = {
         "t": round(now, 4),
         "services": state,
-        "motion_command": _motion_json(link.hub.motion.active(now), now),
+        "motion_command": motion_json(link.hub.motion.active(now), now),
         "headset_link": link.link_state(now),
         "last_seq": link.events.ring.last_seq,
         "epoch": link.events.ring.epoch,

@@ -14,8 +14,10 @@ from typing import Any
 
 from aiohttp import WSMsgType, web
 
+from feelium.http.clients import client_of
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
+from feelium.http.motion_api import motion_message
 from feelium.http.params import query_number
 from feelium.http.ring import Catchup, parse_resume, resume_token
 
@@ -108,7 +110,9 @@ async def sse(request: web.Request) -> web.StreamResponse:
 
 
 async def websocket(request: web.Request) -> web.StreamResponse:
-    """``GET /events/ws``: the same envelopes as WebSocket text messages; ``?after=`` to resume."""
+    """``GET /events/ws``: the same envelopes as WebSocket text messages; ``?after=`` to resume. The client may
+    send motion commands on it (:func:`motion_message`): a headset refreshing the dead man at 20 Hz then pays
+    a message, not an HTTP request, per refresh."""
     link = ctx(request)
     after = _after(request)
     ws = web.WebSocketResponse(heartbeat=link.config.keepalive_s, max_msg_size=4096)
@@ -119,10 +123,20 @@ async def websocket(request: web.Request) -> web.StreamResponse:
     epoch, seq = (None, link.events.ring.last_seq) if after is None else after
     link.count("event_clients")
 
+    client = client_of(request)
+
     async def drain_incoming() -> None:
-        async for msg in ws:  # the client sends nothing we act on; reading keeps pings and close working
+        """Motion commands are answered in turn; anything else is read and ignored (keeps pings and close working)."""
+        async for msg in ws:
             if msg.type == WSMsgType.ERROR:
                 return
+            if msg.type == WSMsgType.TEXT and (reply := motion_message(link, client, msg.data)) is not None:
+                try:  # the command is applied already; a client that reads nothing is dropped as a stalled stream
+                    async with asyncio.timeout(timeout):
+                        await ws.send_json(reply)
+                except (asyncio.TimeoutError, ConnectionError):
+                    link.count("stalled_clients_dropped")
+                    return
 
     reader = asyncio.create_task(drain_incoming())
     try:

@@ -286,7 +286,7 @@ def openapi_document() -> dict[str, Any]:
             "responses": {"200": {"description": "text/event-stream of Event objects.", "content": {"text/event-stream": {"schema": {"type": "string"}}}}} | _errors(400, 401),
         }},
         "/events/ws": {"get": {
-            "operationId": "eventSocket", "summary": "WebSocket: each text message is one Event object.",
+            "operationId": "eventSocket", "summary": "WebSocket: each text message is one Event object; motion commands may go the other way.",
             "parameters": [after, TOKEN_QUERY], "x-streaming": True,
             "responses": {"101": {"description": "Switching to WebSocket."}} | _errors(400, 401),
         }},

@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import Any
 
 from feelium.http.speech_stream import FRAME_VERSION, HEADER_BYTES
+from feelium.motion import MAX_HOLD_S, MOTION_NAMES
 
 NUM = {"type": "number"}
 NUM_OR_NULL = {"type": ["number", "null"]}
@@ -183,6 +184,32 @@ def message_schemas() -> dict[str, Any]:
         },
         "ResetMessage": reset,
         "StreamMessage": {"description": "What SSE and WebSocket event streams send.", "oneOf": [_ref("Event"), _ref("ResetMessage")]},
+        "MotionSocketCommand": {
+            "type": "object", "required": ["type", "command"], "additionalProperties": False,
+            "description": "A motion command sent on the events WebSocket (text): POST /motion's body (MotionRequest) "
+            "with `type` and an optional `id` the reply echoes. Same rules as POST /motion: a `stop` is applied at once "
+            "from any client; other commands are charged to the client's motion rate limit and need the lease.",
+            "properties": {
+                "type": {"const": "motion"},
+                "id": {"type": ["integer", "string", "null"], "minimum": 0, "maximum": 2**53, "maxLength": 64,
+                       "description": "Echoed in the reply, to match replies with commands."},
+                "command": {"type": "string", "enum": list(MOTION_NAMES)},
+                "hold_ms": {"type": "number", "minimum": 1, "maximum": 1000 * MAX_HOLD_S, "default": 500},
+                "take_over": {"type": "boolean", "default": False},
+            },
+        },
+        "MotionReply": _strict(
+            ["type", "id", "status", "body"],
+            {
+                "type": {"const": "motion_reply"},
+                "id": {"type": ["integer", "string", "null"], "description": "The command's `id` (null when it sent none)."},
+                "status": {"type": "integer", "description": "What POST /motion would have answered: 200, 400, 409 or 429."},
+                "body": {"anyOf": [_ref("MotionState"), _ref("NotInControl"), _ref("Error")],
+                         "description": "POST /motion's response body for that status."},
+                "retry_after_s": {"type": "integer", "minimum": 1, "description": "429 only: POST /motion's Retry-After."},
+            },
+            "The reply to each MotionSocketCommand, in the order they were sent (text).",
+        ),
         "SpeechStreamHello": _strict(
             ["type", "version", "header_bytes", "format", "channels", "rate", "in_rate", "after", "max_in_bytes", "in_rate_per_s"],
             {
@@ -232,9 +259,11 @@ def event_stream_extensions() -> dict[str, dict[str, Any]]:
             },
         },
         "eventSocket": {
-            "description": "Each text message is one StreamMessage; the server pings every `keepalive_s`; messages "
-            "from the client are ignored. " + RESUME_TEXT,
-            "x-websocket-messages": {"server": {"text": _ref("StreamMessage")}, "client": {}},
+            "description": "Each text message is one StreamMessage, or a MotionReply to a motion command the client "
+            "sent on the socket (MotionSocketCommand: POST /motion's body and rules, one reply per command); other "
+            "client messages are ignored. The server pings every `keepalive_s`. " + RESUME_TEXT,
+            "x-websocket-messages": {"server": {"text": {"oneOf": [_ref("StreamMessage"), _ref("MotionReply")]}},
+                                     "client": {"text": _ref("MotionSocketCommand")}},
         },
     }
 

@@ -8,7 +8,7 @@ from aiohttp import web
 from feelium.http.auth import SESSION_COOKIE, TokenError
 from feelium.http.clients import client_of
 from feelium.http.context import ctx
-from feelium.http.control import charge
+from feelium.http.ratelimit import charge
 from feelium.http.errors import ApiError
 from feelium.http.params import check_keys, read_json_object
 

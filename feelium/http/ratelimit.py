@@ -13,6 +13,7 @@ import math
 from collections import OrderedDict
 
 from feelium.http.clients import address_of
+from feelium.http.errors import ApiError
 
 
 class TokenBucket:
@@ -107,3 +108,16 @@ class ClientBuckets:
 
     def __len__(self) -> int:
         return len(self._buckets)
+
+
+def charge(limit: ClientBuckets, client: str, now: float, what: str) -> None:
+    """Take one request from ``client``'s bucket or answer 429 with ``Retry-After``."""
+    if not limit.take(client, now):
+        wait = limit.retry_after(client, now)
+        raise ApiError(
+            429,
+            f"{what} are limited to {limit.rate:g}/s per client"
+            + (f" and {limit.rate * limit.clients_per_address:g}/s per address" if limit.clients_per_address else "")
+            + f"; retry in {wait:.2f} s",
+            headers={"Retry-After": str(max(1, math.ceil(wait)))},
+        )

@@ -33,25 +33,39 @@ class Avatar:
             base = cv2.add(base, cv2.GaussianBlur(blush, (0, 0), 0.02 * width))
         self._base = base
 
+    def pose(self, t: float, talking: bool = False) -> tuple[int, ...]:
+        """What the face at time ``t`` looks like, in the integer pixel positions it is drawn with: two times
+        with the same pose draw the same image (the avatar moves a pixel only a few times a second, so the
+        projector can skip most of its frames)."""
+        w, h = self.width, self.height
+        sway = 0.012 * w * math.sin(2 * math.pi * t / 5.0)
+        blink = (t % 4.3) < 0.15
+        eye_h = max(1, int(0.008 * h)) if blink else int(0.045 * h)
+        eyes = tuple(int(cu * w + sway) for cu in (0.36, 0.64))
+        mouth_x = int(0.5 * w + sway)
+        if talking:
+            open_ = 0.5 + 0.5 * math.sin(2 * math.pi * 3.1 * t) * math.sin(2 * math.pi * 0.7 * t)
+            return (*eyes, eye_h, mouth_x, int((0.01 + 0.06 * max(open_, 0.0)) * h))
+        return (*eyes, eye_h, mouth_x, -1)
+
     def render(self, t: float, talking: bool = False, out: np.ndarray | None = None) -> np.ndarray:
         """The face at time ``t`` (seconds): blinking every few seconds, mouth moving when ``talking``; drawn
         into ``out`` (same size, BGR uint8) when given."""
+        return self.draw(self.pose(t, talking), out)
+
+    def draw(self, pose: tuple[int, ...], out: np.ndarray | None = None) -> np.ndarray:
+        """The face in ``pose`` (:meth:`pose`), into ``out`` when given."""
         w, h = self.width, self.height
         if out is None:
             img = self._base.copy()
         else:
             img = out
             np.copyto(img, self._base)
-        sway = 0.012 * w * math.sin(2 * math.pi * t / 5.0)
-        blink = (t % 4.3) < 0.15
-        eye_h = max(1, int(0.008 * h)) if blink else int(0.045 * h)
-        for cu in (0.36, 0.64):
-            centre = (int(cu * w + sway), int(0.42 * h))
-            cv2.ellipse(img, centre, (int(0.035 * w), eye_h), 0, 0, 360, FEATURE_BGR, -1, cv2.LINE_AA)
-        if talking:
-            open_ = 0.5 + 0.5 * math.sin(2 * math.pi * 3.1 * t) * math.sin(2 * math.pi * 0.7 * t)
-            mouth_h = int((0.01 + 0.06 * max(open_, 0.0)) * h)
-            cv2.ellipse(img, (int(0.5 * w + sway), int(0.72 * h)), (int(0.09 * w), mouth_h), 0, 0, 360, FEATURE_BGR, -1, cv2.LINE_AA)
+        left_x, right_x, eye_h, mouth_x, mouth_h = pose
+        for x in (left_x, right_x):
+            cv2.ellipse(img, (x, int(0.42 * h)), (int(0.035 * w), eye_h), 0, 0, 360, FEATURE_BGR, -1, cv2.LINE_AA)
+        if mouth_h >= 0:
+            cv2.ellipse(img, (mouth_x, int(0.72 * h)), (int(0.09 * w), mouth_h), 0, 0, 360, FEATURE_BGR, -1, cv2.LINE_AA)
         else:
-            cv2.ellipse(img, (int(0.5 * w + sway), int(0.7 * h)), (int(0.1 * w), int(0.05 * h)), 0, 10, 170, FEATURE_BGR, max(2, w // 120), cv2.LINE_AA)
+            cv2.ellipse(img, (mouth_x, int(0.7 * h)), (int(0.1 * w), int(0.05 * h)), 0, 10, 170, FEATURE_BGR, max(2, w // 120), cv2.LINE_AA)
         return img

@@ -8,13 +8,15 @@ native resolution, so what is meant for a spot on the skin lands there through
 the fisheye, and a circle drawn on the canvas is a circle on the skin.
 
 Time, face image and answers in, a BGR frame out; the only state kept between frames is the previous
-canvas and frame, so that only what changed is re-warped (the result is the full warp's).
+canvas and frame, so that only what changed is re-warped (the result is the full warp's), and what the newest
+frame without answers showed, so that the same face or avatar pose again costs nothing.
 """
 
 from __future__ import annotations
 
 import threading
 from collections.abc import Iterable
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -60,6 +62,7 @@ class Renderer:
         blank[...] = border
         self.tiles = TileWarp(map1, map2, self._box, self.canvas_size, blank, border)
         self.avatar = Avatar(cw, ch)
+        self._last: _Shown | None = None
         self._canvas = np.empty((ch, cw, 3), np.uint8)
         self._canvas_lock = threading.Lock()  # render() may be called from two threads (the service, a preview)
         self.skipped: dict[str, int] = {}
@@ -111,6 +114,30 @@ class Renderer:
 
     def render(self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False) -> np.ndarray:
         """The projector frame at ``now``. The canvas is drawn into one reused buffer: a new 0.6 MB array per
-        frame would be an mmap and its page faults under the daemon's malloc settings (``[daemon]``)."""
+        frame would be an mmap and its page faults under the daemon's malloc settings (``[daemon]``).
+
+        A frame with no answer whose face is the previous frame's (the same array: a face is never changed in
+        place) or whose avatar pose is the previous one's is the previous frame, returned without drawing,
+        lifting or comparing anything: between a face video's frames, and for the avatar between its
+        one-pixel moves, that is most frames of a quiet skin.
+        """
+        answers = tuple(answers)
         with self._canvas_lock:
-            return self.warp(self.canvas(now, face, answers, talking, out=self._canvas))
+            pose = None if face is not None else self.avatar.pose(now, talking)
+            if not answers and self._last is not None and self._last.shows(face, pose):
+                return self._last.frame
+            frame = self.warp(self.canvas(now, face, answers, talking, out=self._canvas))
+            self._last = _Shown(face, pose, frame) if not answers else None
+            return frame
+
+
+@dataclass(frozen=True, eq=False)
+class _Shown:
+    """The newest frame drawn without answers, and what it shows (the face array itself, or the avatar's pose)."""
+
+    face: np.ndarray | None
+    pose: tuple[int, ...] | None
+    frame: np.ndarray
+
+    def shows(self, face: np.ndarray | None, pose: tuple[int, ...] | None) -> bool:
+        return face is self.face and (face is not None or pose == self.pose)

@@ -6,7 +6,8 @@ time it did so (``hub.projector_video``). The touch service keeps the last few
 mixes the predicted light of the frames lit during its exposure, shifted by
 the projector's latency, with the spread of that mix over the latency's
 uncertainty (:class:`ExposureLight`, :func:`feelium.touch.settle.predicted_exposure`).
-Each projector frame is predicted once, however many camera frames it lights.
+Each projector frame is predicted once, however many camera frames it lights, and a frame the projector
+shows again (the same array) is not predicted again.
 Data flows one way: the projector never hears from touch.
 """
 
@@ -53,6 +54,9 @@ class ExposureLight:
         self._sigma = config.projector_latency_sigma_s
         self._exposure = config.camera_exposure_s
         self._lights: dict[int, np.ndarray] = {}
+        # The frame each light was predicted from: the projector hands the very same array again for every
+        # frame in which nothing changed (frames are never rewritten while held), and its light is the same.
+        self._sources: dict[int, np.ndarray] = {}
         self._scratch = Scratch()  # the mixes: the pipeline reads them within the same camera frame
         self.predicted = 0
 
@@ -68,8 +72,14 @@ class ExposureLight:
             assert isinstance(seq, int)
             light = self._lights.get(seq)
             if light is None:
-                light = self._lights[seq] = self._predict(by_seq[seq]).astype(np.float32, copy=False)
-                self.predicted += 1
+                frame = by_seq[seq]
+                same = next((s for s, f in self._sources.items() if f is frame), None)  # the projector showed it again
+                if same is not None:
+                    light = self._lights[same]
+                else:
+                    light = self._predict(frame).astype(np.float32, copy=False)
+                    self.predicted += 1
+                self._lights[seq], self._sources[seq] = light, frame
             return light
 
         result = predicted_exposure(
@@ -82,5 +92,5 @@ class ExposureLight:
             scratch=self._scratch,
         )
         for seq in [s for s in self._lights if s not in by_seq]:
-            del self._lights[seq]
+            del self._lights[seq], self._sources[seq]
         return result

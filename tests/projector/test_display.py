@@ -75,3 +75,16 @@ def _opencv_has_gui() -> bool:
 def test_window_backend_explains_a_headless_opencv():
     with pytest.raises(DisplayUnavailable, match="no GUI"):
         open_display("window", "/dev/fb0")
+
+
+def test_fbdev_writes_the_same_frame_once_and_a_new_array_again(tmp_path):
+    device, sysfs = _fake_fb(tmp_path, "8,4", "16")
+    display = FbdevDisplay(device, sysfs)
+    frame = np.full((4, 8, 3), 255, np.uint8)
+    display.show(frame)
+    open(device, "wb").close()  # forget what was written: a repeat must not write again
+    display.show(frame)
+    assert open(device, "rb").read() == b"" and (display.frames, display.repeats) == (1, 1)
+    display.show(frame.copy())
+    assert len(open(device, "rb").read()) == 4 * 8 * 2 and display.frames == 2
+    display.close()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from feelium.interactions.answers import Answer
 from feelium.projector.config import ProjectorConfig
@@ -88,3 +90,41 @@ def test_sensing_floor_keeps_the_patch_lit_and_zero_turns_it_off():
 def test_calibration_for_another_projector_is_refused():
     with pytest.raises(ValueError, match="recalibrate"):
         Renderer(ProjectorConfig(width=1920, height=1080), truth_calibration())
+
+
+def _drawn_in_full(renderer: Renderer, now: float, face, answers, talking: bool = False) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The frame as drawn from scratch: the canvas, warped whole."""
+    return renderer.tiles.full(renderer.canvas(now, face, answers, talking))
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.floats(0.0, 60.0), st.booleans(), st.lists(st.floats(0.0, 0.3), min_size=5, max_size=25))
+def test_a_repeated_face_or_avatar_pose_is_the_previous_frame_and_equals_drawing_it(start, talking, steps):
+    renderer, reference = Renderer(CONFIG, truth_calibration()), Renderer(CONFIG, truth_calibration())
+    face = renderer.fit_face(np.random.default_rng(int(start * 1000)).integers(0, 255, (96, 128, 3), np.uint8))
+    now, previous, quiet_face_before = start, None, False
+    for i, step in enumerate(steps):
+        now += step
+        shown = face if i % 10 >= 5 else None  # runs of the avatar, then runs of one face
+        answers = [Answer("ripple", now - 0.1, 0.5, 0.5, now + 1.0)] if i % 7 == 6 else []
+        frame = renderer.render(now, shown, answers, talking)
+        np.testing.assert_array_equal(frame, _drawn_in_full(reference, now, shown, answers, talking))
+        quiet_face = shown is not None and not answers
+        assert (frame is previous) == (quiet_face and quiet_face_before) or shown is None
+        previous, quiet_face_before = frame, quiet_face
+
+
+def test_frames_without_answers_skip_drawing_until_the_pose_or_the_face_changes():
+    renderer = Renderer(CONFIG, truth_calibration())
+    first = renderer.render(1.0, None, [])
+    assert renderer.render(1.0 + 1e-4, None, []) is first  # the avatar has not moved a pixel
+    face = renderer.fit_face(np.full((96, 128, 3), 90, np.uint8))
+    with_face = renderer.render(1.0, face, [])
+    assert with_face is not first and renderer.render(1.5, face, []) is with_face
+    same_pixels = face.copy()  # another array (a new upload): drawn again, never assumed equal
+    again = renderer.render(1.5, same_pixels, [])
+    np.testing.assert_array_equal(again, with_face)
+    answer = Answer("warm_pulse", 1.5, 0.5, 0.5, 3.0)
+    lit = renderer.render(1.6, same_pixels, [answer])
+    assert renderer.render(1.6, same_pixels, [answer]) is not None
+    assert not np.array_equal(lit, again)

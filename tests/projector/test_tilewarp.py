@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from feelium.lab.projector.stream import answers_at
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
-from feelium.projector.tilewarp import TileWarp
+from feelium.projector.tilewarp import TileWarp, tile_rectangles
 from tests.projector.helpers import truth_calibration
 
 BORDER = (35, 25, 20)
@@ -144,3 +144,20 @@ def test_renderer_frames_over_a_face_video_with_answers_equal_the_full_warp():
         face = faces[int(now * 12) % 2] if i < 12 else None  # a face video, then the animated avatar
         canvas = renderer.canvas(now, face, answers_at(now, seed=1))
         assert np.array_equal(renderer.warp(canvas), renderer.tiles.full(canvas)), i
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 12), st.integers(1, 40), st.floats(0.0, 1.0))
+def test_tile_rectangles_cover_exactly_the_marked_tiles_without_overlap(seed, rows, cols, density):
+    tiles = np.random.default_rng(seed).random((rows, cols)) < density
+    covered = np.zeros((rows, cols), np.int32)
+    for r0, r1, c0, c1 in tile_rectangles(tiles):
+        assert 0 <= r0 < r1 <= rows and 0 <= c0 < c1 <= cols
+        covered[r0:r1, c0:c1] += 1
+    np.testing.assert_array_equal(covered, tiles.astype(np.int32))
+
+
+def test_a_blob_of_equal_runs_is_one_rectangle():
+    tiles = np.zeros((6, 10), bool)
+    tiles[1:5, 2:7] = True
+    assert tile_rectangles(tiles) == [(1, 5, 2, 7)]

@@ -26,13 +26,14 @@ import os
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from feelium.daemon.assembly import SERVICES, load_projector_annotation
+from feelium.daemon.assembly import SERVICES, load_projected_light, load_projector_annotation
 from feelium.daemon.config import Config, load_config
 from feelium.daemon.memory import tune_malloc
 from feelium.daemon.runner import WORKER_THREADS, run_daemon, with_overrides
@@ -44,6 +45,7 @@ from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_fra
 from feelium.lab.daemon.projection import project
 from feelium.lab.daemon.quota import join
 from feelium.lab.report import emit_report
+from feelium.skin.projector_map import load_or_default
 from feelium.service import Service
 
 TOKEN = "bench-board-token"
@@ -79,9 +81,11 @@ def builders(cameras: Cameras) -> tuple[tuple[str, Any], ...]:
     def touch(config: Config, hub: Hub) -> Service:
         from feelium.touch.service import TouchService
 
+        source = cameras.rear.source()
         return TouchService(
-            cameras.rear.source(), hub, config.touch,
+            source, hub, config.touch,
             debug_video_fps=config.rear_camera.debug_video_fps, annotation=load_projector_annotation(config),
+            projected=load_projected_light(config, source.backend),
         )
 
     def front_camera(config: Config, hub: Hub) -> Service:
@@ -93,12 +97,21 @@ def builders(cameras: Cameras) -> tuple[tuple[str, Any], ...]:
     return tuple((name, replaced.get(name, build)) for name, build in SERVICES)
 
 
-def bench_config(config: Config, rear_fps: float, board_port: str) -> Config:
-    """Sim backends, the rear camera at ``rear_fps``, flight over the board process's pty, HTTP on a free port."""
+def bench_config(config: Config, rear_fps: float, board_port: str, calibration: Path | None = None) -> Config:
+    """Sim backends, the rear camera at ``rear_fps``, flight over the board process's pty, HTTP on a free port;
+    with ``calibration`` (a projector calibration file), the projector and touch use it as on the blimp: touch
+    events annotated with the skin, and the projected light compensated in every rear frame."""
     config = with_overrides(config, sim=True)
+    rear = dataclasses.replace(config.rear_camera, fps=rear_fps)
+    if calibration is not None:
+        rear = dataclasses.replace(rear, projection_compensation="on")
+        projector = dataclasses.replace(
+            config.projector, calibration=dataclasses.replace(config.projector.calibration, file=str(calibration))
+        )
+        config = dataclasses.replace(config, projector=projector)
     return dataclasses.replace(
         config,
-        rear_camera=dataclasses.replace(config.rear_camera, fps=rear_fps),
+        rear_camera=rear,
         flight=dataclasses.replace(config.flight, backend="serial", port=board_port),
         http=dataclasses.replace(config.http, port=0, token=TOKEN, host="127.0.0.1"),
     )
@@ -116,14 +129,16 @@ async def _lag_probe(lags_ms: list[float], stop: asyncio.Event) -> None:
         lags_ms.append(1000.0 * max(0.0, time.perf_counter() - due))
 
 
-def _start_headset(port: int, seconds: float) -> subprocess.Popen[str]:
+def _start_headset(port: int, seconds: float, motion_transport: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "feelium.lab.daemon.headset", f"http://127.0.0.1:{port}/api/v1", TOKEN, str(seconds)],
+        [sys.executable, "-m", "feelium.lab.daemon.headset", f"http://127.0.0.1:{port}/api/v1", TOKEN, str(seconds), motion_transport],
         stdout=subprocess.PIPE, text=True,
     )
 
 
-async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: float, cgroup: Path | None) -> dict[str, Any]:
+async def _measure(
+    config: Config, cameras: Cameras, seconds: float, warmup_s: float, cgroup: Path | None, motion_transport: str = "websocket"
+) -> dict[str, Any]:
     """Run the daemon; measure over ``seconds`` after the warm-up while the headset process drives it."""
     ledger = Ledger()
     loop = asyncio.get_running_loop()
@@ -140,7 +155,7 @@ async def _measure(config: Config, cameras: Cameras, seconds: float, warmup_s: f
         await started.wait()
         while not isinstance(port := hub.health()["services"]["http"].get("port"), int):
             await asyncio.sleep(0.05)  # bound once the http service has started
-        headset = _start_headset(port, seconds + warmup_s)
+        headset = _start_headset(port, seconds + warmup_s, motion_transport)
         try:
             if cgroup is not None:
                 out["cpu_quota"] = {"cgroup": str(cgroup), "quota_period_us": join(cgroup)}  # after the children started
@@ -226,7 +241,7 @@ def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, fro
     rows["front_camera"]["late_frames_total"] = cameras.front.late
     rows["flight"]["link_losses"] = int(_delta(first, last, "flight", "link_losses"))  # a starved board process shows here
     moves = headset["motion"]
-    rows["headset_motion"] = {"rate_hz": moves["rate_hz"], "target_hz": moves["target_hz"], "miss_kind": "counted",
+    rows["headset_motion"] = {"transport": moves["transport"], "rate_hz": moves["rate_hz"], "target_hz": moves["target_hz"], "miss_kind": "counted",
                               "miss_pct": round(100.0 * moves["late"] / max(moves["sent"], 1), 2),
                               "rtt_ms_p50": moves["rtt_ms_p50"], "rtt_ms_p99": moves["rtt_ms_p99"]}
     for name, kinds in measured["charged"].items():
@@ -246,21 +261,30 @@ def bench_board(
     rear_fps: float = 30.0,
     warmup_s: float = WARMUP_S,
     cgroup: Path | None = None,
+    motion_transport: str = "websocket",
+    projected_light: bool = True,
 ) -> dict[str, Any]:
-    """Start the board process, run and measure the daemon for ``minutes``, project; every number in one dict."""
+    """Start the board process, run and measure the daemon for ``minutes``, project; every number in one dict.
+
+    ``projected_light``: give the daemon a projector calibration (:func:`simulated_calibration`) so touch
+    compensates the projected light in every rear frame as it does on the blimp (the preloaded frames hold no
+    projector light, so this measures the cost, not the benefit)."""
     board = subprocess.Popen([sys.executable, "-m", "feelium.lab.daemon.board_server"], stdout=subprocess.PIPE, text=True)
+    scratch = tempfile.TemporaryDirectory(prefix="feelium-bench-")
     try:
         port = board.stdout.readline().strip() if board.stdout else ""
-        config = bench_config(config, rear_fps, port)
+        calibration = simulated_calibration(config, Path(scratch.name)) if projected_light else None
+        config = bench_config(config, rear_fps, port, calibration)
         front_fps = front_fps or config.front_camera.fps
         malloc = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
         cameras = prepare(config, front_fps)
         load_before = os.getloadavg()[0]
-        measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup))
+        measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
         load_after = os.getloadavg()[0]
     finally:
         board.kill()
         board.wait()
+        scratch.cleanup()
     wall = measured["wall"]
     preload_mb = cameras.nbytes / 2**20
     window = [mb for t, mb in measured["rss"] if t >= 0]
@@ -284,11 +308,21 @@ def bench_board(
         "rss_peak_mb": round(max(mb for _, mb in measured["rss"]) - preload_mb, 1),
         "rss_growth_mb": _growth_mb(window),
         "cpu_quota": measured.get("cpu_quota"),
+        "projected_light_compensation": projected_light,
+        "motion_transport": motion_transport,
         "services": rows,
         "headset": measured["headset"],
     }
     result.update(project(result))
     return result
+
+
+def simulated_calibration(config: Config, directory: Path) -> Path:
+    """The projector calibration the daemon would fall back to (the rear ROI mapped affinely onto the
+    projector), written as a file: with a file, touch compensates the projected light and annotates events."""
+    size = (config.projector.width, config.projector.height)
+    roi = tuple(config.rear_camera.roi) if config.rear_camera.roi else None
+    return load_or_default(directory / "missing.npz", size, roi).save(directory / "projector_calibration.npz")  # type: ignore[arg-type]
 
 
 def _growth_mb(window: list[float]) -> float | None:
@@ -305,7 +339,8 @@ def format_table(result: dict[str, Any]) -> str:
     lines = [
         f"feelium bench board: {result['seconds']} s on {result['cpus']} CPUs (1 min load before / after "
         f"{result['load_average_1min_before_after']}); rear {result['rear']}, front {result['front']}"
-        + (f"; CPU quota {quota['quota_period_us']} us in {quota['cgroup']}" if quota else ""),
+        + (f"; CPU quota {quota['quota_period_us']} us in {quota['cgroup']}" if quota else "")
+        + f"; projected light compensated: {result['projected_light_compensation']}; motion over {result['motion_transport']}",
         f"  {'service':<20} {'rate/target Hz':>16} {'miss %':>7} {'CPU ms/s':>9} {'Pi ms/s':>8}",
     ]
     for name, row in result["services"].items():
@@ -337,6 +372,7 @@ def bench_board_command(args: argparse.Namespace) -> int:
         print("feelium bench board: --minutes must be positive", file=sys.stderr)
         return 2
     cgroup = Path(args.cgroup) if args.cgroup else None
-    result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps, cgroup=cgroup)
+    result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps, cgroup=cgroup,
+                         motion_transport=args.motion_transport, projected_light=args.projected_light == "on")
     emit_report(format_table(result), result, args.json)
     return 0

@@ -4,10 +4,12 @@
 - ``events``: an SSE stream (touches, presence, answers);
 - ``speech``: the speech WebSocket both ways, as the native app uses it (``docs/api.md``): the room audio
   streamed out as it is captured, the wearer's speech in (200 ms chunks, 5 per second);
-- ``motion``: ``POST /motion`` at 20 Hz on an absolute schedule, a wearer action every 2 s, and once at the
-  start a looping face video (``PUT /face``, 12 fps avatar).
+- ``motion``: a motion command at 20 Hz on an absolute schedule, as a message on the events WebSocket
+  (``websocket``, the default: what a headset that already holds that socket does) or as ``POST /motion``
+  (``http``), a wearer action every 2 s, and once at the start a looping face video (``PUT /face``, 12 fps avatar).
 
-``python -m feelium.lab.daemon.headset BASE_URL TOKEN SECONDS`` prints one JSON line of counts and rates.
+``python -m feelium.lab.daemon.headset BASE_URL TOKEN SECONDS [websocket|http]`` prints one JSON line of counts
+and rates.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import asyncio
 import json
 import sys
 import time
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 import aiohttp
@@ -29,6 +32,8 @@ SPEECH_RATE = 16000
 ACTION_EVERY_S = 2.0
 FACE_FRAMES = 24
 FACE_FPS = 12
+MOTION_TRANSPORTS = ("websocket", "http")
+MOTION_BODY = {"command": "turn_left", "hold_ms": 300}
 
 
 async def mjpeg(session: aiohttp.ClientSession, base: str, until: float) -> dict[str, Any]:
@@ -106,10 +111,46 @@ def _face_video() -> aiohttp.FormData:
     return form
 
 
-async def motion(session: aiohttp.ClientSession, base: str, until: float) -> dict[str, Any]:
-    """Motion at 20 Hz; a request that starts more than one period after it was due is late."""
+async def _motion_over_http(session: aiohttp.ClientSession, base: str) -> Callable[[], Awaitable[bool]]:
+    async def send() -> bool:
+        async with session.post(f"{base}/motion", json=MOTION_BODY) as response:
+            return response.status == 200
+
+    return send
+
+
+async def motion(session: aiohttp.ClientSession, base: str, until: float, transport: str = "websocket") -> dict[str, Any]:
+    """Motion at 20 Hz; a command that starts more than one period after it was due is late. The round trip is
+    from sending a command to its answer (the HTTP response, or the WebSocket's ``motion_reply``)."""
     async with session.put(f"{base}/face", params={"fps": FACE_FPS}, data=_face_video()) as response:
         face_status = response.status
+    if transport == "websocket":
+        async with session.ws_connect(f"{base.replace('http', 'ws', 1)}/events/ws") as ws:
+            return await _drive(session, base, until, _motion_over_socket(ws), face_status, transport)
+    return await _drive(session, base, until, await _motion_over_http(session, base), face_status, transport)
+
+
+def _motion_over_socket(ws: aiohttp.ClientWebSocketResponse) -> Callable[[], Awaitable[bool]]:
+    sent = 0
+
+    async def send() -> bool:
+        nonlocal sent
+        sent += 1
+        await ws.send_str(json.dumps({"type": "motion", "id": sent} | MOTION_BODY))
+        while True:  # events arrive on the same socket: skip them up to this command's reply
+            message = await ws.receive()
+            if message.type != aiohttp.WSMsgType.TEXT:
+                raise ConnectionError(f"events WebSocket ended: {message.type}")
+            reply = json.loads(message.data)
+            if reply.get("type") == "motion_reply" and reply.get("id") == sent:
+                return bool(reply["status"] == 200)
+
+    return send
+
+
+async def _drive(
+    session: aiohttp.ClientSession, base: str, until: float, send: Callable[[], Awaitable[bool]], face_status: int, transport: str
+) -> dict[str, Any]:
     period = 1.0 / MOTION_HZ
     start = time.monotonic()
     sent = late = refused = actions = 0
@@ -119,8 +160,7 @@ async def motion(session: aiohttp.ClientSession, base: str, until: float) -> dic
         if now > due + period:
             late += 1
         began = time.monotonic()
-        async with session.post(f"{base}/motion", json={"command": "turn_left", "hold_ms": 300}) as response:
-            refused += response.status != 200
+        refused += not await send()
         rtts.append(time.monotonic() - began)
         sent += 1
         if sent % round(MOTION_HZ * ACTION_EVERY_S) == 0:
@@ -129,21 +169,22 @@ async def motion(session: aiohttp.ClientSession, base: str, until: float) -> dic
         await asyncio.sleep(max(0.0, start + sent * period - time.monotonic()))
     elapsed = time.monotonic() - start
     return {
-        "sent": sent, "late": late, "refused": refused, "rate_hz": round(sent / elapsed, 2), "target_hz": MOTION_HZ,
+        "transport": transport, "sent": sent, "late": late, "refused": refused, "rate_hz": round(sent / elapsed, 2),
+        "target_hz": MOTION_HZ,
         "rtt_ms_p50": round(1000 * float(np.percentile(rtts, 50)), 2) if rtts else None,
         "rtt_ms_p99": round(1000 * float(np.percentile(rtts, 99)), 2) if rtts else None,
         "actions": actions, "face_status": face_status,
     }
 
 
-async def run(base: str, token: str, seconds: float) -> dict[str, Any]:
+async def run(base: str, token: str, seconds: float, motion_transport: str = "websocket") -> dict[str, Any]:
     until = time.monotonic() + seconds
     headers = {"Authorization": f"Bearer {token}"}
     timeout = aiohttp.ClientTimeout(total=None, sock_read=seconds + 5)
     async with aiohttp.ClientSession(headers=headers, timeout=timeout) as session:
         start = time.monotonic()
         video, stream, audio, moves = await asyncio.gather(
-            mjpeg(session, base, until), events(session, base, until), speech(session, base, until), motion(session, base, until)
+            mjpeg(session, base, until), events(session, base, until), speech(session, base, until), motion(session, base, until, motion_transport)
         )
         elapsed = time.monotonic() - start
     video["fps"] = round(video["frames"] / elapsed, 2)
@@ -152,7 +193,10 @@ async def run(base: str, token: str, seconds: float) -> dict[str, Any]:
 
 def main() -> None:
     base, token, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
-    print(json.dumps(asyncio.run(run(base, token, seconds))), flush=True)
+    transport = sys.argv[4] if len(sys.argv) > 4 else "websocket"
+    if transport not in MOTION_TRANSPORTS:
+        sys.exit(f"motion transport must be one of {', '.join(MOTION_TRANSPORTS)}, got {transport!r}")
+    print(json.dumps(asyncio.run(run(base, token, seconds, transport))), flush=True)
 
 
 if __name__ == "__main__":

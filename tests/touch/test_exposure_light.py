@@ -1,0 +1,37 @@
+"""ExposureLight predicts each projector frame once, and a frame shown again (the same array) not at all."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.touch.config import TouchConfig
+from feelium.touch.projected import ExposureLight
+
+
+def _predict(frame: np.ndarray) -> np.ndarray:
+    return np.full((3, 4), float(frame.mean()) / 100.0, np.float32)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.lists(st.booleans(), min_size=2, max_size=40))
+def test_a_repeated_frame_gets_the_same_light_without_a_new_prediction(seed, repeats):
+    rng = np.random.default_rng(seed)
+    config = TouchConfig()
+    memo, fresh = ExposureLight(_predict, config), ExposureLight(_predict, config)
+    frames: list[tuple[float, int, np.ndarray]] = []
+    copies: list[tuple[float, int, np.ndarray]] = []  # the same frames, each its own array: no repeat to notice
+    current = rng.integers(0, 255, (6, 8, 3), np.uint8)
+    distinct = 1
+    for i, repeat in enumerate(repeats):
+        if not repeat and i:
+            current, distinct = rng.integers(0, 255, (6, 8, 3), np.uint8), distinct + 1
+        frames = (frames + [(i / 30.0, i + 1, current)])[-12:]
+        copies = (copies + [(i / 30.0, i + 1, current.copy())])[-12:]
+        t = i / 30.0 + config.projector_latency_s
+        got, want = memo(frames, t), fresh(copies, t)
+        assert got is not None and want is not None
+        np.testing.assert_allclose(got[0], want[0], rtol=1e-6)
+        np.testing.assert_allclose(got[1], want[1], rtol=1e-6, atol=1e-7)
+    assert memo.predicted == distinct and fresh.predicted == len(repeats)
