@@ -35,7 +35,8 @@ RESIDUAL_GATE_S = 0.5  # a large innovation lasting longer than this is real and
 # How fast the speed estimate follows the flow sensor (its noise is about 2 cm/s a sample): see flow_tau_s.
 FLOW_TAU_TRUSTED_S = 3.0
 FLOW_TAU_BOX_S = FLOW_TAU_TRUSTED_S / 2.0**5.23  # 80 ms at the shipped uncertainty, 2: exactly the value it had
-# The speed that decides "still or moving" (the hover band) follows the flow at least this fast: see SurgeEstimate.
+# The speed that decides "still or moving" (the hover band) follows the flow at least this fast: see
+# SurgeEstimate.decision_speed (measured on the 6 calibrated light corners: 0.08-0.2 s all stop within 0.5 s).
 DECISION_FLOW_TAU_S = 0.15
 YAW_CONFIRMING_CHANGE_RAD_S = 0.035  # 2 deg/s of measured yaw-rate change in a window: a turn or a brake, not a nudge
 SURGE_ASSURING_CHANGE_M_S = 0.02  # a window must change the modelled speed this much to teach the stop's margin
@@ -340,9 +341,11 @@ class SurgeEstimate:
         drafts: its drag decays the modelled speed towards zero while a draft holds the body's, so a
         drift is seen late (corner-mtDL's fitted flight read -2.0 cm/s with the body at -3.8 and the
         flow's mean at -3.2, and a turn's stop took 2.28 s). Whether to correct is therefore decided on
-        the flow followed as fast as the shipped estimate follows it; the correction itself still uses
-        the smoother estimate, so the flow's noise does not reach the motors. At the shipped uncertainty
-        the estimate already is that speed and is used as it is.
+        the flow alone, followed within ``DECISION_FLOW_TAU_S`` (0.15 s: its noise, about 0.5 cm/s, stays
+        a sixth of the band's 3 cm/s edge; 0.25 s saw corner-mtDL's drift too late again, 2.26 s). The
+        correction itself still uses the estimate, so the flow's noise does not reach the motors. An
+        estimate that follows the flow at least as fast (the shipped one: 80 ms) already is that speed
+        and is used as it is.
         """
         return self.speed if self._flow_tau_s <= DECISION_FLOW_TAU_S else self.flow_speed
 
