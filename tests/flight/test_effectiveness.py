@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from feelium.daemon.config import Config
 from feelium.flight.effectiveness import Effectiveness
-from feelium.flight.estimators import effectiveness_bounds, flow_tau_s
+from feelium.flight.estimators import SurgeEstimate, effectiveness_bounds, flow_tau_s
 
 
 def _fly(estimator: Effectiveness, gains: tuple[float, float], seconds: float = 6.0, noise: float = 0.0, seed: int = 1) -> None:
@@ -124,11 +126,6 @@ def _drifting(seed: int, accel: float, seconds: float) -> list[tuple[float, floa
     """(t, decision speed, estimate) of a fitted surge estimate (U 1.17: it trusts the model for 0.32 s, the
     model's drag decays it) while a draft, which no push explains, accelerates the body at ``accel``; the flow
     reads the body's speed with 2 cm/s of noise a sample, as the simulator's sensor does."""
-    from dataclasses import replace
-
-    from feelium.daemon.config import Config
-    from feelium.flight.estimators import SurgeEstimate
-
     est = SurgeEstimate(replace(Config().flight, mass_kg=0.33, quadratic_drag=0.22, surge_uncertainty=1.17))
     rng = np.random.default_rng(seed)
     dt, height, out = 0.02, 1.2, []
@@ -163,9 +160,6 @@ def test_the_flow_noise_alone_does_not_leave_the_hover_band() -> None:
 def test_at_the_shipped_uncertainty_the_decision_speed_is_the_estimate() -> None:
     """The shipped estimate follows the flow within 80 ms: it is the measured speed already, and the
     shipped controller flies exactly as it did."""
-    from feelium.daemon.config import Config
-    from feelium.flight.estimators import SurgeEstimate
-
     est = SurgeEstimate(Config().flight)
     for k in range(50):
         est.update(k * 0.02, 0.02, 0.05, 0.04 * math.sin(k), 1.2)
