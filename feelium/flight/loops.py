@@ -332,8 +332,8 @@ class SurgeLoop:
             hover = self.ref_speed == 0.0 and est.measured(t)  # the hover band needs a measured speed
         self.hovering = not speed_sp and self.ref_speed == 0.0  # no command, braking done
         if hover:
-            outside = abs(est.speed) > 1.5 * HOVER_SPEED_BAND_M_S
-            if not self.band.update(outside, abs(est.speed) < HOVER_SPEED_BAND_M_S):
+            speed = est.decision_speed
+            if not self.band.update(abs(speed) > 1.5 * HOVER_SPEED_BAND_M_S, abs(speed) < HOVER_SPEED_BAND_M_S):
                 return 0.0
         else:
             self.band.take_over()

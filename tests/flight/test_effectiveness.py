@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from feelium.daemon.config import Config
 from feelium.flight.effectiveness import Effectiveness
-from feelium.flight.estimators import effectiveness_bounds, flow_tau_s
+from feelium.flight.estimators import SurgeEstimate, effectiveness_bounds, flow_tau_s
 
 
 def _fly(estimator: Effectiveness, gains: tuple[float, float], seconds: float = 6.0, noise: float = 0.0, seed: int = 1) -> None:
@@ -118,3 +120,47 @@ def test_the_speed_estimate_trusts_the_model_less_the_less_it_is_known(u: float,
     if u < v:
         assert flow_tau_s(u) >= flow_tau_s(v)
     assert flow_tau_s(1.05) < 0.8 and flow_tau_s(1.2) < 0.35
+
+
+def _drifting(seed: int, accel: float, seconds: float) -> list[tuple[float, float, float]]:
+    """(t, decision speed, estimate) of a fitted surge estimate (U 1.17: it trusts the model for 0.32 s, the
+    model's drag decays it) while a draft, which no push explains, accelerates the body at ``accel``; the flow
+    reads the body's speed with 2 cm/s of noise a sample, as the simulator's sensor does."""
+    est = SurgeEstimate(replace(Config().flight, mass_kg=0.33, quadratic_drag=0.22, surge_uncertainty=1.17))
+    rng = np.random.default_rng(seed)
+    dt, height, out = 0.02, 1.2, []
+    for k in range(int(seconds / dt)):
+        t = k * dt
+        est.update(t, dt, 0.0, (accel * t + 0.02 * float(rng.standard_normal())) / height, height)
+        out.append((t, est.decision_speed, est.speed))
+    return out
+
+
+def _first_over(rows: list[tuple[float, float, float]], column: int, speed: float) -> float:
+    return next((row[0] for row in rows if abs(row[column]) > speed), math.inf)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_a_draft_drift_leaves_the_hover_band_by_the_decision_speed_before_the_model_led_estimate(seed: int) -> None:
+    """The body drifts backwards at 3 cm/s^2 (the calibrated corner-mtDL's turn, docs/calibrate-flight.md): it
+    is at the band's edge (3 cm/s) at 1.0 s. The decision speed says so within 0.5 s of it, and before the
+    estimate that leans on the fitted model (which, with the model's drag, said so 0.2-0.7 s late)."""
+    rows = _drifting(seed, -0.03, 3.0)
+    decision, model_led = _first_over(rows, 1, 0.03), _first_over(rows, 2, 0.03)
+    assert 0.5 <= decision <= 1.5
+    assert decision < model_led
+
+
+def test_the_flow_noise_alone_does_not_leave_the_hover_band() -> None:
+    """Still body, 20 s of the flow's noise: the decision speed (0.15 s) stays inside the band's 3 cm/s edge."""
+    rows = _drifting(seed=3, accel=0.0, seconds=20.0)
+    assert max(abs(row[1]) for row in rows) < 0.03
+
+
+def test_at_the_shipped_uncertainty_the_decision_speed_is_the_estimate() -> None:
+    """The shipped estimate follows the flow within 80 ms: it is the measured speed already, and the
+    shipped controller flies exactly as it did."""
+    est = SurgeEstimate(Config().flight)
+    for k in range(50):
+        est.update(k * 0.02, 0.02, 0.05, 0.04 * math.sin(k), 1.2)
+        assert est.decision_speed == est.speed
