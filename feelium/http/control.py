@@ -19,8 +19,8 @@ from feelium.http.config import HttpConfig
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
 from feelium.http.face import ImageTooLarge, JpegError, check_jpeg
-from feelium.http.params import check_keys, number_field, query_number, read_body, read_json_object
-from feelium.http.motion_api import apply_motion, motion_json
+from feelium.http.params import check_keys, json_object, number_field, query_number, read_body, read_json_object
+from feelium.http.motion_api import apply_motion, motion_json, stop_in
 from feelium.http.ratelimit import charge
 
 ACTIONS = ("heart", "palm_raise", "palm_lower", "shimmer", "guess")
@@ -36,7 +36,14 @@ async def post_motion(request: web.Request) -> web.Response:
     """A dead-man motion command: it lapses unless refreshed within ``hold_ms`` (rules: :func:`apply_motion`)."""
     link = ctx(request)
     client = client_of(request)
-    body = await _json_body(request, link)
+    raw = await read_body(request, link.config.max_json_bytes)
+    try:
+        body = json_object(raw, request, link.config.max_json_depth)
+    except ApiError as exc:  # a stop sent as text/plain (or another type) still stops the blimp
+        stop = stop_in(raw, link.config.max_json_depth) if exc.status == 415 else None
+        if stop is None:
+            raise
+        body = stop
     return web.json_response(apply_motion(link, client, body))
 
 

@@ -42,7 +42,13 @@ def motion_json(cmd: Any, now: float) -> dict[str, Any]:
 
 def apply_motion(link: LinkContext, client: str, body: dict[str, Any]) -> dict[str, Any]:
     """Validate ``body`` (``MotionRequest``), apply it for ``client``; the ``MotionState`` answer, or ApiError
-    (400 invalid, 429 rate limited, 409 ``not_in_control``)."""
+    (400 invalid, 429 rate limited, 409 ``not_in_control``).
+
+    A ``stop`` wins over everything else its body holds: it is applied whatever other fields come with it
+    (unknown or invalid ones are named in ``ignored``), since refusing a stop for a formality would leave
+    the blimp moving."""
+    if body.get("command") in NEUTRAL_NAMES:
+        return _stop(link, client, body)
     check_keys(body, MOTION_FIELDS)
     name = body.get("command")
     if not isinstance(name, str) or name not in MOTION_NAMES:
@@ -54,24 +60,53 @@ def apply_motion(link: LinkContext, client: str, body: dict[str, Any]) -> dict[s
     if not isinstance(take_over, bool):
         raise ApiError(400, "take_over must be true or false")
     now = link.hub.clock()
-    if name in NEUTRAL_NAMES:
-        cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
-        link.lease.stopped_by(client, now)
-        link.count("motion_stops")
-    else:
-        charge(link.motion_limit, client, now, "motion commands")
-        holder = link.lease.claim(client, now, take_over)
-        if holder is not None:
-            raise ApiError(
-                409,
-                f"{holder.client} is steering; send the command with \"take_over\": true to take control, "
-                f"or wait until its lease lapses ({link.lease.lease_s:g} s after its last motion command)",
-                "not_in_control",
-                extra={"controller": holder.client, "lease_remaining_s": round(holder.expires_at - now, 3), "you": client},
-            )
-        cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
+    charge(link.motion_limit, client, now, "motion commands")
+    holder = link.lease.claim(client, now, take_over)
+    if holder is not None:
+        raise ApiError(
+            409,
+            f"{holder.client} is steering; send the command with \"take_over\": true to take control, "
+            f"or wait until its lease lapses ({link.lease.lease_s:g} s after its last motion command)",
+            "not_in_control",
+            extra={"controller": holder.client, "lease_remaining_s": round(holder.expires_at - now, 3), "you": client},
+        )
+    cmd = link.hub.motion.command(name, now, hold_ms / 1000.0, source="headset")
     link.last_motion_at = now
     return motion_json(link.hub.motion.active(now), now) | {"accepted": cmd.name, "controller": client}
+
+
+def _stop(link: LinkContext, client: str, body: dict[str, Any]) -> dict[str, Any]:
+    """Apply a stop at once for any client (no bucket, no lease; it hands its sender the lease)."""
+    now = link.hub.clock()
+    cmd = link.hub.motion.command("stop", now, source="headset")
+    link.lease.stopped_by(client, now)
+    link.count("motion_stops")
+    link.last_motion_at = now
+    answer = motion_json(link.hub.motion.active(now), now) | {"accepted": cmd.name, "controller": client}
+    ignored = sorted(k for k in body if k not in MOTION_FIELDS or not _valid_for_stop(k, body[k], link))
+    return answer | ({"ignored": ignored} if ignored else {})
+
+
+def _valid_for_stop(key: str, value: Any, link: LinkContext) -> bool:
+    """Whether a stop's other field is one ``POST /motion`` accepts (a stop ignores it either way)."""
+    if key == "command":
+        return True
+    if key == "take_over":
+        return isinstance(value, bool)
+    try:
+        number_field({key: value}, key, None, 1.0, 1000.0 * link.hub.motion.max_hold_s)
+    except ApiError:
+        return False
+    return True
+
+
+def stop_in(raw: bytes, max_depth: int) -> dict[str, Any] | None:
+    """The body, when ``raw`` is a JSON object whose ``command`` is a stop, whatever its declared content type."""
+    try:
+        value = parse_json(raw, max_depth)
+    except ApiError:
+        return None
+    return value if isinstance(value, dict) and value.get("command") in NEUTRAL_NAMES else None
 
 
 def motion_message(link: LinkContext, client: str, text: str) -> dict[str, Any] | None:

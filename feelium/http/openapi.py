@@ -88,6 +88,10 @@ def openapi_document() -> dict[str, Any]:
             "source": {"type": ["string", "null"]},
             "accepted": {"type": "string", "enum": list(MOTION_NAMES)},
             "controller": {"type": "string", "description": "The client identity now holding the motion lease (POST only)."},
+            "ignored": {
+                "type": "array", "items": {"type": "string"},
+                "description": "A stop's other fields that were unknown or invalid: the stop was applied anyway.",
+            },
         },
     }
     schemas: dict[str, Any] = {

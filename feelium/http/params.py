@@ -76,7 +76,11 @@ def parse_json(body: bytes, max_depth: int) -> Any:
 
 async def read_json_object(request: web.Request, limit: int, max_depth: int, *, required: bool = True) -> dict[str, Any]:
     """A JSON object body of ``application/json``; an empty body is ``{}`` when not ``required``."""
-    body = await read_body(request, limit)
+    return json_object(await read_body(request, limit), request, max_depth, required=required)
+
+
+def json_object(body: bytes, request: web.Request, max_depth: int, *, required: bool = True) -> dict[str, Any]:
+    """``body`` (already read) as the JSON object ``request``'s content type must declare."""
     if not body.strip():
         if required:
             raise ApiError(400, "expected a JSON object body")

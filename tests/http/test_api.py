@@ -587,3 +587,30 @@ async def test_configured_hosts_replace_the_defaults(aiohttp_client, hub, http_c
     client = await aiohttp_client(create_app(replace(http_config, allowed_hosts="feelium.example., other"), hub, TOKEN))
     assert (await client.get("/api/v1/state", headers=AUTH | {"Host": "feelium.example:443"})).status == 200
     assert (await client.get("/api/v1/state", headers=AUTH | {"Host": "localhost"})).status == 403
+
+
+@pytest.mark.parametrize(
+    "raw, ctype, ignored",
+    [
+        ('{"command": "stop", "x": 1}', "application/json", ["x"]),
+        ('{"command": "stop", "hold_ms": 1e400, "take_over": "yes"}', "application/json", ["hold_ms", "take_over"]),
+        ('{"command": "stop"}', "text/plain", None),
+        ('{"command": "stop"}', "application/x-www-form-urlencoded", None),
+    ],
+    ids=["extra-field", "invalid-fields", "text-plain", "form-type"],
+)
+async def test_a_stop_wins_over_whatever_else_its_request_holds(client, hub, raw, ctype, ignored):
+    """A stop refused for a formality would leave the blimp moving: it is applied, and what it ignored named."""
+    assert (await client.post("/api/v1/motion", json={"command": "forward"}, headers=AUTH)).status == 200
+    resp = await client.post("/api/v1/motion", data=raw.encode(), headers=AUTH | {"Content-Type": ctype})
+    body = await resp.json()
+    assert resp.status == 200 and body["accepted"] == "stop" and body["active"] is False
+    assert body.get("ignored") == ignored
+    assert hub.motion.active(hub.clock()) is None
+
+
+async def test_anything_but_a_stop_keeps_the_strict_rules(client, hub):
+    resp = await client.post("/api/v1/motion", data=b'{"command": "forward"}', headers=AUTH | {"Content-Type": "text/plain"})
+    assert resp.status == 415
+    resp = await client.post("/api/v1/motion", json={"command": "forward", "x": 1}, headers=AUTH)
+    assert resp.status == 400 and hub.motion.active(hub.clock()) is None

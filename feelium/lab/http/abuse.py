@@ -138,7 +138,7 @@ class Abuser:
             ("/motion", b'{"command": "forward", "hold_ms": 1' + b"0" * 400 + b"}", "application/json"),
             ("/sim/press", b'{"x": 1e400, "y": 10}', "application/json"),
             ("/motion", b'{"command": "\xff\xfe"}', "application/json"),
-            ("/motion", b'{"command": "stop"}', "text/plain"),
+            ("/motion", b'{"command": "forward"}', "text/plain"),
             ("/motion", b"[" + b"0," * 2_000_000 + b"0]", "application/json"),
         ]
         for _ in range(HOSTILE_REPEATS):
