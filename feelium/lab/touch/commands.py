@@ -115,8 +115,8 @@ def fit_on_clips(recordings: list[Recording], config: TouchConfig, skips: Skips)
                 first.append((r, result))
     if not first:
         raise ValueError("no continuous contact/hover clips in this dataset (labels with \"clip\": true)")
-    edge = fit_edge([_clip_series(result) for _, result in first])
-    with_edge = replace(config, contact_edge=edge)
+    edge = fit_edge([_clip_series(result) for _, result in first], held_frames=config.down_frames)
+    with_edge = replace(config, contact_edge=edge.threshold)
     return fit_gates([_clip_series(replay_recording(r, with_edge)) for r, _ in first], edge)
 
 
