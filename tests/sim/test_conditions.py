@@ -4,7 +4,6 @@ events their labels expect, scored under their own condition, with what the reco
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 
