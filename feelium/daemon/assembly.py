@@ -77,7 +77,11 @@ def build_front_camera(config: Config, hub: Hub) -> Service | None:
     source = front_camera_source(config.front_camera, config.sim.seed)
     if source is None:
         return None
-    hub.front_lens = source.lens.to_json() if source.lens is not None else None  # for the headset: GET /lens
+    if source.lens is not None:  # for the headset: GET /lens, with where the skin is in the view
+        skin = [config.touch.face_azimuth_deg, config.touch.face_elevation_deg]
+        hub.front_lens = source.lens.to_json() | {"skin_patch_deg": skin}
+    else:
+        hub.front_lens = None
     return FrontCameraService(source, hub)
 
 

@@ -12,7 +12,6 @@ from aiohttp import web
 
 from feelium.http.context import ctx
 from feelium.http.errors import ApiError
-from feelium.skin.face import FACE_AZIMUTH_DEG, FACE_ELEVATION_DEG
 
 LENS_SCHEMA: dict[str, Any] = {
     "type": "object",
@@ -42,7 +41,7 @@ LENS_SCHEMA: dict[str, Any] = {
             "azimuth and elevation around the optical axis, (0.5, 0.5) on it. A touch at u, v is the direction "
             "azimuth = (u - 0.5) * skin_patch_deg[0], elevation = (0.5 - v) * skin_patch_deg[1] (up positive): "
             "camera axes (cos el sin az, -sin el, cos el cos az); project it with K and D. The envelope's geometry "
-            "(the face centred on the front camera's axis) is assumed, not measured.",
+            "(the face centred on the front camera's axis) is assumed, not measured ([touch] face_azimuth_deg, face_elevation_deg).",
         },
     },
 }  # fmt: skip
@@ -67,4 +66,4 @@ async def get_lens(request: web.Request) -> web.Response:
     lens = ctx(request).hub.front_lens
     if lens is None:
         raise ApiError(404, "the front camera is off: there is no video to place anything in", "no_lens")
-    return web.json_response(lens | {"skin_patch_deg": [FACE_AZIMUTH_DEG, FACE_ELEVATION_DEG]})
+    return web.json_response(lens)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from feelium.settings import setting
+from feelium.skin.face import FACE_AZIMUTH_DEG, FACE_ELEVATION_DEG
 
 
 @dataclass(frozen=True)
@@ -240,8 +241,11 @@ class TouchConfig:
         240.0, "The rear camera sits on the front axis this far behind the sphere's centre (mm; < face_radius_mm).",
         min=0.0, max=10000.0,
     )  # fmt: skip
-    face_azimuth_deg: float = setting(100.0, "The face's extent in azimuth (deg; the browser client's 100).", min=1.0, max=179.0)
-    face_elevation_deg: float = setting(75.0, "The face's extent in elevation (deg; the browser client's 75).", min=1.0, max=179.0)
+    face_azimuth_deg: float = setting(
+        FACE_AZIMUTH_DEG, "The face's extent in azimuth around the front axis (deg); also what GET /lens tells the headset "
+        "(skin_patch_deg), with or without the face model.", min=1.0, max=179.0)
+    face_elevation_deg: float = setting(
+        FACE_ELEVATION_DEG, "The face's extent in elevation (deg); GET /lens serves it too.", min=1.0, max=179.0)
 
     def __post_init__(self) -> None:
         # Checked here so a bad geometry is a config error at load, not a crash when the first frame arrives.

@@ -33,12 +33,20 @@ async def test_the_lens_says_where_the_skin_is_as_the_browser_places_it(client, 
     native app places a touch's u, v in the dome exactly as the browser does."""
     from pathlib import Path
 
+    from dataclasses import replace
+
+    from feelium.daemon.assembly import build_front_camera
+    from feelium.daemon.config import Config
     from feelium.skin.face import FaceModel
 
-    hub.front_lens = sim_lens(640, 480).to_json()
+    assert build_front_camera(Config(), hub) is not None  # the sim front camera, off a Pi
     body = await (await client.get("/api/v1/lens", headers=AUTH)).json()
     face = FaceModel(640, 480, 200.0, 320.0, 240.0)
     assert body["skin_patch_deg"] == [face.azimuth_deg, face.elevation_deg]
+    config = Config()
+    build_front_camera(replace(config, touch=replace(config.touch, face_azimuth_deg=90.0)), hub)
+    body = await (await client.get("/api/v1/lens", headers=AUTH)).json()
+    assert body["skin_patch_deg"] == [90.0, face.elevation_deg]  # the configured face, not a constant
     lens_js = (Path(__file__).parents[2] / "feelium/http/static/lens.js").read_text()
     assert f"SKIN_PATCH_DEG = [{face.azimuth_deg:g}, {face.elevation_deg:g}]" in lens_js
 
