@@ -22,6 +22,7 @@ from feelium.http.openapi import openapi_document
 from feelium.http.pairing import PairingCodes
 from feelium.http.lease import ControlLease
 from feelium.http.ratelimit import ClientBuckets
+from feelium.http.open_streams import CHECK_EVERY_S, OpenStreams
 from feelium.http.slots import StreamSlots
 from feelium.http.hosts import HostAllowList
 from feelium.http.security import (
@@ -58,13 +59,25 @@ def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettin
         streams=StreamSlots(config.max_stream_clients, config.max_streams_per_client, per_address=config.max_streams_per_address),
         speech_streams=StreamSlots(config.max_speech_streams, config.max_speech_streams_per_client, "speech streams",
                                    per_address=config.max_speech_streams_per_address),
+        event_streams=StreamSlots(config.max_event_streams, config.max_event_streams_per_client, "event streams",
+                                  per_address=config.max_event_streams_per_address),
+        open_streams=OpenStreams(),
     )
 
 
 async def _start_pumps(app: web.Application) -> None:
     link = app[CONTEXT]
     link.events.start()  # subscribe now, so nothing published after startup is missed
-    app[_PUMPS] = [asyncio.create_task(link.events.pump()), asyncio.create_task(link.speech.pump())]
+    app[_PUMPS] = [asyncio.create_task(link.events.pump()), asyncio.create_task(link.speech.pump()),
+                   asyncio.create_task(_close_revoked_streams(link))]
+
+
+async def _close_revoked_streams(link: LinkContext) -> None:
+    """Each second, end the streams opened with a token that no longer matches (rotated away)."""
+    while True:
+        await asyncio.sleep(CHECK_EVERY_S)
+        now = link.hub.clock()
+        link.open_streams.close_revoked(lambda token: link.tokens.matches(token, now))
 
 
 async def _stop_pumps(app: web.Application) -> None:

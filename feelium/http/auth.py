@@ -21,6 +21,8 @@ import stat
 from collections.abc import Mapping
 from pathlib import Path
 
+from aiohttp import web
+
 log = logging.getLogger(__name__)
 
 TOKEN_BYTES = 24
@@ -149,6 +151,11 @@ def presented_token(headers: Mapping[str, str], query: Mapping[str, str], cookie
     if cookies and cookies.get(SESSION_COOKIE):
         return cookies[SESSION_COOKIE]
     return query.get("token") or None
+
+
+def token_of(request: web.Request) -> str | None:
+    """The token ``request`` presented (what a long-lived stream is checked against after a rotation)."""
+    return presented_token(request.headers, request.query, request.cookies)
 
 
 def token_matches(presented: str | None, expected: str) -> bool:

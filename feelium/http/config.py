@@ -112,6 +112,19 @@ class HttpConfig:
     max_speech_streams_per_client: int = setting(
         2, "Concurrent speech streams of one client; more get 429.", min=1, max=100
     )
+    max_event_streams: int = setting(
+        64, "Concurrent event streams (GET /events/ws and /events/stream) in total; more get 429 (each holds a "
+        "socket: unbounded, they would use up the daemon's file descriptors).", min=1, max=1000
+    )
+    max_event_streams_per_client: int = setting(4, "Concurrent event streams of one client; more get 429.", min=1, max=100)
+    max_event_streams_per_address: int = setting(
+        16, "Concurrent event streams from one address, whatever client ids it sends; more get 429.", min=1, max=1000
+    )
+    socket_messages_per_s: float = setting(
+        50.0, "Messages a client may send on one WebSocket per second (burst twice that); a socket over it is closed "
+        "with 1008: each message costs the event loop a parse and a reply even when refused. Motion at 20 Hz fits.",
+        min=1.0, max=10000.0,
+    )
     max_speech_streams_per_address: int = setting(
         4, "Concurrent speech streams from one address, whatever client ids it sends; more get 429.", min=1, max=1000
     )

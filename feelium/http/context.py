@@ -17,6 +17,7 @@ from feelium.http.jpeg import JpegFeed
 from feelium.http.lease import ControlLease
 from feelium.http.pairing import PairingCodes
 from feelium.http.ratelimit import ClientBuckets
+from feelium.http.open_streams import OpenStreams
 from feelium.http.slots import StreamSlots
 from feelium.http.speech import SpeechFeed
 from feelium.hub import Hub
@@ -56,6 +57,8 @@ class LinkContext:
     lease: ControlLease  # who may steer
     streams: StreamSlots  # MJPEG streams per client and in total
     speech_streams: StreamSlots  # GET /speech/stream per client and in total
+    event_streams: StreamSlots  # GET /events/ws and /events/stream per client and in total
+    open_streams: OpenStreams  # every long-lived stream with its token, closed when the token is rotated away
     counters: dict[str, int] = field(default_factory=dict)
     wall_clock: Callable[[], float] = time.time  # only for GET /clock: every other time is hub.clock
     last_request_at: float | None = None

@@ -10,20 +10,27 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from aiohttp import WSMsgType, web
 
+from feelium.http.auth import token_of
 from feelium.http.clients import client_of
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
+from feelium.http.message_budget import POLICY_VIOLATION, MessageBudget
 from feelium.http.motion_api import motion_message
+from feelium.http.open_streams import transport_closer, ws_closer
 from feelium.http.params import query_number
 from feelium.http.ring import Catchup, parse_resume, resume_token
+from feelium.http.slots import SlotsFull
 
 log = logging.getLogger(__name__)
 
 MAX_SEQ = 2**53
+MAX_SOCKET_MESSAGE_BYTES = 4096  # a motion command is ~100 bytes; larger closes the socket (1009)
 
 
 def _after(request: web.Request, header_value: str | None = None) -> tuple[str | None, int] | None:
@@ -76,7 +83,27 @@ async def sse(request: web.Request) -> web.StreamResponse:
     response = web.StreamResponse(
         headers={"Content-Type": "text/event-stream", "Cache-Control": "no-store", "X-Accel-Buffering": "no"}
     )
-    await response.prepare(request)
+    client = client_of(request)
+    with event_slot(link, client), link.open_streams.held(token_of(request), transport_closer(request)):
+        await response.prepare(request)
+        await _serve_sse(request, response, link, after)
+    return response
+
+
+@contextmanager
+def event_slot(link: LinkContext, client: str) -> Iterator[None]:
+    """One of the bounded event-stream slots (429 without one) for as long as the stream lives."""
+    try:
+        link.event_streams.acquire(client)
+    except SlotsFull as exc:
+        raise ApiError(429, f"{exc}; close one first", headers={"Retry-After": "1"}) from None
+    try:
+        yield
+    finally:
+        link.event_streams.release(client)
+
+
+async def _serve_sse(request: web.Request, response: web.StreamResponse, link: LinkContext, after: Any) -> None:
     timeout = link.config.stream_write_timeout_s
     epoch, seq = (None, link.events.ring.last_seq) if after is None else after
     link.count("event_clients")
@@ -106,7 +133,6 @@ async def sse(request: web.Request) -> web.StreamResponse:
         pass
     finally:
         link.count("event_clients", -1)
-    return response
 
 
 async def websocket(request: web.Request) -> web.StreamResponse:
@@ -115,21 +141,33 @@ async def websocket(request: web.Request) -> web.StreamResponse:
     a message, not an HTTP request, per refresh."""
     link = ctx(request)
     after = _after(request)
-    ws = web.WebSocketResponse(heartbeat=link.config.keepalive_s, max_msg_size=4096)
+    ws = web.WebSocketResponse(heartbeat=link.config.keepalive_s, max_msg_size=MAX_SOCKET_MESSAGE_BYTES)
     if not ws.can_prepare(request).ok:
         raise ApiError(400, "expected a WebSocket upgrade request")
-    await ws.prepare(request)
+    client = client_of(request)
+    with event_slot(link, client), link.open_streams.held(token_of(request), ws_closer(ws)):
+        await ws.prepare(request)
+        await _serve_websocket(ws, link, client, after)
+    return ws
+
+
+async def _serve_websocket(ws: web.WebSocketResponse, link: LinkContext, client: str, after: Any) -> None:
     timeout = link.config.stream_write_timeout_s
     epoch, seq = (None, link.events.ring.last_seq) if after is None else after
     link.count("event_clients")
-
-    client = client_of(request)
+    budget = MessageBudget(link.config.socket_messages_per_s, int(2 * link.config.socket_messages_per_s), link.hub.clock())
 
     async def drain_incoming() -> None:
-        """Motion commands are answered in turn; anything else is read and ignored (keeps pings and close working)."""
+        """Motion commands are answered in turn; anything else is read and ignored (keeps pings and close working).
+        A client over its message budget is disconnected; each message yields to the loop (see MessageBudget)."""
         async for msg in ws:
             if msg.type == WSMsgType.ERROR:
                 return
+            if msg.type in (WSMsgType.TEXT, WSMsgType.BINARY) and not budget.allows(link.hub.clock()):
+                link.count("socket_floods_closed")
+                await ws.close(code=POLICY_VIOLATION, message=b"too many messages")
+                return
+            await asyncio.sleep(0)
             if msg.type == WSMsgType.TEXT and (reply := motion_message(link, client, msg.data)) is not None:
                 try:  # the command is applied already; a client that reads nothing is dropped as a stalled stream
                     async with asyncio.timeout(timeout):
@@ -159,4 +197,3 @@ async def websocket(request: web.Request) -> web.StreamResponse:
         reader.cancel()
         if not ws.closed:
             await ws.close()
-    return ws

@@ -18,7 +18,10 @@ import logging
 from aiohttp import WSMsgType, web
 
 from feelium.events import SpeechIn
+from feelium.http.auth import token_of
 from feelium.http.clients import client_of
+from feelium.http.message_budget import POLICY_VIOLATION, MessageBudget
+from feelium.http.open_streams import ws_closer
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
 from feelium.http.events_api import MAX_SEQ
@@ -51,8 +54,9 @@ async def stream(request: web.Request) -> web.StreamResponse:
         raise ApiError(429, f"{exc}; close one first", headers={"Retry-After": "1"}) from None
     link.count("speech_streams_opened")
     try:
-        await ws.prepare(request)
-        await _serve(request, ws, link, client, min(start, link.speech.last_seq), in_rate)
+        with link.open_streams.held(token_of(request), ws_closer(ws)):
+            await ws.prepare(request)
+            await _serve(request, ws, link, client, min(start, link.speech.last_seq), in_rate)
     except (ConnectionResetError, ConnectionError):
         pass
     finally:
@@ -121,9 +125,15 @@ async def _receive_chunks(ws: web.WebSocketResponse, link: LinkContext, client: 
     target = link.speech_settings.sample_rate
     last_notice = -float("inf")
     refused = 0
+    budget = MessageBudget(link.config.socket_messages_per_s, int(2 * link.config.socket_messages_per_s), link.hub.clock())
     async for msg in ws:
         if msg.type == WSMsgType.ERROR:
             return
+        if msg.type in (WSMsgType.TEXT, WSMsgType.BINARY) and not budget.allows(link.hub.clock()):
+            link.count("socket_floods_closed")
+            await ws.close(code=POLICY_VIOLATION, message=b"too many messages")
+            return
+        await asyncio.sleep(0)  # a burst of buffered messages must not hold the loop (MessageBudget)
         if msg.type != WSMsgType.BINARY:
             continue
         now = link.hub.clock()

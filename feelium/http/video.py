@@ -17,11 +17,13 @@ import termios
 
 from aiohttp import web
 
+from feelium.http.auth import token_of
 from feelium.http.clients import client_of
 from feelium.http.clock import CAPTURE_HEADER
 from feelium.http.context import ctx
 from feelium.http.errors import ApiError
 from feelium.http.jpeg import JpegFeed
+from feelium.http.open_streams import transport_closer
 from feelium.http.params import query_number
 from feelium.http.slots import SlotsFull
 
@@ -120,7 +122,8 @@ async def mjpeg(request: web.Request) -> web.StreamResponse:
     except SlotsFull as exc:
         raise ApiError(429, f"{exc}; close one first", headers={"Retry-After": "1"}) from None
     try:
-        return await _stream(request, feed, max_fps)
+        with link.open_streams.held(token_of(request), transport_closer(request)):
+            return await _stream(request, feed, max_fps)
     finally:
         link.streams.release(client)
 

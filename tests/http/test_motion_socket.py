@@ -33,6 +33,14 @@ class Steering:
 
 
 @pytest.fixture
+def http_config(http_config):  # type: ignore[no-untyped-def]
+    """These tests send more messages at one instant than the per-socket budget allows (tested on its own below)."""
+    from dataclasses import replace
+
+    return replace(http_config, socket_messages_per_s=1000.0)
+
+
+@pytest.fixture
 def reply_schema():  # type: ignore[no-untyped-def]
     document = openapi_document()
     schema = {"$ref": "#/components/schemas/MotionReply", "components": document["components"]}
@@ -114,3 +122,31 @@ async def test_a_bad_id_is_refused_without_moving(client, hub, clock):
         reply = json.loads((await ws.receive(timeout=5)).data)
     assert reply["type"] == "motion_reply" and reply["status"] == 400 and reply["id"] is None
     assert hub.motion.active(clock.now) is None
+
+
+async def test_a_socket_flooded_with_messages_is_closed_and_a_bystanders_stop_still_lands(aiohttp_client, hub, clock):
+    """Each message costs a parse and a reply even when refused: past its budget (2 s of socket_messages_per_s at
+    one instant) the socket is closed with 1008, and another client's stop is applied as ever."""
+    from dataclasses import replace
+
+    from aiohttp import WSMsgType
+
+    from feelium.http.app import create_app, link_of
+    from feelium.http.config import HttpConfig
+    from tests.http.http_support import TOKEN
+
+    config = replace(HttpConfig(), token=TOKEN, socket_messages_per_s=10.0)
+    client = await aiohttp_client(create_app(config, hub, TOKEN))
+    link = link_of(client.server.app)
+    async with client.ws_connect(WS, headers=A) as ws:
+        for i in range(50):
+            await ws.send_str(json.dumps({"type": "motion", "id": i, "command": "stop"}))
+        replies, closed = 0, None
+        while closed is None:
+            msg = await ws.receive(timeout=5)
+            if msg.type == WSMsgType.TEXT:
+                replies += json.loads(msg.data).get("type") == "motion_reply"
+            elif msg.type in (WSMsgType.CLOSE, WSMsgType.CLOSED, WSMsgType.CLOSING):
+                closed = ws.close_code
+    assert closed == 1008 and replies == 20 and link.counters["socket_floods_closed"] == 1
+    assert (await client.post(MOTION, json={"command": "stop"}, headers=B)).status == 200

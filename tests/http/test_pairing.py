@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -87,6 +88,57 @@ async def test_rotation_by_api_and_by_file_without_a_restart(aiohttp_client, hub
     clock.now += 1.0
     assert (await client.get("/api/v1/state", headers=bearer(new))).status == 401
     assert (await client.get("/api/v1/state", headers=bearer(newer))).status == 200
+
+
+async def test_rotating_the_token_ends_the_streams_opened_with_the_old_one(aiohttp_client, hub, http_config, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A device whose token was rotated away must not keep steering, watching or listening over sockets it
+    already holds: within about a second each of them is closed, and the new token opens them again."""
+    import numpy as np
+    from aiohttp import WSMsgType
+
+    path = tmp_path / "token"
+    config = replace(http_config, token="", token_file=str(path))
+    old = load_or_create_token("", str(path))
+    client = await aiohttp_client(create_app(config, hub, old))
+    bearer = lambda t: {"Authorization": f"Bearer {t}"}  # noqa: E731
+    hub.front_video.publish(1.0, np.zeros((8, 8), np.uint8))
+    events = await client.ws_connect("/api/v1/events/ws", headers=bearer(old))
+    speech = await client.ws_connect("/api/v1/speech/stream", headers=bearer(old))
+    video = await client.get("/api/v1/video/front.mjpeg", headers=bearer(old))
+    assert video.status == 200
+
+    async def watch() -> None:  # a reader that keeps up, so only the rotation can end its stream
+        while await video.content.read(65536):
+            pass
+
+    watching = asyncio.create_task(watch())
+    await asyncio.sleep(0.5)
+    from feelium.http.app import link_of
+
+    assert not watching.done() and len(link_of(client.server.app).open_streams) == 3
+    resp = await client.post("/api/v1/token/rotate", headers=bearer(old))
+    new = (await resp.json())["token"]
+    # 1008 "token rotated", or a reset when the client's own close reply finds the socket gone already
+    assert await asyncio.wait_for(_until_closed(events, WSMsgType), 5) in (1008, "reset")
+    assert await asyncio.wait_for(_until_closed(speech, WSMsgType), 5) in (1008, "reset")
+    with contextlib.suppress(aiohttp.ClientError):  # the MJPEG response is cut off
+        await asyncio.wait_for(watching, 5)
+    streams = link_of(client.server.app).open_streams
+    assert len(streams) == 0 and streams.closed_for_rotation >= 2  # (a cut stream may end on its own error first)
+    fresh = await client.ws_connect("/api/v1/events/ws", headers=bearer(new))
+    assert not fresh.closed
+    await fresh.close()
+
+
+async def _until_closed(ws, kinds) -> int | str | None:  # type: ignore[no-untyped-def]
+    """The close code the server sent, or "reset" (the client's own close reply found the socket gone already)."""
+    while True:
+        try:
+            msg = await ws.receive()
+        except aiohttp.ClientConnectionResetError:
+            return "reset"
+        if msg.type in (kinds.CLOSE, kinds.CLOSED, kinds.CLOSING, kinds.ERROR):
+            return msg.data if msg.type == kinds.CLOSE else ws.close_code
 
 
 async def test_a_configured_token_cannot_be_rotated_by_api(client) -> None:  # type: ignore[no-untyped-def]

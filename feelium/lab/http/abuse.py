@@ -176,11 +176,16 @@ class Abuser:
                 writer.close()
 
     async def silent_subscribers(self) -> None:
-        """Event subscribers (WebSocket and SSE) that connect and never read, for longer than the write timeout."""
+        """Event WebSockets from one address (as many client ids) that never read, for longer than the write
+        timeout: the address's event-stream slots take the first ones, the rest get 429."""
         sockets = []
         for i in range(SILENT_SUBSCRIBERS):
-            ws = await self.session.ws_connect(self.daemon.api + "/events/ws", headers=self.daemon.auth | {
-                "X-Feelium-Client": f"silent-{i}"})  # fmt: skip
+            try:
+                ws = await self.session.ws_connect(self.daemon.api + "/events/ws", headers=self.daemon.auth | {
+                    "X-Feelium-Client": f"silent-{i}"})  # fmt: skip
+            except aiohttp.WSServerHandshakeError as exc:  # over the event-stream slots: 429
+                self.statuses[exc.status] += 1
+                continue
             self.statuses[101] += 1  # switched protocols: the upgrade was accepted
             sockets.append(ws)
         await asyncio.sleep(self.write_timeout_s + IDLE_S)

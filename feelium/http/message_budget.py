@@ -1,0 +1,29 @@
+"""How many messages a client may send on one WebSocket: a client flooding its socket is disconnected.
+
+Every message a client sends costs the event loop a parse and often a reply,
+whether it is then refused (429, 400) or not; a refusal is no protection
+against the work. aiohttp hands over messages already buffered without
+yielding to the loop, so a flood also starves every other task (the cameras,
+another client's stop). Each socket therefore has a budget well above any
+honest use (motion refreshed at 20 Hz, speech chunks at their own limit);
+a socket over it is closed with 1008 (policy violation), and the reader
+yields to the loop after each message.
+"""
+
+from __future__ import annotations
+
+from feelium.http.open_streams import POLICY_VIOLATION
+from feelium.http.ratelimit import TokenBucket
+
+__all__ = ["POLICY_VIOLATION", "MessageBudget"]
+
+
+class MessageBudget:
+    """``rate`` messages per second with a burst of ``burst`` on one socket."""
+
+    def __init__(self, rate: float, burst: int, now: float) -> None:
+        self._bucket = TokenBucket(rate, burst, now)
+        self.rate = rate
+
+    def allows(self, now: float) -> bool:
+        return self._bucket.take(now)
