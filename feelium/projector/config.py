@@ -66,6 +66,14 @@ class ProjectorConfig:
         min=0.0,
         max=1.0,
     )
+    fade_floor: float = setting(
+        0.75,
+        "Least mean grey (0..1) of the sensitive patch: when the picture goes dark as a whole (a fade of the "
+        "wearer's video), it is lifted until its mean is this, so a press is still seen (taps in a black fade: "
+        "4/12 at the sensing floor alone, 12/12 at 0.75); a face at full brightness is above it. 0 turns it off.",
+        min=0.0,
+        max=1.0,
+    )
     diffusion_px: float = setting(
         0.7, "Membrane diffusion of projected light, in camera px, for the back-light prediction.", min=0.0, max=30.0
     )

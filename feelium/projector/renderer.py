@@ -27,6 +27,7 @@ from feelium.skin.face import FaceModel
 from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.layers import DRAWERS
+from feelium.projector.lift import SensingLift
 from feelium.projector.tilewarp import TileWarp
 
 
@@ -91,8 +92,7 @@ class Renderer:
         self._canvas = np.empty((ch, cw, 3), np.uint8)
         self._canvas_lock = threading.Lock()  # render() may be called from two threads (the service, a preview)
         self.skipped: dict[str, int] = {}
-        floor = 255.0 * config.sensing_floor
-        self._floor_lut = np.clip(np.round(floor + np.arange(256) * (1.0 - config.sensing_floor)), 0, 255).astype(np.uint8)
+        self.lift = SensingLift(config.sensing_floor, config.fade_floor)
 
     def fit_face(self, face: np.ndarray) -> np.ndarray:
         """The wearer's face image scaled to cover the canvas (centre crop), BGR uint8."""
@@ -119,14 +119,14 @@ class Renderer:
             np.copyto(img, face)
         else:
             self.avatar.render(now, talking=talking, out=img)
+        self.lift.measure(img)  # on the picture alone: answers are drawn over it and lifted with it
         for answer in answers:
             drawer = DRAWERS.get(answer.kind)
             if drawer is None:
                 self.skipped[answer.kind] = self.skipped.get(answer.kind, 0) + 1
                 continue
             drawer(img, answer, now)
-        if self.config.sensing_floor > 0:
-            cv2.LUT(img, self._floor_lut, dst=img)  # keep the skin lit enough to sense touch
+        self.lift.apply(img)  # keep the skin lit enough to sense touch (feelium.projector.lift)
         return img
 
     def warp(self, canvas: np.ndarray) -> np.ndarray:

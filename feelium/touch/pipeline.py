@@ -192,7 +192,8 @@ class TouchPipeline:
             return FrameResult(t, (), False, 0.0, 0.0, 0, (), 0.0)
         cfg = self.config
         gain = ref.measure_gain(work, self._shadow)
-        if self.settled and self._follow_light(work):
+        stepped = abs(gain / ref.gain - 1.0) > cfg.rebaseline_gain_step
+        if self.settled and self._follow_light(work, stepped):
             gain = ref.measure_gain(work, self._shadow)
         if self.settled:
             ref.observe_gain(gain, work, self._shadow)
@@ -297,8 +298,10 @@ class TouchPipeline:
             edge=deepest.edge if deepest else 0.0,
         )
 
-    def _follow_light(self, work: np.ndarray) -> bool:
-        """Re-seed the reference on a membrane-wide change of light's shape (:mod:`feelium.touch.illumination`)."""
+    def _follow_light(self, work: np.ndarray, stepped: bool) -> bool:
+        """Re-seed the reference on a membrane-wide change of light's shape (:mod:`feelium.touch.illumination`),
+        or on any lighting step (``stepped``: the exposure gain jumped), so that under shadows the old reference
+        is scaled by the change measured around them rather than by one gain."""
         ref, cfg, buf = self.reference, self.config, self._scratch
         assert ref.image is not None
         lit = np.multiply(ref.image, ref.gain, out=buf.like("follow.lit", ref.image))
@@ -307,7 +310,7 @@ class TouchPipeline:
         usable &= other
         if self._shadow is not None:
             usable &= np.logical_not(self._shadow, out=other)
-        change = illumination_change(work, ref.image, ref.gain, usable, cfg.noise_floor, buf)
+        change = illumination_change(work, ref.image, ref.gain, usable, cfg.noise_floor, buf, force=stepped)
         if change is None:
             return False
         self.light_changes += 1

@@ -3,7 +3,9 @@
 The digests below are the outputs of the pipeline before its buffers were
 reused (first commit 54df552; re-pinned from the tip of branch i17h, fdc84b2,
 the multi-touch candidates and shapes without buffer reuse, which the merged
-pipeline matched to the bit), on seeded simulator frames that exercise every path
+pipeline matched to the bit; re-pinned on branch i17r, whose lighting step re-seeds through the
+illumination tile map and whose tile map is fitted as exposure plus added light: a change of the algorithm, on
+the same buffers), on seeded simulator frames that exercise every path
 that writes a working-size array: touches (candidates, anchored regions, the
 forced update), an exposure step (the re-baseline), added room light (the
 illumination re-seed), a saturated patch, and the projected-light compensation
@@ -78,8 +80,8 @@ def _rounded(value: object) -> object:
 @pytest.mark.parametrize(
     ("projected", "expected"),
     [
-        (False, "c74fe3b0198123935d480841f0c05c302020cadea2c529679b3e380008a9d538"),
-        (True, "6ad27e01d52e0f0c0b7524f7f16ca299261f0c3efb2d4ecf750ebb11cdfdc718"),
+        (False, "55e1393eb6860ec6b4240dacf0334d3e721f9a3c49d44dbbde7d82025f9e36b9"),
+        (True, "7639e6d81fdfa50e49f3eb4c25e525202bae4b12730dd8bc6f2bbfd77cdb5ca7"),
     ],
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:

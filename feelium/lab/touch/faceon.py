@@ -177,7 +177,7 @@ class _Experiment:
         optics = ProjectorOptics(flat_level=setup.projector.flat_level)
         self.calibration, _ = sim_calibration(setup.seed, setup.projector, warp, optics)
         self.renderer = Renderer(setup.projector, self.calibration)
-        self.source = Renderer(replace(setup.projector, sensing_floor=0.0), self.calibration)
+        self.source = Renderer(replace(setup.projector, sensing_floor=0.0, fade_floor=0.0), self.calibration)
         self.light = ProjectedLight(warp, (WIDTH, HEIGHT), optics)
         self.predictor = BacklightPredictor(setup.projector, self.calibration, (WIDTH, HEIGHT))
 
