@@ -39,8 +39,8 @@ async def post_motion(request: web.Request) -> web.Response:
     raw = await read_body(request, link.config.max_json_bytes)
     try:
         body = json_object(raw, request, link.config.max_json_depth)
-    except ApiError as exc:  # a stop sent as text/plain (or another type) still stops the blimp
-        stop = stop_in(raw, link.config.max_json_depth) if exc.status == 415 else None
+    except ApiError as exc:  # a stop sent as text/plain, with a BOM, NaN or bad bytes still stops the blimp
+        stop = stop_in(raw, link.config.max_json_depth) if exc.status in (400, 415) else None
         if stop is None:
             raise
         body = stop

@@ -15,11 +15,12 @@ already holds for events, each refresh is one small text message and one reply.
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from feelium.http.context import LinkContext
 from feelium.http.errors import ApiError
-from feelium.http.params import check_keys, number_field, parse_json
+from feelium.http.params import check_keys, json_depth, number_field, parse_json
 from feelium.http.ratelimit import charge
 from feelium.motion import DEFAULT_HOLD_S, MOTION_NAMES, NEUTRAL_NAMES
 
@@ -100,12 +101,25 @@ def _valid_for_stop(key: str, value: Any, link: LinkContext) -> bool:
     return True
 
 
+# Nesting a lenient reading still accepts: Python's json recurses once per level, so the strict limit's reason
+# (no RecursionError) holds here too, only further out.
+LENIENT_MAX_DEPTH = 64
+
+
 def stop_in(raw: bytes, max_depth: int) -> dict[str, Any] | None:
-    """The body, when ``raw`` is a JSON object whose ``command`` is a stop, whatever its declared content type."""
+    """The body, when ``raw`` holds a JSON object whose ``command`` is a stop, read leniently: whatever its
+    declared content type, a UTF-8 BOM, bytes that are not UTF-8 in other fields, ``NaN``, data after the
+    object, nesting up to ``LENIENT_MAX_DEPTH``. Strict rules would refuse such a stop for a formality."""
     try:
         value = parse_json(raw, max_depth)
     except ApiError:
-        return None
+        text = raw.decode("utf-8", errors="replace").lstrip("\ufeff \t\r\n")
+        if json_depth(text) > LENIENT_MAX_DEPTH:
+            return None
+        try:
+            value, _ = json.JSONDecoder(parse_constant=lambda _: None).raw_decode(text)
+        except ValueError:
+            return None
     return value if isinstance(value, dict) and value.get("command") in NEUTRAL_NAMES else None
 
 
@@ -118,10 +132,11 @@ def motion_message(link: LinkContext, client: str, text: str) -> dict[str, Any] 
     that request would have got, and the client's ``id`` to match them up. A 429 adds ``retry_after_s``
     (the request's ``Retry-After`` header).
     """
+    raw = text.encode("utf-8", errors="surrogateescape")
     try:
-        value = parse_json(text.encode("utf-8"), link.config.max_json_depth)
+        value = parse_json(raw, link.config.max_json_depth)
     except ApiError:
-        return None
+        value = stop_in(raw, link.config.max_json_depth)  # a malformed stop still stops
     if not isinstance(value, dict) or value.get("type") != "motion":
         return None
     link.last_request_at = link.hub.clock()
@@ -129,6 +144,8 @@ def motion_message(link: LinkContext, client: str, text: str) -> dict[str, Any] 
     body = {k: v for k, v in value.items() if k not in ("type", "id")}
     ref = value.get("id")
     if ref is not None and not _valid_id(ref):
+        if body.get("command") in NEUTRAL_NAMES:  # a stop is applied whatever its id; the reply cannot carry it
+            return {"type": "motion_reply", "id": None, "status": 200, "body": apply_motion(link, client, body | {"id": ref})}
         return _reply(None, ApiError(400, f"id must be an integer 0..2^53 or a string of at most {MAX_ID_CHARS} characters"))
     try:
         return {"type": "motion_reply", "id": ref, "status": 200, "body": apply_motion(link, client, body)}

@@ -38,11 +38,17 @@ def redact(text: str) -> str:
     """Free text (a rejected request line) with its percent-escapes decoded, every ``token=...`` value and
     ``Bearer ...`` credential replaced by ``<redacted>``, and any other long run holding a digit elided."""
     text = _SECRETS.sub(lambda m: m.group(1) + "<redacted>", unquote(text))
-    return _LONG_WITH_DIGIT.sub(lambda m: m.group(0) if len(m.group(0)) < SECRET_MIN_CHARS else "<elided>", text)
+    text = _LONG_WITH_DIGIT.sub(lambda m: m.group(0) if len(m.group(0)) < SECRET_MIN_CHARS else "<elided>", text)
+    return _printable(text)
+
+
+def _printable(text: str) -> str:
+    """Control characters escaped (``\\x0a``): a decoded newline, CR, ESC or NUL must not forge or break log lines."""
+    return "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in text)
 
 
 def _shown(part: str) -> str:
-    return part if len(part) < SECRET_MIN_CHARS else f"<{len(part)} chars>"
+    return _printable(part) if len(part) < SECRET_MIN_CHARS else f"<{len(part)} chars>"
 
 
 def loggable_target(path_qs: str) -> str:

@@ -46,3 +46,12 @@ def test_i2c_dev_serial_and_the_headset_link_are_set_up():
     assert "/var/lib/feelium/.config/feelium/http-token" in GUIDE
     default_token = (ROOT / "config" / "feelium.toml").read_text(encoding="utf-8")
     assert 'token_file = "~/.config/feelium/http-token"' in default_token  # the path the guide names
+
+
+def test_the_unit_gives_the_daemon_room_for_its_bounded_streams():
+    """The link bounds its streams (16 MJPEG, 8 speech, 64 event streams) below the descriptors it has."""
+    from feelium.http.config import HttpConfig
+
+    limit = int(_unit("LimitNOFILE"))
+    config = HttpConfig()
+    assert limit >= 4 * (config.max_stream_clients + config.max_speech_streams + config.max_event_streams)

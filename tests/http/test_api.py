@@ -614,3 +614,16 @@ async def test_anything_but_a_stop_keeps_the_strict_rules(client, hub):
     assert resp.status == 415
     resp = await client.post("/api/v1/motion", json={"command": "forward", "x": 1}, headers=AUTH)
     assert resp.status == 400 and hub.motion.active(hub.clock()) is None
+
+
+@pytest.mark.parametrize(
+    "raw",
+    [b'\xef\xbb\xbf{"command": "stop"}', b'{"command": "stop", "hold_ms": NaN}', b'{"command": "stop", "x": "\xff\xfe"}',
+     b'{"command": "stop"} trailing', b'{"command": "stop", "x": ' + b"[" * 13 + b"]" * 13 + b"}"],
+    ids=["bom", "nan", "bad-utf8-elsewhere", "trailing-data", "nested-13"],
+)
+async def test_a_malformed_stop_still_stops(client, hub, raw):
+    assert (await client.post("/api/v1/motion", json={"command": "forward"}, headers=AUTH)).status == 200
+    resp = await client.post("/api/v1/motion", data=raw, headers=AUTH | {"Content-Type": "application/json"})
+    assert resp.status == 200 and (await resp.json())["accepted"] == "stop"
+    assert hub.motion.active(hub.clock()) is None

@@ -150,3 +150,20 @@ async def test_a_socket_flooded_with_messages_is_closed_and_a_bystanders_stop_st
                 closed = ws.close_code
     assert closed == 1008 and replies == 20 and link.counters["socket_floods_closed"] == 1
     assert (await client.post(MOTION, json={"command": "stop"}, headers=B)).status == 200
+
+
+@pytest.mark.parametrize(
+    "text",
+    ['{"type": "motion", "id": 1.5, "command": "stop"}', '{"type": "motion", "id": [1], "command": "stop"}',
+     '{"type": "motion", "id": 2, "command": "stop", "hold_ms": NaN}',
+     '{"type": "motion", "id": 3, "command": "stop", "x": ' + "[" * 12 + "]" * 12 + "}"],
+    ids=["float-id", "list-id", "nan", "nested-12"],
+)
+async def test_a_stop_on_the_socket_is_applied_whatever_its_id_or_formalities(client, hub, clock, text):
+    async with client.ws_connect(WS, headers=A) as ws:
+        steer = Steering(ws)
+        assert (await steer.send(command="up"))["status"] == 200
+        await ws.send_str(text)
+        reply = await ws.receive_json(timeout=5)
+        assert reply["type"] == "motion_reply" and reply["status"] == 200 and reply["body"]["accepted"] == "stop"
+        assert hub.motion.active(clock.now) is None

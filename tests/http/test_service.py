@@ -192,6 +192,8 @@ def test_redact_hides_every_form_of_the_token() -> None:
         (f"/api/v1/nothing/{TOKEN}", f"/api/v1/nothing/<{len(TOKEN)} chars>"),  # a 404 with the token in its path
         (f"/api/v1/events?after=12&note={TOKEN}", f"/api/v1/events?after=12&note=<{len(TOKEN)} chars>"),
         ("/api/v1/video/front.mjpeg?fps=10", "/api/v1/video/front.mjpeg?fps=10"),
+        ("/api/v1/a%0aFAKE%20ERROR%20x", "/api/v1/a\\x0aFAKE ERROR x"),  # no forged log line
+        ("/api/v1/events?after=1%0d%0aX%1b%5b31m%00", "/api/v1/events?after=1\\x0d\\x0aX\\x1b[31m\\x00"),
     ],
 )
 def test_the_access_log_target_never_carries_a_token(target: str, logged: str) -> None:
