@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
@@ -20,7 +20,7 @@ from feelium.http.auth import token_of
 from feelium.http.clients import client_of
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
-from feelium.http.message_budget import POLICY_VIOLATION, MessageBudget
+from feelium.http.message_budget import MessageBudget
 from feelium.http.motion_api import motion_message
 from feelium.http.open_streams import transport_closer, ws_closer
 from feelium.http.params import query_number
@@ -147,11 +147,13 @@ async def websocket(request: web.Request) -> web.StreamResponse:
     client = client_of(request)
     with event_slot(link, client), link.open_streams.held(token_of(request), ws_closer(ws)):
         await ws.prepare(request)
-        await _serve_websocket(ws, link, client, after)
+        await _serve_websocket(ws, link, client, after, transport_closer(request))
     return ws
 
 
-async def _serve_websocket(ws: web.WebSocketResponse, link: LinkContext, client: str, after: Any) -> None:
+async def _serve_websocket(
+    ws: web.WebSocketResponse, link: LinkContext, client: str, after: Any, cut_off: Callable[[], None]
+) -> None:
     timeout = link.config.stream_write_timeout_s
     epoch, seq = (None, link.events.ring.last_seq) if after is None else after
     link.count("event_clients")
@@ -165,7 +167,7 @@ async def _serve_websocket(ws: web.WebSocketResponse, link: LinkContext, client:
                 return
             if msg.type in (WSMsgType.TEXT, WSMsgType.BINARY) and not budget.allows(link.hub.clock()):
                 link.count("socket_floods_closed")
-                await ws.close(code=POLICY_VIOLATION, message=b"too many messages")
+                cut_off()  # no close handshake: waiting for it, the loop would go on parsing the flood
                 return
             await asyncio.sleep(0)
             if msg.type == WSMsgType.TEXT and (reply := motion_message(link, client, msg.data)) is not None:

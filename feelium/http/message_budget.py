@@ -6,16 +6,14 @@ against the work. aiohttp hands over messages already buffered without
 yielding to the loop, so a flood also starves every other task (the cameras,
 another client's stop). Each socket therefore has a budget well above any
 honest use (motion refreshed at 20 Hz, speech chunks at their own limit);
-a socket over it is closed with 1008 (policy violation), and the reader
-yields to the loop after each message.
+a socket over it is cut off (no close handshake: waiting for the client's
+reply, the loop would go on parsing the flood), and the reader yields to
+the loop after each message.
 """
 
 from __future__ import annotations
 
-from feelium.http.open_streams import POLICY_VIOLATION
 from feelium.http.ratelimit import TokenBucket
-
-__all__ = ["POLICY_VIOLATION", "MessageBudget"]
 
 
 class MessageBudget:

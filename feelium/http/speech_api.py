@@ -14,14 +14,15 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+from collections.abc import Callable
 
 from aiohttp import WSMsgType, web
 
 from feelium.events import SpeechIn
 from feelium.http.auth import token_of
 from feelium.http.clients import client_of
-from feelium.http.message_budget import POLICY_VIOLATION, MessageBudget
-from feelium.http.open_streams import ws_closer
+from feelium.http.message_budget import MessageBudget
+from feelium.http.open_streams import transport_closer, ws_closer
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
 from feelium.http.events_api import MAX_SEQ
@@ -74,7 +75,7 @@ async def _serve(request: web.Request, ws: web.WebSocketResponse, link: LinkCont
         "rate": target, "in_rate": in_rate, "after": seq, "max_in_bytes": link.config.max_speech_bytes,
         "in_rate_per_s": link.config.speech_rate_per_s,
     })), timeout)  # fmt: skip
-    reader = asyncio.create_task(_receive(ws, link, client, in_rate))
+    reader = asyncio.create_task(_receive(ws, link, client, in_rate, transport_closer(request)))
     sock = request.transport.get_extra_info("socket") if request.transport is not None else None
     backlog_bytes = 2 * target * link.config.speech_stream_backlog_ms // 1000
     gate = BacklogGate(backlog_bytes, timeout)
@@ -113,15 +114,17 @@ async def _serve(request: web.Request, ws: web.WebSocketResponse, link: LinkCont
         reader.cancel()
 
 
-async def _receive(ws: web.WebSocketResponse, link: LinkContext, client: str, in_rate: int) -> None:
+async def _receive(ws: web.WebSocketResponse, link: LinkContext, client: str, in_rate: int, cut_off: Callable[[], None]) -> None:
     """The wearer's speech: each binary message is one chunk for the speaker; text messages are ignored."""
     try:
-        await _receive_chunks(ws, link, client, in_rate)
+        await _receive_chunks(ws, link, client, in_rate, cut_off)
     except (asyncio.TimeoutError, ConnectionError):
         pass  # a client that neither reads nor closes: the writer's gate or the heartbeat ends the stream
 
 
-async def _receive_chunks(ws: web.WebSocketResponse, link: LinkContext, client: str, in_rate: int) -> None:
+async def _receive_chunks(
+    ws: web.WebSocketResponse, link: LinkContext, client: str, in_rate: int, cut_off: Callable[[], None]
+) -> None:
     target = link.speech_settings.sample_rate
     last_notice = -float("inf")
     refused = 0
@@ -131,7 +134,7 @@ async def _receive_chunks(ws: web.WebSocketResponse, link: LinkContext, client: 
             return
         if msg.type in (WSMsgType.TEXT, WSMsgType.BINARY) and not budget.allows(link.hub.clock()):
             link.count("socket_floods_closed")
-            await ws.close(code=POLICY_VIOLATION, message=b"too many messages")
+            cut_off()  # no close handshake: waiting for it, the loop would go on parsing the flood
             return
         await asyncio.sleep(0)  # a burst of buffered messages must not hold the loop (MessageBudget)
         if msg.type != WSMsgType.BINARY:

@@ -126,7 +126,7 @@ async def test_a_bad_id_is_refused_without_moving(client, hub, clock):
 
 async def test_a_socket_flooded_with_messages_is_closed_and_a_bystanders_stop_still_lands(aiohttp_client, hub, clock):
     """Each message costs a parse and a reply even when refused: past its budget (2 s of socket_messages_per_s at
-    one instant) the socket is closed with 1008, and another client's stop is applied as ever."""
+    one instant) the socket is cut off (no close handshake to wait for), and another client's stop is applied."""
     from dataclasses import replace
 
     from aiohttp import WSMsgType
@@ -141,14 +141,14 @@ async def test_a_socket_flooded_with_messages_is_closed_and_a_bystanders_stop_st
     async with client.ws_connect(WS, headers=A) as ws:
         for i in range(50):
             await ws.send_str(json.dumps({"type": "motion", "id": i, "command": "stop"}))
-        replies, closed = 0, None
-        while closed is None:
+        replies, ended = 0, False
+        while not ended:
             msg = await ws.receive(timeout=5)
             if msg.type == WSMsgType.TEXT:
                 replies += json.loads(msg.data).get("type") == "motion_reply"
-            elif msg.type in (WSMsgType.CLOSE, WSMsgType.CLOSED, WSMsgType.CLOSING):
-                closed = ws.close_code
-    assert closed == 1008 and replies == 20 and link.counters["socket_floods_closed"] == 1
+            else:
+                ended = msg.type in (WSMsgType.CLOSE, WSMsgType.CLOSED, WSMsgType.CLOSING, WSMsgType.ERROR)
+    assert replies == 20 and link.counters["socket_floods_closed"] == 1
     assert (await client.post(MOTION, json={"command": "stop"}, headers=B)).status == 200
 
 

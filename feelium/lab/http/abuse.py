@@ -15,7 +15,10 @@ daemon left alone for as long as a phase lasts: its own swing in memory.
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import json
 import math
+import statistics
 import socket
 import tempfile
 import time
@@ -39,6 +42,7 @@ SILENT_SUBSCRIBERS = 50
 CONCURRENT_UPLOADS = 24
 CONCURRENT_ROUNDS = 4
 HOSTILE_REPEATS = 20
+STOPS_DURING_FLOOD = 40
 SOCKET_BUFFER_BYTES = 4096
 
 
@@ -128,6 +132,43 @@ class Abuser:
                 await self.request("POST", "/motion", client, json={"command": "forward", "hold_ms": 500})
 
         await asyncio.gather(*(flooder(f"flood-{c}") for c in range(FLOOD_CLIENTS) for _ in range(FLOOD_IN_FLIGHT)))
+
+    async def socket_flood(self) -> None:
+        """One client floods its events WebSocket with motion commands as fast as it can write, while a bystander
+        sends a `stop` every 50 ms over HTTP: the flooder must be cut off and every stop land promptly."""
+        ws = await self.session.ws_connect(self.daemon.api + "/events/ws", headers=self.daemon.auth | {
+            "X-Feelium-Client": "socket-flooder"})  # fmt: skip
+        self.statuses[101] += 1
+        message = json.dumps({"type": "motion", "id": 1, "command": "forward", "take_over": True})
+
+        async def flood() -> int:
+            sent = 0
+            with contextlib.suppress(ConnectionError, RuntimeError, aiohttp.ClientError):
+                while not ws.closed:
+                    await ws.send_str(message)
+                    sent += 1
+            return sent
+
+        async def drain() -> None:
+            with contextlib.suppress(ConnectionError, aiohttp.ClientError, asyncio.TimeoutError):
+                while not ws.closed and (await ws.receive(timeout=IDLE_S)).type not in (
+                        aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.ERROR):  # fmt: skip
+                    pass
+
+        flooding = asyncio.gather(flood(), drain())
+        stops = []
+        for _ in range(STOPS_DURING_FLOOD):
+            t0 = time.perf_counter()
+            await self.request("POST", "/motion", "bystander", json={"command": "stop"})
+            stops.append(1000.0 * (time.perf_counter() - t0))
+            await asyncio.sleep(0.05)
+        sent, _ = await asyncio.wait_for(flooding, IDLE_S + 5.0)
+        if not ws.closed:
+            await ws.close()
+        self.notes.update({
+            "flood_messages_sent": sent, "flooder_close_code": None if ws.close_code is None else int(ws.close_code),
+            "bystander_stop_ms_median": round(statistics.median(stops), 1), "bystander_stop_ms_max": round(max(stops), 1),
+        })  # fmt: skip
 
     async def hostile_bodies(self) -> None:
         """Bodies that once gave 500s or cost memory: deep nesting, huge numbers, bad UTF-8, a wrong content type,
@@ -233,7 +274,7 @@ async def run_abuse() -> dict[str, Any]:
             async with aiohttp.ClientSession(connector=connector) as session:
                 abuser = Abuser(daemon, session, HttpConfig().stream_write_timeout_s)
                 phases = {name: await measure_phase(abuser, getattr(abuser, name)) for name in (
-                    "idle", "face_uploads", "concurrent_uploads", "motion_flood", "hostile_bodies", "stalled_streams", "silent_subscribers")}  # fmt: skip
+                    "idle", "face_uploads", "concurrent_uploads", "motion_flood", "socket_flood", "hostile_bodies", "stalled_streams", "silent_subscribers")}  # fmt: skip
             alive = daemon.process.poll() is None and "services" in daemon.health()
         finally:
             stop_daemon(daemon)
@@ -260,6 +301,11 @@ def format_abuse(result: dict[str, Any]) -> list[str]:
         label = f"{name} (baseline)" if name == "idle" else name
         lines.append(f"| {label} | {p['seconds']} | {p['rss_before_mb']} | {p['rss_peak_growth_mb']} | {p['rss_retained_mb']} "
                      f"| {p['statuses'] or '-'} | {p['server_errors']} | {'accepted' if p['stop_accepted_after'] else 'REFUSED'} |")  # fmt: skip
+    flood = result["phases"].get("socket_flood")
+    if flood:
+        lines.append(f"\nsocket flood: the flooder sent {flood['flood_messages_sent']} messages before it was cut off "
+                     f"(close {int(flood['flooder_close_code'] or 0)}); a bystander's `stop` round trip meanwhile "
+                     f"{flood['bystander_stop_ms_median']} ms median, {flood['bystander_stop_ms_max']} ms max")  # fmt: skip
     lines.append(f"\nworst peak growth {result['worst_peak_growth_mb']} MB; daemon alive after: {result['daemon_alive_after']}; "
                  f"goal met: {result['goal_met']}")  # fmt: skip
     return lines
