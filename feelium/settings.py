@@ -128,9 +128,12 @@ def build_section(cls: type, table: dict[str, Any], source: str, prefix: str = "
     """Build dataclass ``cls`` from a TOML table, rejecting unknown keys and bad values."""
     hints = get_type_hints(cls)
     known = {f.name: f for f in dataclasses.fields(cls)}
+    retired: dict[str, str] = getattr(cls, "RETIRED_KEYS", {})
     for name in table:
         if name not in known:
             where = f"{prefix}.{name}" if prefix else name
+            if name in retired:  # a key an older config may still carry: say why it went, not just that it is unknown
+                raise ConfigError(source, where, f"this key was removed: {retired[name]}; delete it from the config")
             raise ConfigError(source, where, f"unknown key; known keys: {', '.join(sorted(known))}")
     kwargs: dict[str, Any] = {}
     for name, fld in known.items():

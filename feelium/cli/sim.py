@@ -28,6 +28,23 @@ def register(registry: CommandRegistry) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace recordings that already exist")
     parser.add_argument("--no-thermal", action="store_true", help="skip thermal.npz (the 8 Hz thermal channel)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    cond = registry.subcommand(
+        "simulate",
+        "condition",
+        "Write labelled recordings of a condition of use (issue 17): litroom (room light variants), face (whole curved face, by zone).",
+        _condition,
+    )
+    cond.add_argument("condition", choices=("litroom", "face"), help="which condition")
+    cond.add_argument("--out", required=True, help="dataset directory to write; one folder per variant, <condition>-<variant>")
+    cond.add_argument(
+        "--variants",
+        help="comma-separated variants (litroom: dim,lit,switch-on,switch-off,drift,passer-by; face: centre,mid,edge); default all",
+    )
+    cond.add_argument("--seed", type=int, default=1, help="random seed; the same seed gives identical recordings")
+    cond.add_argument("--scale", type=float, default=0.1, help="trials times F (0 < F <= 1; litroom: the protocol's 228 trials, face: 5 per label and zone)")
+    cond.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), help="parallel rendering processes")
+    cond.add_argument("--overwrite", action="store_true", help="replace recordings that already exist")
+    cond.add_argument("--quiet", action="store_true", help="no progress lines")
     bench = registry.subcommand("bench", "sim", "Scene simulator render time per 640x480 frame, by scene, against an empty frame.", _bench)
     bench.add_argument("--frames", type=int, default=60, help="frames per scene")
     bench.add_argument("--json", help="also write the report here")
@@ -43,6 +60,32 @@ def _bench(args: argparse.Namespace) -> int:
     print(format_table(report))
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    return 0
+
+
+def _condition(args: argparse.Namespace) -> int:
+    from feelium.lab.sim.conditions import simulate_condition
+
+    name = f"feelium simulate condition {args.condition}"
+    variants = tuple(v.strip() for v in args.variants.split(",") if v.strip()) if args.variants else None
+    start = time.monotonic()
+
+    def progress(done: int, total: int, path: str) -> None:
+        if not args.quiet:
+            print(f"[{done}/{total}] {path}", file=sys.stderr)
+
+    try:
+        written = simulate_condition(
+            args.out, args.condition, variants=variants, seed=max(0, args.seed), scale=args.scale,
+            jobs=max(1, args.jobs), overwrite=args.overwrite, progress=progress,
+        )  # fmt: skip
+    except ValueError as exc:
+        print(f"{name}: {exc}", file=sys.stderr)
+        return 2
+    except FileExistsError as exc:
+        print(f"{name}: {exc} (use --overwrite to replace)", file=sys.stderr)
+        return 1
+    print(f"wrote {len(written)} recordings to {args.out} in {time.monotonic() - start:.1f} s")
     return 0
 
 

@@ -24,6 +24,11 @@ def register(registry: CommandRegistry) -> None:
     ev.add_argument("--figure", metavar="PNG", help="anchoring figure (default: beside the report, or ./touch-anchoring.png)")
     ev.add_argument("--config", help="TOML config file (its [touch] section is used)")
     ev.add_argument(
+        "--by-condition",
+        action="store_true",
+        help="also score each condition alone (meta generator.condition, else the first folder; added as \"conditions\")",
+    )
+    ev.add_argument(
         "--fit-on-clips",
         action="store_true",
         help="fit the gates' thresholds on the dataset's contact and hover clips first, then score with them",

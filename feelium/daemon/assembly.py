@@ -129,7 +129,10 @@ def build_projector(config: Config, hub: Hub) -> Service | None:
         log.error("projector calibration unusable (%s); using the uncalibrated map", exc)
         calibration = default_calibration(DEFAULT_CAMERA_SIZE, rear_roi or DEFAULT_ROI, size)  # type: ignore[arg-type]
     display = open_display(config.projector.backend, config.projector.fb_device)
-    return ProjectorService(config.projector, config.interactions, hub, display, calibration)
+    from feelium.touch.face import face_for
+
+    face = face_for(config.touch, calibration.camera_size)  # the touch side's u, v, for the canvas
+    return ProjectorService(config.projector, config.interactions, hub, display, calibration, face)
 
 
 # --- moving: the headset's commands reach the motors ---------------------------------------------------------------
@@ -227,7 +230,11 @@ def load_projector_annotation(config: Config, path: Path | None = None) -> Proje
         log.info("touch: no projector calibration at %s; touch events carry camera coordinates only", path)
         return None
     try:
-        annotation = ProjectorAnnotation(load_calibration(path), Regions.from_config(config.interactions))
+        from feelium.touch.face import face_for
+
+        calibration = load_calibration(path)
+        face = face_for(config.touch, calibration.camera_size)
+        annotation = ProjectorAnnotation(calibration, Regions.from_config(config.interactions), face)
     except Exception as exc:
         log.error("touch: projector calibration %s unusable (%s); touch events are not annotated", path, exc)
         return None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from feelium.motion import MAX_HOLD_S
 from feelium.settings import setting
@@ -15,8 +16,15 @@ class InteractionsConfig:
     Regions are ellipses ``[cu, cv, ru, rv]`` on the skin canvas, in 0..1
     across the camera's sensitive patch (the touch events' ``u``/``v``), which
     the calibration map carries to the projector; they match the default
-    avatar's layout.
+    avatar's layout. Palms and hugs are the touch events' ``contact`` kinds
+    (sized in mm by ``[touch] palm_min_area_mm2`` and ``hug_min_area_mm2``),
+    not areas in camera pixels.
     """
+
+    RETIRED_KEYS: ClassVar[dict[str, str]] = {
+        "palm_area_px": "palms are the touch events' contact = \"palm\", sized by [touch] palm_min_area_mm2",
+        "hug_area_px": "hugs are the touch events' contact = \"hug\", sized by [touch] hug_min_area_mm2",
+    }
 
     enabled: bool = setting(True, "Run the interaction engine.")
     head: tuple[float, ...] = setting((0.5, 0.2, 0.3, 0.14), "Head (forehead) region [cu, cv, ru, rv].", min=0.0, max=1.0)
@@ -26,10 +34,12 @@ class InteractionsConfig:
         (0.5, 0.8, 0.36, 0.18), "Palm zone: where the wearer's raised palm appears.", min=0.0, max=1.0
     )
     pat_window_s: float = setting(1.5, "Taps on the head closer than this count as one greeting pat.", min=0.1, max=10.0)
-    palm_area_px: int = setting(2500, "Least contact area (camera px) of a palm-sized hold.", min=1, max=10_000_000)
-    palm_hold_s: float = setting(0.6, "How long a palm-sized contact must stay to count as a palm hold.", min=0.0, max=30.0)
-    hug_area_px: int = setting(12000, "Total contact area (camera px) of a lean-in hug.", min=1, max=10_000_000)
-    hug_hold_s: float = setting(1.5, "How long the large-area contact must last to start the breathing glow.", min=0.0, max=60.0)
+    palm_hold_s: float = setting(
+        0.6, "How long a palm contact (the touch event's contact = palm) must stay to count as a palm hold.", min=0.0, max=30.0
+    )
+    hug_hold_s: float = setting(
+        1.5, "How long a hug contact (contact = hug) must last to start the breathing glow.", min=0.0, max=60.0
+    )
     stroke_min_px: float = setting(
         25.0, "Path length (camera px) after which a moving contact is a drawing stroke.", min=1.0, max=10000.0
     )

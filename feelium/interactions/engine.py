@@ -9,18 +9,23 @@ view, :class:`~feelium.interactions.answers.Answer` for the projector, and
 
 - greeting pat: a tap on the head -> ``greeting_pat/pat`` (with the tap count of
   the pat) and a ripple plus warm pulse at the spot.
-- palm-to-palm: a palm-sized contact held ``palm_hold_s`` -> ``palm_to_palm/partner``
+- palm-to-palm: a contact the touch pipeline calls a ``palm`` held ``palm_hold_s`` -> ``palm_to_palm/partner``
   and a palm glow; the wearer's ``palm_raise`` -> ``palm_to_palm/wearer`` and a
   second glow in the palm zone; both at once -> ``palm_to_palm/merge``: the
   wearer's glow glides onto the partner's and they merge; either leaving -> ``end``.
 - peck: a tap on a cheek -> ``peck/bloom`` and a small heart there; the wearer's
   ``heart`` -> ``peck/returned`` and a heart back on the last pecked cheek.
-- finger drawing: a contact that travels ``stroke_min_px`` -> ``drawing/start``
+- finger drawing: a ``finger`` contact that travels ``stroke_min_px`` -> ``drawing/start``
   (new round, secret word shown to the partner), then ``drawing/stroke`` with
   each new point, live strokes on the skin; a correct ``guess`` -> ``drawing/ignite``
   and the drawing ignites; a wrong one -> ``drawing/wrong_guess``.
-- lean-in hug: total contact area over ``hug_area_px`` for ``hug_hold_s`` ->
-  ``hug/start`` and the whole skin breathes, until the area halves -> ``hug/end``.
+- lean-in hug: a ``hug`` contact held ``hug_hold_s`` -> ``hug/start`` and the whole
+  skin breathes, until no hug contact is left -> ``hug/end``.
+
+What touched is the event's ``contact`` (``finger``, ``palm``, ``hug``: the pipeline's
+footprint in mm, :mod:`feelium.touch.shape`), never an area in camera pixels, so the
+rules mean the same at every camera resolution and lens; an event without a shape (a
+replay of an older stream) is a fingertip.
 - invite: the wearer's ``shimmer`` -> ``invite/shimmer``, a shimmer and a
   "drift closer" motion; the partner's next touch during it -> ``invite/accepted``,
   a warm pulse there and a "gentle bounce" (up, then down).
@@ -32,7 +37,7 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from feelium.events import InteractionEvent, TouchEvent, WearerAction
+from feelium.events import ContactKind, InteractionEvent, TouchEvent, WearerAction
 from feelium.interactions.answers import Answer
 from feelium.interactions.config import InteractionsConfig
 from feelium.skin.regions import Regions
@@ -50,6 +55,7 @@ PROMPT_S = 4.0
 MAX_STROKES = 64
 MAX_STROKE_POINTS = 256
 _STALE_MOTION_S = 0.3  # a motion reply more late than this is dropped, never sent out of time
+_CONTACT_RANK: dict[str, int] = {"finger": 0, "palm": 1, "hug": 2}
 
 
 @dataclass(frozen=True)
@@ -72,6 +78,9 @@ class _Contact:
     v: float
     region: str | None
     area: int
+    contact: ContactKind = "finger"  # the largest kind seen while down (a palm lands heel first, a hug grows)
+    area_mm2: float | None = None
+    hug_since: float | None = None  # when it first showed as a hug
     length: float = 0.0
     stroke: int | None = None  # stroke number once it travels far enough
     palm: bool = False
@@ -111,7 +120,6 @@ class InteractionEngine:
         self._wearer_palm_since: float | None = None
         self._palm_contact: int | None = None
         self._palm_merged = False
-        self._hug_since: float | None = None
         self._hugging = False
         self._shimmer_until = -math.inf
         self._rounds = 0
@@ -132,6 +140,7 @@ class InteractionEngine:
         if event.phase == "down" or contact is None:
             contact = _Contact(event.id, now, event.x, event.y, event.u, event.v, region, event.area, points=[(event.u, event.v)])
             self._contacts[event.id] = contact
+            _take_shape(contact, event, now)
             self._on_first_touch(contact, event, now)
             if event.phase == "down":
                 return
@@ -217,9 +226,10 @@ class InteractionEngine:
             contact.x, contact.y = event.x, event.y
         contact.u, contact.v = event.u, event.v
         contact.area = event.area
+        _take_shape(contact, event, now)
         if (contact.u, contact.v) != contact.points[-1]:
             contact.points.append((contact.u, contact.v))
-        if contact.stroke is None and not contact.palm and contact.length >= self.config.stroke_min_px and contact.area < self.config.palm_area_px:
+        if contact.stroke is None and contact.contact == "finger" and contact.length >= self.config.stroke_min_px:
             self._start_stroke(contact, now)
         if contact.stroke is not None and len(contact.points) > MAX_STROKE_POINTS:
             self._emit("drawing", "stroke_end", now, contact, stroke=contact.stroke)
@@ -280,10 +290,10 @@ class InteractionEngine:
                 self._answer("palm:wearer", self._wearer_glow(now))
         if self._palm_contact is None:
             for contact in self._contacts.values():
-                if contact.stroke is None and cfg.palm_area_px <= contact.area < cfg.hug_area_px and now - contact.t_down >= cfg.palm_hold_s:
+                if contact.stroke is None and contact.contact == "palm" and now - contact.t_down >= cfg.palm_hold_s:
                     contact.palm = True
                     self._palm_contact = contact.id
-                    self._emit("palm_to_palm", "partner", now, contact, area=contact.area)
+                    self._emit("palm_to_palm", "partner", now, contact, area=contact.area, contact_area_mm2=contact.area_mm2)
                     self._answer("palm:partner", Answer("palm_glow", now, contact.u, contact.v, detail={"side": "partner"}))
                     break
         if self._palm_contact is not None:
@@ -304,19 +314,15 @@ class InteractionEngine:
         return Answer("palm_glow", now, u, v, detail={"side": "wearer"})
 
     def _check_hug(self, now: float) -> None:
-        total = sum(c.area for c in self._contacts.values())
+        hugs = [c for c in self._contacts.values() if c.contact == "hug" and c.hug_since is not None]
         if not self._hugging:
-            if total >= self.config.hug_area_px:
-                self._hug_since = now if self._hug_since is None else self._hug_since
-                if now - self._hug_since >= self.config.hug_hold_s:
-                    self._hugging = True
-                    self._emit("hug", "start", now, area=total)
-                    self._answer("breathing", Answer("breathing", now, 0.5, 0.5))
-            else:
-                self._hug_since = None
-        elif total < 0.5 * self.config.hug_area_px:
+            if hugs and now - min(c.hug_since for c in hugs if c.hug_since is not None) >= self.config.hug_hold_s:
+                self._hugging = True
+                widest = max(hugs, key=lambda c: c.area)
+                self._emit("hug", "start", now, area=widest.area, contact_area_mm2=widest.area_mm2)
+                self._answer("breathing", Answer("breathing", now, 0.5, 0.5))
+        elif not hugs:
             self._hugging = False
-            self._hug_since = None
             self._emit("hug", "end", now)
             self._end_answer("breathing", now, 2.0)
 
@@ -385,6 +391,18 @@ class InteractionEngine:
             self._answer("ignite", Answer("ignite", now, u, v, now + self.config.ignite_s, {"strokes": strokes}))
         else:
             self._emit("drawing", "wrong_guess", now, guess=word)
+
+
+def _take_shape(contact: _Contact, event: TouchEvent, now: float) -> None:
+    """Keep the largest contact kind the event's shape has shown (None: a fingertip) and its footprint."""
+    if event.shape is None:
+        return
+    if _CONTACT_RANK.get(event.shape.contact, 0) > _CONTACT_RANK[contact.contact]:
+        contact.contact = event.shape.contact
+    if contact.contact == "hug" and contact.hug_since is None:
+        contact.hug_since = now
+    if event.shape.area_mm2 is not None:
+        contact.area_mm2 = event.shape.area_mm2
 
 
 def _centroid(strokes: tuple[tuple[tuple[float, float], ...], ...]) -> tuple[float, float]:

@@ -23,16 +23,43 @@ import numpy as np
 
 from feelium.interactions.answers import Answer
 from feelium.projector.avatar import BACKGROUND_BGR, Avatar
+from feelium.skin.face import FaceModel
 from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.layers import DRAWERS
 from feelium.projector.tilewarp import TileWarp
 
 
+def canvas_map(
+    cam_x: np.ndarray, cam_y: np.ndarray, calibration: ProjectorMap, canvas_size: tuple[int, int], face: FaceModel | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Canvas pixel (centres on integers) of camera points in the calibration's pixels; NaN off the skin.
+
+    Without a face model the canvas spans the calibration's ROI linearly; with
+    one, it spans the face's u, v (the model may be for another frame size:
+    camera points are scaled onto its frame first), which is what the touch
+    pipeline reports with the same model, so an answer lands where the touch was.
+    """
+    cw, ch = canvas_size
+    if face is None:
+        rx, ry, rw, rh = calibration.roi
+        return (cam_x - rx) * np.float32(cw / rw), (cam_y - ry) * np.float32(ch / rh)
+    kw, kh = calibration.camera_size
+    fx = (cam_x.astype(np.float64) + 0.5) * (face.width / kw) - 0.5
+    fy = (cam_y.astype(np.float64) + 0.5) * (face.height / kh) - 0.5
+    u, v = face.to_uv(fx, fy)
+    on = np.isfinite(u) & np.isfinite(v) & (u >= 0.0) & (u < 1.0) & (v >= 0.0) & (v < 1.0)
+    map_x = np.where(on, u * cw - 0.5, np.nan).astype(np.float32)
+    map_y = np.where(on, v * ch - 0.5, np.nan).astype(np.float32)
+    return map_x, map_y
+
+
 class Renderer:
     """Renders projector frames for one calibration."""
 
-    def __init__(self, config: ProjectorConfig, calibration: ProjectorMap) -> None:
+    def __init__(self, config: ProjectorConfig, calibration: ProjectorMap, face: FaceModel | None = None) -> None:
+        """``face``: with the touch side's face model the canvas spans the face (its u, v: azimuth and elevation
+        on the envelope), as touch events do then; without, it spans the calibration's ROI."""
         if calibration.projector_size != (config.width, config.height):
             raise ValueError(
                 f"calibration is for a {calibration.projector_size[0]}x{calibration.projector_size[1]} projector, "
@@ -43,9 +70,7 @@ class Renderer:
         self.canvas_size = (config.canvas_width, config.canvas_height)
         cw, ch = self.canvas_size
         inv_x, inv_y = calibration.projector_to_camera()
-        rx, ry, rw, rh = calibration.roi
-        map_x = (inv_x - rx) * np.float32(cw / rw)
-        map_y = (inv_y - ry) * np.float32(ch / rh)
+        map_x, map_y = canvas_map(inv_x, inv_y, calibration, self.canvas_size, face)
         off = ~(np.isfinite(map_x) & np.isfinite(map_y))
         map_x[off] = -10.0  # outside the canvas: the border colour
         map_y[off] = -10.0

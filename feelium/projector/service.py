@@ -29,6 +29,7 @@ from feelium.interactions.engine import InteractionEngine, MotionReply
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.display import Display
 from feelium.projector.renderer import Renderer
+from feelium.skin.face import FaceModel
 from feelium.skin.projector_map import ProjectorMap
 from feelium.skin.regions import Regions
 
@@ -61,12 +62,15 @@ class ProjectorService:
         hub: Hub,
         display: Display,
         calibration: ProjectorMap,
+        face: FaceModel | None = None,
     ) -> None:
+        """``face``: the touch side's face model (``[touch] face_model``) for the calibration's camera frames, so
+        answers are drawn at the touch's u, v on the face; ``None``: u, v across the calibration's ROI."""
         self.config = config
         self.hub = hub
         self.display = display
         self.calibration = calibration
-        self.renderer = Renderer(config, calibration)
+        self.renderer = Renderer(config, calibration, face)
         self.engine = InteractionEngine(interactions, Regions.from_config(interactions)) if interactions.enabled else None
         self._face: np.ndarray | None = None
         self._face_seq = 0

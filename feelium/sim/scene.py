@@ -179,7 +179,7 @@ class SceneRenderer:
         transmission: np.ndarray | None = None
         open_sky: np.ndarray | None = None  # mean over sub-samples of 1 - occlusion (the room light let through)
         for sub in states:
-            if not (sub.hands or sub.blobs or sub.room != 1.0):
+            if not (sub.hands or sub.blobs or sub.leans or sub.room != 1.0):
                 continue
             found = self.shadow(sub)
             shadow = found.lit_by(s.shadow, sub.room, lit)

@@ -8,6 +8,7 @@ relative shadow depth (0 = full back-light, 1 = none left).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from feelium.settings import setting
 
@@ -226,3 +227,26 @@ class TouchConfig:
     camera_exposure_s: float = setting(
         0.03, "Rear camera exposure time (s) over which the projected light is mixed.", min=0.0, max=1.0
     )
+
+    # The whole front face, see docs/touch.md "The whole front face" (defaults: feelium/skin/face.py).
+    face_model: Literal["none", "sphere"] = setting(
+        "none",
+        "none: the sensitive patch is the camera ROI and u, v run 0..1 across it; sphere: the whole curved front "
+        "face (the face_* geometry, a fisheye filling the frame), u, v are azimuth and elevation on the envelope "
+        "and the projector's skin canvas uses the same u, v.",
+    )
+    face_radius_mm: float = setting(320.0, "Envelope radius (mm; the 64 cm blimp).", min=1.0, max=10000.0)
+    face_camera_behind_mm: float = setting(
+        240.0, "The rear camera sits on the front axis this far behind the sphere's centre (mm; < face_radius_mm).",
+        min=0.0, max=10000.0,
+    )  # fmt: skip
+    face_azimuth_deg: float = setting(100.0, "The face's extent in azimuth (deg; the browser client's 100).", min=1.0, max=179.0)
+    face_elevation_deg: float = setting(75.0, "The face's extent in elevation (deg; the browser client's 75).", min=1.0, max=179.0)
+
+    def __post_init__(self) -> None:
+        # Checked here so a bad geometry is a config error at load, not a crash when the first frame arrives.
+        if self.face_camera_behind_mm >= self.face_radius_mm:
+            raise ValueError(
+                f"face_camera_behind_mm ({self.face_camera_behind_mm}) must be less than face_radius_mm ({self.face_radius_mm}): "
+                "the rear camera is inside the envelope"
+            )

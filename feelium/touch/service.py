@@ -38,9 +38,13 @@ Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.nda
 
 
 def _default_pipeline(config: TouchConfig, size: tuple[int, int], roi: tuple[int, int, int, int] | None) -> Any:
+    """The pipeline for one camera frame size; with ``[touch] face_model`` it senses the whole face (the camera's
+    ROI is then ignored: the face's own box is cut out) and its events carry the face's u, v."""
+    from feelium.touch.face import face_for
     from feelium.touch.pipeline import TouchPipeline
 
-    return TouchPipeline(config, size, roi)
+    face = face_for(config, size)
+    return TouchPipeline(config, size, None if face is not None else roi, face=face)
 
 
 def _default_overlay(frame: np.ndarray, result: Any, roi: tuple[int, int, int, int] | None) -> np.ndarray:

@@ -43,6 +43,8 @@ def test_every_setting_is_documented():
         ("[touch]\nwidht = 640\n", "touch.widht", "unknown key"),
         ("[http]\nport = 70000\n", "http.port", "out of range"),
         ("[nonsense]\nx = 1\n", "nonsense", "unknown key"),
+        ("[interactions]\npalm_area_px = 2500\n", "interactions.palm_area_px", "removed: palms are the touch events' contact"),
+        ("[interactions]\nhug_area_px = 12000\n", "interactions.hug_area_px", "hug_min_area_mm2; delete it"),
         ("[daemon]\nlog_level = 'loud'\n", "daemon.log_level", "expected one of"),
         ("touch = 3\n", "touch", "expected a table"),
         ("[touch\n", "(syntax)", ""),

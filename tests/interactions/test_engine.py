@@ -9,7 +9,7 @@ import pytest
 from feelium.events import InteractionEvent, WearerAction
 from feelium.interactions.config import InteractionsConfig
 from feelium.interactions.engine import InteractionEngine
-from tests.interactions.touches import at_uv, event, hold, swipe, tap
+from tests.interactions.touches import at_uv, event, hold, shape, swipe, tap
 
 CONFIG = InteractionsConfig()
 
@@ -79,7 +79,7 @@ def test_palm_to_palm_needs_both_sides_then_merges_and_ends():
     x, y = at_uv(0.6, 0.75)
     d.feed([WearerAction("palm_raise", 0.5)])
     assert d.names() == [("palm_to_palm", "wearer")]
-    events = hold(1, 1.0, x, y, duration=2.0, area=4000)
+    events = hold(1, 1.0, x, y, duration=2.0, area=4000, contact=shape("palm", 9000.0))
     d.feed(events[:-1])
     assert d.names()[1:] == [("palm_to_palm", "partner"), ("palm_to_palm", "merge")]
     partner = next(e for e in d.events if e.phase == "partner")
@@ -94,8 +94,35 @@ def test_palm_to_palm_needs_both_sides_then_merges_and_ends():
 
 def test_a_fingertip_hold_is_not_a_palm():
     d = Driver()
-    d.feed([WearerAction("palm_raise", 0.5)] + hold(1, 1.0, *at_uv(0.6, 0.75), duration=2.0, area=400))
+    d.feed([WearerAction("palm_raise", 0.5)] + hold(1, 1.0, *at_uv(0.6, 0.75), duration=2.0, area=400, contact=shape("finger", 240.0)))
     assert ("palm_to_palm", "partner") not in d.names()
+
+
+@pytest.mark.parametrize("area_px", [40, 4000, 400_000])
+def test_palm_and_hug_follow_the_contact_kind_at_any_camera_scale(area_px):
+    """The camera's pixel count of a footprint depends on its resolution and lens; the contact kind does not."""
+    d = Driver()
+    d.feed(hold(1, 1.0, *at_uv(0.6, 0.75), duration=2.0, area=area_px, contact=shape("palm", 9000.0)))
+    assert d.names() == [("palm_to_palm", "partner"), ("palm_to_palm", "end")]
+    assert d.events[0].detail["contact_area_mm2"] == 9000.0
+    d = Driver()
+    d.feed(hold(1, 1.0, *at_uv(0.5, 0.5), duration=3.0, area=area_px, contact=shape("hug", 25000.0)))
+    assert d.names() == [("hug", "start"), ("hug", "end")]
+    d = Driver()
+    d.feed(hold(1, 1.0, *at_uv(0.5, 0.5), duration=3.0, area=area_px))  # no shape (an older stream): a fingertip
+    assert d.names() == []
+
+
+def test_a_palm_landing_heel_first_becomes_a_palm_and_a_sliding_palm_does_not_draw():
+    d = Driver()
+    x, y = at_uv(0.6, 0.75)
+    heel = hold(1, 1.0, x, y, duration=0.3, area=900, contact=shape("finger", 300.0))[:-1]
+    flat = hold(1, 1.3, x, y, duration=1.5, area=4000, contact=shape("palm", 9000.0))[1:]
+    d.feed(heel + flat)
+    assert ("palm_to_palm", "partner") in d.names()
+    d = Driver()
+    d.feed(swipe(2, 1.0, [at_uv(0.3 + 0.03 * k, 0.5) for k in range(12)], contact=shape("palm", 9000.0)))
+    assert not [n for n in d.names() if n[0] == "drawing"]
 
 
 def test_drawing_strokes_stream_live_and_a_correct_guess_ignites():
@@ -131,7 +158,7 @@ def test_the_secret_word_is_reproducible_per_seed_and_round():
 
 def test_lean_in_hug_breathes_the_whole_skin_until_release():
     d = Driver()
-    d.feed(hold(1, 1.0, *at_uv(0.5, 0.5), duration=3.0, area=20000))
+    d.feed(hold(1, 1.0, *at_uv(0.5, 0.5), duration=3.0, area=20000, contact=shape("hug", 25000.0)))
     assert d.names() == [("hug", "start"), ("hug", "end")]
     start = d.events[0]
     assert start.t == pytest.approx(1.0 + CONFIG.hug_hold_s, abs=0.05)
@@ -141,7 +168,7 @@ def test_lean_in_hug_breathes_the_whole_skin_until_release():
 
 def test_short_large_contact_is_not_a_hug():
     d = Driver()
-    d.feed(hold(1, 1.0, *at_uv(0.5, 0.5), duration=0.8, area=20000))
+    d.feed(hold(1, 1.0, *at_uv(0.5, 0.5), duration=0.8, area=20000, contact=shape("hug", 25000.0)))
     assert ("hug", "start") not in d.names()
 
 

@@ -26,6 +26,7 @@ from feelium.projector.service import ProjectorService
 from feelium.lab.sim import protocol, scripts
 from feelium.sim.sessions import session_presets
 from feelium.sim.hand import Blob
+from feelium.sim.hand_paths import Keyframe, LeanTrack
 from feelium.sim.projection import FisheyeWarp
 from feelium.sim.scene import HEIGHT, ROI, WIDTH
 from feelium.touch.config import TouchConfig
@@ -40,11 +41,14 @@ class Pressed(scripts.Script):
     """A script plus soft bodies pressed flat on the membrane (a palm, a leaning torso) during given intervals."""
 
     press: tuple[tuple[float, float, float, float, float, float], ...] = ()  # (t_on, t_off, x, y, rx, ry)
+    lean: LeanTrack | None = None  # a body stepping in at its first key, its chest pressed during the track's contacts
 
     def state(self, t: float):
         state = super().state(t)
         pressed = tuple(Blob(x, y, rx, ry, 0.0) for (on, off, x, y, rx, ry) in self.press if on <= t < off)
-        return dataclasses.replace(state, blobs=state.blobs + pressed)
+        near = self.lean is not None and t >= self.lean.keys[0].t
+        leans = state.leans + ((self.lean.lean(t),) if self.lean is not None and near else ())
+        return dataclasses.replace(state, blobs=state.blobs + pressed, leans=leans)
 
 
 def at_uv(u: float, v: float) -> tuple[float, float]:
@@ -152,12 +156,12 @@ def test_peck_on_a_cheek_blooms_a_heart_there_and_the_wearers_heart_comes_back()
 def test_palm_to_palm_glows_on_both_sides_and_merges_where_the_palm_is():
     skin = SimSkin()
     x, y = at_uv(0.62, 0.78)
-    script = Pressed("hold", 3.4, press=((0.8, 3.0, x, y, 32.0, 28.0),))
+    script = Pressed("hold", 3.4, press=((0.8, 3.0, x, y, 90.0, 80.0),))  # a flat hand: 45 x 40 mm semi-axes at 2 px/mm
     skin.play(script, actions=(WearerAction("palm_raise", 0.3),))
     assert skin.names()[:3] == [("palm_to_palm", "wearer"), ("palm_to_palm", "partner"), ("palm_to_palm", "merge")]
     assert skin.names()[-1] == ("palm_to_palm", "end")
     partner = skin.seen[1]
-    assert partner.detail["area"] >= Config().interactions.palm_area_px
+    assert partner.detail["contact_area_mm2"] >= Config().touch.palm_min_area_mm2  # the pipeline saw a palm
     skin.now = skin.seen[2].t + 1.0  # the wearer's glow has glided onto the partner's palm
     _assert_answer_at(skin, ("palm_glow",), x, y)
 
@@ -189,10 +193,12 @@ def test_finger_drawing_streams_strokes_and_a_correct_guess_ignites_them_on_the_
 def test_lean_in_hug_sets_the_whole_skin_breathing_until_release():
     skin = SimSkin()
     x, y = at_uv(0.5, 0.55)
-    skin.play(Pressed("hold", 4.2, press=((0.5, 3.4, x, y, 75.0, 60.0),)), seed=6)
+    # The body steps in after 1.5 s of empty membrane (the reference forms), leans in, presses its chest 2.5 s.
+    keys = (Keyframe(1.5, x, y, 150.0), Keyframe(2.5, x, y, 0.0), Keyframe(5.0, x, y, 0.0), Keyframe(5.8, x, y, 150.0))
+    skin.play(Pressed("hold", 6.2, lean=LeanTrack(keys, ((2.5, 5.0),))), seed=6)  # a chest pressing 200 x 160 mm
     assert ("hug", "start") in skin.names() and skin.names()[-1] == ("hug", "end")
     start = next(e for e in skin.seen if e.name == "hug")
-    assert start.detail["area"] >= Config().interactions.hug_area_px
+    assert start.detail["contact_area_mm2"] >= Config().touch.hug_min_area_mm2  # the pipeline saw a hug
     skin.now = start.t + 1.0
     lit = skin.answer_pixels(("breathing",)) > 0
     covered = skin.service.renderer.covered

@@ -47,10 +47,10 @@ def test_fits_use_only_the_first_sixty_percent_and_name_what_is_missing():
     hover = rng.uniform(0.2, 0.4, 100)
     clips = [_clip("contact", contact, np.ones(100, bool)), _clip("hover", hover, np.zeros(100, bool))]
     edge = fit_edge(clips)
-    assert hover.max() / 5 < edge < 0.6 / 5
+    assert hover[:60].max() / 5 < edge.threshold < 0.6 / 5
     fit = fit_gates(clips, edge)
     assert hover[:60].max() < fit.anchor_threshold <= contact[:59].min()
-    assert fit.values()["contact_edge"] == pytest.approx(edge, abs=1e-4)
+    assert fit.values()["contact_edge"] == pytest.approx(edge.threshold, abs=1e-4)
     with pytest.raises(ValueError, match="'hover' clip"):
         fit_gates(clips[:1], edge)
 
@@ -114,3 +114,59 @@ def test_a_gap_too_small_warns_and_falls_back_to_balanced_accuracy():
     pos, neg = _fit_samples(clips, "anchor")
     assert fit.anchor_threshold == pytest.approx(fit_threshold(pos, neg))
     assert "# warning: anchor_threshold" in fit.to_toml()
+
+
+def _edge_clips(seed: int, press_edge: float = 0.075, hover_edge: float = 0.040):
+    """Per-frame edges: presses of 1.5 s whose edge wobbles 15 % below ``press_edge``, with one-frame dips (a
+    swipe's motion blur), and a hover whose edge creeps up to ``hover_edge`` now and then (seeded)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 60.0, 1 / 15)
+    contact = (t % 2.5 >= 0.5) & (t % 2.5 < 2.0)
+    press = np.where(contact, press_edge * (1.0 - 0.15 * rng.random(t.size)), 0.0)
+    press[contact & (rng.random(t.size) < 0.05)] *= 0.5  # single-frame blur dips
+    hover = 0.6 * hover_edge * rng.random(t.size)
+    close = rng.random(t.size) < 0.05
+    hover[close] = hover_edge * (0.9 + 0.1 * rng.random(int(close.sum())))
+    hover[rng.integers(0, int(0.5 * t.size))] = hover_edge  # the hardest hover, inside the fitted 60 %
+    zeros = np.zeros(t.size)
+    return [
+        ClipSeries("contact", t, anchor=zeros, core_depth=zeros, edge=press, contact=contact),
+        ClipSeries("hover", t, anchor=zeros, core_depth=zeros, edge=hover, contact=np.zeros(t.size, bool)),
+    ]
+
+
+def _held_twice(values: np.ndarray) -> np.ndarray:
+    return np.minimum(values[1:], values[:-1])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_edge_gate_keeps_the_margin_rule_too(seed):
+    """The edge gate, like the depth gates, sits half-way from the hardest hover to the hardest press."""
+    contact, hover = _edge_clips(seed)
+    fit = fit_edge([contact, hover])
+    assert fit.warning is None
+    n = _fit_part_max(hover, "edge")
+    assert fit.hardest_negative == pytest.approx(n)
+    # The hardest press is the sharpest edge a press holds for two frames (down_frames), its weakest press's.
+    assert fit.threshold == pytest.approx(margin_threshold(n, fit.hardest_positive, fit.sigma))
+    # Held out: a hover edge 10 % sharper than the fitted clips' hardest does not land ...
+    assert 1.10 * n < fit.threshold
+    # ... while every held-out press still holds a contact edge for two frames.
+    held = ~split_clip(contact.t) & contact.contact
+    starts = np.flatnonzero(np.diff(np.concatenate([[0], held.astype(int)])) == 1)
+    for a in starts:
+        b = a + int(np.argmin(held[a:])) if not held[a:].all() else held.size
+        assert _held_twice(contact.edge[a:b]).max() >= fit.threshold
+    # The per-frame centred fit alone sits lower, nearer the hovers (the weak single frames of presses pull it).
+    pos, neg = _fit_samples([contact, hover], "edge")
+    assert fit_centred_threshold(pos, neg) < fit.threshold
+
+
+def test_an_edge_gap_too_small_warns_and_falls_back_to_the_centred_fit():
+    contact, hover = _edge_clips(0, press_edge=0.044, hover_edge=0.040)
+    fit = fit_edge([contact, hover])
+    assert fit.warning is not None and "contact_edge" in fit.warning
+    pos, neg = _fit_samples([contact, hover], "edge")
+    assert fit.threshold == pytest.approx(fit_centred_threshold(pos, neg))
+    gates = fit_gates([contact, hover], fit)
+    assert gates.contact_edge == fit.threshold and any("contact_edge" in w for w in gates.warnings)

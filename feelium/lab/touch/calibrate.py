@@ -5,16 +5,18 @@ from the contact clip's contact frames (positives) and the hover clip's frames
 (negatives), both restricted to their first 60 %:
 
 - ``contact_edge``: the edge sharpness (steepest depth gradient at the
-  fingertip) that best tells contact frames from hover frames, taken in the
-  middle of the range of equally good thresholds, so the margin to both sides
-  is the same; the clips are then replayed with it, because the anchoring
+  fingertip) by the same margin rule as the depth gates, its hardest press
+  being the sharpest edge a press holds for ``down_frames`` consecutive frames
+  (what landing and confirming a touch needs); when the rule cannot hold, the
+  middle of the range of thresholds with the best per-frame balanced accuracy,
+  with a warning. The clips are then replayed with it, because the anchoring
   score counts from each landing on a contact edge;
 - ``anchor_threshold`` and ``instant_depth`` by the margin rule below, the
   instant gate kept at least as high as the anchor threshold.
 
 **The margin rule** (issue 17, point 5). A threshold fitted just above the
 hardest hover of one minute of clips fires on the first hover that comes a
-little closer. So each depth gate's threshold is placed from the two hardest
+little closer. So each gate's threshold (the edge's too) is placed from the two hardest
 cases, not from the best balanced accuracy alone:
 
 - the hardest negative ``n``: the largest score of any hover frame (for the
@@ -43,6 +45,7 @@ The remaining 40 % is left for `feelium eval` to judge the fit.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
@@ -91,6 +94,7 @@ class Fit:
     instant: GateFit
     positives: int
     negatives: int
+    edge: GateFit | None = None  # how contact_edge was placed (None: given, not fitted)
 
     @property
     def anchor_threshold(self) -> float:
@@ -102,7 +106,7 @@ class Fit:
 
     @property
     def warnings(self) -> list[str]:
-        return [g.warning for g in (self.anchor, self.instant) if g.warning]
+        return [g.warning for g in (self.edge, self.anchor, self.instant) if g is not None and g.warning]
 
     def values(self) -> dict[str, float]:
         return {
@@ -114,7 +118,10 @@ class Fit:
     def summary(self) -> list[str]:
         """One line per depth gate: threshold, hardest hover and press, margins; then the warnings."""
         lines = []
-        for name, gate in (("anchor_threshold", self.anchor), ("instant_depth", self.instant)):
+        gates = (("contact_edge", self.edge), ("anchor_threshold", self.anchor), ("instant_depth", self.instant))
+        for name, gate in gates:
+            if gate is None:
+                continue
             m = gate.margins()
             lines.append(
                 f"{name} {gate.threshold:.4f}: hardest hover {m['hardest_negative']:.4f} "
@@ -183,9 +190,25 @@ def fit_centred_threshold(positives: np.ndarray, negatives: np.ndarray) -> float
     return centre
 
 
-def fit_edge(clips: list[ClipSeries]) -> float:
-    """The contact-edge threshold from the clips' per-frame edge sharpness."""
-    return fit_centred_threshold(*_fit_samples(clips, "edge"))
+def fit_edge(clips: list[ClipSeries], held_frames: int = 2) -> GateFit:
+    """The contact-edge threshold by the margin rule (per-frame centred balanced accuracy when it cannot hold).
+
+    A hover lands on one frame whose edge passes, so its score is every frame's
+    edge; a press becomes a touch only when its edge passes on ``held_frames``
+    consecutive frames (``[touch] down_frames``), so its score is its sharpest
+    edge held that long.
+    """
+    pos_frames, hover = _fit_samples(clips, "edge")
+    held = [replace(c, edge=_held(c.edge, held_frames)) for c in clips]
+    return _gate_fit("contact_edge", pos_frames, hover, _press_maxima(held, "edge"), fit_centred_threshold)
+
+
+def _held(values: np.ndarray, frames: int) -> np.ndarray:
+    """Per frame, the smallest of the last ``frames`` values (the value held that long up to this frame)."""
+    if frames <= 1 or values.size == 0:
+        return values
+    padded = np.concatenate([np.full(frames - 1, values[0]), values])
+    return np.lib.stride_tricks.sliding_window_view(padded, frames).min(axis=1)
 
 
 def _press_maxima(clips: list[ClipSeries], series: str) -> np.ndarray:
@@ -226,13 +249,19 @@ def margin_threshold(n: float, p: float, sigma: float) -> float | None:
     return n + margin if p > n and n + margin < p else None
 
 
-def _gate_fit(name: str, pos_frames: np.ndarray, hover: np.ndarray, press_maxima: np.ndarray) -> GateFit:
-    """One gate by the margin rule, else by balanced accuracy with a warning naming the gate and the gap."""
+def _gate_fit(
+    name: str,
+    pos_frames: np.ndarray,
+    hover: np.ndarray,
+    press_maxima: np.ndarray,
+    balanced: Callable[[np.ndarray, np.ndarray], float | None] = fit_threshold,
+) -> GateFit:
+    """One gate by the margin rule, else by ``balanced`` accuracy with a warning naming the gate and the gap."""
     n, p, sigma = hardest_cases(press_maxima, hover)
     ruled = margin_threshold(n, p, sigma)
     if ruled is not None:
         return GateFit(ruled, n, p, sigma, None)
-    fallback = fit_threshold(pos_frames, hover)
+    fallback = balanced(pos_frames, hover)
     assert fallback is not None
     warning = (
         f"{name}: the hardest press ({p:.4f}) is not {MARGIN_SIGMAS:g} hover spreads ({MARGIN_SIGMAS * sigma:.4f}) "
@@ -242,12 +271,19 @@ def _gate_fit(name: str, pos_frames: np.ndarray, hover: np.ndarray, press_maxima
     return GateFit(float(fallback), n, p, sigma, warning)
 
 
-def fit_gates(clips: list[ClipSeries], contact_edge: float) -> Fit:
-    """Fit the depth thresholds on clips replayed with ``contact_edge``; ValueError naming what is missing."""
+def fit_gates(clips: list[ClipSeries], contact_edge: float | GateFit) -> Fit:
+    """Fit the depth thresholds on clips replayed with ``contact_edge`` (a value, or :func:`fit_edge`'s fit).
+
+    ValueError naming what is missing.
+    """
+    edge = contact_edge if isinstance(contact_edge, GateFit) else None
+    edge_value = edge.threshold if edge is not None else float(contact_edge)  # type: ignore[arg-type]
     pos, neg = _fit_samples(clips, "anchor")
     pos_core, hover_core = _fit_samples(clips, "core_depth")
     anchor = _gate_fit("anchor_threshold", pos, neg, _press_maxima(clips, "anchor"))
     instant = _gate_fit("instant_depth", pos_core, hover_core, _press_maxima(clips, "core_depth"))
     if instant.threshold < anchor.threshold:  # a press deep enough for the sustained gate is never refused at once
         instant = replace(instant, threshold=anchor.threshold)
-    return Fit(contact_edge=contact_edge, anchor=anchor, instant=instant, positives=int(pos.size), negatives=int(neg.size))
+    return Fit(
+        contact_edge=edge_value, anchor=anchor, instant=instant, positives=int(pos.size), negatives=int(neg.size), edge=edge
+    )

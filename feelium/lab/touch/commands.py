@@ -115,8 +115,8 @@ def fit_on_clips(recordings: list[Recording], config: TouchConfig, skips: Skips)
                 first.append((r, result))
     if not first:
         raise ValueError("no continuous contact/hover clips in this dataset (labels with \"clip\": true)")
-    edge = fit_edge([_clip_series(result) for _, result in first])
-    with_edge = replace(config, contact_edge=edge)
+    edge = fit_edge([_clip_series(result) for _, result in first], held_frames=config.down_frames)
+    with_edge = replace(config, contact_edge=edge.threshold)
     return fit_gates([_clip_series(replay_recording(r, with_edge)) for r, _ in first], edge)
 
 
@@ -163,33 +163,62 @@ def scoring_input(root: Path, result: ReplayResult) -> TrialData | ClipData:
     )
 
 
+def condition_of(root: Path, recording: Recording) -> str:
+    """The condition a recording was made under: its ``meta.generator.condition`` (``feelium simulate condition``),
+    else the first folder under the dataset root (a real dataset laid out by condition), else ``"."``."""
+    generator = recording.meta.raw.get("generator")
+    named = generator.get("condition") if isinstance(generator, dict) else None
+    if isinstance(named, str) and named:
+        return named
+    try:
+        parts = recording.path.resolve().relative_to(root.resolve()).parts
+    except ValueError:
+        return "."
+    return parts[0] if len(parts) > 1 else "."
+
+
 def evaluate_dataset(
-    root: Path, config: TouchConfig, *, dataset_name: str | None = None, plain: bool = False, skips: Skips | None = None
+    root: Path,
+    config: TouchConfig,
+    *,
+    dataset_name: str | None = None,
+    plain: bool = False,
+    skips: Skips | None = None,
+    by_condition: bool = False,
 ):
     """Replay every good labelled recording under ``root`` and build the report; returns (report, clips).
 
-    Bad recordings are reported through ``skips`` and left out (a fresh :class:`Skips` when not given).
+    Bad recordings are reported through ``skips`` and left out (a fresh :class:`Skips` when not given). With
+    ``by_condition`` the report gains ``"conditions"``: the same report for each condition's recordings alone
+    (:func:`condition_of`), a key the evaluation spec allows beside its own.
     """
     skips = skips if skips is not None else Skips("eval")
-    trials: list[TrialData] = []
-    clips: list[ClipData] = []
-    timings = []
+    groups: dict[str, tuple[list[TrialData], list[ClipData], list[np.ndarray]]] = {}
     for recording in skips.recordings(root):
         if recording.labels is None:
             continue
         result = skips.attempt(lambda: replay_recording(recording, config, plain=plain))
         if result is None:
             continue
+        trials, clips, timings = groups.setdefault(condition_of(root, recording) if by_condition else ".", ([], [], []))
         timings.append(result.seconds_per_frame)
         item = scoring_input(root, result)
         (clips if isinstance(item, ClipData) else trials).append(item)  # type: ignore[arg-type]
-    if not trials and not clips:
+    if not groups:
         raise RecordingError(root, "holds no labelled recording to evaluate")
-    seconds = np.concatenate(timings) if timings else np.zeros(0)
-    width, height = (config.width, config.height)
     gates = GateThresholds(config.contact_edge, config.instant_depth, config.anchor_threshold, config.anchor_min_age_s)
-    report = build_report(dataset_name or str(root), trials, clips, seconds, width, height, gates)
-    return report, clips
+
+    def report_of(name: str, trials: list[TrialData], clips: list[ClipData], timings: list[np.ndarray]) -> dict[str, Any]:
+        seconds = np.concatenate(timings) if timings else np.zeros(0)
+        return build_report(name, trials, clips, seconds, config.width, config.height, gates)
+
+    every = [g for g in groups.values()]
+    all_trials = [t for g in every for t in g[0]]
+    all_clips = [c for g in every for c in g[1]]
+    report = report_of(dataset_name or str(root), all_trials, all_clips, [s for g in every for s in g[2]])
+    if by_condition:
+        report["conditions"] = {name: report_of(name, *groups[name]) for name in sorted(groups)}
+    return report, all_clips
 
 
 def run_eval(args: argparse.Namespace) -> int:
@@ -211,7 +240,7 @@ def run_eval(args: argparse.Namespace) -> int:
         for warning in fit_warnings:
             print(f"feelium eval: --fit-on-clips: warning: {warning}", file=sys.stderr)
     skips = Skips("eval")
-    report, clips = evaluate_dataset(root, config, dataset_name=args.dataset, skips=skips)
+    report, clips = evaluate_dataset(root, config, dataset_name=args.dataset, skips=skips, by_condition=args.by_condition)
     report["touch_config"] = {
         "fitted_on_clips": fitted is not None,
         "fit_warnings": fit_warnings,
@@ -230,6 +259,9 @@ def run_eval(args: argparse.Namespace) -> int:
     )
     drawn = write_anchoring_figure(figure, clips, report["sustained"]["threshold"])
     print(format_report(report))
+    for name, sub in report.get("conditions", {}).items():
+        print(f"\n== condition {name}")
+        print(format_report(sub))
     if drawn:
         print(f"figure: {figure}")
     if args.json:

@@ -1,0 +1,172 @@
+"""Labelled recordings of issue 17's conditions of use, for ``feelium simulate condition`` and ``feelium eval``.
+
+Each condition is written as one dataset folder per variant, ``OUT/<condition>-<variant>/...``, in recording
+format v1 and nothing else: the frames, the labels of the trial's script and, in ``meta.json``, the
+``"generator"`` key the spec allows (seed, scale, the condition as ``"condition": "<condition>/<variant>"`` and
+its parameters) plus, for the whole face, the optional ``"face"`` model. ``feelium eval OUT --by-condition``
+scores every variant on its own. The worlds are the lab experiments' (their parameters stated there, none
+chosen from detector scores):
+
+- ``litroom``: the protocol's trials under each room light of :mod:`feelium.lab.touch.litroom` (``dim``,
+  ``lit``, ``switch-on``, ``switch-off``, ``drift``, ``passer-by``), with its hand-free warm-up in the
+  starting light recorded as frames before 0 s;
+- ``face``: taps, holds, swipes and hovers aimed at targets in each zone of the whole curved front face
+  (:mod:`feelium.lab.touch.face_zones`: ``centre``, ``mid``, ``edge``), 1280x960 frames with ``meta.face``.
+
+Every recording draws from its own RNG streams keyed by (seed, its name), exactly as the experiments do, so a
+recording here replays to the experiment's own events.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import multiprocessing
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+
+from feelium.lab.sim import protocol
+from feelium.lab.touch import face_zones, litroom
+from feelium.recording import RecordingWriter
+from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, exposure_samples
+from feelium.sim.camera import frame_times
+from feelium.sim.sessions import session_presets
+from feelium.skin.face import FaceModel
+
+CONDITIONS: dict[str, tuple[str, ...]] = {"litroom": litroom.CONDITIONS, "face": face_zones.ZONES}
+GENERATOR = "feelium.sim.conditions"
+GENERATOR_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Job:
+    """One recording to write: which condition, variant and trial (a protocol item or a face trial)."""
+
+    condition: str
+    variant: str
+    relpath: str
+    trial: protocol.Item | face_zones.Trial
+    frame: tuple[int, int] = face_zones.FRAME  # the whole face's camera frame (its lens fills it)
+
+
+def plan(condition: str, variants: tuple[str, ...], scale: float) -> list[Job]:
+    """The recordings of ``condition``'s ``variants`` at ``scale`` (the protocol's trials, or face trials per zone)."""
+    known = CONDITIONS.get(condition)
+    if known is None:
+        raise ValueError(f"unknown condition {condition!r}; expected one of {', '.join(CONDITIONS)}")
+    bad = [v for v in variants if v not in known]
+    if bad:
+        raise ValueError(f"{condition}: unknown variant(s) {', '.join(bad)}; expected some of {', '.join(known)}")
+    jobs: list[Job] = []
+    if condition == "litroom":
+        trials = [item for item in protocol.plan(scale) if not item.clip]
+        for variant in variants:
+            jobs += [Job(condition, variant, f"{condition}-{variant}/{item.relpath}", item) for item in trials]
+    else:
+        per_cell = max(1, int(round(5 * scale)))  # the face bench's 5 trials per label and zone at scale 1
+        for trial in face_zones.plan(per_cell):
+            if trial.zone in variants:
+                jobs.append(Job(condition, trial.zone, f"{condition}-{trial.zone}/{trial.session}/{trial.name}", trial))
+    return jobs
+
+
+def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool = False) -> Path:
+    """Render and write one recording of ``job``."""
+    generator: dict[str, Any] = {
+        "name": GENERATOR, "version": GENERATOR_VERSION, "seed": seed, "scale": scale,
+        "condition": f"{job.condition}/{job.variant}",
+    }  # fmt: skip
+    if job.condition == "litroom":
+        frames, labels, size, roi, extra = _litroom(job, seed, generator)
+    else:
+        frames, labels, size, roi, extra = _face(job, seed, generator)
+    session = job.trial.session
+    fps = session_presets(seed)[session].sensor.fps
+    with RecordingWriter(
+        out / job.relpath, name=Path(job.relpath).name, width=size[0], height=size[1], fps=fps, session=session,
+        source="synthetic", roi=roi, extra_meta={"generator": protocol._jsonable(generator), **extra}, overwrite=overwrite,
+    ) as writer:  # fmt: skip
+        for t, frame in frames:
+            writer.add_frame(t, frame)
+        writer.set_labels(labels)
+    return out / job.relpath
+
+
+Rendered = tuple[Iterator[tuple[float, Any]], Any, tuple[int, int], tuple[int, int, int, int], dict[str, Any]]
+
+
+def _litroom(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
+    item = job.trial
+    assert isinstance(item, protocol.Item)
+    script = protocol.build_script(item, seed)
+    labels = script.labels()
+    first = labels.contacts[0].t_on if labels.contacts else None
+    room = litroom.room_for(job.variant, item, seed, script.duration, first)
+    generator["room"] = None if room is None else dataclasses.asdict(room)
+    generator["warmup_s"] = litroom.WARMUP_S
+    frames = litroom.render(script, session_presets(seed)[item.session], item, seed, room)
+    return iter(frames), labels, (WIDTH, HEIGHT), ROI, {}
+
+
+def _face(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
+    trial = job.trial
+    assert isinstance(trial, face_zones.Trial)
+    face = FaceModel.for_frame(*job.frame)
+    script, (u, v) = face_zones.build_script(face, trial, seed)
+    generator["target_uv"] = [u, v]
+    session = session_presets(seed)[trial.session]
+    rng = protocol.recording_rng(seed, trial.name, 1)
+    roi = face.roi()
+    scene = SceneRenderer(session, rng, roi=roi, face=face)
+
+    def frames() -> Iterator[tuple[float, Any]]:
+        for t in frame_times(session.sensor, script.duration, rng):
+            yield float(t), scene.frame(float(t), exposure_samples(script.state, float(t), session.sensor.exposure_s))
+
+    return frames(), script.labels(), job.frame, roi, {"face": face.to_json()}
+
+
+def _write_star(args: tuple[Job, Path, int, float, bool]) -> str:
+    job, out, seed, scale, overwrite = args
+    return str(write_job(job, out, seed, scale, overwrite=overwrite))
+
+
+def _single_threaded() -> None:
+    cv2.setNumThreads(1)
+
+
+def simulate_condition(
+    out: str | Path,
+    condition: str,
+    *,
+    variants: tuple[str, ...] | None = None,
+    seed: int = 1,
+    scale: float = 1.0,
+    jobs: int = 1,
+    overwrite: bool = False,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> list[Path]:
+    """Write every recording of ``condition`` (all its variants unless ``variants``) under ``out``."""
+    if not (0.0 < scale <= 1.0):
+        raise ValueError(f"scale must be in (0, 1], got {scale}")
+    todo = plan(condition, variants if variants else CONDITIONS.get(condition, ()), scale)
+    args = [(job, Path(out), seed, scale, overwrite) for job in todo]
+    written: list[Path] = []
+    if jobs <= 1:
+        results: Iterator[str] = map(_write_star, args)
+    else:  # spawned, as the protocol's: a fork of a threaded process can inherit a held lock
+        pool = ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded, mp_context=multiprocessing.get_context("spawn"))
+        results = pool.map(_write_star, args)
+    try:
+        for i, path in enumerate(results, start=1):
+            written.append(Path(path))
+            if progress:
+                progress(i, len(todo), path)
+    finally:
+        if jobs > 1:
+            pool.shutdown()
+    return sorted(written)
