@@ -9,14 +9,15 @@ inverse, then :func:`feelium.projector.renderer.canvas_map`, with the daemon's
 face model when it has one), and each frame is then a look-up table over the
 small grey canvas (gamma, black level: light is linear, so it is averaged as
 light), an area reduction to about one canvas pixel per camera pixel, one remap
-and the diffusion blur. Per frame that is ~10x less work than predicting from the
+and the diffusion blur. Per frame that is about a third of the time of predicting from the
 1280x720 frame (:class:`feelium.projector.backlight.BacklightPredictor`, which it
 matches within the projector's pixel grid's blur: docs/touch.md), and what a
 prediction needs to keep is a 512x384 grey canvas instead of a 2.7 MB frame.
 
 Camera pixels that see projector pixels off the canvas (the renderer draws its
 constant border colour there) get that colour's light; camera pixels the
-calibration does not cover get 1.0 (no correction), as before.
+calibration does not cover get 1.0 (no correction), as before, and a band around the patch is lit with
+the border's light before the blur (a camera pixel at the edge sees a little of the dark border).
 """
 
 from __future__ import annotations

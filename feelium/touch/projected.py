@@ -24,7 +24,7 @@ from feelium.touch.config import TouchConfig
 from feelium.touch.settle import predicted_exposure
 
 LATE_S = 0.1  # how long after its exposure a camera frame may still be processed: three frames at 30 fps
-HISTORY_MAX = 12  # a bound whatever the projector's rate (0.2 MB canvases: 2.4 MB at most)
+HISTORY_MAX = 16  # a bound whatever the projector's rate (0.2 MB canvases: 3.1 MB at most; 60 fps needs 11)
 
 
 def history_window_s(config: TouchConfig, late_s: float = LATE_S) -> float:
