@@ -109,10 +109,9 @@ class CanvasLightPredictor:
             disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
             lit = cv2.dilate(lit.astype(np.uint8), disc).astype(bool)
         self._dark = ~lit
-        self._lit_blur = np.maximum(
-            cv2.GaussianBlur(lit.astype(np.float32), (0, 0), self.diffusion_px) if self.diffusion_px > 0 else lit.astype(np.float32),
-            1e-3,
-        )
+        weight = lit.astype(np.float32)
+        blurred = cv2.GaussianBlur(weight, (0, 0), self.diffusion_px) if self.diffusion_px > 0 else weight
+        self._lit_blur = np.maximum(blurred, 1e-3)
 
     def gain(self, canvas_grey: np.ndarray) -> np.ndarray:
         """(H, W) float32 gain at the touch pipeline's frame size for a grey (uint8) skin canvas."""
