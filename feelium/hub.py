@@ -83,6 +83,8 @@ class Hub:
     front_video: Latest[Any] = field(default_factory=Latest)  # BGR ndarray frames from the fisheye
     rear_video: Latest[Any] = field(default_factory=Latest)  # gray/BGR debug frames with the touch overlay
     projector_video: Latest[Any] = field(default_factory=Latest)  # what the projector shows
+    # the grey skin canvas of each frame shown, stamped as projector_video: the touch side's back-light prediction
+    projector_canvas: Latest[Any] = field(default_factory=Latest)
     face: Latest[Any] = field(default_factory=Latest)  # the wearer's face or avatar from the headset
     motion: DeadManCommands = field(default_factory=DeadManCommands)
     state: StateBoard = field(default_factory=StateBoard)

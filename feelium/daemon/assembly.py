@@ -264,15 +264,22 @@ def load_projected_light(config: Config, backend: str, path: Path | None = None)
             log.warning("touch: projection_compensation is on but there is no projector calibration at %s", path)
         return None
     try:
-        from feelium.projector.backlight import BacklightPredictor
+        from feelium.projector.canvaslight import CanvasLightPredictor
+        from feelium.touch.face import face_for
 
         calibration = load_calibration(path)
+        face = face_for(config.touch, calibration.camera_size)  # the projector's canvas spans the same u, v
     except Exception as exc:
         log.error("touch: projector calibration %s unusable (%s); no projection compensation", path, exc)
+        return None
+    if calibration.projector_size != (config.projector.width, config.projector.height):
+        # The projector renders through its uncalibrated stand-in then: this map would put its canvas elsewhere.
+        log.error("touch: %s is for a %s projector; no projection compensation", path, calibration.projector_size)
         return None
     log.info("touch: compensating the projected light in rear frames (calibration %s)", path)
 
     def for_frame_size(size: tuple[int, int]) -> Callable[[np.ndarray], np.ndarray]:
-        return BacklightPredictor(config.projector, calibration, size).gain
+        """Each projector frame's light from its grey skin canvas (``hub.projector_canvas``)."""
+        return CanvasLightPredictor(config.projector, calibration, size, face).gain
 
     return for_frame_size

@@ -1,4 +1,8 @@
-"""Predicting what projected content does to the back-light the rear camera sees.
+"""Predicting what projected content does to the back-light the rear camera sees, from the projector's frame.
+
+The daemon predicts from the skin canvas instead (:mod:`feelium.projector.canvaslight`: the same light in
+a third of the time, from 0.2 MB instead of 2.7); this frame-based one stays as the reference it is checked
+against and for the lab's experiments that start from projector frames.
 
 The projector *is* the back-light: a dark pixel of the wearer's face dims the
 membrane behind it exactly like a shadow would. The touch service turns this
@@ -17,6 +21,7 @@ import cv2
 import numpy as np
 
 from feelium.skin.projector_map import ProjectorMap
+from feelium.projector.canvaslight import light_table
 from feelium.projector.config import ProjectorConfig
 
 
@@ -47,14 +52,7 @@ class BacklightPredictor:
         self._coverage_blur = np.maximum(
             cv2.GaussianBlur(covered, (0, 0), self.diffusion_px) if self.diffusion_px > 0 else covered, 1e-3
         )
-        # Measured by the calibration when it could, else the configured values.
-        black = calibration.black_level if calibration.black_level is not None else config.black_level
-        gamma = calibration.gamma if calibration.gamma is not None else config.gamma
-        self.black_level, self.gamma = black, gamma
-        levels = np.arange(256, dtype=np.float64) / 255.0
-        light = black + (1.0 - black) * levels**gamma
-        flat = black + (1.0 - black) * config.flat_level**gamma
-        self._lut = (light / flat).astype(np.float32)  # gain per projector grey level
+        self._lut = light_table(config, calibration)  # gain per projector grey level
 
     def gain(self, projector_frame: np.ndarray) -> np.ndarray:
         """(H, W) float32 gain at the touch pipeline's frame size for a projector frame (BGR or gray uint8)."""

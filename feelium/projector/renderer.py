@@ -138,22 +138,32 @@ class Renderer:
         return self.tiles.warp(canvas)
 
     def render(self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False) -> np.ndarray:
-        """The projector frame at ``now``. The canvas is drawn into one reused buffer: a new 0.6 MB array per
-        frame would be an mmap and its page faults under the daemon's malloc settings (``[daemon]``).
+        """The projector frame at ``now`` (see :meth:`render_with_canvas`)."""
+        return self.render_with_canvas(now, face, answers, talking)[0]
 
-        A frame with no answer whose face is the previous frame's (the same array: a face is never changed in
-        place) or whose avatar pose is the previous one's is the previous frame, returned without drawing,
-        lifting or comparing anything: between a face video's frames, and for the avatar between its
-        one-pixel moves, that is most frames of a quiet skin.
+    def render_with_canvas(
+        self, now: float, face: np.ndarray | None, answers: Iterable[Answer], talking: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The projector frame at ``now`` and its skin canvas in grey (what the touch side predicts the back-light
+        from: :class:`feelium.projector.canvaslight.CanvasLightPredictor`; 0.2 MB against the frame's 2.7 MB).
+        Neither is written again once returned, and a frame shown again comes with the same canvas array.
+
+        The canvas is drawn into one reused buffer: a new 0.6 MB array per frame would be an mmap and its page
+        faults under the daemon's malloc settings (``[daemon]``). A frame with no answer whose face is the
+        previous frame's (the same array: a face is never changed in place) or whose avatar pose is the previous
+        one's is the previous frame, returned without drawing, lifting or comparing anything: between a face
+        video's frames, and for the avatar between its one-pixel moves, that is most frames of a quiet skin.
         """
         answers = tuple(answers)
         with self._canvas_lock:
             pose = None if face is not None else self.avatar.pose(now, talking)
             if not answers and self._last is not None and self._last.shows(face, pose):
-                return self._last.frame
-            frame = self.warp(self.canvas(now, face, answers, talking, out=self._canvas))
-            self._last = _Shown(face, pose, frame) if not answers else None
-            return frame
+                return self._last.frame, self._last.grey
+            canvas = self.canvas(now, face, answers, talking, out=self._canvas)
+            frame = self.warp(canvas)
+            grey = cv2.cvtColor(canvas, cv2.COLOR_BGR2GRAY)
+            self._last = _Shown(face, pose, frame, grey) if not answers else None
+            return frame, grey
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,6 +173,7 @@ class _Shown:
     face: np.ndarray | None
     pose: tuple[int, ...] | None
     frame: np.ndarray
+    grey: np.ndarray  # its canvas in grey
 
     def shows(self, face: np.ndarray | None, pose: tuple[int, ...] | None) -> bool:
         return face is self.face and (face is not None or pose == self.pose)

@@ -6,8 +6,9 @@ from the bus into the interaction engine, publishes the engine's
 dead-man motion path (never over the wearer's own steering), decodes the
 newest face JPEG if one arrived, renders the frame in a worker thread and
 shows it; the newest frame also goes to ``hub.projector_video``, stamped with
-the time the display got it, for the HTTP preview and for the touch service,
-which compensates the light each camera exposure integrated. Bad input (an undecodable JPEG, an out-of-range event) is counted
+the time the display got it, for the HTTP preview, and its grey skin canvas to
+``hub.projector_canvas``, stamped the same, for the touch service, which
+compensates the light each camera exposure integrated. Bad input (an undecodable JPEG, an out-of-range event) is counted
 and skipped.
 """
 
@@ -138,14 +139,15 @@ class ProjectorService:
             self._face = face  # shown until the wearer replaces or clears it, however long that is
             self.counters["faces"] += 1
 
-    def _render_and_show(self, now: float, face: np.ndarray | None, answers: tuple) -> tuple[np.ndarray, float]:
-        """The frame and the daemon-clock time the display got it (what the touch service's latency counts from)."""
+    def _render_and_show(self, now: float, face: np.ndarray | None, answers: tuple) -> tuple[np.ndarray, np.ndarray, float]:
+        """The frame, its grey canvas and the daemon-clock time the display got it (what the touch service's
+        latency counts from)."""
         start = time.perf_counter()
-        frame = self.renderer.render(now, face, answers)
+        frame, canvas = self.renderer.render_with_canvas(now, face, answers)
         self.display.show(frame)
         shown = self.hub.clock()
         self.counters["render_ms"] = round((time.perf_counter() - start) * 1000.0, 2)
-        return frame, shown
+        return frame, canvas, shown
 
     async def run(self) -> None:
         period = 1.0 / self.config.fps
@@ -166,7 +168,8 @@ class ProjectorService:
             self.step_engine(subscription, now)
             await self.update_face()
             answers = self.engine.answers(now) if self.engine is not None else ()
-            frame, shown = await asyncio.to_thread(self._render_and_show, now, self._face, answers)
+            frame, canvas, shown = await asyncio.to_thread(self._render_and_show, now, self._face, answers)
+            self.hub.projector_canvas.publish(shown, canvas)
             self.hub.projector_video.publish(shown, frame)
             self.counters["frames"] += 1
             due += period

@@ -1,13 +1,14 @@
-"""The projector's frames as the rear camera integrated them, for the touch pipeline's ``projected_light``.
+"""The projector's light as the rear camera integrated it, for the touch pipeline's ``projected_light``.
 
-The projector service publishes every frame it hands to the display with the
-time it did so (``hub.projector_video``). The touch service keeps the last few
-(:class:`ProjectorHistory`, fed on the event loop) and, for each camera frame,
-mixes the predicted light of the frames lit during its exposure, shifted by
-the projector's latency, with the spread of that mix over the latency's
-uncertainty (:class:`ExposureLight`, :func:`feelium.touch.settle.predicted_exposure`).
-Each projector frame is predicted once, however many camera frames it lights, and a frame the projector
-shows again (the same array) is not predicted again.
+The projector service publishes the grey skin canvas of every frame it hands
+to the display with the time it did so (``hub.projector_canvas``). The touch
+service keeps the last few (:class:`ProjectorHistory`, fed on the event loop)
+and, for each camera frame, mixes the predicted light of the frames lit during
+its exposure, shifted by the projector's latency, with the spread of that mix
+over the latency's uncertainty (:class:`ExposureLight`,
+:func:`feelium.touch.settle.predicted_exposure`). Each projector frame is
+predicted once, however many camera frames it lights, and a frame the projector
+shows again (the same canvas array) is not predicted again.
 Data flows one way: the projector never hears from touch.
 """
 
@@ -22,22 +23,41 @@ from feelium.touch.buffers import Scratch
 from feelium.touch.config import TouchConfig
 from feelium.touch.settle import predicted_exposure
 
-HISTORY_FRAMES = 12  # 0.4 s at 30 fps: more than the exposure, latency and a late camera frame together
+LATE_S = 0.1  # how long after its exposure a camera frame may still be processed: three frames at 30 fps
+HISTORY_MAX = 16  # a bound whatever the projector's rate (0.2 MB canvases: 3.1 MB at most; 60 fps needs 11)
+
+
+def history_window_s(config: TouchConfig, late_s: float = LATE_S) -> float:
+    """How far before the newest projector frame a camera frame's exposure can still reach back.
+
+    The exposure centred on ``t`` starts ``camera_exposure_s / 2`` before it, and the light then on the membrane
+    was shown ``projector_latency_s`` (up to ``projector_latency_sigma_s`` more) earlier; the frame is processed
+    up to ``late_s`` after ``t``. With the defaults 0.015 + 0.033 + 0.0167 + 0.1 = 0.165 s: at the projector's
+    30 fps the 5 frames shown in that window and the one before it, 6 in all (the old history kept 12).
+    """
+    return config.camera_exposure_s / 2.0 + config.projector_latency_s + config.projector_latency_sigma_s + late_s
 
 
 class ProjectorHistory:
-    """The projector frames shown lately, oldest first, with the times they were shown (bounded)."""
+    """The projector's recent grey canvases, oldest first, with the times they were shown (bounded in time and
+    count: only what a camera exposure being processed can still have seen)."""
 
-    def __init__(self, keep: int = HISTORY_FRAMES) -> None:
+    def __init__(self, window_s: float, keep: int = HISTORY_MAX) -> None:
+        """``window_s``: :func:`history_window_s`; ``keep``: at most this many canvases whatever the rate."""
+        self._window = window_s
         self._frames: deque[tuple[float, int, np.ndarray]] = deque(maxlen=keep)
         self.recorded = 0
 
-    def record(self, t: float, seq: int, frame: np.ndarray) -> None:
-        """Frame number ``seq`` was handed to the projector at ``t`` (the daemon's clock); times must increase."""
+    def record(self, t: float, seq: int, canvas: np.ndarray) -> None:
+        """Frame number ``seq`` was handed to the projector at ``t`` (the daemon's clock); times must increase.
+
+        Canvases lit only before the window (their successor was shown before ``t - window_s``) are dropped."""
         if self._frames and t <= self._frames[-1][0]:
             return  # a republished or reordered frame says nothing new
-        self._frames.append((t, seq, frame))
+        self._frames.append((t, seq, canvas))
         self.recorded += 1
+        while len(self._frames) > 1 and self._frames[1][0] <= t - self._window:
+            self._frames.popleft()
 
     def frames(self) -> list[tuple[float, int, np.ndarray]]:
         """A snapshot (the camera's worker thread reads while the event loop records)."""
@@ -48,14 +68,15 @@ class ExposureLight:
     """Per camera frame size: (light, spread) a camera exposure saw, from the recent projector frames."""
 
     def __init__(self, predict: Callable[[np.ndarray], np.ndarray], config: TouchConfig) -> None:
-        """``predict``: a projector frame to its light at the camera frame size (relative to the flat grey)."""
+        """``predict``: a projector frame's grey canvas to its light at the camera frame size (relative to the flat
+        grey)."""
         self._predict = predict
         self._latency = config.projector_latency_s
         self._sigma = config.projector_latency_sigma_s
         self._exposure = config.camera_exposure_s
         self._lights: dict[int, np.ndarray] = {}
-        # The frame each light was predicted from: the projector hands the very same array again for every
-        # frame in which nothing changed (frames are never rewritten while held), and its light is the same.
+        # The canvas each light was predicted from: the projector hands the very same array again for every
+        # frame in which nothing changed (canvases are never rewritten once published), and its light is the same.
         self._sources: dict[int, np.ndarray] = {}
         self._scratch = Scratch()  # the mixes: the pipeline reads them within the same camera frame
         self.predicted = 0

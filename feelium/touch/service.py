@@ -26,7 +26,7 @@ from feelium.events import TouchEvent
 from feelium.hub import Hub
 from feelium.skin.annotation import ProjectorAnnotation
 from feelium.touch.config import TouchConfig
-from feelium.touch.projected import ExposureLight, ProjectorHistory
+from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
 from feelium.touch.sensing import SensingMonitor, SensingSample
 
 log = logging.getLogger(__name__)
@@ -93,7 +93,8 @@ class TouchService:
         projected: ProjectedFactory | None = None,
         stale_after_s: float = 2.0,
     ) -> None:
-        """``projected``: how to predict the light of each projector frame (``hub.projector_video``), which then
+        """``projected``: how to predict the light of each projector frame from its grey canvas
+        (``hub.projector_canvas``), which then
         goes with every camera frame as ``projected_light`` (see :mod:`feelium.touch.projected`); ``None`` when
         the camera's frames hold no projection. Camera frames are stamped on the daemon's clock, the projector's
         frames too."""
@@ -106,7 +107,7 @@ class TouchService:
         self.annotation = annotation
         self.projected = projected
         self.stale_after_s = stale_after_s
-        self.projector_history = ProjectorHistory()
+        self.projector_history = ProjectorHistory(history_window_s(touch_config))
         self._exposure_light: ExposureLight | None = None
         self.projected_errors = 0
         self.last_projected_error: str | None = None
@@ -187,10 +188,10 @@ class TouchService:
             self._publish(frame, result, debug)
 
     async def _follow_projector(self) -> None:
-        """Record every frame the projector service shows (newest-wins slot, woken on each publish)."""
+        """Record the canvas of every frame the projector service shows (newest-wins slot, woken on each publish)."""
         seq = 0
         while True:
-            item = await self.hub.projector_video.next_after(seq, timeout=1.0)
+            item = await self.hub.projector_canvas.next_after(seq, timeout=1.0)
             if item is not None and item.seq > seq:
                 seq = item.seq
                 self.projector_history.record(item.t, item.seq, item.value)

@@ -33,7 +33,7 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     assert main(["bench", "projector", "--frames", "3", "--stream-seconds", "0.2", "--json", str(report_path)]) == 0
     assert "render_everything" in capsys.readouterr().out
     report = json.loads(report_path.read_text())
-    assert set(report["rows"]) == {"baseline_resize", "render_avatar", "render_typical", "render_everything", "backlight_gain"}
+    assert set(report["rows"]) == {"baseline_resize", "render_avatar", "render_typical", "render_everything", "backlight_gain", "canvas_light"}
     assert report["rows"]["baseline_resize"]["ratio_to_baseline"] == 1.0
     assert set(report["streams"]) == {"face_video", "still_face"}
     assert all(s["frames"] == 6 and s["max_abs_difference"] == 0 for s in report["streams"].values())

@@ -4,8 +4,9 @@ The projector service renders a scripted wearer's video (talking avatar, sway, a
 black and back) and publishes each frame it shows; the simulated rear camera's scene is lit by what the
 projector showed, mixed over its 30 ms exposure with a true latency of 45 ms (the daemon assumes 33 ms
 within 16.7 ms), the projector's share of the membrane's light only. The touch service receives the frames
-from ``hub.projector_video`` and compensates. The world predicts projector light with the same calibration
-the daemon uses (the lab's face-on experiment covers a calibration decoded from camera frames).
+from ``hub.projector_canvas`` and compensates, predicting from the canvases. The world predicts projector light
+from the frames shown (``hub.projector_video``) with the same calibration the daemon uses (the lab's face-on
+experiment covers a calibration decoded from camera frames).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from feelium.hub import Hub
 from feelium.interactions.config import InteractionsConfig
 from feelium.lab.touch.faceon import FaceScript, FaceVideo
 from feelium.projector.backlight import BacklightPredictor
+from feelium.projector.canvaslight import CanvasLightPredictor
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.display import SimDisplay
 from feelium.projector.renderer import Renderer
@@ -46,7 +48,7 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
     projector_cfg = ProjectorConfig()
     calibration = default_calibration(DEFAULT_CAMERA_SIZE, DEFAULT_ROI, (projector_cfg.width, projector_cfg.height))
     world_light = BacklightPredictor(projector_cfg, calibration, SIZE).gain
-    shown = ProjectorHistory(keep=24)
+    shown = ProjectorHistory(window_s=1.0, keep=24)
     lights: dict[int, np.ndarray] = {}
     origin: list[float] = []
 
@@ -68,7 +70,7 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
     origin.append(shared.origin)
     touch = TouchService(
         CameraSource("sim", lambda: SimRearCamera(shared, fps=15.0), shared), hub, TouchConfig(),
-        debug_video_fps=0.0, projected=lambda size: BacklightPredictor(projector_cfg, calibration, size).gain,
+        debug_video_fps=0.0, projected=lambda size: CanvasLightPredictor(projector_cfg, calibration, size).gain,
     )  # fmt: skip
     projector = ProjectorService(
         projector_cfg, dataclasses.replace(InteractionsConfig(), enabled=False), hub, SimDisplay(), calibration

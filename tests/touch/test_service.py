@@ -300,10 +300,10 @@ async def test_the_projected_light_of_each_exposure_goes_with_its_frame_at_the_f
 
     def projected(size):
         sizes.append(size)
-        return lambda frame: np.full((size[1], size[0]), float(frame[0, 0, 0]) / 100.0, np.float32)
+        return lambda canvas: np.full((size[1], size[0]), float(canvas[0, 0]) / 100.0, np.float32)
 
     hub = Hub()
-    hub.projector_video.publish(0.0, np.full((4, 4, 3), 50, np.uint8))
+    hub.projector_canvas.publish(0.0, np.full((4, 4), 50, np.uint8))
     camera = ScriptedCamera([_frame(0.1 * i, size=(16, 12)) for i in range(1, 4)], delay=0.02)
     service = TouchService(
         CameraSource("scripted", lambda: camera), hub, TouchConfig(),
@@ -312,7 +312,7 @@ async def test_the_projected_light_of_each_exposure_goes_with_its_frame_at_the_f
 
     async def second_frame():
         await asyncio.sleep(0.01)
-        hub.projector_video.publish(0.2, np.full((4, 4, 3), 100, np.uint8))
+        hub.projector_canvas.publish(0.2, np.full((4, 4), 100, np.uint8))
 
     await asyncio.gather(service.run(), second_frame())
     (pipeline,) = FakePipeline.created
@@ -336,7 +336,7 @@ def test_projection_compensation_only_for_frames_that_contain_the_projectors_lig
     factory = load_projected_light(config, "picamera2")
     assert factory is not None
     predict = factory((32, 24))
-    predicted = predict(np.full((720, 1280, 3), 30, np.uint8))  # a dark frame at the projector's size
+    predicted = predict(np.full((384, 512), 30, np.uint8))  # a dark grey skin canvas
     assert predicted.shape == (24, 32) and np.all(np.isfinite(predicted))
     assert float(np.median(predicted[8:16, 8:24])) < 0.9  # a dark projection dims the covered patch
     off = dataclasses.replace(config, rear_camera=dataclasses.replace(config.rear_camera, projection_compensation="off"))
@@ -350,12 +350,12 @@ def test_projection_compensation_only_for_frames_that_contain_the_projectors_lig
 async def test_a_failing_light_prediction_costs_only_the_compensation():
     def projected(size):
         def predict(frame):
-            raise ValueError("projector frame is 64x48, expected 1280x720")
+            raise ValueError("canvas must be 512x384 grey uint8")
 
         return predict
 
     hub = Hub()
-    hub.projector_video.publish(0.0, np.zeros((48, 64, 3), np.uint8))
+    hub.projector_canvas.publish(0.0, np.zeros((48, 64), np.uint8))
     sub = hub.bus.subscribe([TouchEvent])
     camera = ScriptedCamera([_frame(0.1 * i) for i in range(1, 4)], delay=0.02)
     service = TouchService(
@@ -366,4 +366,4 @@ async def test_a_failing_light_prediction_costs_only_the_compensation():
     (pipeline,) = FakePipeline.created
     assert pipeline.lights == [(None, None)] * 3 and [e.phase for e in sub.drain()] == ["down", "up"]
     health = service.health()
-    assert health["projected_errors"] == 3 and "1280x720" in health["last_projected_error"]
+    assert health["projected_errors"] == 3 and "512x384" in health["last_projected_error"]

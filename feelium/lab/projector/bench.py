@@ -4,7 +4,7 @@ Scenes: the avatar alone, the avatar with a typical exchange's answers, and
 every answer at once (the worst case), each warped in full. The baseline, measured in the same run,
 is the least any renderer must do: one plain resize of the skin canvas to the
 projector's resolution. The back-light prediction the touch service runs per
-camera frame is measured too. Then a realistic frame stream (:mod:`feelium.lab.projector.stream`)
+projector frame is measured too, from the frame (the old way) and from the skin canvas (the daemon's). Then a realistic frame stream (:mod:`feelium.lab.projector.stream`)
 is warped both in full and by tiles (only what changed), frame by frame in turn.
 """
 
@@ -16,6 +16,7 @@ import cv2
 
 from feelium.interactions.answers import Answer
 from feelium.projector.backlight import BacklightPredictor
+from feelium.projector.canvaslight import CanvasLightPredictor
 from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
@@ -59,8 +60,10 @@ def run_bench(config: ProjectorConfig, calibration: ProjectorMap, frames: int = 
                 lambda i, a=answers: renderer.tiles.full(renderer.canvas(0.5 + i / config.fps, None, a)), frames
             )
         predictor = BacklightPredictor(config, calibration)
-        frame = renderer.render(0.5, None, _scenes()["typical"])
-        rows["backlight_gain"] = time_calls(lambda i: predictor.gain(frame), frames)
+        frame, grey = renderer.render_with_canvas(0.5, None, _scenes()["typical"])
+        rows["backlight_gain"] = time_calls(lambda i: predictor.gain(frame), frames)  # the old way, from the frame
+        from_canvas = CanvasLightPredictor(config, calibration)
+        rows["canvas_light"] = time_calls(lambda i: from_canvas.gain(grey), frames)  # the daemon's, from the canvas
         streams = {
             name: run_stream(Renderer(config, calibration), config.fps, stream_s, moving_face=moving)
             for name, moving in (("face_video", True), ("still_face", False))

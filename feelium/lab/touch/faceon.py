@@ -53,7 +53,7 @@ from feelium.lab.report import finish_experiment, print_progress
 from feelium.lab.sim import protocol
 from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, score_trials
 from feelium.lab.touch.margins import GateSeries, GateThresholds, margins
-from feelium.projector.backlight import BacklightPredictor
+from feelium.projector.canvaslight import CanvasLightPredictor
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
 from feelium.sim.camera import frame_times
@@ -116,9 +116,13 @@ class FaceVideo:
         self.offset_s = offset_s
 
     def frame(self, k: int) -> np.ndarray:
+        return self.shown(k)[0]
+
+    def shown(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Projector frame ``k`` and its grey skin canvas (what the daemon predicts the light from)."""
         s = self.script
         ts = k / s.fps + self.offset_s
-        return self.renderer.render(ts, self.wearer(ts), [])
+        return self.renderer.render_with_canvas(ts, self.wearer(ts), [])
 
     def wearer(self, ts: float) -> np.ndarray:
         """The wearer's video frame (canvas size, BGR) at script time ``ts``."""
@@ -143,11 +147,11 @@ class FaceVideo:
 class _Cache:
     """Per projector frame index, something costly (frames, factors, predictions); a small window kept."""
 
-    def __init__(self, make: Callable[[int], np.ndarray]) -> None:
+    def __init__(self, make: Callable[[int], Any]) -> None:
         self.make = make
-        self._items: dict[int, np.ndarray] = {}
+        self._items: dict[int, Any] = {}
 
-    def __call__(self, k: int) -> np.ndarray:
+    def __call__(self, k: int) -> Any:
         if k not in self._items:
             if len(self._items) > 8:
                 self._items.pop(min(self._items))
@@ -179,7 +183,7 @@ class _Experiment:
         self.renderer = Renderer(setup.projector, self.calibration)
         self.source = Renderer(replace(setup.projector, sensing_floor=0.0, fade_floor=0.0), self.calibration)
         self.light = ProjectedLight(warp, (WIDTH, HEIGHT), optics)
-        self.predictor = BacklightPredictor(setup.projector, self.calibration, (WIDTH, HEIGHT))
+        self.predictor = CanvasLightPredictor(setup.projector, self.calibration, (WIDTH, HEIGHT))
 
     def trial(self, item: protocol.Item) -> dict[str, TrialRun]:
         seed, fps = self.setup.seed, self.setup.script.fps
@@ -187,10 +191,10 @@ class _Experiment:
         session = session_presets(seed)[item.session]
         offset = float(protocol.recording_rng(seed, item.name, 7).uniform(0.0, self.setup.script.fade_every_s))
         video = FaceVideo(self.renderer, self.source, self.setup.script, offset)
-        frames = _Cache(video.frame)
+        shown = _Cache(video.shown)
         exposure = session.sensor.exposure_s
-        hook = timed_hook(self.light, frames, fps, TRUE_LATENCY_S, exposure)
-        gains = _Cache(lambda k: self.predictor.gain(frames(k)))
+        hook = timed_hook(self.light, lambda k: shown(k)[0], fps, TRUE_LATENCY_S, exposure)
+        gains = _Cache(lambda k: self.predictor.gain(shown(k)[1]))
 
         def divided(t: float) -> dict[str, np.ndarray]:
             return {"backlight_gain": gains(int(math.floor(t * fps + 1e-9)))}
@@ -366,7 +370,8 @@ def frame_cost(*, seed: int = 1, timed: int = 60, repeats: int = 4, touch: Touch
     One hold trial is rendered under the flat back-light and under the face; the last ``timed`` camera frames
     of each replay are timed, ``repeats`` times, after the same warm-up. ``exposure_light`` is the daemon's
     side of the prediction per camera frame at the daemon's working size (``[touch] width x height``): each
-    new projector frame predicted once (:class:`feelium.projector.backlight.BacklightPredictor`), the
+    new projector frame predicted once from its skin canvas
+    (:class:`feelium.projector.canvaslight.CanvasLightPredictor`), the
     exposure mix and its spread (:class:`feelium.touch.projected.ExposureLight`). Medians and p95 in ms.
     """
     import time
@@ -380,14 +385,14 @@ def frame_cost(*, seed: int = 1, timed: int = 60, repeats: int = 4, touch: Touch
     script = protocol.build_script(item, seed)
     session = session_presets(seed)[item.session]
     video = FaceVideo(ex.renderer, ex.source, setup.script, 0.0)
-    frames = _Cache(video.frame)
+    shown = _Cache(video.shown)
     fps = setup.script.fps
-    hook = timed_hook(ex.light, frames, fps, TRUE_LATENCY_S, session.sensor.exposure_s)
-    gains = _Cache(lambda k: ex.predictor.gain(frames(k)))
+    hook = timed_hook(ex.light, lambda k: shown(k)[0], fps, TRUE_LATENCY_S, session.sensor.exposure_s)
+    gains = _Cache(lambda k: ex.predictor.gain(shown(k)[1]))
     static = ex._render(script, session, item, None)
     face = ex._render(script, session, item, hook)
     daemon_size = (touch.width, touch.height)
-    predictor = BacklightPredictor(setup.projector, ex.calibration, daemon_size)
+    predictor = CanvasLightPredictor(setup.projector, ex.calibration, daemon_size)
 
     def inputs(t: float, spread: bool) -> dict[str, np.ndarray]:
         reach = touch.projector_latency_s + touch.projector_latency_sigma_s + touch.camera_exposure_s / 2.0
@@ -420,7 +425,7 @@ def frame_cost(*, seed: int = 1, timed: int = 60, repeats: int = 4, touch: Touch
         light = ExposureLight(predictor.gain, touch)
         for t, _f in face[-timed:]:
             k = math.floor(t * fps)
-            history = [(j / fps, j, frames(j)) for j in range(k - 4, k + 2)]
+            history = [(j / fps, j, shown(j)[1]) for j in range(k - 4, k + 2)]
             start = time.thread_time()
             light(history, t)
             samples.append(time.thread_time() - start)

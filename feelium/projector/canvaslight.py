@@ -1,0 +1,195 @@
+"""Predicting the back-light the rear camera sees from the projector's skin canvas, not its warped frame.
+
+The renderer carries the skin canvas to projector pixels through the
+calibration, and the light at a camera pixel comes from the projector pixel
+the calibration says lights it; composed, the light at a camera pixel is the
+canvas at that pixel's canvas coordinate. That camera -> canvas map is fixed,
+so it is built once, through the renderer's own maps (the calibration's fitted
+inverse, then :func:`feelium.projector.renderer.canvas_map`, with the daemon's
+face model when it has one), and each frame is then a look-up table over the
+small grey canvas (gamma, black level: light is linear, so it is averaged as
+light), an area reduction to about one canvas pixel per camera pixel, one remap
+and the diffusion blur. Per frame that is about a third of the time of predicting from the
+1280x720 frame (:class:`feelium.projector.backlight.BacklightPredictor`, which it
+matches within the projector's pixel grid's blur: docs/touch.md), and what a
+prediction needs to keep is a 512x384 grey canvas instead of a 2.7 MB frame.
+
+Camera pixels that see projector pixels off the canvas (the renderer draws its
+constant border colour there) get that colour's light; camera pixels the
+calibration does not cover get 1.0 (no correction), as before, and a band around the patch is lit with
+the border's light before the blur (a camera pixel at the edge sees a little of the dark border).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from feelium.projector.avatar import BACKGROUND_BGR
+from feelium.projector.config import ProjectorConfig
+from feelium.projector.renderer import canvas_map
+from feelium.skin.face import FaceModel
+from feelium.skin.projector_map import ProjectorMap, sample
+
+_OFF = -10.0  # a map position no bilinear tap reaches: the remap's border value (the projector's border light)
+
+
+def light_table(config: ProjectorConfig, calibration: ProjectorMap) -> np.ndarray:
+    """(256,) float32: the light of each projector grey level relative to the flat grey the touch reference saw.
+
+    Measured by the calibration when it could, else the configured black level and gamma.
+    """
+    black = calibration.black_level if calibration.black_level is not None else config.black_level
+    gamma = calibration.gamma if calibration.gamma is not None else config.gamma
+    levels = np.arange(256, dtype=np.float64) / 255.0
+    light = black + (1.0 - black) * levels**gamma
+    flat = black + (1.0 - black) * config.flat_level**gamma
+    return (light / flat).astype(np.float32)
+
+
+def border_grey() -> int:
+    """The grey level of the colour the renderer fills the projector frame with off the canvas (BGR -> grey)."""
+    border = np.array([[[int(c * 0.5) for c in BACKGROUND_BGR]]], np.uint8)
+    return int(cv2.cvtColor(border, cv2.COLOR_BGR2GRAY)[0, 0])
+
+
+class CanvasLightPredictor:
+    """Grey skin canvas in, per-camera-pixel back-light gain (float32, ~1.0 = flat) out."""
+
+    def __init__(
+        self,
+        config: ProjectorConfig,
+        calibration: ProjectorMap,
+        frame_size: tuple[int, int] | None = None,
+        face: FaceModel | None = None,
+    ) -> None:
+        """``frame_size``: (width, height) of the touch pipeline's frames (default the calibration's camera size);
+        ``face``: the face model the projector's renderer was given (its canvas then spans the face's u, v)."""
+        cw, ch = calibration.camera_size
+        fw, fh = frame_size if frame_size is not None else (cw, ch)
+        self.canvas_size = (config.canvas_width, config.canvas_height)
+        self.frame_size = (fw, fh)
+        # Which projector pixel each frame pixel sees (the calibration, at the frame size) ...
+        proj_x, proj_y = calibration.proj_x, calibration.proj_y
+        if (fw, fh) != (cw, ch):
+            proj_x = cv2.resize(proj_x, (fw, fh), interpolation=cv2.INTER_LINEAR)
+            proj_y = cv2.resize(proj_y, (fw, fh), interpolation=cv2.INTER_LINEAR)
+        self._uncovered = ~(np.isfinite(proj_x) & np.isfinite(proj_y))
+        # ... and which canvas point the renderer drew there: the very maps the renderer warps with.
+        inv_x, inv_y = calibration.projector_to_camera()
+        cam_x, cam_y, drawn = _renderer_camera_points(inv_x, inv_y, proj_x, proj_y, self._uncovered)
+        map_x, map_y = canvas_map(cam_x, cam_y, calibration, self.canvas_size, face)
+        off = ~(drawn & np.isfinite(map_x) & np.isfinite(map_y))
+        # The canvas is reduced (area average of the light) to about one canvas pixel per camera pixel first:
+        # sampling a finer canvas would alias at the face's edges, as the old predictor's 2x area reduction avoided.
+        self.reduce = _reduction(map_x, map_y, off | self._uncovered)
+        rw, rh = -(-self.canvas_size[0] // self.reduce), -(-self.canvas_size[1] // self.reduce)
+        self._reduced_size = (rw, rh)
+        map_x = np.where(off, _OFF, (map_x + 0.5) / self.reduce - 0.5).astype(np.float32)
+        map_y = np.where(off, _OFF, (map_y + 0.5) / self.reduce - 0.5).astype(np.float32)
+        self._map1, self._map2 = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
+        self._lut = light_table(config, calibration)
+        self._border = float(self._lut[border_grey()])
+        # Canvas pixels no projector pixel reads are not on the skin: the projector shows its border there, and
+        # a camera pixel at the patch's edge sees a little of it through the blur.
+        undrawn = ~_drawn_canvas(inv_x, inv_y, calibration, self.canvas_size, face)
+        self._undrawn = np.flatnonzero(undrawn) if undrawn.any() else None
+        # The old predictor sampled the projector's own pixel grid: one projector pixel (a box), its 2x area
+        # reduction and a bilinear look-up on that reduced grid blur by a variance of (1/12 + 4/12 + 4/6) projector
+        # pixels squared. The canvas has no such grid, so that blur is added to the membrane's diffusion: the
+        # prediction stays the old one's (docs/touch.md: against the simulator's light it is then as close).
+        grid_px = 1.0 / _scale(proj_x, proj_y, self._uncovered)  # one projector pixel, in frame pixels
+        self.diffusion_px = float(np.hypot(config.diffusion_px * fw / cw, grid_px * np.sqrt(13.0 / 12.0)))
+        # The projector's light beyond the patch is its border (or nothing), not the flat grey: a camera pixel at the
+        # patch's edge sees some of it through the diffusion, so a band around the patch is lit with the border's
+        # light and blurred with it; only what the calibration does not cover gets 1.0, after the blur.
+        lit = ~self._uncovered
+        if self.diffusion_px > 0:
+            radius = max(1, int(np.ceil(3.0 * self.diffusion_px)))
+            disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+            lit = cv2.dilate(lit.astype(np.uint8), disc).astype(bool)
+        self._dark = ~lit
+        weight = lit.astype(np.float32)
+        blurred = cv2.GaussianBlur(weight, (0, 0), self.diffusion_px) if self.diffusion_px > 0 else weight
+        self._lit_blur = np.maximum(blurred, 1e-3)
+
+    def gain(self, canvas_grey: np.ndarray) -> np.ndarray:
+        """(H, W) float32 gain at the touch pipeline's frame size for a grey (uint8) skin canvas."""
+        cw, ch = self.canvas_size
+        if canvas_grey.shape != (ch, cw) or canvas_grey.dtype != np.uint8:
+            raise ValueError(f"canvas must be {cw}x{ch} grey uint8, got {canvas_grey.shape} {canvas_grey.dtype}")
+        light = cv2.LUT(canvas_grey, self._lut)
+        if self._undrawn is not None:
+            light.ravel()[self._undrawn] = self._border
+        if self.reduce > 1:
+            light = _area_reduce(light, self.reduce, self._reduced_size, self._border)
+        seen = cv2.remap(light, self._map1, self._map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                         borderValue=self._border)
+        if self.diffusion_px > 0:
+            # Blur over the lit pixels only (normalised): nothing is known of the light beyond the band.
+            seen[self._dark] = 0.0
+            seen = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px) / self._lit_blur
+        seen[self._uncovered] = 1.0
+        return seen
+
+
+def _renderer_camera_points(
+    inv_x: np.ndarray, inv_y: np.ndarray, proj_x: np.ndarray, proj_y: np.ndarray, uncovered: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The camera point the renderer drew at each frame pixel's projector position, and whether it drew one.
+
+    The renderer's projector -> camera map (the calibration's fitted inverse) is interpolated over its covered
+    neighbours only, so a pixel at the patch's edge keeps its position instead of falling off it; whether the
+    renderer drew the canvas there at all is its nearest projector pixel's, as its coverage test is.
+    """
+    drawn_p = (np.isfinite(inv_x) & np.isfinite(inv_y)).astype(np.float32)
+    xs, ys = np.where(uncovered, _OFF, proj_x), np.where(uncovered, _OFF, proj_y)
+    weight = sample(drawn_p, xs, ys, border=0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cam_x = sample(np.where(drawn_p > 0, inv_x, 0.0), xs, ys, border=0.0) / weight
+        cam_y = sample(np.where(drawn_p > 0, inv_y, 0.0), xs, ys, border=0.0) / weight
+    nearest = cv2.remap(drawn_p, xs.astype(np.float32), ys.astype(np.float32), cv2.INTER_NEAREST,
+                        borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    drawn = (nearest > 0) & (weight > 0) & ~uncovered
+    return cam_x.astype(np.float32), cam_y.astype(np.float32), drawn
+
+
+def _drawn_canvas(
+    inv_x: np.ndarray, inv_y: np.ndarray, calibration: ProjectorMap, canvas_size: tuple[int, int], face: FaceModel | None
+) -> np.ndarray:
+    """(h, w) bool over the canvas: pixels a bilinear tap of the renderer's warp reads (as the renderer maps)."""
+    cw, ch = canvas_size
+    map_x, map_y = canvas_map(inv_x, inv_y, calibration, canvas_size, face)
+    on = np.isfinite(map_x) & np.isfinite(map_y)
+    x0 = np.floor(map_x[on]).astype(np.int64)
+    y0 = np.floor(map_y[on]).astype(np.int64)
+    drawn = np.zeros((ch, cw), bool)
+    for dx in (0, 1):
+        for dy in (0, 1):
+            x, y = x0 + dx, y0 + dy
+            keep = (x >= 0) & (x < cw) & (y >= 0) & (y < ch)
+            drawn[y[keep], x[keep]] = True
+    return drawn
+
+
+def _scale(map_x: np.ndarray, map_y: np.ndarray, off: np.ndarray) -> float:
+    """Median map units per pixel step over the pixels the map covers (the smaller of the two axes)."""
+    dx = np.hypot(np.diff(map_x, axis=1), np.diff(map_y, axis=1))[~(off[:, 1:] | off[:, :-1])]
+    dy = np.hypot(np.diff(map_x, axis=0), np.diff(map_y, axis=0))[~(off[1:] | off[:-1])]
+    if dx.size == 0 or dy.size == 0:
+        return 1.0
+    return min(float(np.median(dx)), float(np.median(dy)))
+
+
+def _reduction(map_x: np.ndarray, map_y: np.ndarray, off: np.ndarray) -> int:
+    """The integer canvas reduction giving about one canvas pixel per camera pixel (median over the patch)."""
+    return max(1, int(np.floor(_scale(map_x, map_y, off) + 0.25)))
+
+
+def _area_reduce(light: np.ndarray, factor: int, size: tuple[int, int], pad: float) -> np.ndarray:
+    """Average ``factor`` x ``factor`` blocks; a canvas not a multiple of ``factor`` is padded with ``pad``."""
+    rw, rh = size
+    h, w = light.shape
+    if (rw * factor, rh * factor) != (w, h):
+        light = cv2.copyMakeBorder(light, 0, rh * factor - h, 0, rw * factor - w, cv2.BORDER_CONSTANT, value=pad)
+    return cv2.resize(light, (rw, rh), interpolation=cv2.INTER_AREA)

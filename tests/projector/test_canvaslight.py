@@ -1,0 +1,116 @@
+"""The back-light predicted from the skin canvas against the one predicted from the warped projector frame.
+
+The canvas path (:class:`CanvasLightPredictor`) must give the old path's light (:class:`BacklightPredictor` on
+the renderer's frame of the same canvas) within the projector pixel grid's blur, with and without the face
+model, and stay as close to the simulator's light as the old path was.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import cv2
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.projector.backlight import BacklightPredictor
+from feelium.projector.canvaslight import CanvasLightPredictor, border_grey
+from feelium.projector.config import ProjectorConfig
+from feelium.projector.renderer import Renderer
+from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics
+from feelium.touch.config import TouchConfig
+from feelium.touch.face import face_for
+from tests.projector.helpers import CAMERA, truth_calibration
+
+OPTICS = ProjectorOptics()
+CONFIG = ProjectorConfig(flat_level=OPTICS.flat_level)
+SIZES = (CAMERA, (320, 240))
+
+
+def _calibration():
+    return dataclasses.replace(truth_calibration(), black_level=OPTICS.black, gamma=OPTICS.gamma)
+
+
+@functools.cache
+def _paths(with_face: bool, size: tuple[int, int]) -> tuple[Renderer, BacklightPredictor, CanvasLightPredictor]:
+    calibration = _calibration()
+    face = face_for(dataclasses.replace(TouchConfig(), face_model="sphere"), calibration.camera_size) if with_face else None
+    renderer = Renderer(CONFIG, calibration, face)
+    return renderer, BacklightPredictor(CONFIG, calibration, size), CanvasLightPredictor(CONFIG, calibration, size, face)
+
+
+def _inner(old: BacklightPredictor, margin_px: float) -> np.ndarray:
+    """Covered pixels at least ``margin_px`` inside the patch's edge."""
+    covered = (~old._uncovered).astype(np.uint8)
+    return cv2.distanceTransform(covered, cv2.DIST_L2, 3) > margin_px
+
+
+def _both(with_face: bool, size: tuple[int, int], canvas: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    renderer, old, new = _paths(with_face, size)
+    frame = renderer.tiles.full(canvas)
+    return old.gain(frame), new.gain(cv2.cvtColor(canvas, cv2.COLOR_BGR2GRAY)), ~old._uncovered
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.integers(0, 2**32 - 1),
+    st.booleans(),
+    st.sampled_from(SIZES),
+    st.sampled_from([(4, 3), (8, 6), (16, 12), (32, 24)]),
+    st.sampled_from([cv2.INTER_LINEAR, cv2.INTER_NEAREST]),
+)
+def test_the_canvas_path_gives_the_frame_paths_light(seed, with_face, size, cells, interpolation):
+    """Random canvases, smooth or with hard edges: the same light, up to the projector grid's blur at edges."""
+    rng = np.random.default_rng(seed)
+    grid = rng.integers(0, 256, (cells[1], cells[0], 3), np.uint8)
+    canvas = cv2.resize(grid, (CONFIG.canvas_width, CONFIG.canvas_height), interpolation=interpolation)
+    old, new, covered = _both(with_face, size, canvas)
+    diff = np.abs(old - new)
+    assert np.all(new[~covered] == 1.0)  # no correction where the calibration does not reach, as before
+    assert float(diff[covered].mean()) < 0.01
+    inner = _inner(_paths(with_face, size)[1], 3.0)
+    assert float(np.median(diff[inner])) < 0.002
+    assert float(np.percentile(diff[inner], 99)) < (0.12 if interpolation == cv2.INTER_NEAREST else 0.02)
+
+
+def test_flat_canvas_predicts_unit_gain_inside_the_patch():
+    canvas = np.full((CONFIG.canvas_height, CONFIG.canvas_width), round(255 * CONFIG.flat_level), np.uint8)
+    for size in SIZES:
+        _, old, new = _paths(False, size)
+        gain = new.gain(canvas)
+        assert np.abs(gain[_inner(old, 3.0)] - 1.0).max() < 0.01
+        edge = ~old._uncovered & ~_inner(old, 1.0)
+        assert gain[edge].mean() < 0.95  # the projector's dark border beyond the patch is seen at its edge
+
+
+def test_as_close_to_the_simulated_light_of_a_talking_face_as_the_frame_path():
+    light = ProjectedLight(FisheyeWarp(), CAMERA, OPTICS)
+    renderer, old, new = _paths(False, CAMERA)
+    covered = ~old._uncovered
+    errors = {"old": [], "new": []}
+    for t in (0.0, 0.4, 1.3):
+        frame, grey = renderer.render_with_canvas(t, None, [], talking=True)
+        truth = light.factor(frame)
+        assert truth[covered].min() < 0.6  # the face really does change the back-light
+        ratio = (truth / new.gain(grey))[covered]
+        assert np.median(np.abs(ratio - 1.0)) < 0.01
+        assert np.percentile(np.abs(ratio - 1.0), 99) < 0.08  # only the thin edges of eyes and mouth differ
+        errors["old"].append(float(np.abs(truth - old.gain(frame))[covered].mean()))
+        errors["new"].append(float(np.abs(truth - new.gain(grey))[covered].mean()))
+    assert np.mean(errors["new"]) <= np.mean(errors["old"]) * 1.05, errors
+
+
+def test_off_the_face_the_projectors_border_is_predicted():
+    """With the face model the canvas spans the face's u, v: camera pixels the renderer gives no canvas get the
+    light of its border colour, as the old path read it from the frame."""
+    renderer, old, new = _paths(True, CAMERA)
+    white = np.full((CONFIG.canvas_height, CONFIG.canvas_width, 3), 255, np.uint8)
+    g_old, g_new, covered = _both(True, CAMERA, white)
+    dark = covered & (g_old < 0.2)  # covered camera pixels that saw the border in the old path
+    deep = cv2.distanceTransform(dark.astype(np.uint8), cv2.DIST_L2, 3) > 2.0  # the ROI's corners off the face
+    assert deep.sum() > 20
+    assert float(np.abs(g_new - g_old)[deep].max()) < 0.01
+    assert float(np.abs(g_new - g_old)[dark].mean()) < 0.02  # the skin's edge: the projector grid's blur
+    assert float(np.abs(g_new[deep] - new._border).max()) < 0.01 and border_grey() < 64
