@@ -120,9 +120,18 @@ class HttpConfig:
     max_event_streams_per_address: int = setting(
         16, "Concurrent event streams from one address, whatever client ids it sends; more get 429.", min=1, max=1000
     )
+    max_connections: int = setting(
+        512, "Open connections in total (each holds a descriptor, whatever it does); one more is closed at once.",
+        min=8, max=100000,
+    )
+    max_connections_per_address: int = setting(
+        64, "Open connections from one address (a device), so one that opens thousands cannot use up the daemon's "
+        "descriptors while the rest of the room waits; one more is closed at once.", min=4, max=100000,
+    )
     socket_messages_per_s: float = setting(
-        50.0, "Messages a client may send on one WebSocket per second (burst twice that); a socket over it is closed "
-        "with 1008: each message costs the event loop a parse and a reply even when refused. Motion at 20 Hz fits.",
+        50.0, "Messages (pings and pongs too) a client may send on one WebSocket per second (burst twice that); a "
+        "socket over it is dropped (1006 to the client): each costs the event loop a parse and often a reply even "
+        "when refused. Motion at 20 Hz fits.",
         min=1.0, max=10000.0,
     )
     max_speech_streams_per_address: int = setting(

@@ -20,7 +20,7 @@ from feelium.http.auth import token_of
 from feelium.http.clients import client_of
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
-from feelium.http.message_budget import MessageBudget
+from feelium.http.message_budget import BUDGETED, MessageBudget
 from feelium.http.motion_api import motion_message
 from feelium.http.open_streams import transport_closer, ws_closer
 from feelium.http.params import query_number
@@ -141,7 +141,8 @@ async def websocket(request: web.Request) -> web.StreamResponse:
     a message, not an HTTP request, per refresh."""
     link = ctx(request)
     after = _after(request)
-    ws = web.WebSocketResponse(heartbeat=link.config.keepalive_s, max_msg_size=MAX_SOCKET_MESSAGE_BYTES)
+    # autoping off: pings and pongs reach the reader, so they count against the message budget too
+    ws = web.WebSocketResponse(heartbeat=link.config.keepalive_s, max_msg_size=MAX_SOCKET_MESSAGE_BYTES, autoping=False)
     if not ws.can_prepare(request).ok:
         raise ApiError(400, "expected a WebSocket upgrade request")
     client = client_of(request)
@@ -165,12 +166,16 @@ async def _serve_websocket(
         async for msg in ws:
             if msg.type == WSMsgType.ERROR:
                 return
-            if msg.type in (WSMsgType.TEXT, WSMsgType.BINARY) and not budget.allows(link.hub.clock()):
+            if msg.type in BUDGETED and not budget.allows(link.hub.clock()):
                 link.count("socket_floods_closed")
                 cut_off()  # no close handshake: waiting for it, the loop would go on parsing the flood
                 return
             await asyncio.sleep(0)
-            if msg.type == WSMsgType.TEXT and (reply := motion_message(link, client, msg.data)) is not None:
+            if msg.type == WSMsgType.PING:
+                await ws.pong(msg.data)
+                continue
+            text = msg.data if msg.type == WSMsgType.TEXT else msg.data.decode("utf-8", "replace") if msg.type == WSMsgType.BINARY else None
+            if text is not None and (reply := motion_message(link, client, text)) is not None:  # binary JSON too
                 try:  # the command is applied already; a client that reads nothing is dropped as a stalled stream
                     async with asyncio.timeout(timeout):
                         await ws.send_json(reply)

@@ -13,7 +13,13 @@ the loop after each message.
 
 from __future__ import annotations
 
+from aiohttp import WSMsgType
+
 from feelium.http.ratelimit import TokenBucket
+
+# What a client's messages cost: data, and the control frames a flood can be made of just as well (the
+# sockets run with autoping off, so pings and pongs reach the reader and are answered there).
+BUDGETED = frozenset({WSMsgType.TEXT, WSMsgType.BINARY, WSMsgType.PING, WSMsgType.PONG})
 
 
 class MessageBudget:

@@ -106,6 +106,11 @@ def _valid_for_stop(key: str, value: Any, link: LinkContext) -> bool:
 LENIENT_MAX_DEPTH = 64
 
 
+def _lenient_int(digits: str) -> int | None:
+    """An integer too long for Python's digit limit is no reason to refuse the stop it rides with."""
+    return int(digits) if len(digits) <= 100 else None
+
+
 def stop_in(raw: bytes, max_depth: int) -> dict[str, Any] | None:
     """The body, when ``raw`` holds a JSON object whose ``command`` is a stop, read leniently: whatever its
     declared content type, a UTF-8 BOM, bytes that are not UTF-8 in other fields, ``NaN``, data after the
@@ -117,7 +122,8 @@ def stop_in(raw: bytes, max_depth: int) -> dict[str, Any] | None:
         if json_depth(text) > LENIENT_MAX_DEPTH:
             return None
         try:
-            value, _ = json.JSONDecoder(parse_constant=lambda _: None).raw_decode(text)
+            decoder = json.JSONDecoder(parse_constant=lambda _: None, parse_int=_lenient_int)
+            value, _ = decoder.raw_decode(text)
         except ValueError:
             return None
     return value if isinstance(value, dict) and value.get("command") in NEUTRAL_NAMES else None

@@ -13,8 +13,10 @@ query string or an ``Authorization`` header must never reach the journal.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import re
+from typing import Any
 from urllib.parse import parse_qsl, unquote
 
 from aiohttp import web
@@ -104,19 +106,80 @@ class JsonErrorRequestHandler(RequestHandler):
         return response
 
 
+class ConnectionLimits:
+    """Open connections in total and per remote address, whatever they are doing.
+
+    Every connection holds a file descriptor, before it has sent a request, while it long-polls, while it
+    trickles a request line that never ends. Without a cap, one address opening a few thousand of them used
+    up the daemon's descriptors and a bystander's `stop` could not connect; with one, a single device can
+    hold at most ``per_address`` and the rest of the room still gets in.
+    """
+
+    def __init__(self, total: int, per_address: int) -> None:
+        if total < 1 or per_address < 1:
+            raise ValueError("connection limits must be at least 1")
+        self.total = total
+        self.per_address = per_address
+        self._address_of: dict[int, str] = {}
+        self._by_address: dict[str, int] = {}
+        self.refused = 0
+
+    def admit(self, key: int, address: str) -> bool:
+        """Count connection ``key`` from ``address``; ``False`` (nothing counted) when a limit is reached."""
+        if len(self._address_of) >= self.total or self._by_address.get(address, 0) >= self.per_address:
+            self.refused += 1
+            return False
+        self._address_of[key] = address
+        self._by_address[address] = self._by_address.get(address, 0) + 1
+        return True
+
+    def release(self, key: int) -> None:
+        address = self._address_of.pop(key, None)
+        if address is not None:
+            left = self._by_address[address] - 1
+            if left:
+                self._by_address[address] = left
+            else:
+                del self._by_address[address]
+
+    def __len__(self) -> int:
+        return len(self._address_of)
+
+
 class _JsonErrorServer(web.Server):
-    """The connection factory: every new connection gets a :class:`JsonErrorRequestHandler`."""
+    """The connection factory: every new connection gets a :class:`JsonErrorRequestHandler`, within the
+    runner's :class:`ConnectionLimits` (a connection over them is closed at once, before it is read)."""
+
+    connection_limits: ConnectionLimits | None
 
     def __call__(self) -> RequestHandler:
         handler = super().__call__()
         handler.__class__ = JsonErrorRequestHandler
         return handler
 
+    def connection_made(self, handler: RequestHandler, transport: asyncio.Transport) -> None:
+        super().connection_made(handler, transport)
+        limits = self.connection_limits
+        peer = transport.get_extra_info("peername")
+        address = str(peer[0]) if isinstance(peer, tuple) and peer else "local"
+        if limits is not None and not limits.admit(id(handler), address):
+            transport.abort()
+
+    def connection_lost(self, handler: RequestHandler, exc: BaseException | None = None) -> None:
+        super().connection_lost(handler, exc)
+        if self.connection_limits is not None:
+            self.connection_limits.release(id(handler))
+
 
 class JsonErrorAppRunner(web.AppRunner):
-    """``web.AppRunner`` whose connections answer parser-level errors in JSON too."""
+    """``web.AppRunner`` whose connections answer parser-level errors in JSON too, within ``connection_limits``."""
+
+    def __init__(self, app: web.Application, *, connection_limits: ConnectionLimits | None = None, **kwargs: Any) -> None:
+        super().__init__(app, **kwargs)
+        self.connection_limits = connection_limits
 
     async def _make_server(self) -> web.Server:
         server = await super()._make_server()
         server.__class__ = _JsonErrorServer
+        server.connection_limits = self.connection_limits  # type: ignore[attr-defined]
         return server

@@ -14,7 +14,7 @@ from aiohttp import web
 from feelium.http.addresses import interface_ipv4, reachable_hosts, url_host
 from feelium.http.app import link_of
 from feelium.http.config import HttpConfig
-from feelium.http.server import JsonErrorAppRunner, RedactingAccessLogger
+from feelium.http.server import ConnectionLimits, JsonErrorAppRunner, RedactingAccessLogger
 from feelium.hub import Hub
 from feelium.settings import ConfigError
 
@@ -75,13 +75,17 @@ class HttpService:
         self.app = app
         self.port: int | None = None
         self.listening = False  # only once the socket is bound does the headset have a link
+        self.connection_limits: ConnectionLimits | None = None
         self._runner: web.AppRunner | None = None
         self._stopped = asyncio.Event()
 
     async def run(self) -> None:
         self._stopped = asyncio.Event()
         access = logging.getLogger("feelium.http.access") if self.config.access_log else None
-        runner = JsonErrorAppRunner(self.app, access_log=access, access_log_class=RedactingAccessLogger, shutdown_timeout=0.2)
+        limits = ConnectionLimits(self.config.max_connections, self.config.max_connections_per_address)
+        self.connection_limits = limits
+        runner = JsonErrorAppRunner(self.app, access_log=access, access_log_class=RedactingAccessLogger, shutdown_timeout=0.2,
+                                    connection_limits=limits)  # fmt: skip
         await runner.setup()
         self._runner = runner
         try:
@@ -109,6 +113,8 @@ class HttpService:
         listening = {} if self.listening else {"condition": "starting", "reason": f"not listening on {self.config.host}:{self.config.port} yet"}
         return listening | {
             "port": self.port,
+            "connections": len(self.connection_limits) if self.connection_limits is not None else 0,
+            "connections_refused": self.connection_limits.refused if self.connection_limits is not None else 0,
             "last_seq": link.events.ring.last_seq,
             "motion_rate_limited": link.motion_limit.rejected,
             "action_rate_limited": link.action_limit.rejected,

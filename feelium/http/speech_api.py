@@ -21,7 +21,7 @@ from aiohttp import WSMsgType, web
 from feelium.events import SpeechIn
 from feelium.http.auth import token_of
 from feelium.http.clients import client_of
-from feelium.http.message_budget import MessageBudget
+from feelium.http.message_budget import BUDGETED, MessageBudget
 from feelium.http.open_streams import transport_closer, ws_closer
 from feelium.http.context import LinkContext, ctx
 from feelium.http.errors import ApiError
@@ -46,7 +46,8 @@ async def stream(request: web.Request) -> web.StreamResponse:
     target = link.speech_settings.sample_rate
     start = int(query_number(request, "after", link.speech.last_seq, 0, MAX_SEQ, integer=True))
     in_rate = int(query_number(request, "rate", target, MIN_RATE, MAX_RATE, integer=True))
-    ws = web.WebSocketResponse(heartbeat=link.config.keepalive_s, max_msg_size=link.config.max_speech_bytes, compress=False)
+    ws = web.WebSocketResponse(heartbeat=link.config.keepalive_s, max_msg_size=link.config.max_speech_bytes, compress=False,
+                               autoping=False)  # pings count against the message budget (MessageBudget)
     if not ws.can_prepare(request).ok:
         raise ApiError(400, "expected a WebSocket upgrade request")
     try:
@@ -132,11 +133,14 @@ async def _receive_chunks(
     async for msg in ws:
         if msg.type == WSMsgType.ERROR:
             return
-        if msg.type in (WSMsgType.TEXT, WSMsgType.BINARY) and not budget.allows(link.hub.clock()):
+        if msg.type in BUDGETED and not budget.allows(link.hub.clock()):
             link.count("socket_floods_closed")
             cut_off()  # no close handshake: waiting for it, the loop would go on parsing the flood
             return
         await asyncio.sleep(0)  # a burst of buffered messages must not hold the loop (MessageBudget)
+        if msg.type == WSMsgType.PING:
+            await ws.pong(msg.data)
+            continue
         if msg.type != WSMsgType.BINARY:
             continue
         now = link.hub.clock()

@@ -619,8 +619,9 @@ async def test_anything_but_a_stop_keeps_the_strict_rules(client, hub):
 @pytest.mark.parametrize(
     "raw",
     [b'\xef\xbb\xbf{"command": "stop"}', b'{"command": "stop", "hold_ms": NaN}', b'{"command": "stop", "x": "\xff\xfe"}',
-     b'{"command": "stop"} trailing', b'{"command": "stop", "x": ' + b"[" * 13 + b"]" * 13 + b"}"],
-    ids=["bom", "nan", "bad-utf8-elsewhere", "trailing-data", "nested-13"],
+     b'{"command": "stop"} trailing', b'{"command": "stop", "x": ' + b"[" * 13 + b"]" * 13 + b"}",
+     b'{"command": "stop", "hold_ms": 1' + b"0" * 5000 + b"}"],
+    ids=["bom", "nan", "bad-utf8-elsewhere", "trailing-data", "nested-13", "5000-digit-int"],
 )
 async def test_a_malformed_stop_still_stops(client, hub, raw):
     assert (await client.post("/api/v1/motion", json={"command": "forward"}, headers=AUTH)).status == 200

@@ -167,3 +167,40 @@ async def test_a_stop_on_the_socket_is_applied_whatever_its_id_or_formalities(cl
         reply = await ws.receive_json(timeout=5)
         assert reply["type"] == "motion_reply" and reply["status"] == 200 and reply["body"]["accepted"] == "stop"
         assert hub.motion.active(clock.now) is None
+
+
+async def test_a_ping_flood_counts_against_the_budget_and_pings_are_still_answered(aiohttp_client, hub):
+    """Control frames cost the loop as much as data: a socket pinging past its budget is cut off like any flood,
+    while a ping within it still gets its pong (the sockets answer pings themselves)."""
+    from dataclasses import replace
+
+    from aiohttp import WSMsgType
+
+    from feelium.http.app import create_app, link_of
+    from feelium.http.config import HttpConfig
+    from tests.http.http_support import TOKEN
+
+    config = replace(HttpConfig(), token=TOKEN, socket_messages_per_s=10.0)
+    client = await aiohttp_client(create_app(config, hub, TOKEN))
+    link = link_of(client.server.app)
+    async with client.ws_connect(WS, headers=A, autoping=False) as ws:
+        await ws.ping(b"hello")
+        msg = await ws.receive(timeout=5)
+        assert msg.type == WSMsgType.PONG and msg.data == b"hello"
+        for _ in range(100):
+            await ws.ping(b"x")
+        ended = False
+        while not ended:
+            msg = await ws.receive(timeout=5)
+            ended = msg.type in (WSMsgType.CLOSE, WSMsgType.CLOSED, WSMsgType.CLOSING, WSMsgType.ERROR)
+    assert link.counters["socket_floods_closed"] == 1
+
+
+async def test_a_stop_sent_as_a_binary_frame_is_applied(client, hub, clock):
+    """A Swift client sending JSONEncoder's Data as .data(...) sends binary frames: they carry commands too."""
+    async with client.ws_connect(WS, headers=A) as ws:
+        steer = Steering(ws)
+        assert (await steer.send(command="up"))["status"] == 200
+        await ws.send_bytes(b'{"type": "motion", "id": 9, "command": "stop"}')
+        reply = await ws.receive_json(timeout=5)
+        assert reply["id"] == 9 and reply["status"] == 200 and hub.motion.active(clock.now) is None

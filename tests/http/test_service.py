@@ -253,3 +253,37 @@ async def test_a_taken_port_reads_failed_or_starting_never_ok_between_restarts(c
     assert supervisor.records["http"].crashes >= 2
     assert "ok" not in states and "failed" in states, states
     assert "http: ok" not in caplog.text
+
+
+async def test_one_address_cannot_hold_every_connection_and_a_stop_still_gets_in() -> None:
+    """Connections that never finish a request each hold a descriptor: past max_connections_per_address from one
+    address more are closed at once, and another client's stop is served (a review exhausted 4,096 descriptors)."""
+    service, task = await _started(_loopback(max_connections=64, max_connections_per_address=8))
+    port = service.port
+    hogs = []
+    try:
+        for _ in range(12):  # half a request line each, never finished
+            reader, writer = await asyncio.open_connection("127.0.0.1", port)
+            writer.write(b"GET /api/v1/state HTTP/1.1\r\nHost: x\r\n")
+            hogs.append((reader, writer))
+        await asyncio.sleep(0.2)
+
+        async def closed_by_server(reader: asyncio.StreamReader) -> bool:
+            try:
+                return await asyncio.wait_for(reader.read(1), 0.5) == b""
+            except ConnectionError:
+                return True
+            except asyncio.TimeoutError:
+                return False  # still open, waiting for the rest of its request
+
+        refused = [r for r, _ in hogs if await closed_by_server(r)]
+        assert len(refused) == 12 - 8 and service.connection_limits.refused == 4
+        assert service.health()["connections"] == 8
+    finally:
+        for _, writer in hogs:
+            writer.close()
+    await asyncio.sleep(0.2)
+    async with aiohttp.ClientSession() as session:  # the hogs gone, the address is served again
+        async with session.post(f"http://127.0.0.1:{port}/api/v1/motion", json={"command": "stop"}, headers=AUTH) as resp:
+            assert resp.status == 200
+    await _stopped(service, task)
