@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
 import tomllib
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -130,14 +134,68 @@ def test_an_aborted_flight_leaves_the_motors_neutral(how: str) -> None:
     assert run.board.motors_us[:4] == m.NEUTRAL_MOTORS_US[:4]
 
 
-def test_on_noise_free_sensors_in_still_air_every_parameter_but_the_drags_split_is_within_10_percent() -> None:
+def _noise_free() -> dict[str, Any]:
+    cal = calibrate_sim(CONFIG, drafts=False, sensors=EXACT_SENSORS)
+    return {"errors": recovery_errors(cal.fit, BlimpParams()), "lag": (cal.config.motor_lag_s, cal.fit.value("motor_lag_s"))}
+
+
+def _random_plant(index: int) -> dict[str, Any]:
+    plant = plant_set(index + 1)[index]
+    cal = calibrate_sim(CONFIG, plant.blimp)
+    return {"errors": recovery_errors(cal.fit, plant.blimp), "goals": tight_goals(cal.config, plant.blimp),
+            "uncertainty": cal.config.plant_uncertainty, "describe": describe(plant)}  # fmt: skip
+
+
+def _corner_after_calibration() -> dict[str, Any]:
+    from feelium.lab.flight.safety import safety_flight
+
+    plant = plant_set(4)[3]
+    return {"name": plant.name, "result": safety_flight(calibrate_sim(CONFIG, plant.blimp).config, plant)}
+
+
+# Each calibration flies minutes of simulated flight; independent and seeded, they run on every core at once
+# (the same results as one after another).
+HEAVY: dict[str, tuple[Any, ...]] = {
+    "noise-free": (_noise_free,), "random-16": (_random_plant, 16), "random-17": (_random_plant, 17),
+    "corner-mtDL": (_corner_after_calibration,),
+}  # fmt: skip
+
+
+def _run(job: tuple[Any, ...]) -> Any:
+    return job[0](*job[1:])
+
+
+@pytest.fixture(scope="module")
+def heavy(request: pytest.FixtureRequest) -> dict[str, Any]:
+    """The heavy calibrations the selected tests need, flown in parallel."""
+    wanted = sorted({name for item in request.session.items if item.module is request.module
+                     for name in getattr(item.function, "heavy", ())})  # fmt: skip
+    workers = max(1, min(len(os.sched_getaffinity(0)), 4, len(wanted)))
+    if workers == 1:
+        return {name: _run(HEAVY[name]) for name in wanted}
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return dict(zip(wanted, pool.map(_run, [HEAVY[name] for name in wanted])))
+
+
+def needs(*names: str) -> Any:
+    """Mark a test with the heavy calibrations it reads from the ``heavy`` fixture."""
+
+    def mark(test: Any) -> Any:
+        test.heavy = names
+        return test
+
+    return mark
+
+
+@needs("noise-free")
+def test_on_noise_free_sensors_in_still_air_every_parameter_but_the_drags_split_is_within_10_percent(heavy) -> None:  # type: ignore[no-untyped-def]
     """The paper's blimp, sensors without noise (the rangefinder still reports whole cm, the gyro whole deg/s),
     no drafts: the method itself is unbiased to 10 %. The linear drag, a few percent of the force at these
     speeds, is the exception (its quadratic partner and the drag at cruise are checked instead)."""
-    cal = calibrate_sim(CONFIG, drafts=False, sensors=EXACT_SENSORS)
-    errors = recovery_errors(cal.fit, BlimpParams())
+    errors = heavy["noise-free"]["errors"]
     assert {k: round(e, 3) for k, e in errors.items() if abs(e) > 0.10 and k not in ("linear_drag_n_per_m_s", "yaw_linear_drag")} == {}
-    assert cal.config.motor_lag_s == pytest.approx(cal.fit.value("motor_lag_s"), abs=1e-4)  # written for the controller
+    written, fitted = heavy["noise-free"]["lag"]
+    assert written == pytest.approx(fitted, abs=1e-4)  # written for the controller
 
 
 # The first two random plants of the set (16 and 17; the corners are the box's extremes, the bench reports all).
@@ -151,14 +209,14 @@ RECOVERED = ("heave_mass_kg", "vertical_thrust_n")
 # surge's box: cruise 0.97 (0.59 with one uncertainty for all axes).
 @pytest.mark.slow
 @pytest.mark.parametrize("index", [16, 17])
-def test_on_randomised_plants_the_buoyancy_scaled_parameters_are_recovered_and_the_tight_goals_met(index: int) -> None:
-    plant = plant_set(index + 1)[index]
-    cal = calibrate_sim(CONFIG, plant.blimp)
-    errors = recovery_errors(cal.fit, plant.blimp)
-    assert {k: round(errors[k], 3) for k in RECOVERED if abs(errors[k]) > 0.10} == {}, describe(plant)
-    goals = tight_goals(cal.config, plant.blimp)
+@needs("random-16", "random-17")
+def test_on_randomised_plants_the_buoyancy_scaled_parameters_are_recovered_and_the_tight_goals_met(index: int, heavy) -> None:  # type: ignore[no-untyped-def]
+    done = heavy[f"random-{index}"]
+    errors = done["errors"]
+    assert {k: round(errors[k], 3) for k in RECOVERED if abs(errors[k]) > 0.10} == {}, done["describe"]
+    goals = done["goals"]
     assert goals["altitude_rms_m"] <= 0.03 and goals["heading_rms_deg"] <= 3.0
-    assert abs(goals["cruise_fraction"] - 1.0) <= 0.10, (goals, cal.config.plant_uncertainty)
+    assert abs(goals["cruise_fraction"] - 1.0) <= 0.10, (goals, done["uncertainty"])
 
 
 @pytest.mark.slow
@@ -177,16 +235,16 @@ def test_cli_on_the_simulator_writes_a_loadable_config_a_report_and_plots(tmp_pa
 
 
 @pytest.mark.slow
-def test_with_its_fitted_config_the_light_draughty_corner_stops_a_turn_in_time() -> None:
+@needs("corner-mtDL")
+def test_with_its_fitted_config_the_light_draughty_corner_stops_a_turn_in_time(heavy) -> None:  # type: ignore[no-untyped-def]
     """corner-mtDL (light, weak, high drag, long lag) with its fitted config: after a turn a draft drifted the
     body backwards past 5 cm/s while the hover band, deciding on the model-led estimate, saw -2 cm/s, and the
     stop took 2.28 s. The band now decides on the flow (`SurgeEstimate.decision_speed`): 0.48 s, measured.
     Its hover reversals (0.6 /s, measured) are held to no worse; the goal (0.5) is not met yet."""
-    from feelium.lab.flight.safety import GOALS, safety_flight
+    from feelium.lab.flight.safety import GOALS
 
-    plant = plant_set(4)[3]
-    assert plant.name == "corner-mtDL"
-    result = safety_flight(calibrate_sim(CONFIG, plant.blimp).config, plant)
+    assert heavy["corner-mtDL"]["name"] == "corner-mtDL"
+    result = heavy["corner-mtDL"]["result"]
     assert result.stop_s <= GOALS["stop_s"] and result.lapse_s <= GOALS["lapse_s"], result.manoeuvres
     assert result.speed_peak_fraction <= GOALS["speed_peak_fraction"]
     assert result.turn_peak_fraction <= GOALS["turn_peak_fraction"]

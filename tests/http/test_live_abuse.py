@@ -16,7 +16,8 @@ pytestmark = pytest.mark.slow
 
 async def test_a_flood_then_stop_from_the_flooder_and_from_another_client(live):
     a, b = live.auth | {"X-Feelium-Client": "flooder"}, live.auth | {"X-Feelium-Client": "bystander"}
-    async with aiohttp.ClientSession() as session:
+    # 32 connections at most: past max_connections_per_address (64) the daemon would close them, as it must
+    async with aiohttp.ClientSession(connector=aiohttp.TCPConnector(limit=32)) as session:
 
         async def post(headers: dict[str, str], command: str) -> int:
             async with session.post(f"{live.api}/motion", json={"command": command}, headers=headers) as resp:
