@@ -9,6 +9,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
 from feelium.cameras.base import Camera, Frame
+from feelium.priority import lower_current_thread
 
 T = TypeVar("T")
 
@@ -20,10 +21,13 @@ class Worker:
     next frame, or another service's slow device call, must never make a
     frame wait for a free thread; and one thread per job keeps memory flat
     (each thread that allocates gets its own malloc arena).
+
+    Every such thread moves pixels, so it runs at the bulk-work priority (:mod:`feelium.priority`): when the
+    CPU runs short, flight and the headset's replies on the event loop come first.
     """
 
     def __init__(self, name: str) -> None:
-        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix=name)
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix=name, initializer=lower_current_thread)
 
     async def call(self, fn: Callable[..., T], *args: Any) -> T:
         return await asyncio.get_running_loop().run_in_executor(self._executor, fn, *args)

@@ -25,6 +25,9 @@ from feelium.thermal.config import ThermalConfig
 from feelium.touch.config import TouchConfig
 
 
+PI_BACKGROUND_NICE = 10  # CFS weight 110 against 1024: the flight loop's thread gets ~9 of 10 parts of a contended core
+
+
 @dataclass(frozen=True)
 class DaemonConfig:
     """Process-wide settings: logging and supervision."""
@@ -58,6 +61,14 @@ class DaemonConfig:
     )
     malloc_arenas: int = setting(
         2, "glibc malloc arenas for the whole process (fewer = less resident memory); 0 = glibc's default.", min=0, max=64
+    )
+    background_nice: int = setting(
+        -1,
+        "Nice steps added to the threads that only move pixels (touch pipeline, cameras, projector rendering, JPEG): "
+        "when the CPU runs short, flight and the headset's stop on the event loop come first. -1 = auto: "
+        f"{PI_BACKGROUND_NICE} on a Raspberry Pi, 0 (one priority) elsewhere.",
+        min=-1,
+        max=19,
     )
     malloc_mmap_threshold_kb: int = setting(
         128,

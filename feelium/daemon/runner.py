@@ -24,13 +24,14 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, get_args, get_type_hints
 
-from feelium.daemon.config import Config
+from feelium.daemon.config import PI_BACKGROUND_NICE, Config
 from feelium.daemon.assembly import SERVICES, ServiceBuilder, build_services
 from feelium.daemon.backends import backend_names, on_raspberry_pi, resolve_auto, simulated_parts
 from feelium.daemon.memory import tune_malloc
 from feelium.daemon.sdnotify import Notifier
 from feelium.daemon.supervisor import Supervisor
 from feelium.hub import Hub
+from feelium.priority import background_nice, lower_current_thread, set_background_nice
 from feelium.service import Service
 from feelium.settings import ConfigError
 
@@ -179,12 +180,22 @@ def _install_signals(loop: asyncio.AbstractEventLoop, stop: asyncio.Event) -> No
         loop.add_signal_handler(sig, on_signal, sig)
 
 
+def background_nice_here(setting: int, on_pi: bool) -> int:
+    """``[daemon] background_nice`` resolved: ``-1`` (auto) is the Pi's value on a Pi and 0 elsewhere, where a
+    laptop's other programs would otherwise starve the pixel threads of a daemon run for development or tests."""
+    if setting >= 0:
+        return setting
+    return PI_BACKGROUND_NICE if on_pi else 0
+
+
 def run_process(config: Config) -> int:
     """The whole process lifetime; exits within ``shutdown_budget_s`` (+ a little) of SIGTERM/SIGINT."""
     applied = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)  # before any thread starts
     log.debug("malloc tuning: %s", applied or "glibc defaults")
     loop = asyncio.new_event_loop()
-    executor = ThreadPoolExecutor(max_workers=WORKER_THREADS, thread_name_prefix="feelium-worker")
+    set_background_nice(background_nice_here(config.daemon.background_nice, on_raspberry_pi()))  # before the bulk-work threads start
+    log.debug("pixel threads run %d nice steps below the flight loop", background_nice())
+    executor = ThreadPoolExecutor(max_workers=WORKER_THREADS, thread_name_prefix="feelium-worker", initializer=lower_current_thread)
     loop.set_default_executor(executor)
     stop = asyncio.Event()
     notifier = Notifier()

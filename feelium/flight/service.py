@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.client import MspClient
 from feelium.flight.config import FlightConfig
+from feelium.priority import name_current_thread
 from feelium.flight.controller import ControlOutput, FlightController
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
@@ -166,7 +167,7 @@ class FlightService:
     async def run(self) -> None:
         period = 1.0 / self.config.rate_hz
         events = self.hub.bus.subscribe(types=(TouchEvent, InteractionEvent), maxsize=64)
-        serial = self._serial = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flight-serial")
+        serial = self._serial = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flight-serial", initializer=name_current_thread)
         try:
             next_t = self.hub.clock()
             while not self.stopping:

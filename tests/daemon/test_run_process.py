@@ -106,3 +106,40 @@ def test_a_config_error_names_the_key_and_exits_1(tmp_path):
     assert proc.returncode == 1
     assert "rear_camera.backend" in proc.stderr and "bad.toml" in proc.stderr
 
+
+
+def _threads_nice(pid: int) -> dict[str, set[int]]:
+    """Each thread name's nice values, from /proc (field 19 of a task's stat, after the parenthesised name);
+    the main thread (the event loop's, task id = pid) as ``"main"``."""
+    found: dict[str, set[int]] = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            stat = (task / "stat").read_text()
+        except FileNotFoundError:
+            continue  # a thread that ended meanwhile
+        name = "main" if task.name == str(pid) else re.sub(r"_\d*$", "", stat[stat.index("(") + 1 : stat.rindex(")")])
+        found.setdefault(name, set()).add(int(stat[stat.rindex(")") + 2 :].split()[16]))
+    return found
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads thread priorities from /proc (Linux)")
+def test_pixel_threads_run_nicer_than_the_flight_loop_and_its_serial_thread(tmp_path):
+    recording = write_press_recording(tmp_path / "press", seconds=1.0)
+    config = tmp_path / "feelium.toml"
+    config.write_text("[http]\nport = 0\n[daemon]\nstatus_interval_s = 0.5\nbackground_nice = 6\n")
+    proc = _start(["--config", str(config), "--replay", str(recording)], tmp_path)
+    try:
+        _wait_for_line(proc, "feelium running")
+        _wait_for_line(proc, "touch 1")  # frames flow: the camera and pipeline threads exist
+        base = os.getpriority(os.PRIO_PROCESS, proc.pid)
+        threads = _threads_nice(proc.pid)
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=10)
+    bulk = min(19, base + 6)
+    assert threads["main"] == {base}, threads  # the event loop: flight control, stop, every reply
+    assert threads["flight-serial"] == {base}, threads
+    assert threads["touch-pipeline"] == {bulk}, threads
+    assert threads["rear-camera"] == {bulk}, threads
+    assert threads["feelium-worker"] == {bulk}, threads

@@ -32,6 +32,8 @@ from pathlib import Path
 from types import CodeType
 from typing import Any
 
+from feelium.priority import lower_current_thread
+
 SERVICE_PACKAGES = ("touch", "front_camera", "thermal", "audio", "projector", "flight", "http")
 THREAD_SERVICES = {"rear-camera": "touch", "touch-pipeline": "touch", "front-camera": "front_camera", "flight-serial": "flight"}
 HTTP_LIBRARIES = ("aiohttp", "yarl", "multidict")
@@ -105,7 +107,7 @@ class ChargingExecutor(ThreadPoolExecutor):
     """The loop's default executor, charging each job's thread CPU time to the service whose code it runs."""
 
     def __init__(self, ledger: Ledger, max_workers: int) -> None:
-        super().__init__(max_workers=max_workers, thread_name_prefix=POOL_PREFIX)
+        super().__init__(max_workers=max_workers, thread_name_prefix=POOL_PREFIX, initializer=lower_current_thread)
         self.ledger = ledger
 
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future[Any]:

@@ -36,9 +36,10 @@ import numpy as np
 from feelium.daemon.assembly import SERVICES, load_projected_light, load_projector_annotation
 from feelium.daemon.config import Config, load_config
 from feelium.daemon.memory import tune_malloc
-from feelium.daemon.runner import WORKER_THREADS, run_daemon, with_overrides
+from feelium.daemon.runner import WORKER_THREADS, background_nice_here, run_daemon, with_overrides
 from feelium.daemon.sdnotify import Notifier
 from feelium.hub import Hub
+from feelium.priority import background_nice, set_background_nice
 from feelium.lab.daemon.attribution import ChargingExecutor, Ledger, callback_overhead_s, charge, charge_loop_callbacks, thread_cpu
 from feelium.lab.daemon.bench import memory_mb
 from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_frames
@@ -277,6 +278,7 @@ def bench_board(
         config = bench_config(config, rear_fps, port, calibration)
         front_fps = front_fps or config.front_camera.fps
         malloc = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
+        set_background_nice(background_nice_here(config.daemon.background_nice, on_pi=True))  # as `feelium run` does on the Pi
         cameras = prepare(config, front_fps)
         load_before = os.getloadavg()[0]
         measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
@@ -294,6 +296,7 @@ def bench_board(
         "cpus": os.cpu_count(),
         "load_average_1min_before_after": [round(load_before, 2), round(load_after, 2)],
         "malloc": malloc or "glibc defaults",
+        "background_nice": background_nice(),
         "rear": {"size": [config.touch.width, config.touch.height], "fps": config.rear_camera.fps},
         "front": {"size": [config.front_camera.width, config.front_camera.height], "fps": front_fps},
         "process_cpu_ms_per_s": round(1000.0 * measured["cpu_s"] / wall, 1),
