@@ -49,6 +49,11 @@ def register(registry: CommandRegistry) -> None:
     bench.add_argument("--scale", type=float, default=0.1, help="simulator scale when simulating")
     bench.add_argument("--json", metavar="FILE", help="write the results as JSON here")
     bench.add_argument("--config", help="TOML config file (its [touch] section is the starting point)")
+    bench.add_argument(
+        "--by-condition",
+        action="store_true",
+        help="also one table per condition (meta.generator.condition, or the dataset's first folder), as eval --by-condition",
+    )
 
 
 def _replay(args: argparse.Namespace) -> int:

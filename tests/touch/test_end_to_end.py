@@ -8,6 +8,8 @@ broken stage would miss by far, not tuned to this seed.
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from dataclasses import replace
 
 import pytest
@@ -112,3 +114,23 @@ def test_bench_compares_every_resolution_with_the_plain_baseline(dataset):
     # The plain baseline is the same algorithm: at full resolution it must score like the fast path.
     assert rows[0]["f1"] == pytest.approx(rows[1]["f1"], abs=0.15)
     json.dumps(report)  # the report is plain JSON
+
+
+def test_bench_by_condition_splits_the_same_frames_and_scores_by_the_datasets_folders(dataset, tmp_path, capsys):
+    tiny = tmp_path / "tiny"
+    for condition, name in (("lit", "s1/s1-tap-001"), ("dim", "s1/s1-hover-001")):
+        shutil.copytree(dataset / name, tiny / condition / name.split("/")[1], copy_function=os.link)
+    out = tmp_path / "bench.json"
+    assert main(["bench", "touch", "--dataset", str(tiny), "--by-condition", "--json", str(out)]) == 0
+    assert "condition dim:" in capsys.readouterr().out
+    report = json.loads(out.read_text())
+    conditions = report["conditions"]
+    assert sorted(conditions) == ["dim", "lit"]
+    for whole, *parts in zip(report["variants"], conditions["dim"]["variants"], conditions["lit"]["variants"]):
+        assert whole["frames"] == sum(p["frames"] for p in parts) > 0  # every frame in exactly one condition
+        median = whole["cpu_ms_per_frame"]["median"]
+        assert whole["pi_fps_at_10x"] == pytest.approx(100.0 / median, abs=0.05)
+    dim = conditions["dim"]["variants"][2]  # the daemon's 320x240
+    lit = conditions["lit"]["variants"][2]
+    assert lit["recall"] == 1.0  # the tap, found
+    assert dim["recall"] is None and dim["precision"] is None  # the hover alone: nothing to find, nothing found

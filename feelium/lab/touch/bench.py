@@ -10,6 +10,12 @@ Time is per frame, pipeline only (decoding excluded), on one core (OpenCV's
 thread pool is set to one thread for the run): the calling thread's CPU time
 is the headline figure, because it stays meaningful on a loaded machine; wall
 time is reported beside it.
+
+With ``--by-condition`` (datasets from ``feelium simulate condition``, or laid
+out one folder per condition) the same table is also given for each
+condition's recordings alone, with what the median frame would leave of the
+board's 30 fps at the Pi projection's 10x (issue 17: the extra work of the
+projected-light prediction must keep the touch loop at the camera's rate).
 """
 
 from __future__ import annotations
@@ -27,7 +33,8 @@ import numpy as np
 
 from feelium.daemon.config import load_config
 from feelium.recording import Recording, find_recordings
-from feelium.lab.touch.commands import scoring_input
+from feelium.lab.daemon.projection import PI_FACTOR
+from feelium.lab.touch.commands import condition_of, scoring_input
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
 from feelium.lab.touch.replay import replay_recording
@@ -46,6 +53,18 @@ class Variant:
     wall: list[np.ndarray] = field(default_factory=list)
     trials: list[TrialData] = field(default_factory=list)
     clips: list[ClipData] = field(default_factory=list)
+    by_condition: dict[str, Variant] = field(default_factory=dict)
+
+    def add(self, cpu: np.ndarray, wall: np.ndarray, item: TrialData | ClipData) -> None:
+        self.cpu.append(cpu)
+        self.wall.append(wall)
+        (self.clips if isinstance(item, ClipData) else self.trials).append(item)  # type: ignore[arg-type]
+
+    def of_condition(self, condition: str) -> Variant:
+        """The same variant holding one condition's recordings only (made on first use)."""
+        if condition not in self.by_condition:
+            self.by_condition[condition] = Variant(self.name, self.config, self.plain)
+        return self.by_condition[condition]
 
 
 def build_variants(config: TouchConfig, resolutions: tuple[tuple[int, int], ...] = RESOLUTIONS) -> list[Variant]:
@@ -56,22 +75,28 @@ def build_variants(config: TouchConfig, resolutions: tuple[tuple[int, int], ...]
     return variants
 
 
-def run_variants(root: Path, variants: list[Variant], *, progress: bool = False) -> None:
-    """Replay every labelled recording under ``root`` through every variant (decoded once, interleaved)."""
+def run_variants(root: Path, variants: list[Variant], *, progress: bool = False, by_condition: bool = False) -> dict[str, tuple[int, int]]:
+    """Replay every labelled recording under ``root`` through every variant (decoded once, interleaved).
+
+    Returns each condition's camera size (one entry, ``"."``, without ``by_condition``)."""
     paths = find_recordings(root)
+    sizes: dict[str, tuple[int, int]] = {}
     for index, path in enumerate(paths, start=1):
         recording = Recording(path)
         if recording.labels is None:
             continue
+        condition = condition_of(root, recording) if by_condition else "."
+        sizes.setdefault(condition, (recording.meta.camera.width, recording.meta.camera.height))
         frames = list(recording.frames(gray=True))
         for variant in variants:
             result = replay_recording(recording, variant.config, plain=variant.plain, frames=iter(frames))
-            variant.cpu.append(result.cpu_seconds_per_frame)
-            variant.wall.append(result.seconds_per_frame)
             item = scoring_input(root, result)
-            (variant.clips if isinstance(item, ClipData) else variant.trials).append(item)  # type: ignore[arg-type]
+            variant.add(result.cpu_seconds_per_frame, result.seconds_per_frame, item)
+            if by_condition:
+                variant.of_condition(condition).add(result.cpu_seconds_per_frame, result.seconds_per_frame, item)
         if progress:
             print(f"[{index}/{len(paths)}] {path}", file=sys.stderr)
+    return sizes
 
 
 def _ms(values: list[np.ndarray]) -> dict[str, float | None]:
@@ -82,7 +107,9 @@ def _ms(values: list[np.ndarray]) -> dict[str, float | None]:
 
 
 def summarise(root: Path, variants: list[Variant], frame_size: tuple[int, int]) -> dict[str, Any]:
-    """The bench report: per variant, ms per frame (CPU and wall), F1, localisation, anchoring AUC, speed-up."""
+    """The bench report: per variant, ms per frame (CPU and wall), F1, localisation, anchoring AUC, speed-up, and
+    the frame rate one Pi core would hold at the projection's factor (``pi_fps_at_10x``: the camera's 30 needs
+    >= 30)."""
     rows = []
     for variant in variants:
         if variant.plain:
@@ -108,6 +135,8 @@ def summarise(root: Path, variants: list[Variant], frame_size: tuple[int, int]) 
                 "anchoring_auc": report["sustained"]["auc"],
             }
         )
+        median = rows[-1]["cpu_ms_per_frame"]["median"]
+        rows[-1]["pi_fps_at_10x"] = round(1000.0 / (PI_FACTOR * median), 1) if median else None
     base = rows[0]["cpu_ms_per_frame"]["median"]
     for row in rows:
         median = row["cpu_ms_per_frame"]["median"]
@@ -129,7 +158,7 @@ def _f(value: Any, fmt: str) -> str:
 def format_table(report: dict[str, Any]) -> str:
     head = (
         f"{'variant':<26} {'work size':>9} {'cpu ms med':>10} {'cpu ms p95':>10} {'wall med':>8} "
-        f"{'speedup':>7} {'F1':>6} {'loc px med':>10} {'AUC':>6}"
+        f"{'speedup':>7} {'F1':>6} {'loc px med':>10} {'AUC':>6} {'Pi fps':>6}"
     )
     lines = [f"dataset: {report['dataset']} (OpenCV threads: {report['opencv_threads']})", head, "-" * len(head)]
     for row in report["variants"]:
@@ -137,8 +166,11 @@ def format_table(report: dict[str, Any]) -> str:
         lines.append(
             f"{row['variant']:<26} {row['width']:>4}x{row['height']:<4} {_f(cpu['median'], '10.3f')} "
             f"{_f(cpu['p95'], '10.3f')} {_f(wall['median'], '8.3f')} {_f(row['speedup_vs_plain'], '6.1f')}x "
-            f"{_f(row['f1'], '6.3f')} {_f(row['localisation_error_px_median'], '10.2f')} {_f(row['anchoring_auc'], '6.3f')}"
+            f"{_f(row['f1'], '6.3f')} {_f(row['localisation_error_px_median'], '10.2f')} {_f(row['anchoring_auc'], '6.3f')} "
+            f"{_f(row.get('pi_fps_at_10x'), '6.1f')}"
         )
+    for name, sub in report.get("conditions", {}).items():
+        lines += ["", f"condition {name}:", *format_table(sub).splitlines()[1:]]
     return "\n".join(lines)
 
 
@@ -164,10 +196,17 @@ def _bench_on(root: Path, config: TouchConfig, args: argparse.Namespace) -> int:
     if not paths:
         print(f"feelium bench touch: {root} holds no recording", file=sys.stderr)
         return 1
-    camera = Recording(paths[0]).meta.camera
+    by_condition = getattr(args, "by_condition", False)
     variants = build_variants(config)
-    run_variants(root, variants, progress=getattr(args, "progress", False))
-    report = summarise(root, variants, (camera.width, camera.height))
+    sizes = run_variants(root, variants, progress=getattr(args, "progress", False), by_condition=by_condition)
+    if not sizes:
+        print(f"feelium bench touch: {root} holds no labelled recording", file=sys.stderr)
+        return 1
+    report = summarise(root, variants, next(iter(sizes.values())))
+    if by_condition:
+        report["conditions"] = {
+            name: summarise(root, [v.by_condition[name] for v in variants], sizes[name]) for name in sorted(sizes)
+        }
     print(format_table(report))
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
