@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from feelium.daemon.config import DaemonConfig
 from feelium.daemon.supervisor import Supervisor, backoff_delay
+from feelium.daemon import supervisor as supervisor_module
 
 from .fakes import CrashingService, StubbornService, TickingService
 
@@ -99,8 +100,11 @@ async def test_a_service_s_own_condition_and_last_error_are_kept():
     await supervisor.shutdown()
 
 
-async def test_a_part_that_fails_to_build_is_retried_with_backoff_and_shown_failed_meanwhile():
+async def test_a_part_that_fails_to_build_is_retried_with_backoff_and_shown_failed_meanwhile(monkeypatch):
     attempts: list[float] = []
+    delays: list[float] = []  # what the supervisor scheduled: wall-clock gaps only bound them from below on a busy machine
+    real_delay = supervisor_module.backoff_delay
+    monkeypatch.setattr(supervisor_module, "backoff_delay", lambda *a: delays.append(real_delay(*a)) or delays[-1])
 
     def build():
         attempts.append(time.monotonic())
@@ -116,7 +120,8 @@ async def test_a_part_that_fails_to_build_is_retried_with_backoff_and_shown_fail
     assert entry["state"] == "failed" and "no /dev/fb0" in entry["reason"] and "retrying in" in entry["reason"]
     await _until(lambda: "projector" in supervisor.records and supervisor.records["projector"].service.ticks > 0)
     gaps = [b - a for a, b in zip(attempts, attempts[1:])]
-    assert len(attempts) == 3 and gaps[1] > gaps[0] * 1.5  # the delay doubles
+    assert len(attempts) == 3 and delays[1] == 2 * delays[0] and delays[2] == 2 * delays[1]  # the delay doubles
+    assert all(gap >= delay - 1e-3 for gap, delay in zip(gaps, delays[1:]))  # and each retry waited it out
     report = supervisor.report()
     assert report["services"]["projector"]["state"] == "ok" and report["status"] == "ok"
     assert report["services"]["projector"]["last_problem"].startswith("cannot build: OSError: no /dev/fb0")
