@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from feelium.flight.config import FlightConfig
 from feelium.flight.estimators import AltitudeObserver, SurgeEstimate, ThrustModel, YawEstimate
 from feelium.flight.loops import AltitudeLoop, HeadingLoop, SurgeLoop
-from feelium.flight.reversal import ReversalGuard, calm
+from feelium.flight.reversal import PairThrust, ReversalGuard, calm
 from feelium.flight.mixer import NEUTRAL, Mixer, MixerGeometry, thrust_for_command, to_microseconds
 from feelium.flight.setpoint import Setpoint
 from feelium.flight.telemetry import Telemetry
@@ -68,7 +68,7 @@ class FlightController:
         self.altitude_loop = AltitudeLoop(config, self.mixer)
         self.heading_loop = HeadingLoop(config, self.mixer)
         self.surge_loop = SurgeLoop(config, self.mixer)
-        self.reversals = ReversalGuard()
+        self.reversals = ReversalGuard(PairThrust(config.horizontal_thrust_n, config.horizontal_reverse_ratio, config.motor_deadband))
         self._last_t: float | None = None
         self._altitude_failsafe = False
         self._telemetry_failsafe = False

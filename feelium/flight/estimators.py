@@ -18,6 +18,9 @@ from feelium.flight.config import FlightConfig
 from feelium.flight.effectiveness import Effectiveness
 
 YAW_RATE_TAU_S = 0.06
+# The heading between the board's whole degrees: the gyro carries it, the board's heading pulls it back
+# over this long (its rounding, +-0.5 deg, averages out; a gyro bias cannot build up).
+FINE_HEADING_TAU_S = 1.0
 # Age of a rangefinder reading when the controller gets it: a VL53L1X-class sensor ranging at 50 Hz
 # reports the middle of its 20 ms window, plus the transfer.
 RANGE_LATENCY_S = 0.015
@@ -260,11 +263,18 @@ class AltitudeObserver:
 
 class YawEstimate:
     """Heading (the board's, gyro-integrated) and yaw rate (gyro, lightly filtered), plus how strongly
-    the body answers a yaw torque."""
+    the body answers a yaw torque.
+
+    The board reports whole degrees. ``fine_heading`` is the gyro's integral pulled toward the board's
+    heading over ``FINE_HEADING_TAU_S``: smooth where the board's steps by a degree. The hover heading
+    loop's stiffness acts on it; on the board's steps, a degree's worth of stiffness against the damping
+    flipped the push's sign several times within 0.3 s (corner-mtDL, session 10).
+    """
 
     def __init__(self, config: FlightConfig) -> None:
         self.c = config
         self.heading: float | None = None
+        self.fine_heading: float | None = None
         self.rate_dps = 0.0
         self.last_heading_t: float | None = None
         low, high = effectiveness_bounds(config.uncertainty("yaw"), reverse=False)
@@ -272,9 +282,16 @@ class YawEstimate:
                                            confirming_change=YAW_CONFIRMING_CHANGE_RAD_S)
 
     def update(self, t: float, dt: float, heading_deg: float | None, gyro_dps: float | None, torque_mean: float) -> None:
+        if gyro_dps is not None and self.fine_heading is not None:
+            self.fine_heading = (self.fine_heading + gyro_dps * dt) % 360.0
         if heading_deg is not None:
             self.heading = heading_deg
             self.last_heading_t = t
+            if self.fine_heading is None:
+                self.fine_heading = heading_deg
+            else:
+                miss = (heading_deg - self.fine_heading + 180.0) % 360.0 - 180.0
+                self.fine_heading = (self.fine_heading + miss * min(1.0, dt / FINE_HEADING_TAU_S)) % 360.0
         push = torque_mean / self.c.yaw_inertia_kg_m2
         if gyro_dps is not None:
             self.rate_dps += (gyro_dps - self.rate_dps) * min(1.0, dt / YAW_RATE_TAU_S)

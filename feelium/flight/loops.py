@@ -264,7 +264,9 @@ class HeadingLoop:
                 self.target = sp.heading_deg % 360.0
             ref.advance(wrap_deg(self.target - ref.value), dt)
             ref.value %= 360.0
-        error_deg = wrap_deg(ref.value - est.heading)
+        # In hover the stiffness acts on the gyro-smoothed heading: the board's whole degrees made the
+        # stiffness jump by a degree's worth against the damping, flipping the push's sign (docs/flight-robustness.md).
+        error_deg = wrap_deg(ref.value - (est.fine_heading if hover and est.fine_heading is not None else est.heading))
         self.hovering = hover
         if hover:
             tolerance = c.hover_heading_tolerance_deg

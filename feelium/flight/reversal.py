@@ -14,17 +14,44 @@ at any command, brake or stop, the guard steps aside at once: a correction
 that matters always has full authority. (Holding a reversal while the body is
 still moving was tried: holding one motor of the pair at neutral unbalances the
 yaw torque, and a heavy blimp's stop after a lapsed turn took 1.8 s, not 0.9.)
+
+While one motor of the pair waits at neutral, the other is rebalanced so that
+the pair keeps the yaw torque the loops asked for, and gives up the surge push
+instead (``PairThrust``). Holding one motor alone turned a surge correction into
+a yaw kick: on corner-mTdL a hover correction of (+0.27, held) swung the yaw
+rate from -0.9 to +3.4 deg/s, past the calm threshold, and the heading loop's
+answer reversed both motors (session 10). In calm hover the speed is under
+4.5 cm/s, so a surge correction that waits costs little; a yaw kick costs
+reversals. Yaw wins over surge, as in the mixer.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+
+from feelium.flight.mixer import command_for_thrust, thrust_for_command
 
 MIN_INTERVAL_S = 2.5  # at most one reversal per 2.5 s per motor: 0.4/s, under the 0.5/s goal
 # Calm: slower than this, the body counts as still (inside the stop goal's 5 cm/s and 3 deg/s, with a margin).
 CALM_SPEED_M_S = 0.045
 CALM_YAW_DPS = 2.5
 SETTLE_S = 3.0  # after a command or a brake, this long with full authority first
+
+
+@dataclass(frozen=True)
+class PairThrust:
+    """The horizontal pair's thrust curve as the config describes it: command <-> force (N)."""
+
+    max_thrust_n: float
+    reverse_ratio: float
+    deadband: float
+
+    def force(self, command: float) -> float:
+        return thrust_for_command(command, self.max_thrust_n, self.reverse_ratio, self.deadband)
+
+    def command(self, force_n: float) -> float:
+        return command_for_thrust(force_n, self.max_thrust_n, self.reverse_ratio, self.deadband)
 
 
 def calm(speed_m_s: float, yaw_rate_dps: float) -> bool:
@@ -35,7 +62,9 @@ def calm(speed_m_s: float, yaw_rate_dps: float) -> bool:
 class ReversalGuard:
     """Per horizontal motor: the direction it last spun and when it took that direction."""
 
-    def __init__(self) -> None:
+    def __init__(self, pair: PairThrust | None = None) -> None:
+        """``pair``: the thrust curve that rebalances a held motor's partner (``None``: the partner is left as it is)."""
+        self._pair = pair
         self._sign = [0.0, 0.0]  # the horizontal pair: the mixer's first two motors
         self._since = [-math.inf, -math.inf]
         self._hovering_since = math.inf
@@ -65,4 +94,15 @@ class ReversalGuard:
             self._sign[i], self._since[i] = wanted, t
         if out[:2] != list(commands[:2]):
             self.held += 1
+            if self._pair is not None and (out[0] == 0.0) != (out[1] == 0.0):
+                other = 0 if out[1] == 0.0 else 1
+                out[other] = self._balanced(commands[other], commands[1 - other])
         return out[0], out[1], out[2], out[3]
+
+    def _balanced(self, command: float, held: float) -> float:
+        """The command for a held motor's partner that keeps the pair's yaw torque (left minus right
+        force): the partner's force less the held motor's. Neutral if that would reverse the partner too."""
+        assert self._pair is not None
+        force = self._pair.force(command)
+        balanced = force - self._pair.force(held)
+        return self._pair.command(balanced) if balanced * force > 0.0 else 0.0

@@ -240,7 +240,8 @@ def test_with_its_fitted_config_the_light_draughty_corner_stops_a_turn_in_time(h
     """corner-mtDL (light, weak, high drag, long lag) with its fitted config: after a turn a draft drifted the
     body backwards past 5 cm/s while the hover band, deciding on the model-led estimate, saw -2 cm/s, and the
     stop took 2.28 s. The band now decides on the flow (`SurgeEstimate.decision_speed`): 0.48 s, measured.
-    Its hover reversals (0.6 /s, measured) are held to no worse; the goal (0.5) is not met yet."""
+    Its hover reversals meet the goal since session 10 (0.33 /s, measured; 0.6 before the reversal guard kept
+    the pair's yaw torque and the hover heading loop acted on the gyro-smoothed heading)."""
     from feelium.lab.flight.safety import GOALS
 
     assert heavy["corner-mtDL"]["name"] == "corner-mtDL"
@@ -249,4 +250,4 @@ def test_with_its_fitted_config_the_light_draughty_corner_stops_a_turn_in_time(h
     assert result.speed_peak_fraction <= GOALS["speed_peak_fraction"]
     assert result.turn_peak_fraction <= GOALS["turn_peak_fraction"]
     assert result.altitude_excursion_m <= GOALS["altitude_excursion_m"]
-    assert result.hover_reversals_per_s <= 0.6 + 1e-9
+    assert result.hover_reversals_per_s <= GOALS["hover_reversals_per_s"]

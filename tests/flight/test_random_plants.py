@@ -1,9 +1,9 @@
 """Fifty blimps nobody tuned the controller to (the box's 16 corners, then random ones), judged by the worst.
 
 Each flies the whole safety flight (``feelium/lab/flight/safety.py``) with the
-config as shipped. Every goal is asserted on every plant but one: the hover
-reversals, which three plants still miss (named below, with the figure they
-must not get worse than); the full table is ``feelium bench flight --plants 50``
+config as shipped. Every goal is asserted on every plant (the hover reversals
+too since session 10: the last three plants over it, 0.60-0.67/s, now fly at
+0.20-0.47/s); the full table is ``feelium bench flight --plants 50``
 (``docs/flight-robustness.md``).
 """
 
@@ -20,9 +20,6 @@ from feelium.lab.flight.plants import describe, plant_set
 from feelium.lab.flight.safety import GOALS, SafetyResult, safety_flight
 
 PLANTS = plant_set(50)
-# Light corners with a long motor lag and one random plant: their yaw overshoots past the calm threshold and
-# lifts the reversal guard (measured 0.60-0.67/s; docs/flight-robustness.md). Not yet within the goal.
-REVERSALS_STILL_OVER_GOAL = {"corner-mtDL": 0.7, "corner-mTdL": 0.7, "random-2026-29": 0.7}
 
 
 def _fly(index: int) -> SafetyResult:
@@ -47,7 +44,7 @@ def flights(request: pytest.FixtureRequest) -> dict[int, SafetyResult]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("index", range(len(PLANTS)), ids=[plant.name for plant in PLANTS])
-def test_never_faster_or_turning_faster_than_commanded_stopped_in_time_and_inside_the_altitude_limits(
+def test_never_faster_or_turning_faster_than_commanded_stopped_in_time_inside_the_altitude_limits_and_quiet(
     index: int, flights: dict[int, SafetyResult]
 ) -> None:
     result = flights[index]
@@ -57,5 +54,4 @@ def test_never_faster_or_turning_faster_than_commanded_stopped_in_time_and_insid
     assert result.stop_s <= GOALS["stop_s"], context
     assert result.lapse_s <= GOALS["lapse_s"], context
     assert result.altitude_excursion_m <= GOALS["altitude_excursion_m"], context
-    reversals_limit = REVERSALS_STILL_OVER_GOAL.get(PLANTS[index].name, GOALS["hover_reversals_per_s"])
-    assert result.hover_reversals_per_s <= reversals_limit, context
+    assert result.hover_reversals_per_s <= GOALS["hover_reversals_per_s"], context

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from feelium.flight.reversal import CALM_SPEED_M_S, CALM_YAW_DPS, MIN_INTERVAL_S, SETTLE_S, ReversalGuard, calm
+from feelium.flight.reversal import CALM_SPEED_M_S, CALM_YAW_DPS, MIN_INTERVAL_S, SETTLE_S, PairThrust, ReversalGuard, calm
 
 
 def _settled_guard() -> ReversalGuard:
@@ -67,3 +68,38 @@ def test_in_calm_hover_no_motor_reverses_more_often_than_the_interval_allows(see
                     assert t - last_t[i] >= MIN_INTERVAL_S - 1e-9
                 if sign != last_sign[i]:
                     last_sign[i], last_t[i] = sign, t
+
+
+PAIR = PairThrust(max_thrust_n=0.25, reverse_ratio=0.95, deadband=0.06)
+
+
+def _torque(commands: tuple[float, ...]) -> float:
+    """The pair's yaw torque per arm: left force minus right force (N)."""
+    return PAIR.force(commands[0]) - PAIR.force(commands[1])
+
+
+def test_a_held_motor_s_partner_keeps_the_pair_s_yaw_torque_and_gives_up_the_surge() -> None:
+    """Holding one motor alone turns a surge correction into a yaw kick: the partner is rebalanced."""
+    guard = ReversalGuard(PAIR)
+    guard.limit(0.0, (-0.3, 0.3, 0.5, 0.5), hovering=True, calm=True)
+    guard.limit(SETTLE_S, (0.3, -0.3, 0.5, 0.5), hovering=True, calm=True)  # the directions taken at SETTLE_S
+    wanted = (0.45, 0.2, 0.5, 0.5)  # a surge push on top of the yaw torque: the right motor would reverse
+    out = guard.limit(SETTLE_S + 0.1, wanted, hovering=True, calm=True)
+    assert out[1] == 0.0 and 0.0 < out[0] < wanted[0]
+    assert _torque(out) == pytest.approx(_torque(wanted), rel=1e-9)
+    assert PAIR.force(out[0]) + PAIR.force(out[1]) < PAIR.force(wanted[0]) + PAIR.force(wanted[1])
+    # Keeping the torque would reverse the partner too: both wait at neutral.
+    assert guard.limit(SETTLE_S + 0.12, (0.2, 0.45, 0.5, 0.5), hovering=True, calm=True) == (0.0, 0.0, 0.5, 0.5)
+
+
+@settings(deadline=None, max_examples=50)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_the_guard_never_turns_the_pair_s_torque_the_other_way_nor_makes_it_larger(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    guard = ReversalGuard(PAIR)
+    for k in range(1000):
+        wanted = (float(rng.uniform(-0.6, 0.6)), float(rng.uniform(-0.6, 0.6)), 0.5, 0.5)
+        out = guard.limit(0.02 * k, wanted, hovering=True, calm=True)
+        torque, asked = _torque(out), _torque(wanted)
+        assert torque * asked >= -1e-12
+        assert abs(torque) <= abs(asked) + 1e-9

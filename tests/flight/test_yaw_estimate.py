@@ -1,0 +1,39 @@
+"""The fine heading: the gyro carries the heading between the board's whole degrees, the board keeps it honest."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.daemon.config import Config
+from feelium.flight.estimators import YawEstimate
+
+DT = 0.02
+
+
+def _wrap(deg: float) -> float:
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+@settings(deadline=None, max_examples=30)
+@given(rate_dps=st.floats(-6.0, 6.0), start=st.floats(0.0, 360.0), bias_dps=st.floats(-0.2, 0.2), seed=st.integers(0, 2**16))
+def test_the_fine_heading_moves_smoothly_and_stays_within_the_board_s_rounding(rate_dps: float, start: float, bias_dps: float,
+                                                                              seed: int) -> None:
+    """A body turning slowly (as in hover): the board steps by whole degrees, the fine heading by no more than
+    the turn, and it stays within the board's half degree of rounding (plus a little gyro noise and bias)."""
+    rng = np.random.default_rng(seed)
+    est = YawEstimate(Config().flight)
+    true = start
+    previous = None
+    for k in range(400):
+        true = (true + rate_dps * DT) % 360.0
+        gyro = rate_dps + bias_dps + 0.3 * float(rng.standard_normal())
+        est.update(k * DT, DT, float(round(true) % 360), gyro, 0.0)
+        fine = est.fine_heading
+        assert fine is not None
+        if previous is not None:
+            assert abs(_wrap(fine - previous)) <= (abs(rate_dps) + 2.0) * DT  # no whole-degree steps
+        previous = fine
+        if k * DT >= 3.0:
+            assert abs(_wrap(fine - true)) <= 0.8  # 0.5 of rounding, 0.2 of bias over the 1 s pull, noise
