@@ -187,8 +187,14 @@ def read_timestamps(path: Path) -> np.ndarray:
     """
     if not path.is_file():
         raise _fail(path, "missing file")
+    try:
+        text_of_file = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise _fail(path, f"not UTF-8 text (byte {exc.start})") from exc
+    except OSError as exc:
+        raise _fail(path, f"cannot be read: {exc.strerror or exc}") from exc
     values = []
-    for lineno, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    for lineno, line in enumerate(text_of_file.splitlines(), start=1):
         text = line.strip()
         if not text:
             continue

@@ -75,6 +75,14 @@ def test_timestamp_count_mismatch_is_named(tmp_path):
         Recording(tmp_path / "r")
 
 
+def test_timestamps_that_are_not_utf8_are_named_not_a_traceback(tmp_path):
+    _write(tmp_path / "r")
+    ts = tmp_path / "r" / "camera_ts.txt"
+    ts.write_bytes(b"\xe9" + ts.read_bytes())
+    with pytest.raises(RecordingError, match=r"camera_ts.txt.*not UTF-8 text \(byte 0\)"):
+        Recording(tmp_path / "r")
+
+
 def test_backwards_timestamps_are_named(tmp_path):
     _write(tmp_path / "r")
     ts = tmp_path / "r" / "camera_ts.txt"

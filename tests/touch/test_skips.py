@@ -33,12 +33,15 @@ def _break(path: Path, how: str) -> None:
         meta = json.loads((path / "meta.json").read_text())
         meta["roi"] = [0, 0, 65, 10]
         (path / "meta.json").write_text(json.dumps(meta))
+    elif how == "encoding":
+        ts = path / "camera_ts.txt"
+        ts.write_bytes(b"\xe9" + ts.read_bytes())
     elif how == "labels":
         (path / "labels.json").write_text(json.dumps({"label": "empty", "target": "middle"}))
 
 
-BROKEN = {"b-labels": "labels", "b-roi": "roi", "b-size": "size", "b-time": "repeated time"}
-NAMED = {"b-labels": "labels.json", "b-roi": "meta.json", "b-size": "meta.json", "b-time": "camera_ts.txt"}
+BROKEN = {"b-encoding": "encoding", "b-labels": "labels", "b-roi": "roi", "b-size": "size", "b-time": "repeated time"}
+NAMED = {"b-encoding": "camera_ts.txt", "b-labels": "labels.json", "b-roi": "meta.json", "b-size": "meta.json", "b-time": "camera_ts.txt"}
 
 
 @pytest.fixture
@@ -65,7 +68,7 @@ def test_bad_recordings_are_named_skipped_and_summed_up(dataset, tmp_path, capsy
     for line, name in zip(lines, BROKEN):
         assert line.startswith(f"feelium {command}: skipped {dataset / name / NAMED[name]}: ")
     named = ", ".join(str(dataset / name / NAMED[name]) for name in BROKEN)
-    assert lines[-1] == f"feelium {command}: skipped 4 of 6 recordings: {named}"
+    assert lines[-1] == f"feelium {command}: skipped {len(BROKEN)} of {len(BROKEN) + 2} recordings: {named}"
     if command == "eval":
         assert "trials" in out and "2  (tp 0, fp 0, fn 0, tn 2)" in out
 
@@ -91,3 +94,10 @@ def test_a_video_shorter_than_its_times_is_skipped_while_replaying(tmp_path, cap
     monkeypatch.setattr(recording.Recording, "frames", short)
     assert main(["replay", str(tmp_path)]) == 3
     assert _skip_lines(capsys.readouterr().err)[0] == f"feelium replay: skipped {tmp_path / 'b' / 'camera.mkv'}: ended before its timestamps did"
+
+
+def test_a_dataset_of_only_bad_recordings_exits_1_nothing_usable(tmp_path, capsys):
+    _good(tmp_path / "b-time")
+    _break(tmp_path / "b-time", "repeated time")
+    assert main(["replay", str(tmp_path)]) == 1
+    assert _skip_lines(capsys.readouterr().err)[-1].startswith("feelium replay: skipped 1 of 1 recordings: ")

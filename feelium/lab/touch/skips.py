@@ -2,7 +2,8 @@
 
 A dataset collected on the blimp over days will hold the odd broken take; `feelium replay`, `eval` and
 `calibrate touch` score the good ones, name each skipped file with its problem as they meet it, and
-sum up at the end. Exit codes: 0 every recording was used, 3 some were skipped (``SKIPPED_EXIT``).
+sum up at the end. Exit codes: 0 every recording was used, 3 some were skipped (``SKIPPED_EXIT``), 1 every
+one was (``NOTHING_USABLE_EXIT``: nothing was scored, as when there is no recording at all).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from typing import TextIO, TypeVar
 from feelium.recording import Recording, RecordingError, find_recordings
 
 SKIPPED_EXIT = 3
+NOTHING_USABLE_EXIT = 1
 
 T = TypeVar("T")
 
@@ -55,4 +57,4 @@ class Skips:
             return 0
         names = ", ".join(str(p.path) for p in self.problems)
         print(f"feelium {self.command}: skipped {len(self.problems)} of {self.seen} recordings: {names}", file=self.err)
-        return SKIPPED_EXIT
+        return NOTHING_USABLE_EXIT if len(self.problems) >= self.seen else SKIPPED_EXIT
