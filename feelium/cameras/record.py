@@ -13,6 +13,7 @@ into ``thermal.npz``; until then recordings hold the camera only.
 from __future__ import annotations
 
 import contextlib
+import errno
 import logging
 import math
 import signal
@@ -134,7 +135,11 @@ def record(
                 if thermal is not None:
                     thermal.sample(t)
                 if on_frame is not None:
-                    on_frame(writer.frames_written, t)
+                    try:
+                        on_frame(writer.frames_written, t)
+                    except Exception as exc:  # progress is a nicety (a hung-up terminal's EIO): never the take's end
+                        log.warning("progress stopped (%s); still recording", exc)
+                        on_frame = None
             if stop is not None and stop.is_set():
                 ended = "stopped"
                 break
@@ -150,6 +155,9 @@ def record(
     except BaseException:
         writer.abort()
         raise
+    if writer.frames_written == 0:  # the disk was full before the first frame: no player or replay accepts an empty take
+        writer.abort()
+        raise OSError(errno.ENOSPC, problem or "disk full", str(out))
     if thermal is not None and (data := thermal.result()) is not None:
         writer.set_thermal(data, thermal.fps)
     path = writer.close()

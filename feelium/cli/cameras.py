@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from feelium.cli import CommandRegistry
 
@@ -49,6 +50,7 @@ def register(registry: CommandRegistry) -> None:
 
 
 def _record(args: argparse.Namespace) -> int:
+    import contextlib
     import dataclasses
     import logging
     import sys
@@ -90,10 +92,15 @@ def _record(args: argparse.Namespace) -> int:
     name = args.name or default_name(time.time())
     shown = {"at": 0.0}
 
+    def say(line: str, stream: Any) -> None:
+        """A line to the terminal, which may be gone (a dropped SSH session): the take matters, not the line."""
+        with contextlib.suppress(OSError):
+            print(line, file=stream, flush=True)
+
     def progress(frames: int, t: float) -> None:
         if t - shown["at"] >= 5.0:
             shown["at"] = t
-            print(f"{frames} frames, {t:.1f} s", file=sys.stderr)
+            say(f"{frames} frames, {t:.1f} s", sys.stderr)
 
     stop = threading.Event()
     try:
@@ -117,9 +124,9 @@ def _record(args: argparse.Namespace) -> int:
         camera.close()
     summary = f"{take.path} ({take.frames} frames, {take.seconds:.1f} s)"
     if take.ended == "disk full":
-        print(f"feelium record: {take.problem} in {out.parent}: kept a shorter take {summary}", file=sys.stderr)
+        say(f"feelium record: {take.problem} in {out.parent}: kept a shorter take {summary}", sys.stderr)
         return 1
-    print(f"recorded {summary}" + (f"; stopped by {caught[0]}" if caught else ""))
+    say(f"recorded {summary}" + (f"; stopped by {caught[0]}" if caught else ""), sys.stdout)
     return 0
 
 

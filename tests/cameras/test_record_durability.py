@@ -48,6 +48,32 @@ def test_a_filling_disk_ends_the_take_short_and_valid(tmp_path):
     assert _leftovers(tmp_path) == ["r"]
 
 
+def test_a_disk_full_before_the_first_frame_keeps_no_empty_take(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(recording, "free_bytes", lambda path: recording.RESERVE_BYTES - 1)
+    out = tmp_path / "r"
+    assert main(["record", "--sim", "--out", str(out), "--seconds", "5"]) == 1
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("feelium record:")]
+    assert len(err) == 1 and err[0].startswith(f"feelium record: cannot write {out}: disk nearly full") and "nothing kept" in err[0]
+    assert _leftovers(tmp_path) == []
+
+
+def test_progress_to_a_terminal_that_hung_up_costs_neither_the_take_nor_the_exit_code(tmp_path, monkeypatch):
+    """A dropped SSH session: every write to the terminal fails with EIO, the SIGHUP finishes the take."""
+
+    class HungUp:
+        def write(self, _text: str) -> int:
+            raise OSError(errno.EIO, "Input/output error")
+
+        def flush(self) -> None:
+            raise OSError(errno.EIO, "Input/output error")
+
+    monkeypatch.setattr(sys, "stderr", HungUp())
+    monkeypatch.setattr(sys, "stdout", HungUp())
+    out = tmp_path / "r"
+    assert main(["record", "--sim", "--out", str(out), "--seconds", "6"]) == 0  # progress is due at 5 s
+    assert Recording(out).timestamps[-1] > 5.0 and _leftovers(tmp_path) == ["r"]
+
+
 def test_the_record_command_says_so_in_one_line_and_keeps_the_take(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(recording, "free_bytes", FillingDisk(free=recording.RESERVE_BYTES + 5 * MB, per_frame=MB))
     out = tmp_path / "r"
