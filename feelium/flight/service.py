@@ -31,6 +31,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import suppress
 from typing import TYPE_CHECKING, Any, Protocol
 
+from feelium.cameras.reader import RateMeter
 from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.client import MspClient
 from feelium.flight.config import FlightConfig
@@ -46,6 +47,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 STOP_WRITE_TIMEOUT_S = 0.3
+LOOP_STALL_S = 0.5  # no control cycle for this long (25 periods at 50 Hz): health says the loop stalled
 LINK_COUNTERS = ("stalls", "resyncs", "late_replies")  # summed over every client a run opened
 LINK_REASONS = {
     "stalled": "no reply to the last telemetry requests; probing",
@@ -147,6 +149,7 @@ class FlightService:
         self.stopping = False
         self.cycles = 0
         self.heartbeat_at: float | None = None  # hub time at the end of the newest control cycle
+        self._rate = RateMeter()  # control cycles completed: the measured rate, which decays when the loop stalls
         self.overruns = 0
         self.link_losses = 0
         self.reconnects = 0
@@ -229,7 +232,7 @@ class FlightService:
             "modes": dict(self.controller.mode_counts),
             "battery": out.battery if out else "unknown",
             "last_error": self.last_error,
-            "fps": self.config.rate_hz if self.link_state == "up" else 0.0,
+            "fps": round(self._rate.rate(self.hub.clock()), 1),
             "estimates": self.controller.estimates(self.hub.clock()),
         }
         if out is not None and out.mode != "waiting" and not out.speed_measured:
@@ -244,6 +247,9 @@ class FlightService:
     def _condition(self) -> dict[str, str]:
         """The motor board link as the part's health: without a board answering, flight is not ok."""
         state = self.link_state
+        stalled_s = None if self.heartbeat_at is None else self.hub.clock() - self.heartbeat_at
+        if stalled_s is not None and stalled_s > LOOP_STALL_S and not self.stopping:
+            return {"condition": "degraded", "reason": f"control loop stalled: no cycle for {stalled_s:.1f} s"}
         if state == "up":
             return {"condition": "ok"}
         if state in LINK_REASONS:
@@ -302,6 +308,7 @@ class FlightService:
         self.last = out
         self.cycles += 1
         self.heartbeat_at = now
+        self._rate.tick(now)
         if self.client is not None and not self.stopping:
             try:
                 await self._on_serial_thread(self.client.send_motors, out.motors_us)

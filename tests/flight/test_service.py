@@ -158,3 +158,23 @@ def test_the_simulated_board_powers_up_when_the_link_opens_not_before() -> None:
     now[0] += 0.1
     link.write(b"")  # any traffic advances the physics to the clock
     assert opener.board.state.z == pytest.approx(CONFIG.sim.start_altitude_m, abs=0.01)
+
+
+async def test_health_measures_the_control_rate_and_says_when_the_loop_stalls(monkeypatch) -> None:
+    hub, service, opener, task = await started()
+    try:
+        await wait_for(lambda: service.health()["fps"] > 0.5 * CONFIG.rate_hz)
+        assert service.health()["condition"] == "ok"
+
+        async def stuck(events) -> None:  # a cycle that never returns: the loop is alive, flight is not
+            await asyncio.Event().wait()
+
+        monkeypatch.setattr(service, "_cycle", stuck)
+        await wait_for(lambda: service.health()["condition"] == "degraded")
+        health = service.health()
+        assert health["reason"].startswith("control loop stalled: no cycle for") and health["link"] == "up"
+        await wait_for(lambda: service.health()["fps"] == 0.0)  # the rate decays: a stalled loop reads 0
+    finally:
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
