@@ -12,7 +12,7 @@ from aiohttp import web
 
 from feelium.http import control, events_api, lens_api, pairing_api, speech_api, video
 from feelium.http.auth import TokenStore
-from feelium.http.config import HttpConfig
+from feelium.http.config import MIN_TOKEN_CHARS, HttpConfig
 from feelium.http.context import CONTEXT, LinkContext, SpeechSettings, ctx
 from feelium.http.errors import ERROR_STATS, ApiError, json_errors
 from feelium.http.face import FacePlayer
@@ -115,8 +115,8 @@ async def static_file(request: web.Request) -> web.FileResponse:
 
 def create_app(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettings | None = None) -> web.Application:
     """The aiohttp application of the headset link (the caller runs it)."""
-    if len(token) < 16:
-        raise ValueError("the API token must be at least 16 characters")
+    if len(token) < MIN_TOKEN_CHARS:
+        raise ValueError(f"the API token must be at least {MIN_TOKEN_CHARS} characters")
     link = build_context(config, hub, token, speech)
     limit = max(config.max_json_bytes, config.max_face_bytes, config.max_speech_bytes) + 65536
     app = web.Application(

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 from feelium.settings import setting
 
+MIN_TOKEN_CHARS = 16  # a guess at 62**16 is out of reach; shorter ones are refused where they are written
+
 
 @dataclass(frozen=True)
 class HttpConfig:
@@ -15,7 +17,9 @@ class HttpConfig:
     host: str = setting("127.0.0.1", "Address to listen on; 0.0.0.0 to reach it from the room's Wi-Fi.")
     port: int = setting(8080, "TCP port.", min=0, max=65535)
     token: str = setting(
-        "", "Bearer token every endpoint but health requires; empty = read (or create on first run) token_file."
+        "",
+        f"Bearer token every endpoint but health requires, at least {MIN_TOKEN_CHARS} characters; empty = read (or "
+        "create on first run) token_file.",
     )
     token_file: str = setting(
         "~/.config/feelium/http-token", "Where the generated token lives (created 0600 on first run)."
@@ -146,3 +150,8 @@ class HttpConfig:
     keepalive_s: float = setting(
         15.0, "SSE comment / WebSocket ping interval that keeps idle connections and proxies alive.", min=0.5, max=300.0
     )
+
+    def __post_init__(self) -> None:
+        if self.token and len(self.token) < MIN_TOKEN_CHARS:
+            # found by `feelium config check`, not by a link that then never starts on the blimp
+            raise ValueError(f"token must be at least {MIN_TOKEN_CHARS} characters (or empty to use token_file)")

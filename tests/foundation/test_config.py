@@ -109,3 +109,13 @@ def test_non_utf8_is_one_line_naming_the_file_and_the_byte(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert str(path) in err and "not UTF-8" in err and "0xe9 at offset 11" in err
+
+
+def test_a_headset_token_too_short_is_refused_by_config_check_naming_the_file(tmp_path, capsys):
+    from feelium.cli import main
+
+    path = tmp_path / "feelium.toml"
+    path.write_text('[http]\ntoken = "r15token"\n', encoding="utf-8")
+    assert main(["config", "check", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert str(path) in err and "token must be at least 16 characters" in err
