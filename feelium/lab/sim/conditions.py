@@ -98,11 +98,11 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
         "name": GENERATOR, "version": GENERATOR_VERSION, "seed": seed, "scale": scale,
         "condition": f"{job.condition}/{job.variant}",
     }  # fmt: skip
-    projector: take_faceon.FaceTake | None = None
+    take: take_faceon.FaceTake | None = None
     if job.condition == "litroom":
         frames, labels, size, roi, extra = _litroom(job, seed, generator)
     elif job.condition == "faceon":
-        frames, labels, size, roi, extra, projector = _faceon(job, seed, generator)
+        (frames, labels, size, roi, extra), take = _faceon(job, seed, generator)
     elif job.condition == "multitouch":
         frames, labels, size, roi, extra = _multitouch(job, seed, generator)
     else:
@@ -113,19 +113,12 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
         out / job.relpath, name=Path(job.relpath).name, width=size[0], height=size[1], fps=fps, session=session,
         source="synthetic", roi=roi, extra_meta={"generator": protocol._jsonable(generator), **extra}, overwrite=overwrite,
     ) as writer:  # fmt: skip
-        stream = projector.projector if projector is not None else None
-        if stream is not None:
-            assert projector is not None
-            writer.set_projector(*projector.projector_size, projector.projector_fps)
-        shown = next(stream, None) if stream is not None else None
-        for t, frame in frames:
-            while stream is not None and shown is not None and shown[0] <= t:  # interleaved: see take_faceon
-                writer.add_projector_frame(*shown)
-                shown = next(stream, None)
-            writer.add_frame(t, frame)
-        while stream is not None and shown is not None:
-            writer.add_projector_frame(*shown)
-            shown = next(stream, None)
+        if take is not None and take.projector is not None:
+            writer.set_projector(*take.projector_size, take.projector_fps)
+            _write_interleaved(writer, frames, take.projector)
+        else:
+            for t, frame in frames:
+                writer.add_frame(t, frame)
         writer.set_labels(labels)
     return out / job.relpath
 
@@ -164,13 +157,29 @@ def _face(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
     return frames(), script.labels(), job.frame, roi, {"face": face.to_json()}
 
 
-def _faceon(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Any, ...]:
+def _faceon(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.FaceTake]:
     item = job.trial
     assert isinstance(item, protocol.Item)
     take = take_faceon.render(item, job.variant, seed)
     generator.update(warmup_s=take_faceon.faceon.WARMUP_S, video_offset_s=take.offset_s,
                      projector_latency_s=take_faceon.faceon.TRUE_LATENCY_S)  # fmt: skip
-    return take.frames, take.labels, (WIDTH, HEIGHT), ROI, {}, take
+    return (take.frames, take.labels, (WIDTH, HEIGHT), ROI, {}), take
+
+
+def _write_interleaved(
+    writer: RecordingWriter, frames: Iterator[tuple[float, Any]], shown: Iterator[tuple[float, Any]]
+) -> None:
+    """Each camera frame after the projector frames shown up to its time: the projector stream then runs just
+    ahead of the camera's light, from the same small cache, so each projector frame is rendered once."""
+    pending = next(shown, None)
+    for t, frame in frames:
+        while pending is not None and pending[0] <= t:
+            writer.add_projector_frame(*pending)
+            pending = next(shown, None)
+        writer.add_frame(t, frame)
+    while pending is not None:
+        writer.add_projector_frame(*pending)
+        pending = next(shown, None)
 
 
 def _multitouch(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
