@@ -29,6 +29,7 @@ TOUCH_LABELS = ("tap", "hold", "swipe")
 NEGATIVE_LABELS = ("hover", "disturbance", "empty")
 CLIP_LABELS = ("contact", "hover", "empty")
 PIXEL_FORMATS = ("gray8", "bgr8")
+CONTACT_KINDS = ("finger", "palm", "hug")  # what touched: the events' ``contact`` key (docs/touch.md)
 
 
 class RecordingError(ValueError):
@@ -46,6 +47,9 @@ class Contact:
     t_on: float
     t_off: float
     path: np.ndarray | None  # (K, 3) rows of [t, x, y] in camera pixels, or None
+    # Optional (docs/recording-format.md, proposed): what touched, ``finger``, ``palm`` or ``hug``. A trial whose
+    # contacts carry it is scored contact by contact too: each entry one touch with an id of its own.
+    contact: str | None = None
 
     def position_at(self, t: float) -> tuple[float, float] | None:
         """The labelled fingertip position at time ``t`` (linear interpolation), if a path exists."""
@@ -73,6 +77,7 @@ class Labels:
                     "t_on": c.t_on,
                     "t_off": c.t_off,
                     **({"path": np.asarray(c.path).round(3).tolist()} if c.path is not None else {}),
+                    **({"contact": c.contact} if c.contact is not None else {}),
                 }
                 for c in self.contacts
             ],
@@ -242,7 +247,10 @@ def _parse_labels(path: Path) -> Labels:
             raise _fail(path, f"contacts[{i}]: needs numeric t_on and t_off")
         if t_off < t_on:
             raise _fail(path, f"contacts[{i}]: t_off {t_off} is before t_on {t_on}")
-        contacts.append(Contact(t_on, t_off, _parse_path(path, i, c.get("path"))))
+        kind = c.get("contact")
+        if kind is not None and kind not in CONTACT_KINDS:
+            raise _fail(path, f"contacts[{i}].contact: {kind!r} is not one of {CONTACT_KINDS}")
+        contacts.append(Contact(t_on, t_off, _parse_path(path, i, c.get("path")), kind))
     return Labels(label=label, clip=clip, target=target, contacts=tuple(contacts))
 
 
@@ -292,19 +300,31 @@ class Recording:
 
     def frames(self, *, gray: bool = True) -> Iterator[tuple[float, np.ndarray]]:
         """Yield ``(t, frame)`` in order; gray frames are (H, W) uint8, else (H, W, 3) BGR."""
-        video = self.path / "camera.mkv"
-        cap = cv2.VideoCapture(str(video))
-        if not cap.isOpened():
-            raise _fail(video, "cannot be decoded")
-        cap.set(cv2.CAP_PROP_CONVERT_RGB, 0)
-        try:
-            for t in self.timestamps:
-                ok, frame = cap.read()
-                if not ok:
-                    raise _fail(video, "ended before its timestamps did")
-                yield float(t), _as_pixel_format(frame, gray)
-        finally:
-            cap.release()
+        return _decode(self.path / "camera.mkv", self.timestamps, gray)
+
+    @property
+    def has_projector(self) -> bool:
+        """Whether the recording carries what the inner projector showed (``projector.mkv``)."""
+        return (self.path / "projector.mkv").is_file()
+
+    def projector_frames(self, *, gray: bool = True) -> Iterator[tuple[float, np.ndarray]]:
+        """Yield the projector stream's ``(t, frame)`` in order (display times on the camera's clock).
+
+        Checked as it is decoded (a projector stream is long and large: it is not decoded twice on open): a
+        video that ends before ``projector_ts.txt`` does, or holds frames of another size than ``meta.projector``
+        says, is a :class:`RecordingError`.
+        """
+        video = self.path / "projector.mkv"
+        if not video.is_file():
+            raise _fail(video, "missing file")
+        info = self.meta.raw.get("projector")
+        if not isinstance(info, dict) or not all(_is_whole(info.get(k)) for k in ("width", "height")):
+            raise _fail(self.path / "meta.json", "projector: expected an object with width and height")
+        size = (int(info["width"]), int(info["height"]))
+        for t, frame in _decode(video, read_timestamps(self.path / "projector_ts.txt"), gray):
+            if (frame.shape[1], frame.shape[0]) != size:
+                raise _fail(video, f"holds {frame.shape[1]}x{frame.shape[0]} frames, meta.projector says {size[0]}x{size[1]}")
+            yield t, frame
 
     def thermal(self) -> ThermalData | None:
         path = self.path / "thermal.npz"
@@ -325,6 +345,22 @@ class Recording:
         if eeprom is not None and eeprom.shape != (832,):
             raise _fail(path, f"eeprom must be (832,); got {eeprom.shape}")
         return ThermalData(t=t, celsius=celsius, eeprom=eeprom, ram=ram)
+
+
+def _decode(video: Path, timestamps: np.ndarray, gray: bool) -> Iterator[tuple[float, np.ndarray]]:
+    """``(t, frame)`` of ``video`` against its timestamps, one frame per line."""
+    cap = cv2.VideoCapture(str(video))
+    if not cap.isOpened():
+        raise _fail(video, "cannot be decoded")
+    cap.set(cv2.CAP_PROP_CONVERT_RGB, 0)
+    try:
+        for t in timestamps:
+            ok, frame = cap.read()
+            if not ok:
+                raise _fail(video, "ended before its timestamps did")
+            yield float(t), _as_pixel_format(frame, gray)
+    finally:
+        cap.release()
 
 
 def _probe_video(video: Path) -> tuple[int, tuple[int, int] | None]:
@@ -471,6 +507,8 @@ class RecordingWriter:
         self._last_t = -math.inf
         self._labels: Labels | None = None
         self._thermal: ThermalData | None = None
+        self._projector: Any = None  # cv2.VideoWriter of projector.mkv once set_projector is called
+        self._projector_times: list[float] = []
         self.frames_written = 0
 
     def add_frame(self, t: float, frame: np.ndarray) -> None:
@@ -496,6 +534,32 @@ class RecordingWriter:
     def set_labels(self, labels: Labels) -> None:
         self._labels = labels
 
+    def set_projector(self, width: int, height: int, fps: float) -> None:
+        """Record the projector stream too (``projector.mkv``, gray8: the touch path predicts from grey light)."""
+        if self._projector is not None:
+            raise ValueError("the projector stream is already open")
+        self._projector = cv2.VideoWriter(
+            str(self._tmp / "projector.mkv"), cv2.VideoWriter_fourcc(*"FFV1"), fps, (width, height), isColor=False
+        )
+        if not self._projector.isOpened():
+            raise RuntimeError("OpenCV cannot write FFV1/Matroska here (needs its FFmpeg backend)")
+        self._meta["projector"] = {"width": width, "height": height, "fps": fps, "pixel_format": "gray8"}
+
+    def add_projector_frame(self, t: float, frame: np.ndarray) -> None:
+        """Append what the projector showed from ``t`` on (seconds on the camera's clock; must not go backwards)."""
+        if self._projector is None:
+            raise ValueError("call set_projector first")
+        info = self._meta["projector"]
+        if frame.shape[:2] != (info["height"], info["width"]) or frame.dtype != np.uint8:
+            raise ValueError(f"projector frame is {frame.shape} {frame.dtype}, stream is {info['width']}x{info['height']} uint8")
+        if not math.isfinite(t) or (self._projector_times and t < self._projector_times[-1]):
+            raise ValueError(f"projector frame time {t} is not finite or goes backwards")
+        if (free := self._free(self._tmp)) < self._reserve:
+            raise DiskFull(self._tmp, free)
+        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
+        self._projector.write(np.ascontiguousarray(gray))
+        self._projector_times.append(t)
+
     def set_thermal(self, thermal: ThermalData, fps: float) -> None:
         self._thermal = thermal
         self._meta["thermal"] = {"width": 32, "height": 24, "fps": fps}
@@ -506,6 +570,8 @@ class RecordingWriter:
         If that fails (a full disk, say) the temp dir is removed and the error raised: nothing half is left.
         """
         self._video.release()
+        if self._projector is not None:
+            self._projector.release()
         try:
             self._finish_files()
             if self.path.exists() and self._overwrite:
@@ -519,6 +585,9 @@ class RecordingWriter:
 
     def _finish_files(self) -> None:
         write_durably(self._tmp / "camera_ts.txt", "".join(f"{t:.6f}\n" for t in self._times).encode())
+        if self._projector is not None:
+            write_durably(self._tmp / "projector_ts.txt", "".join(f"{t:.6f}\n" for t in self._projector_times).encode())
+            fsync_path(self._tmp / "projector.mkv")
         write_durably(self._tmp / "meta.json", (json.dumps(self._meta, indent=1) + "\n").encode())
         if self._labels is not None:
             write_durably(self._tmp / "labels.json", (json.dumps(self._labels.to_json()) + "\n").encode())
@@ -536,6 +605,8 @@ class RecordingWriter:
 
     def abort(self) -> None:
         self._video.release()
+        if self._projector is not None:
+            self._projector.release()
         shutil.rmtree(self._tmp, ignore_errors=True)
 
     def __enter__(self) -> "RecordingWriter":

@@ -31,17 +31,20 @@ def register(registry: CommandRegistry) -> None:
     cond = registry.subcommand(
         "simulate",
         "condition",
-        "Write labelled recordings of a condition of use (issue 17): litroom (room light variants), face (whole curved face, by zone).",
+        "Write labelled recordings of a condition of use (issue 17): litroom (room light variants), face (whole curved face,"
+        " by zone), faceon (the wearer's face on the skin, with the projector stream), multitouch (two hands, palm, hug).",
         _condition,
     )
-    cond.add_argument("condition", choices=("litroom", "face"), help="which condition")
+    cond.add_argument("condition", choices=("litroom", "face", "faceon", "multitouch"), help="which condition")
     cond.add_argument("--out", required=True, help="dataset directory to write; one folder per variant, <condition>-<variant>")
     cond.add_argument(
         "--variants",
-        help="comma-separated variants (litroom: dim,lit,switch-on,switch-off,drift,passer-by; face: centre,mid,edge); default all",
+        help="comma-separated variants (litroom: dim,lit,switch-on,switch-off,drift,passer-by; face: centre,mid,edge; faceon:"
+        " static,face; multitouch: one-finger,two-finger-v,two-hands-5cm,two-partners,swipe-cross,swipe-graze,palm,"
+        "palm-and-finger,hug); default all",
     )
     cond.add_argument("--seed", type=int, default=1, help="random seed; the same seed gives identical recordings")
-    cond.add_argument("--scale", type=float, default=0.1, help="trials times F (0 < F <= 1; litroom: the protocol's 228 trials, face: 5 per label and zone)")
+    cond.add_argument("--scale", type=float, default=0.1, help="trials times F (0 < F <= 1; litroom, faceon: the protocol's 228 trials, face: 5 per label and zone, multitouch: 6 runs per scene)")
     cond.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), help="parallel rendering processes")
     cond.add_argument("--overwrite", action="store_true", help="replace recordings that already exist")
     cond.add_argument("--quiet", action="store_true", help="no progress lines")

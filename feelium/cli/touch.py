@@ -10,6 +10,12 @@ import argparse
 from feelium.cli import CommandRegistry
 
 
+_CALIBRATION_HELP = (
+    "camera-to-projector map (.npz) for recordings with a projector stream (default: projector-calibration.npz"
+    " beside the trials)"
+)
+
+
 def register(registry: CommandRegistry) -> None:
     replay = registry.command(
         "replay", "Run the touch pipeline over a recording or dataset; print events as JSON lines (exit 3: bad recordings skipped).", _replay
@@ -17,12 +23,14 @@ def register(registry: CommandRegistry) -> None:
     replay.add_argument("path", help="a recording directory or a dataset (any tree of recordings)")
     replay.add_argument("--config", help="TOML config file (its [touch] section is used)")
     replay.add_argument("--annotate", metavar="OUT", help="write an annotated video (a directory for datasets)")
+    replay.add_argument("--projector-calibration", metavar="FILE", help=_CALIBRATION_HELP)
 
     ev = registry.command("eval", "Score the touch pipeline on a labelled dataset (docs/evaluation.md; exit 3: bad recordings skipped).", _eval)
     ev.add_argument("dataset", help="dataset directory")
     ev.add_argument("--json", metavar="REPORT", help="write the version-1 report as JSON here")
     ev.add_argument("--figure", metavar="PNG", help="anchoring figure (default: beside the report, or ./touch-anchoring.png)")
     ev.add_argument("--config", help="TOML config file (its [touch] section is used)")
+    ev.add_argument("--projector-calibration", metavar="FILE", help=_CALIBRATION_HELP)
     ev.add_argument(
         "--by-condition",
         action="store_true",

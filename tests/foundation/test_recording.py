@@ -178,3 +178,56 @@ def test_bad_labels_are_named_not_a_traceback(tmp_path, labels, message):
     with pytest.raises(RecordingError, match=message) as info:
         Recording(tmp_path / "r")
     assert "labels.json" in str(info.value)
+
+
+def test_the_projector_stream_round_trips_beside_the_camera(tmp_path):
+    """What the projector showed is kept losslessly with its own display times (the spec's projector.mkv)."""
+    rng = np.random.default_rng(5)
+    shown = [rng.integers(0, 256, (36, 80), dtype=np.uint8) for _ in range(5)]
+    with RecordingWriter(tmp_path / "p", name="p", width=64, height=48, fps=15.0) as w:
+        w.set_projector(80, 36, 30.0)
+        for i in range(3):
+            w.add_frame(i / 15.0, np.zeros((48, 64), np.uint8))
+        for k, frame in enumerate(shown):
+            w.add_projector_frame(-0.1 + k / 30.0, frame)
+        with pytest.raises(ValueError, match="backwards"):
+            w.add_projector_frame(-0.5, shown[0])
+        with pytest.raises(ValueError, match="projector frame is"):
+            w.add_projector_frame(1.0, np.zeros((36, 81), np.uint8))
+    rec = Recording(tmp_path / "p")
+    assert rec.has_projector and rec.meta.raw["projector"] == {"width": 80, "height": 36, "fps": 30.0, "pixel_format": "gray8"}
+    got = list(rec.projector_frames())
+    assert [t for t, _ in got] == pytest.approx([-0.1 + k / 30.0 for k in range(5)], abs=1e-6)
+    assert all(np.array_equal(a, b) for a, (_, b) in zip(shown, got))
+    assert not Recording(_write_plain(tmp_path / "q")).has_projector
+
+
+def _write_plain(path):
+    _write(path)
+    return path
+
+
+def test_a_projector_stream_of_another_size_than_its_meta_is_named(tmp_path):
+    with RecordingWriter(tmp_path / "p", name="p", width=64, height=48, fps=15.0) as w:
+        w.set_projector(80, 36, 30.0)
+        w.add_frame(0.0, np.zeros((48, 64), np.uint8))
+        w.add_projector_frame(0.0, np.zeros((36, 80), np.uint8))
+    meta = json.loads((tmp_path / "p" / "meta.json").read_text())
+    meta["projector"]["width"] = 96
+    (tmp_path / "p" / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(RecordingError, match="meta.projector says 96x36"):
+        list(Recording(tmp_path / "p").projector_frames())
+
+
+def test_a_contact_may_say_what_touched(tmp_path):
+    """The optional ``contact`` key (finger, palm, hug) round-trips; anything else is named."""
+    _write(tmp_path / "r")
+    labels = {"label": "hold", "target": None, "contacts": [{"t_on": 0.1, "t_off": 0.3, "contact": "palm"}, {"t_on": 0.1, "t_off": 0.2}]}
+    (tmp_path / "r" / "labels.json").write_text(json.dumps(labels))
+    got = Recording(tmp_path / "r").labels
+    assert got is not None and [c.contact for c in got.contacts] == ["palm", None]
+    assert got.to_json()["contacts"][0]["contact"] == "palm" and "contact" not in got.to_json()["contacts"][1]
+    labels["contacts"][0]["contact"] = "elbow"
+    (tmp_path / "r" / "labels.json").write_text(json.dumps(labels))
+    with pytest.raises(RecordingError, match="contacts\\[0\\].contact: 'elbow'"):
+        Recording(tmp_path / "r")

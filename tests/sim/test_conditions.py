@@ -5,13 +5,17 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from feelium.cli import main
-from feelium.lab.sim import conditions, protocol
-from feelium.lab.touch import face_zones
+from feelium.lab.sim import conditions, protocol, take_multitouch
+from feelium.lab.touch import face_zones, faceon
 from feelium.lab.touch.commands import evaluate_dataset
-from feelium.recording import Recording
+from feelium.lab.touch.recorded_light import CALIBRATION_FILE, recorded_light
+from feelium.lab.touch.replay import replay_recording
+from feelium.projector.config import ProjectorConfig
+from feelium.recording import Recording, RecordingError
 from feelium.skin.face import FaceModel
 from feelium.touch.config import TouchConfig
 
@@ -48,6 +52,42 @@ def test_a_tap_at_the_rim_of_the_whole_face_is_one_touch_on_the_face(tmp_path):
     assert report["localisation"]["error_px"]["median"] < 3.0
 
 
+def test_a_tap_under_the_face_is_recorded_with_what_was_projected_and_scored_with_it(tmp_path, monkeypatch):
+    """faceon/face: the projector stream and the calibration beside the trial; eval predicts the light from them."""
+    monkeypatch.setattr(faceon, "WARMUP_S", 1.0)  # the experiment's 5 s warm-up, cut to keep the test short
+    item = _first("tap")
+    monkeypatch.setattr(conditions, "plan", lambda c, v, s: [conditions.Job("faceon", "face", f"faceon-face/{item.relpath}", item)])
+    (path,) = conditions.simulate_condition(tmp_path, "faceon", variants=("face",), scale=0.01)
+    recording = Recording(path)
+    assert recording.has_projector and recording.meta.raw["generator"]["condition"] == "faceon/face"
+    shown = [t for t, _ in recording.projector_frames()]
+    assert shown[0] < recording.timestamps[0] and shown[-1] >= recording.timestamps[-1]  # covers every exposure
+    assert (tmp_path / "faceon-face" / CALIBRATION_FILE).is_file()
+    report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
+    trials = report["conditions"]["faceon/face"]["trials"]
+    assert (trials["tp"], trials["fp"], trials["fn"]) == (1, 0, 0)
+    # The stream is used: the same frames replayed blind to the face give other gate scores.
+    light = recorded_light(recording, tmp_path, ProjectorConfig(), TouchConfig())
+    assert light is not None
+    seen, blind = replay_recording(recording, TouchConfig(), light=light), replay_recording(recording, TouchConfig())
+    assert not np.allclose(seen.core_depth, blind.core_depth)
+    (tmp_path / "faceon-face" / CALIBRATION_FILE).unlink()
+    with pytest.raises(RecordingError, match="no labelled recording"):  # skipped as bad, named on stderr
+        evaluate_dataset(tmp_path, TouchConfig())
+
+
+def test_two_hands_and_a_palm_are_labelled_contact_by_contact_and_eval_scores_each(tmp_path):
+    run = take_multitouch.runs("palm-and-finger", 0.1)[0]
+    job = conditions.Job("multitouch", "palm-and-finger", f"multitouch-palm-and-finger/{run.session}/{run.name}", run)
+    path = conditions.write_job(job, tmp_path, seed=1, scale=0.1)
+    labels = Recording(path).labels
+    assert labels is not None and [c.contact for c in labels.contacts] == ["palm", "finger"]
+    report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
+    got = report["conditions"]["multitouch/palm-and-finger"]["contacts"]
+    assert (got["contacts"], got["touches"], got["missed"], got["split"], got["swaps"], got["phantoms"]) == (2, 2, 0, 0, 0, 0)
+    assert got["kinds"] == {"finger": {"finger": 1, "palm": 0, "hug": 0, "none": 0}, "palm": {"finger": 0, "palm": 1, "hug": 0, "none": 0}}
+
+
 def test_the_cli_writes_one_folder_per_variant_and_eval_reports_each(tmp_path, capsys, monkeypatch):
     """The command-line path; the plan cut to one empty trial per variant asked for, to keep the test short."""
     whole = conditions.plan
@@ -76,3 +116,15 @@ def test_unknown_conditions_and_variants_are_named():
         conditions.plan("litroom", ("sunset",), 0.1)
     with pytest.raises(ValueError, match="unknown condition"):
         conditions.plan("underwater", (), 0.1)
+    with pytest.raises(ValueError, match="unknown variant"):
+        conditions.plan("multitouch", ("three-hands",), 0.1)
+
+
+def test_the_multitouch_plan_runs_every_scene_round_robin_over_the_sessions():
+    jobs = conditions.plan("multitouch", ("hug", "swipe-cross"), 0.5)
+    assert [j.relpath for j in jobs] == [
+        "multitouch-hug/s1/hug-s1-001", "multitouch-hug/s2/hug-s2-001", "multitouch-hug/s3/hug-s3-001",
+        "multitouch-swipe-cross/s1/swipe-cross-s1-001", "multitouch-swipe-cross/s2/swipe-cross-s2-001",
+        "multitouch-swipe-cross/s3/swipe-cross-s3-001",
+    ]  # fmt: skip
+    assert len(conditions.plan("faceon", ("static", "face"), 0.05)) == 2 * 13

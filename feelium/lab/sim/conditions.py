@@ -11,7 +11,13 @@ chosen from detector scores):
   ``lit``, ``switch-on``, ``switch-off``, ``drift``, ``passer-by``), with its hand-free warm-up in the
   starting light recorded as frames before 0 s;
 - ``face``: taps, holds, swipes and hovers aimed at targets in each zone of the whole curved front face
-  (:mod:`feelium.lab.touch.face_zones`: ``centre``, ``mid``, ``edge``), 1280x960 frames with ``meta.face``.
+  (:mod:`feelium.lab.touch.face_zones`: ``centre``, ``mid``, ``edge``), 1280x960 frames with ``meta.face``;
+- ``faceon``: the protocol's trials under the flat back-light (``static``) and with the wearer's face on the
+  skin (``face``), the latter with the projector stream recorded and the projector calibration written beside
+  the trials (:mod:`feelium.lab.sim.take_faceon`);
+- ``multitouch``: the scene bench's two fingers, two hands 5 cm apart, two partners, swipes crossing a held
+  fingertip, palm, palm and finger, hug (:mod:`feelium.lab.sim.take_multitouch`), each true contact labelled
+  with the optional ``"contact"`` kind, scored contact by contact by ``eval``.
 
 Every recording draws from its own RNG streams keyed by (seed, its name), exactly as the experiments do, so a
 recording here replays to the experiment's own events.
@@ -29,15 +35,21 @@ from typing import Any
 
 import cv2
 
-from feelium.lab.sim import protocol
+from feelium.lab.sim import protocol, take_faceon, take_multitouch
 from feelium.lab.touch import face_zones, litroom
+from feelium.lab.touch.recorded_light import CALIBRATION_FILE
 from feelium.recording import RecordingWriter
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, exposure_samples
 from feelium.sim.camera import frame_times
 from feelium.sim.sessions import session_presets
 from feelium.skin.face import FaceModel
 
-CONDITIONS: dict[str, tuple[str, ...]] = {"litroom": litroom.CONDITIONS, "face": face_zones.ZONES}
+CONDITIONS: dict[str, tuple[str, ...]] = {
+    "litroom": litroom.CONDITIONS,
+    "face": face_zones.ZONES,
+    "faceon": take_faceon.VARIANTS,
+    "multitouch": take_multitouch.VARIANTS,
+}
 GENERATOR = "feelium.sim.conditions"
 GENERATOR_VERSION = 1
 
@@ -49,7 +61,7 @@ class Job:
     condition: str
     variant: str
     relpath: str
-    trial: protocol.Item | face_zones.Trial
+    trial: protocol.Item | face_zones.Trial | take_multitouch.Run
     frame: tuple[int, int] = face_zones.FRAME  # the whole face's camera frame (its lens fills it)
 
 
@@ -62,10 +74,16 @@ def plan(condition: str, variants: tuple[str, ...], scale: float) -> list[Job]:
     if bad:
         raise ValueError(f"{condition}: unknown variant(s) {', '.join(bad)}; expected some of {', '.join(known)}")
     jobs: list[Job] = []
-    if condition == "litroom":
+    if condition in ("litroom", "faceon"):
         trials = [item for item in protocol.plan(scale) if not item.clip]
         for variant in variants:
             jobs += [Job(condition, variant, f"{condition}-{variant}/{item.relpath}", item) for item in trials]
+    elif condition == "multitouch":
+        for variant in variants:
+            jobs += [
+                Job(condition, variant, f"{condition}-{variant}/{run.session}/{run.name}", run)
+                for run in take_multitouch.runs(variant, scale)
+            ]
     else:
         per_cell = max(1, int(round(5 * scale)))  # the face bench's 5 trials per label and zone at scale 1
         for trial in face_zones.plan(per_cell):
@@ -80,8 +98,13 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
         "name": GENERATOR, "version": GENERATOR_VERSION, "seed": seed, "scale": scale,
         "condition": f"{job.condition}/{job.variant}",
     }  # fmt: skip
+    take: take_faceon.FaceTake | None = None
     if job.condition == "litroom":
         frames, labels, size, roi, extra = _litroom(job, seed, generator)
+    elif job.condition == "faceon":
+        (frames, labels, size, roi, extra), take = _faceon(job, seed, generator)
+    elif job.condition == "multitouch":
+        frames, labels, size, roi, extra = _multitouch(job, seed, generator)
     else:
         frames, labels, size, roi, extra = _face(job, seed, generator)
     session = job.trial.session
@@ -90,8 +113,12 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
         out / job.relpath, name=Path(job.relpath).name, width=size[0], height=size[1], fps=fps, session=session,
         source="synthetic", roi=roi, extra_meta={"generator": protocol._jsonable(generator), **extra}, overwrite=overwrite,
     ) as writer:  # fmt: skip
-        for t, frame in frames:
-            writer.add_frame(t, frame)
+        if take is not None and take.projector is not None:
+            writer.set_projector(*take.projector_size, take.projector_fps)
+            _write_interleaved(writer, frames, take.projector)
+        else:
+            for t, frame in frames:
+                writer.add_frame(t, frame)
         writer.set_labels(labels)
     return out / job.relpath
 
@@ -128,6 +155,39 @@ def _face(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
             yield float(t), scene.frame(float(t), exposure_samples(script.state, float(t), session.sensor.exposure_s))
 
     return frames(), script.labels(), job.frame, roi, {"face": face.to_json()}
+
+
+def _faceon(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.FaceTake]:
+    item = job.trial
+    assert isinstance(item, protocol.Item)
+    take = take_faceon.render(item, job.variant, seed)
+    generator.update(warmup_s=take_faceon.faceon.WARMUP_S, video_offset_s=take.offset_s,
+                     projector_latency_s=take_faceon.faceon.TRUE_LATENCY_S)  # fmt: skip
+    return (take.frames, take.labels, (WIDTH, HEIGHT), ROI, {}), take
+
+
+def _write_interleaved(
+    writer: RecordingWriter, frames: Iterator[tuple[float, Any]], shown: Iterator[tuple[float, Any]]
+) -> None:
+    """Each camera frame after the projector frames shown up to its time: the projector stream then runs just
+    ahead of the camera's light, from the same small cache, so each projector frame is rendered once."""
+    pending = next(shown, None)
+    for t, frame in frames:
+        while pending is not None and pending[0] <= t:
+            writer.add_projector_frame(*pending)
+            pending = next(shown, None)
+        writer.add_frame(t, frame)
+    while pending is not None:
+        writer.add_projector_frame(*pending)
+        pending = next(shown, None)
+
+
+def _multitouch(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
+    run = job.trial
+    assert isinstance(run, take_multitouch.Run)
+    frames, labels = take_multitouch.render(run, seed)
+    generator.update(scene=run.scene, rep=run.rep, warmup_s=take_multitouch.multitouch.WARMUP_S)
+    return frames, labels, (WIDTH, HEIGHT), ROI, {}
 
 
 def _write_star(args: tuple[Job, Path, int, float, bool]) -> str:
@@ -169,4 +229,7 @@ def simulate_condition(
     finally:
         if jobs > 1:
             pool.shutdown()
+    if condition == "faceon" and any(job.variant == "face" for job in todo):
+        # The map the daemon would use, beside the face trials (`eval` finds it there).
+        take_faceon.calibration(seed).save(Path(out) / "faceon-face" / CALIBRATION_FILE)
     return sorted(written)

@@ -20,18 +20,27 @@ from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
 from feelium.lab.touch.margins import GateSeries, GateThresholds
+from feelium.lab.touch.contact_score import score_contacts
+from feelium.lab.touch.recorded_light import recorded_light
 from feelium.lab.touch.replay import ReplayResult, relative_name, replay_recording
+from feelium.projector.config import ProjectorConfig
 
 
 def _touch_config(path: str | None) -> TouchConfig:
     return load_config(path).touch
 
 
+def _calibration(args: argparse.Namespace) -> Path | None:
+    given = getattr(args, "projector_calibration", None)
+    return Path(given) if given else None
+
+
 # -- replay ------------------------------------------------------------------------------
 
 
 def run_replay(args: argparse.Namespace) -> int:
-    config = _touch_config(args.config)
+    whole = load_config(args.config)
+    config = whole.touch
     root = Path(args.path)
     paths = find_recordings(root)
     dataset = not (len(paths) == 1 and paths[0].resolve() == root.resolve())
@@ -47,7 +56,12 @@ def run_replay(args: argparse.Namespace) -> int:
             writer = _VideoOut(target, recording.meta.camera.fps, (recording.meta.camera.width, recording.meta.camera.height))
             on_frame = writer.frame_hook(recording.meta.roi)
         try:
-            result = skips.attempt(lambda: replay_recording(recording, config, on_frame=on_frame))
+            result = skips.attempt(
+                lambda: replay_recording(
+                    recording, config, on_frame=on_frame,
+                    light=recorded_light(recording, root, whole.projector, config, _calibration(args)),
+                )
+            )  # fmt: skip
         finally:
             if writer is not None:
                 writer.close()
@@ -185,8 +199,14 @@ def evaluate_dataset(
     plain: bool = False,
     skips: Skips | None = None,
     by_condition: bool = False,
+    projector: ProjectorConfig | None = None,
+    calibration: Path | None = None,
 ):
     """Replay every good labelled recording under ``root`` and build the report; returns (report, clips).
+
+    A recording with a projector stream is replayed with the light the daemon would predict from it
+    (:mod:`feelium.lab.touch.recorded_light`: ``projector``'s optics, the ``calibration`` map, else the one
+    beside the trials).
 
     Bad recordings are reported through ``skips`` and left out (a fresh :class:`Skips` when not given). With
     ``by_condition`` the report gains ``"conditions"``: the same report for each condition's recordings alone
@@ -197,7 +217,12 @@ def evaluate_dataset(
     for recording in skips.recordings(root):
         if recording.labels is None:
             continue
-        result = skips.attempt(lambda: replay_recording(recording, config, plain=plain))
+        result = skips.attempt(
+            lambda: replay_recording(
+                recording, config, plain=plain,
+                light=recorded_light(recording, root, projector or ProjectorConfig(), config, calibration),
+            )
+        )  # fmt: skip
         if result is None:
             continue
         trials, clips, timings = groups.setdefault(condition_of(root, recording) if by_condition else ".", ([], [], []))
@@ -210,7 +235,9 @@ def evaluate_dataset(
 
     def report_of(name: str, trials: list[TrialData], clips: list[ClipData], timings: list[np.ndarray]) -> dict[str, Any]:
         seconds = np.concatenate(timings) if timings else np.zeros(0)
-        return build_report(name, trials, clips, seconds, config.width, config.height, gates)
+        report = build_report(name, trials, clips, seconds, config.width, config.height, gates)
+        report["contacts"] = score_contacts(trials, config.px_per_mm or 2.0)  # added key: several contacts
+        return report
 
     every = [g for g in groups.values()]
     all_trials = [t for g in every for t in g[0]]
@@ -222,7 +249,8 @@ def evaluate_dataset(
 
 
 def run_eval(args: argparse.Namespace) -> int:
-    config = _touch_config(args.config)
+    whole = load_config(args.config)
+    config = whole.touch
     root = Path(args.dataset)
     fitted: dict[str, float] | None = None
     fit_warnings: list[str] = []
@@ -240,7 +268,10 @@ def run_eval(args: argparse.Namespace) -> int:
         for warning in fit_warnings:
             print(f"feelium eval: --fit-on-clips: warning: {warning}", file=sys.stderr)
     skips = Skips("eval")
-    report, clips = evaluate_dataset(root, config, dataset_name=args.dataset, skips=skips, by_condition=args.by_condition)
+    report, clips = evaluate_dataset(
+        root, config, dataset_name=args.dataset, skips=skips, by_condition=args.by_condition,
+        projector=whole.projector, calibration=_calibration(args),
+    )  # fmt: skip
     report["touch_config"] = {
         "fitted_on_clips": fitted is not None,
         "fit_warnings": fit_warnings,
@@ -318,6 +349,20 @@ def _margin_rows(margins: dict[str, Any] | None) -> list[tuple[str, str]]:
     return rows
 
 
+def _contact_rows(c: dict[str, Any] | None) -> list[tuple[str, str]]:
+    """Several contacts per trial (labels saying what touched): ids, and what touched against the truth."""
+    if not c:
+        return []
+    err = c["error_px"]
+    kinds = "; ".join(f"{k}: " + ", ".join(f"{n} {got}" for got, n in v.items() if n) for k, v in c["kinds"].items())
+    return [
+        ("contacts (several per trial)", f"{c['contacts']} in {c['trials']} trials: {c['touches']} touches, missed {c['missed']}, "
+         f"split {c['split']}, id swaps {c['swaps']}, phantoms {c['phantoms']}"),
+        ("  contact kind right", f"{c['kind_right']} of {c['kind_scored']} ({kinds})"),
+        ("  error px (median/max)", "n/a" if err is None else f"{err['median']:.2f} / {err['max']:.2f}"),
+    ]  # fmt: skip
+
+
 def _signed(value: float | None) -> str:
     return "n/a" if value is None else f"{value:+.3f}"
 
@@ -367,6 +412,7 @@ def format_report(report: dict[str, Any]) -> str:
             )
         )
     rows += _margin_rows(report.get("margins"))
+    rows += _contact_rows(report.get("contacts"))
     cfg = report.get("touch_config")
     if cfg:
         rows.append(

@@ -67,16 +67,22 @@ def replay_recording(
     plain: bool = False,
     on_frame: Callable[[float, np.ndarray, FrameResult], None] | None = None,
     frames: Iterator[tuple[float, np.ndarray]] | None = None,
+    light: Callable[[float], dict[str, np.ndarray]] | None = None,
 ) -> ReplayResult:
-    """Feed every frame of ``recording`` through a fresh pipeline; ``on_frame`` sees each result."""
+    """Feed every frame of ``recording`` through a fresh pipeline; ``on_frame`` sees each result.
+
+    ``light``: per frame time, the projected light the daemon would pass with the frame
+    (:class:`feelium.lab.touch.recorded_light.RecordedLight` for a recording with a projector stream).
+    """
     meta = recording.meta
     size = (meta.camera.width, meta.camera.height)
     pipeline = TouchPipeline(config, size, meta.roi, plain=plain, face=face_of(recording))
     out = ReplayResult(recording=recording)
     ts, act, anc, area, dmax, core, edge, spf, cpu = [], [], [], [], [], [], [], [], []
     for t, frame in frames if frames is not None else recording.frames(gray=True):
+        extra = light(t) if light is not None else {}  # predicted outside the timing: the pipeline alone is timed
         start, start_cpu = time.perf_counter(), time.thread_time()
-        result = pipeline.process(t, frame)
+        result = pipeline.process(t, frame, **extra)
         cpu.append(time.thread_time() - start_cpu)
         spf.append(time.perf_counter() - start)
         out.events.extend(result.events)

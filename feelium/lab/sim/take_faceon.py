@@ -1,0 +1,97 @@
+"""One protocol trial with the wearer's face on the skin, as a recording that carries what was projected.
+
+The world is the face-on experiment's (:mod:`feelium.lab.touch.faceon`, its parameters stated there and none
+chosen from detector scores): the scripted wearer's video at full brightness (talking avatar, head sway,
+scene cuts, fades to black and back) shown through the daemon's renderer with its sensing and fade floors,
+lit on the membrane :data:`~feelium.lab.touch.faceon.TRUE_LATENCY_S` after its frame clock and integrated over
+the camera's exposure; the same hands, session, camera noise and video offset per trial, and the same
+hand-free warm-up (recorded here as frames before 0 s). Two variants:
+
+- ``static``: the flat back-light, the baseline every face figure is read against;
+- ``face``: the face on, with the projector stream recorded: every projector frame the daemon handed the
+  display, gray, with the time it did so (its frame clock, ``k / fps``; the daemon knows when it showed a
+  frame, not when the light reached the membrane, which is what ``[touch] projector_latency_s`` models).
+
+The camera-to-projector map the daemon would use is the Gray-code calibration run against the same simulated
+optics (:func:`feelium.lab.projector.facevideo.sim_calibration`, a decode, not the true warp); the dataset
+writes it beside the trials as ``projector-calibration.npz``.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from feelium.lab.sim import protocol
+from feelium.lab.touch import faceon
+from feelium.projector.config import ProjectorConfig
+from feelium.recording import Labels
+from feelium.sim.camera import frame_times
+from feelium.sim.projection import timed_hook
+from feelium.sim.scene import ROI, SceneRenderer, SceneState, exposure_samples
+from feelium.sim.sessions import session_presets
+from feelium.skin.projector_map import ProjectorMap
+from feelium.touch.config import TouchConfig
+
+VARIANTS = ("static", "face")
+
+
+@dataclass
+class FaceTake:
+    """The camera frames (warm-up first), labels and, with the face on, the projector stream."""
+
+    frames: Iterator[tuple[float, np.ndarray]]
+    labels: Labels
+    projector: Iterator[tuple[float, np.ndarray]] | None
+    projector_size: tuple[int, int]
+    projector_fps: float
+    offset_s: float
+
+
+@functools.lru_cache(maxsize=2)
+def experiment(seed: int) -> faceon._Experiment:
+    """The experiment's world (the calibration decoded once per process and seed)."""
+    return faceon._Experiment(faceon._Setup(seed, ProjectorConfig(), TouchConfig(), faceon.FaceScript()))
+
+
+def calibration(seed: int) -> ProjectorMap:
+    """The camera-to-projector map decoded from the simulated Gray-code run (what a user's calibration gives)."""
+    return experiment(seed).calibration
+
+
+def render(item: protocol.Item, variant: str, seed: int) -> FaceTake:
+    """``item`` under ``variant`` (``static`` or ``face``)."""
+    if variant not in VARIANTS:
+        raise ValueError(f"faceon: unknown variant {variant!r}")
+    ex = experiment(seed)
+    fps = ex.setup.script.fps
+    script = protocol.build_script(item, seed)
+    session = session_presets(seed)[item.session]
+    offset = float(protocol.recording_rng(seed, item.name, 7).uniform(0.0, ex.setup.script.fade_every_s))
+    video = faceon.FaceVideo(ex.renderer, ex.source, ex.setup.script, offset)
+    shown = faceon._Cache(video.frame)
+    hook = timed_hook(ex.light, shown, fps, faceon.TRUE_LATENCY_S, session.sensor.exposure_s) if variant == "face" else None
+    rng = protocol.recording_rng(seed, item.name, 1)
+    scene = SceneRenderer(session, rng, roi=ROI, projected=hook, projected_share_only=True)
+
+    def frames() -> Iterator[tuple[float, np.ndarray]]:
+        for t in np.arange(-faceon.WARMUP_S, -0.25, 1.0 / session.sensor.fps):
+            yield float(t), scene.frame(float(t), SceneState())
+        for t in frame_times(session.sensor, script.duration, rng):
+            yield float(t), scene.frame(float(t), exposure_samples(script.state, float(t), session.sensor.exposure_s))
+
+    def projector() -> Iterator[tuple[float, np.ndarray]]:
+        # The same cache as the camera's light: written interleaved with the camera frames (write_job), the
+        # stream runs a frame or two ahead of the light and each projector frame is rendered once.
+        first = math.floor(-faceon.WARMUP_S * fps) - 2
+        for k in range(first, math.ceil(script.duration * fps) + 1):
+            yield k / fps, shown(k)
+
+    config = ex.setup.projector
+    return FaceTake(
+        frames(), script.labels(), projector() if variant == "face" else None, (config.width, config.height), fps, offset
+    )

@@ -1,0 +1,100 @@
+"""Several contacts in one trial, scored contact by contact (two hands, a palm, a hug: issue 17, point 4).
+
+The evaluation spec scores one touch per trial. A trial whose labelled contacts say what touched (the
+optional ``"contact"`` key of ``labels.json``: ``finger``, ``palm``, ``hug``) is also scored here, each
+labelled contact being one touch that should get an id of its own and keep it: every event is given to the
+nearest contact pressed then (from :data:`EARLY_S` before its onset to :data:`LATE_S` after its release),
+measured to the contact's labelled ``path`` (its footprint's centre), within :data:`REACH_MM` of its kind,
+else it is a phantom. Counted over all such trials: contacts, touches (ids), contacts *missed* (no id),
+*split* (ids beyond the first), id *swaps* (an id whose events move to another contact), *phantoms* (ids on
+no contact), the ``contact`` kind of each id's ``up`` event against its contact's, and the localisation
+error of the ``down``/``move`` events (camera px). The same rules as the lab's scene bench
+(:mod:`feelium.lab.touch.multitouch`), fed by labels instead of the simulator's scene.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from feelium.events import TouchEvent
+from feelium.lab.touch.evaluate import TrialData
+from feelium.recording import CONTACT_KINDS, Contact
+
+EARLY_S, LATE_S = 0.1, 0.4
+# How far from its footprint's centre an event may be and still belong to it, by what touched (physical
+# sizes, not fitted): a fingertip's within 20 mm; a flat hand's, half a large hand's length (wrist to
+# fingertip 17-21 cm); a hug's, the chest's half-length (200 mm).
+REACH_MM = {"finger": 20.0, "palm": 100.0, "hug": 200.0}
+
+
+def _distance(contact: Contact, t: float, x: float, y: float) -> float:
+    where = contact.position_at(min(max(t, contact.t_on), contact.t_off))
+    return math.inf if where is None else math.hypot(x - where[0], y - where[1])
+
+
+def _trial(contacts: tuple[Contact, ...], events: list[TouchEvent], px_per_mm: float) -> dict[str, Any]:
+    owner: dict[int, list[int]] = {}
+    errors: list[list[float]] = [[] for _ in contacts]
+    final: dict[int, str | None] = {}
+    for e in events:
+        best, best_d = -1, math.inf
+        for i, c in enumerate(contacts):
+            if c.t_on - EARLY_S <= e.t <= c.t_off + LATE_S:
+                d = _distance(c, e.t, e.x, e.y)
+                if d <= REACH_MM[c.contact or "finger"] * px_per_mm and d < best_d:
+                    best, best_d = i, d
+        owner.setdefault(e.id, []).append(best)
+        if e.phase == "up":
+            final[e.id] = e.shape.contact if e.shape is not None else None
+        elif best >= 0:
+            errors[best].append(best_d)
+    ids_of: list[set[int]] = [set() for _ in contacts]
+    swaps = phantoms = 0
+    kinds = {k: {c: 0 for c in (*CONTACT_KINDS, "none")} for k in CONTACT_KINDS}
+    for eid, owners in owner.items():
+        known = [o for o in owners if o >= 0]
+        if not known:
+            phantoms += 1
+            continue
+        swaps += sum(1 for a, b in zip(known, known[1:]) if a != b)
+        for o in set(known):
+            ids_of[o].add(eid)
+        main = max(set(known), key=known.count)
+        kinds[contacts[main].contact or "finger"][final.get(eid) or "none"] += 1
+    return {
+        "contacts": len(contacts),
+        "touches": len(owner),
+        "missed": sum(1 for ids in ids_of if not ids),
+        "split": sum(max(len(ids) - 1, 0) for ids in ids_of),
+        "swaps": swaps,
+        "phantoms": phantoms,
+        "kinds": kinds,
+        "errors": [float(np.median(v)) for v in errors if v],
+    }
+
+
+def score_contacts(trials: list[TrialData], px_per_mm: float = 2.0) -> dict[str, Any] | None:
+    """Totals over the trials whose contacts say what touched; None when there is none.
+
+    ``px_per_mm``: the camera's scale on the membrane (``[touch] px_per_mm``; 2.0 for the paper's camera).
+    """
+    runs = [
+        _trial(t.labels.contacts, t.events, px_per_mm)
+        for t in trials
+        if t.labels.contacts and all(c.contact is not None for c in t.labels.contacts)
+    ]
+    if not runs:
+        return None
+    out: dict[str, Any] = {"trials": len(runs)}
+    for key in ("contacts", "touches", "missed", "split", "swaps", "phantoms"):
+        out[key] = sum(r[key] for r in runs)
+    kinds = {k: {c: sum(r["kinds"][k][c] for r in runs) for c in (*CONTACT_KINDS, "none")} for k in CONTACT_KINDS}
+    out["kinds"] = {k: v for k, v in kinds.items() if sum(v.values())}
+    out["kind_right"] = sum(v[k] for k, v in kinds.items())
+    out["kind_scored"] = sum(sum(v.values()) for v in kinds.values())
+    errors = [e for r in runs for e in r["errors"]]
+    out["error_px"] = None if not errors else {"median": float(np.median(errors)), "max": float(max(errors))}
+    return out

@@ -1,0 +1,91 @@
+"""The projected light of every camera exposure, from a recording's projector stream, as the daemon predicts it.
+
+A recording made while the skin showed a face carries what the projector showed (``projector.mkv`` with
+each frame's display time, docs/recording-format.md). Replaying it without that knowledge judges a pipeline
+that is blind to the face the daemon chose itself, so ``replay``/``eval`` feed the pipeline the same
+``projected_light`` and ``projected_spread`` the touch service gives it on the blimp: the recent projector
+frames (:class:`feelium.touch.projected.ProjectorHistory`, the daemon's window) mixed over each camera
+exposure with the latency's spread (:class:`feelium.touch.projected.ExposureLight`). The one difference is
+the source of a frame's light: the daemon predicts it from the grey skin canvas it drew
+(:mod:`feelium.projector.canvaslight`), a recording only holds the projector's frame, so the frame
+predictor (:class:`feelium.projector.backlight.BacklightPredictor`, the reference the canvas predictor is
+checked against) is used, through the camera-to-projector calibration found for the recording.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from feelium.projector.backlight import BacklightPredictor
+from feelium.projector.config import ProjectorConfig
+from feelium.recording import Recording, RecordingError
+from feelium.skin.projector_map import CalibrationError, ProjectorMap, load_calibration
+from feelium.touch.config import TouchConfig
+from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
+
+CALIBRATION_FILE = "projector-calibration.npz"  # a map saved by ProjectorMap.save, found beside the trials
+
+
+class RecordedLight:
+    """Per camera frame time: the pipeline's ``projected_light``/``projected_spread`` keyword arguments."""
+
+    def __init__(
+        self, frames: Iterator[tuple[float, np.ndarray]], predictor: BacklightPredictor, config: TouchConfig
+    ) -> None:
+        self._frames = frames
+        self._next: tuple[float, np.ndarray] | None = next(frames, None)
+        self._seq = 0
+        self._history = ProjectorHistory(history_window_s(config))
+        self._light = ExposureLight(predictor.gain, config)
+
+    def __call__(self, t: float) -> dict[str, np.ndarray]:
+        """What the daemon would know at camera time ``t``: every projector frame shown up to ``t``."""
+        while self._next is not None and self._next[0] <= t:
+            self._history.record(self._next[0], self._seq, self._next[1])
+            self._seq += 1
+            self._next = next(self._frames, None)
+        mixed = self._light(self._history.frames(), t)
+        if mixed is None:
+            return {}
+        light, spread = mixed  # reused by the next call: the pipeline reads them within this frame
+        return {"projected_light": light, "projected_spread": spread}
+
+
+def find_calibration(recording: Path, root: Path) -> Path | None:
+    """The calibration beside the trials: :data:`CALIBRATION_FILE` in the recording's folder or the nearest
+    folder above it, up to the dataset ``root``."""
+    here, top = recording.resolve(), root.resolve()
+    for folder in (here, *here.parents):
+        candidate = folder / CALIBRATION_FILE
+        if candidate.is_file():
+            return candidate
+        if folder == top or top not in folder.parents:
+            break
+    return None
+
+
+def recorded_light(
+    recording: Recording, root: Path, projector: ProjectorConfig, touch: TouchConfig, calibration: Path | None = None
+) -> RecordedLight | None:
+    """The light feed of ``recording``, or None when it has no projector stream.
+
+    A recording with a projector stream but no calibration (none given, none beside it) is an error that
+    says so: replaying it blind would score a different pipeline from the daemon's without notice.
+    """
+    if not recording.has_projector:
+        return None
+    path = calibration if calibration is not None else find_calibration(recording.path, root)
+    if path is None:
+        raise RecordingError(
+            recording.path, f"has a projector stream but no projector calibration ({CALIBRATION_FILE} beside it or --projector-calibration)"
+        )
+    try:
+        cal: ProjectorMap = load_calibration(path)
+    except CalibrationError as exc:
+        raise RecordingError(path, str(exc)) from exc
+    camera = recording.meta.camera
+    predictor = BacklightPredictor(projector, cal, (camera.width, camera.height))
+    return RecordedLight(recording.projector_frames(), predictor, touch)
