@@ -422,6 +422,20 @@ class DiskFull(OSError):
         super().__init__(errno.ENOSPC, f"disk nearly full ({free / 1e6:.1f} MB free)", str(path))
 
 
+def _umask() -> int:
+    """The process's umask: from /proc where Linux shows it, else by setting it and straight back (which
+    another thread could see for an instant, so only where there is no other way)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def free_bytes(path: Path) -> int:
     """Bytes an unprivileged writer may still use on the file system holding ``path``."""
     return shutil.disk_usage(path).free
@@ -480,6 +494,8 @@ class RecordingWriter:
             raise FileExistsError(f"{self.path}: already exists")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", dir=self.path.parent))
+        # mkdtemp makes it 0700 and the rename keeps that; a finished take is shared like any new directory
+        os.chmod(self._tmp, 0o777 & ~_umask())
         self._overwrite = overwrite
         self._meta: dict[str, Any] = {
             "format": FORMAT,

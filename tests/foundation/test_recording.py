@@ -231,3 +231,15 @@ def test_a_contact_may_say_what_touched(tmp_path):
     (tmp_path / "r" / "labels.json").write_text(json.dumps(labels))
     with pytest.raises(RecordingError, match="contacts\\[0\\].contact: 'elbow'"):
         Recording(tmp_path / "r")
+
+
+def test_a_finished_take_is_shared_as_the_umask_says_not_left_0700(tmp_path):
+    import os
+    import stat
+
+    old = os.umask(0o027)
+    try:
+        _write(tmp_path / "r")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "r").stat().st_mode) == 0o750
