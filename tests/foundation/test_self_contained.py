@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-OUTSIDE = ("shared/specs", "../shared", "/work/")
+OUTSIDE = ("shared/specs", "shared/design", "shared/vendor", "shared/seed", "../shared", "/work/")
 THIS = Path(__file__).resolve().relative_to(ROOT).as_posix()
 
 
