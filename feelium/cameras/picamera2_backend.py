@@ -27,6 +27,8 @@ INSTALL_HINT = (
     "picamera2 is not installed: on Raspberry Pi OS run `sudo apt install python3-picamera2` "
     "(pip-only setups: `pip install 'feelium[pi]'` with libcamera present); the user needs the 'video' group"
 )
+
+
 def boottime_ahead_s() -> float:
     """How far libcamera's clock (``SensorTimestamp``: CLOCK_BOOTTIME) is ahead of the daemon's (CLOCK_MONOTONIC).
 
@@ -44,11 +46,30 @@ def sensor_time_s(stamp_ns: int, boottime_ahead: float) -> float:
 AFTER_LOCK_S = 0.3  # frames still exposed with the old automatic values right after locking are skipped
 
 
+NUMPY_ABI_WORDS = ("numpy", "dtype size changed", "_ARRAY_API", "multiarray")
+
+
 def load_picamera2() -> ModuleType:
-    """Import picamera2 or raise :class:`CameraUnavailable` saying what to install."""
+    """Import picamera2 or raise :class:`CameraUnavailable` saying what to do.
+
+    Installed but failing to load is not the same trouble as absent: Debian's picamera2 and simplejpeg are
+    built against numpy 1.24, and a numpy 2 in the venv makes their import fail ("numpy.core.multiarray failed
+    to import", "dtype size changed"). Telling the user to install what is there would send them round in a
+    circle, so that case names numpy and the constraints file instead.
+    """
     try:
         return importlib.import_module("picamera2")
-    except ImportError as exc:
+    except Exception as exc:
+        installed = importlib.util.find_spec("picamera2") is not None
+        if installed and any(word in str(exc) for word in NUMPY_ABI_WORDS):
+            import numpy
+
+            raise CameraUnavailable(
+                f"picamera2 is installed but cannot load with numpy {numpy.__version__} ({exc}): Debian's camera "
+                "stack needs numpy < 2; reinstall the venv with `-c constraints/pi-bookworm.txt` (docs/deploy.md)"
+            ) from exc
+        if installed:
+            raise CameraUnavailable(f"picamera2 is installed but failed to load: {type(exc).__name__}: {exc}") from exc
         raise CameraUnavailable(INSTALL_HINT) from exc
 
 

@@ -132,6 +132,25 @@ def test_a_missing_library_says_what_to_install(monkeypatch):
     assert camera_count() == 0 or picamera2_backend.importlib.util.find_spec("picamera2") is not None
 
 
+@pytest.mark.parametrize(
+    ("raises", "says"),
+    [
+        ('ImportError("numpy.core.multiarray failed to import")', "cannot load with numpy .*constraints/pi-bookworm.txt"),
+        ('ValueError("numpy.dtype size changed, may indicate binary incompatibility")', "cannot load with numpy"),
+        ('RuntimeError("libcamera: no IPA module")', "installed but failed to load: RuntimeError: libcamera"),
+    ],
+)
+def test_an_installed_library_that_fails_to_load_says_why_not_install_it(tmp_path, monkeypatch, raises, says):
+    package = tmp_path / "picamera2"
+    package.mkdir()
+    (package / "__init__.py").write_text(f"raise {raises}\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "picamera2", raising=False)
+    with pytest.raises(CameraUnavailable, match=says) as caught:
+        load_picamera2()
+    assert "apt install" not in str(caught.value)
+
+
 def test_camera_count_of_a_module(module):
     assert camera_count(module) == 2
 
