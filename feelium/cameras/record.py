@@ -16,6 +16,7 @@ import contextlib
 import errno
 import logging
 import math
+import queue
 import signal
 import threading
 import time
@@ -46,13 +47,14 @@ class ThermalCapture(Protocol):
 
 @dataclass(frozen=True)
 class Take:
-    """A finished recording and why it ended: ``"time limit"``, ``"source ended"``, ``"stopped"`` or ``"disk full"``."""
+    """A finished recording and why it ended: ``"time limit"``, ``"source ended"``, ``"stopped"``, ``"disk full"``
+    or ``"camera stalled"``."""
 
     path: Path
     frames: int
     seconds: float
     ended: str
-    problem: str = ""  # the disk's one-line complaint when ``ended == "disk full"``
+    problem: str = ""  # the one-line complaint when ``ended`` is ``"disk full"`` or ``"camera stalled"``
 
 
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
@@ -79,6 +81,67 @@ def stop_on_signals(stop: threading.Event, signals: tuple[signal.Signals, ...] =
             signal.signal(sig, old)
 
 
+STALL_S = 5.0  # no frame for this long ends the take: a camera that stopped delivering is not a recording
+_POLL_S = 0.1  # how often a wait for the next frame looks at the stop request
+
+
+class CameraStalled(RuntimeError):
+    """The camera delivered no frame for ``STALL_S`` before the take had a first frame."""
+
+
+class _FrameFeed:
+    """The camera read in a thread of its own, so that a read that never returns (a ``capture_request()``
+    with no frame coming) can neither hold up a stop request nor the end of the take.
+
+    The thread is a daemon: when the take ends on a stalled read, the process can still exit.
+    """
+
+    _END = object()
+
+    def __init__(self, camera: Camera) -> None:
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=4)  # the writer's back-pressure, as a direct read had
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._read_all, args=(camera,), name="record-camera", daemon=True)
+        self._thread.start()
+
+    def _read_all(self, camera: Camera) -> None:
+        try:
+            while not self._done.is_set() and (frame := camera.read()) is not None:
+                self._queue.put(frame)
+        except BaseException as exc:  # handed to the recording thread, which decides
+            self._queue.put(exc)
+            return
+        self._queue.put(self._END)
+
+    def close(self, wait_s: float = 1.0) -> None:
+        """Stop reading; wait (bounded) for a read in progress, so the caller's ``camera.close()`` does not race
+        it. A stalled read is left behind in its daemon thread."""
+        self._done.set()
+        deadline = time.monotonic() + wait_s
+        while self._thread.is_alive() and time.monotonic() < deadline:
+            with contextlib.suppress(queue.Empty):
+                self._queue.get(timeout=0.02)  # a reader blocked on a full queue can then see ``_done``
+
+    def next(self, stop: threading.Event | None, stall_s: float) -> Any:
+        """The next frame; ``None`` at the source's end; ``"stopped"`` once ``stop`` is set; ``"stalled"``."""
+        waited = 0.0
+        while True:
+            if stop is not None and stop.is_set():
+                return "stopped"
+            try:
+                item = self._queue.get(timeout=_POLL_S)
+            except queue.Empty:
+                waited += _POLL_S
+                if waited >= stall_s:
+                    return "stalled"
+                continue
+            if item is self._END:
+                return None
+            if isinstance(item, BaseException):
+                raise item
+            return item
+
+
 def record(
     camera: Camera,
     out: Path,
@@ -93,14 +156,43 @@ def record(
     stop: threading.Event | None = None,
     on_frame: Callable[[int, float], None] | None = None,
     writer_options: dict[str, Any] | None = None,
+    stall_s: float = STALL_S,
 ) -> Take:
-    """Record frames until ``seconds`` of camera time have passed, the source ends, ``stop`` is set or the disk fills.
+    """Record frames until ``seconds`` of camera time have passed, the source ends, ``stop`` is set, the disk
+    fills or the camera delivers nothing for ``stall_s`` (``ended == "camera stalled"``: what came before is kept).
 
     ``writer_options`` go to :class:`RecordingWriter` (a test's tiny disk).
     """
-    first = camera.read()
-    if first is None:
+    feed = _FrameFeed(camera)
+    try:
+        return _record_from(feed, out, seconds=seconds, fps=fps, name=name, session=session, source=source,
+                            extra_meta=extra_meta, thermal=thermal, stop=stop, on_frame=on_frame,
+                            writer_options=writer_options, stall_s=stall_s)  # fmt: skip
+    finally:
+        feed.close()
+
+
+def _record_from(
+    feed: _FrameFeed,
+    out: Path,
+    *,
+    seconds: float | None,
+    fps: float,
+    name: str,
+    session: str,
+    source: str,
+    extra_meta: dict[str, Any] | None,
+    thermal: ThermalCapture | None,
+    stop: threading.Event | None,
+    on_frame: Callable[[int, float], None] | None,
+    writer_options: dict[str, Any] | None,
+    stall_s: float,
+) -> Take:
+    first = feed.next(stop, stall_s)
+    if first in (None, "stopped"):
         raise RuntimeError("the rear camera delivered no frame")
+    if first == "stalled":
+        raise CameraStalled(f"the rear camera delivered no frame in {stall_s:g} s")
     height, width = first.image.shape[:2]
     pixel_format = "gray8" if first.image.ndim == 2 else "bgr8"
     writer = RecordingWriter(
@@ -140,10 +232,13 @@ def record(
                     except Exception as exc:  # progress is a nicety (a hung-up terminal's EIO): never the take's end
                         log.warning("progress stopped (%s); still recording", exc)
                         on_frame = None
-            if stop is not None and stop.is_set():
+            frame = feed.next(stop, stall_s)
+            if frame == "stopped":
                 ended = "stopped"
                 break
-            frame = camera.read()
+            if frame == "stalled":
+                ended, problem = "camera stalled", f"the rear camera delivered no frame for {stall_s:g} s"
+                break
             if frame is None:
                 break
             if seconds is not None and frame.t - t0 >= seconds:

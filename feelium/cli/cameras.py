@@ -120,11 +120,17 @@ def _record(args: argparse.Namespace) -> int:
     except OSError as exc:  # the writer removed its temp dir: nothing half is left
         print(f"feelium record: cannot write {out}: {exc.strerror or exc}; nothing kept", file=sys.stderr)
         return 1
+    except RuntimeError as exc:  # no first frame (a camera that delivers nothing): nothing was started
+        print(f"feelium record: {exc}; nothing kept", file=sys.stderr)
+        return 1
     finally:
         camera.close()
     summary = f"{take.path} ({take.frames} frames, {take.seconds:.1f} s)"
     if take.ended == "disk full":
         say(f"feelium record: {take.problem} in {out.parent}: kept a shorter take {summary}", sys.stderr)
+        return 1
+    if take.ended == "camera stalled":
+        say(f"feelium record: {take.problem}: kept a shorter take {summary}", sys.stderr)
         return 1
     say(f"recorded {summary}" + (f"; stopped by {caught[0]}" if caught else ""), sys.stdout)
     return 0

@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -148,3 +149,34 @@ def test_a_stop_signal_finishes_a_valid_shorter_take(tmp_path, sig):
     rec = Recording(out)
     assert len(rec) >= 2 and np.all(np.diff(rec.timestamps) > 0)
     assert _leftovers(tmp_path) == ["r"]
+
+
+class StallingCamera(ScriptedCamera):
+    """Delivers its frames, then blocks in ``read()`` for ever, as ``capture_request()`` does with no frame coming."""
+
+    def __init__(self, times):
+        super().__init__(times)
+        self.blocked = threading.Event()
+
+    def read(self):
+        if not self.times:
+            self.blocked.set()
+            threading.Event().wait()  # never returns (a daemon thread, abandoned)
+        return super().read()
+
+
+def test_a_camera_that_stops_delivering_ends_the_take_kept_and_said(tmp_path):
+    camera = StallingCamera([i / 10 for i in range(5)])
+    take = record(camera, tmp_path / "r", seconds=None, fps=10.0, name="r", stall_s=0.3)
+    assert take.ended == "camera stalled" and "no frame for 0.3 s" in take.problem
+    assert take.frames == 5 and len(Recording(take.path)) == 5 and _leftovers(tmp_path) == ["r"]
+
+
+def test_a_stop_request_during_a_read_that_never_returns_still_finishes_the_take(tmp_path):
+    camera = StallingCamera([i / 10 for i in range(5)])
+    stop = threading.Event()
+    threading.Thread(target=lambda: camera.blocked.wait() and stop.set(), daemon=True).start()
+    started = time.monotonic()
+    take = record(camera, tmp_path / "r", seconds=None, fps=10.0, name="r", stop=stop, stall_s=60.0)
+    assert take.ended == "stopped" and take.frames == 5 and len(Recording(take.path)) == 5
+    assert time.monotonic() - started < 30.0  # not the 60 s stall limit: the stop was heard while the read hung
