@@ -1,0 +1,37 @@
+#!/usr/bin/env sh
+# The project on the blimp's library versions, checked on this machine. Development and CI run numpy 2 and
+# OpenCV 5; the Pi runs numpy 1.x and OpenCV 4.11 (constraints/pi-bookworm.txt, docs/deploy.md section 4), so
+# code that needs a newer numpy or OpenCV would pass every test here and fail on the blimp. This installs the
+# project with the Pi's constraints into .venv-pi (x86_64 wheels of the same versions), imports every module,
+# and runs what a user runs first: the simulated daemon, a recording, its replay and an evaluation.
+# Exit 0 when all of it works. Run by .ci/run; safe to run again.
+set -eu
+cd "$(dirname "$0")/.."
+root=$(pwd)
+[ -x .venv-pi/bin/python ] || python3 -m venv .venv-pi
+py="$root/.venv-pi/bin/python"
+"$py" -m pip install -q -c constraints/pi-bookworm.txt "$root"
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+cd "$work"  # the installed package, not the checkout's sources
+"$py" - <<'PY'
+import importlib, pkgutil
+import cv2, numpy
+import feelium
+assert numpy.__version__.startswith("1."), numpy.__version__
+names = [m.name for m in pkgutil.walk_packages(feelium.__path__, "feelium.") if not m.name.endswith("__main__")]
+for name in names:
+    importlib.import_module(name)
+print(f"pi versions: numpy {numpy.__version__}, OpenCV {cv2.__version__}: {len(names)} modules import")
+PY
+printf '[http]\nport = 0\n[daemon]\nstatus_interval_s = 1\n' > feelium.toml
+"$py" -m feelium run --config feelium.toml > run.log 2>&1 &
+daemon=$!
+sleep 12
+kill -INT "$daemon"
+wait "$daemon" || { cat run.log; echo "pi versions: feelium run failed" >&2; exit 1; }
+grep -q "feelium running" run.log || { cat run.log; echo "pi versions: the daemon never ran" >&2; exit 1; }
+"$py" -m feelium record --sim --seconds 3 --out take > /dev/null
+"$py" -m feelium replay take > /dev/null
+"$py" -m feelium eval "$root/recordings" --json eval.json --figure eval.png > /dev/null
+echo "pi versions: feelium run, record, replay and eval work"
