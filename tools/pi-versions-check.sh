@@ -27,10 +27,16 @@ PY
 printf '[http]\nport = 0\n[daemon]\nstatus_interval_s = 1\n' > feelium.toml
 "$py" -m feelium run --config feelium.toml > run.log 2>&1 &
 daemon=$!
-sleep 12
+waited=0
+until grep -q "feelium running" run.log; do  # up and every service started (or failed, which the log says)
+  sleep 1
+  waited=$((waited + 1))
+  [ "$waited" -lt 90 ] && kill -0 "$daemon" 2>/dev/null || { cat run.log; echo "pi versions: the daemon never ran" >&2; exit 1; }
+done
+sleep 5  # a few seconds of every service at work
 kill -INT "$daemon"
 wait "$daemon" || { cat run.log; echo "pi versions: feelium run failed" >&2; exit 1; }
-grep -q "feelium running" run.log || { cat run.log; echo "pi versions: the daemon never ran" >&2; exit 1; }
+if grep -q "Traceback" run.log; then cat run.log; echo "pi versions: a traceback in the daemon's log" >&2; exit 1; fi
 "$py" -m feelium record --sim --seconds 3 --out take > /dev/null
 "$py" -m feelium replay take > /dev/null
 "$py" -m feelium eval "$root/recordings" --json eval.json --figure eval.png > /dev/null
