@@ -156,6 +156,7 @@ class FlightService:
         self._next_open_t = float("-inf")
         self._backoff_s = min(config.reconnect_min_s, config.reconnect_max_s)
         self._serial: ThreadPoolExecutor | None = None
+        self._sending: tuple[MspClient, Future[None]] | None = None  # the last motor command queued, not yet checked
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
         """Run a port operation on this run's serial thread (jobs run one at a time, in order)."""
@@ -181,6 +182,7 @@ class FlightService:
         finally:
             events.close()
             self._release()  # a crash or a cancel must not leave the last command on the motors
+            self._sending = None  # its outcome is the released client's, not the next run's
             serial.shutdown(wait=False)  # queued jobs (the neutral) still run; the thread then ends
             self._serial = None
 
@@ -282,6 +284,7 @@ class FlightService:
                 self.soften.observe(event, now)
             except (AttributeError, TypeError, ValueError):
                 self.bad_events += 1
+        await self._sent(now)
         if self.client is None and now >= self._next_open_t and not self.stopping:
             await self._open(now)
         telemetry = None
@@ -302,11 +305,32 @@ class FlightService:
         self.cycles += 1
         self.heartbeat_at = now
         if self.client is not None and not self.stopping:
-            try:
-                await self._on_serial_thread(self.client.send_motors, out.motors_us)
-            except (OSError, ValueError) as exc:
-                await self._lost(now, exc)
+            # Queued, not awaited: nothing in this cycle needs its outcome, and the next poll runs after it on the
+            # same thread anyway. Waiting cost the loop a wake-up and a future per tick; a failed write is taken
+            # up at the start of the next cycle (_sent), before anything else is asked of that port.
+            self._sending = (self.client, self._serial_job(self.client.send_motors, out.motors_us))
         self._publish(out)
+
+    def _serial_job(self, call: Callable[..., Any], *args: Any) -> Future[Any]:
+        """Queue a port operation on this run's serial thread without waiting for it."""
+        assert self._serial is not None, "serial I/O outside run()"
+        return self._serial.submit(call, *args)
+
+    async def _sent(self, now: float) -> None:
+        """The outcome of the last cycle's motor command: a write that failed loses the link, as a failed poll does.
+
+        Only for the client that wrote it: one that stop() or a loss has released since is no longer ours."""
+        sending, self._sending = self._sending, None
+        if sending is None:
+            return
+        client, job = sending
+        try:
+            if not job.done():  # rare: the write is still queued behind a slow exchange
+                await asyncio.wrap_future(job)
+            job.result()
+        except (OSError, ValueError) as exc:
+            if client is self.client:
+                await self._lost(now, exc)
 
     def _observe_link(self, client: MspClient) -> None:
         """After a poll: the client's view of the line becomes the link state, its newest telemetry the age.
