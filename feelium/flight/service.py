@@ -2,7 +2,8 @@
 
 A thin shell around :class:`FlightController`. Every period it polls the
 board (on the service's one serial thread, so the loop never blocks on the port and the
-port is never used from two threads at once),
+port is never used from two threads at once; that thread also waits out the period
+before the poll, so a tick wakes the loop once),
 steps the controller with the wearer's dead-man command and the soften
 flag, commands the motors at once, and publishes altitude, heading, battery
 and link state. When the port disappears it keeps stepping the controller
@@ -26,6 +27,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import os
+import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import suppress
@@ -37,6 +39,7 @@ from feelium.flight.config import FlightConfig
 from feelium.flight.controller import ControlOutput, FlightController
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
+from feelium.flight.telemetry import Telemetry
 from feelium.flight.transport import ByteLink, open_serial
 from feelium.hub import Hub
 
@@ -157,6 +160,7 @@ class FlightService:
         self._backoff_s = min(config.reconnect_min_s, config.reconnect_max_s)
         self._serial: ThreadPoolExecutor | None = None
         self._sending: tuple[MspClient, Future[None]] | None = None  # the last motor command queued, not yet checked
+        self._wake = threading.Event()  # set when the link is released: a poll waiting for its tick is not made
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
         """Run a port operation on this run's serial thread (jobs run one at a time, in order)."""
@@ -168,17 +172,15 @@ class FlightService:
         period = 1.0 / self.config.rate_hz
         events = self.hub.bus.subscribe(types=(TouchEvent, InteractionEvent), maxsize=64)
         serial = self._serial = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flight-serial")
+        self._wake.clear()
         try:
             next_t = self.hub.clock()
             while not self.stopping:
-                await self._cycle(events)
+                await self._cycle(events, next_t)
                 next_t += period
-                delay = next_t - self.hub.clock()
-                if delay < 0:
+                if next_t < self.hub.clock():
                     self.overruns += 1
                     next_t = self.hub.clock()
-                    delay = 0.0
-                await asyncio.sleep(delay)
         finally:
             events.close()
             self._release()  # a crash or a cancel must not leave the last command on the motors
@@ -205,6 +207,7 @@ class FlightService:
     def _release(self) -> Future[None] | None:
         """Detach the link (the loop sees none from now on); queue neutral-then-close as the serial thread's next job."""
         client, self.link, self.client = self.client, None, None
+        self._wake.set()  # a poll waiting for its tick gives way at once: the neutral is the next thing written
         if client is None:
             return None
         self._retire(client)
@@ -277,26 +280,34 @@ class FlightService:
             log.warning("flight: motor board link %s (%s)", state, LINK_REASONS[state])
 
     # ------------------------------------------------------------ one cycle
-    async def _cycle(self, events: Any) -> None:
+    async def _cycle(self, events: Any, due: float) -> None:
+        """One control cycle at ``due``: poll, step, command, publish.
+
+        With a link, the serial thread waits for ``due`` before it polls (:meth:`_poll_when_due`), so a tick
+        wakes the loop once, for the telemetry, instead of once more for a timer. Without one, the loop sleeps.
+        """
+        if self.client is None or self.stopping:
+            await asyncio.sleep(max(0.0, due - self.hub.clock()))
         now = self.hub.clock()
-        for event in events.drain():
-            try:
-                self.soften.observe(event, now)
-            except (AttributeError, TypeError, ValueError):
-                self.bad_events += 1
-        await self._sent(now)
         if self.client is None and now >= self._next_open_t and not self.stopping:
             await self._open(now)
         telemetry = None
         client = self.client
         if client is not None:
             try:
-                telemetry = await self._on_serial_thread(client.poll, self.cycles % self.config.battery_every == 0)
+                battery = self.cycles % self.config.battery_every == 0
+                telemetry = await self._on_serial_thread(self._poll_when_due, client, due, battery)
             except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
                 await self._lost(now, exc)
             else:
                 self._observe_link(client)
         now = self.hub.clock()
+        await self._sent(now)  # the last cycle's motor command went out before this poll: settled by now
+        for event in events.drain():  # after the poll: events that came while it waited count this cycle
+            try:
+                self.soften.observe(event, now)
+            except (AttributeError, TypeError, ValueError):
+                self.bad_events += 1
         soft = self.soften.active(now)
         command = self.hub.motion.active(now)
         setpoint = setpoint_for_motion(command.name if command else None, self.config, soften=soft)
@@ -310,6 +321,13 @@ class FlightService:
             # up at the start of the next cycle (_sent), before anything else is asked of that port.
             self._sending = (self.client, self._serial_job(self.client.send_motors, out.motors_us))
         self._publish(out)
+
+    def _poll_when_due(self, client: MspClient, due: float, with_battery: bool) -> Telemetry | None:
+        """Serial-thread job: wait for the tick on this thread, then poll; nothing if the link was released meanwhile."""
+        delay = due - self.hub.clock()
+        if delay > 0.0 and self._wake.wait(delay):
+            return None
+        return client.poll(with_battery)
 
     def _serial_job(self, call: Callable[..., Any], *args: Any) -> Future[Any]:
         """Queue a port operation on this run's serial thread without waiting for it."""
