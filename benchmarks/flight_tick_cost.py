@@ -4,8 +4,8 @@ of its own, nothing else running in the process.
 
     python benchmarks/flight_tick_cost.py [--seconds 20] [--profile N] [--json FILE]
 
-It reports the serial thread's and the loop thread's CPU per cycle (ms), and their sum: what one 50 Hz tick costs
-the daemon. ``--profile N`` prints cProfile's N most expensive functions of the same work run in one thread instead
+It reports the serial thread's and the loop thread's CPU per cycle (ms), their sum (what one 50 Hz tick costs
+the daemon) and the event loop's callbacks per tick (its wake-ups, asyncio's plumbing included). ``--profile N`` prints cProfile's N most expensive functions of the same work run in one thread instead
 (poll, step, send at 50 Hz), to see where a tick's time goes. For an A/B, run it from each worktree, back to back.
 """
 
@@ -29,6 +29,27 @@ from feelium.flight.setpoint import setpoint_for_motion
 from feelium.hub import Hub
 
 
+class _CallbackCount:
+    """Counts the event loop's callbacks (every ``asyncio`` handle run) while installed: the loop's wake-ups."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+        self._original = asyncio.events.Handle._run
+
+    def __enter__(self) -> "_CallbackCount":
+        original, counter = self._original, self
+
+        def counted(handle: asyncio.events.Handle) -> None:
+            counter.calls += 1
+            original(handle)
+
+        asyncio.events.Handle._run = counted  # type: ignore[method-assign]
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        asyncio.events.Handle._run = self._original  # type: ignore[method-assign]
+
+
 def _serial_thread_cpu(service: FlightService) -> float:
     """The serial thread's CPU seconds so far, read on that thread (in order with its jobs)."""
     assert service._serial is not None
@@ -43,7 +64,8 @@ async def _run(config: Config, port: str, seconds: float) -> dict[str, float]:
     await asyncio.sleep(2.0)  # warm-up: the link is up, the controller holds
     cycles0, loop0 = service.cycles, time.thread_time()
     serial0 = await asyncio.get_running_loop().run_in_executor(None, _serial_thread_cpu, service)
-    await asyncio.sleep(seconds)
+    with _CallbackCount() as count:
+        await asyncio.sleep(seconds)
     serial1 = await asyncio.get_running_loop().run_in_executor(None, _serial_thread_cpu, service)
     cycles, loop = service.cycles - cycles0, time.thread_time() - loop0
     overruns = service.overruns
@@ -58,6 +80,7 @@ async def _run(config: Config, port: str, seconds: float) -> dict[str, float]:
         "serial_ms_per_tick": round(1000.0 * (serial1 - serial0) / cycles, 4),
         "loop_ms_per_tick": round(1000.0 * loop / cycles, 4),
         "ms_per_tick": round(1000.0 * (serial1 - serial0 + loop) / cycles, 4),
+        "loop_callbacks_per_tick": round(count.calls / cycles, 2),
     }
 
 

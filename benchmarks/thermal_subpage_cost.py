@@ -5,7 +5,8 @@ of its own, nothing else in the process.
     python benchmarks/thermal_subpage_cost.py [--seconds 20] [--json FILE]
 
 Reports sub-pages read, polls (status reads: sub-pages, not ready, torn, stale), process CPU per sub-page (the
-worker's and the loop's; the simulated device's share included, as in the bench) and the loop thread's alone.
+worker's and the loop's; the simulated device's share included, as in the bench), the loop thread's alone, and
+the event loop's callbacks per sub-page (its wake-ups, asyncio's plumbing included).
 For an A/B, run it from each worktree (``PYTHONPATH`` pointing there), back to back.
 """
 
@@ -23,6 +24,27 @@ from feelium.hub import Hub
 from feelium.thermal.service import ThermalService, sim_driver
 
 
+class _CallbackCount:
+    """Counts the event loop's callbacks (every ``asyncio`` handle run) while installed: the loop's wake-ups."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+        self._original = asyncio.events.Handle._run
+
+    def __enter__(self) -> "_CallbackCount":
+        original, counter = self._original, self
+
+        def counted(handle: asyncio.events.Handle) -> None:
+            counter.calls += 1
+            original(handle)
+
+        asyncio.events.Handle._run = counted  # type: ignore[method-assign]
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        asyncio.events.Handle._run = self._original  # type: ignore[method-assign]
+
+
 async def _run(seconds: float) -> dict[str, float]:
     config = Config()
     hub = Hub()
@@ -37,7 +59,8 @@ async def _run(seconds: float) -> dict[str, float]:
 
     subpages0, polls0 = counters.subpages, polls()
     cpu0, loop0 = time.process_time(), time.thread_time()
-    await asyncio.sleep(seconds)
+    with _CallbackCount() as count:
+        await asyncio.sleep(seconds)
     cpu, loop = time.process_time() - cpu0, time.thread_time() - loop0
     subpages, polled = counters.subpages - subpages0, polls() - polls0
     await service.stop()
@@ -50,6 +73,7 @@ async def _run(seconds: float) -> dict[str, float]:
         "polls_per_subpage": round(polled / subpages, 2),
         "ms_per_subpage": round(1000.0 * cpu / subpages, 3),
         "loop_ms_per_subpage": round(1000.0 * loop / subpages, 3),
+        "loop_callbacks_per_subpage": round(count.calls / subpages, 2),
         "cpu_ms_per_s": round(1000.0 * cpu / seconds, 2),
     }
 
