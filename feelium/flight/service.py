@@ -318,7 +318,7 @@ class FlightService:
         if self.client is not None and not self.stopping:
             # Queued, not awaited: nothing in this cycle needs its outcome, and the next poll runs after it on the
             # same thread anyway. Waiting cost the loop a wake-up and a future per tick; a failed write is taken
-            # up at the start of the next cycle (_sent), before anything else is asked of that port.
+            # up in the next cycle, once that poll is back (_sent), and loses the link as a failed poll does.
             self._sending = (self.client, self._serial_job(self.client.send_motors, out.motors_us))
         self._publish(out)
 

@@ -6,7 +6,6 @@ Speed claims live in the benchmark (docs/performance.md), not here: nothing belo
 from __future__ import annotations
 
 import asyncio
-
 import json
 import math
 
