@@ -118,6 +118,8 @@ class RangeRate:
     def __init__(self, window_s: float = RANGE_RATE_WINDOW_S) -> None:
         self.window_s = window_s
         self._readings: deque[tuple[float, float]] = deque()
+        self._added = 0  # readings added or cleared so far: with ``t``, what a slope depends on
+        self._slope: tuple[float, int, float | None] | None = None  # (t, _added, slope) of the last rate()
 
     @property
     def age_s(self) -> float:
@@ -125,22 +127,36 @@ class RangeRate:
 
     def add(self, t: float, range_m: float) -> None:
         self._readings.append((t, range_m))
+        self._added += 1
 
     def clear(self) -> None:
         self._readings.clear()
+        self._added += 1
 
     def rate(self, t: float) -> float | None:
-        """The slope over the window ending at ``t``, or ``None`` with too few readings (dropouts, a restart)."""
+        """The slope over the window ending at ``t``, or ``None`` with too few readings (dropouts, a restart).
+
+        A control cycle asks twice (the climb-rate correction, then the effectiveness) with nothing added
+        between: the second time it is the first answer, not a second pass over the window."""
+        cached = self._slope
+        if cached is not None and cached[0] == t and cached[1] == self._added:
+            return cached[2]
+        slope = self._fit(t)
+        self._slope = (t, self._added, slope)
+        return slope
+
+    def _fit(self, t: float) -> float | None:
         readings = self._readings
         while readings and readings[0][0] < t - self.window_s + 1e-9:
             readings.popleft()
         n = len(readings)
         if n < RANGE_RATE_MIN_SAMPLES:
             return None
-        t_mean = sum(r[0] for r in readings) / n
-        z_mean = sum(r[1] for r in readings) / n
-        spread = sum((r[0] - t_mean) ** 2 for r in readings)
-        return sum((r[0] - t_mean) * (r[1] - z_mean) for r in readings) / spread if spread > 0.0 else None
+        times, ranges = zip(*readings)
+        t_mean = sum(times) / n
+        z_mean = sum(ranges) / n
+        spread = sum((x - t_mean) ** 2 for x in times)
+        return sum((x - t_mean) * (z - z_mean) for x, z in zip(times, ranges)) / spread if spread > 0.0 else None
 
 
 class AltitudeObserver:

@@ -15,6 +15,7 @@ small flight controllers answer old commands that way.
 
 from __future__ import annotations
 
+import functools
 import struct
 from dataclasses import dataclass, field
 from typing import Literal
@@ -26,12 +27,24 @@ V1_JUMBO = 255
 DEFAULT_MAX_PAYLOAD = 256  # our largest frame is 16 bytes; a bigger length is noise
 
 
-def crc8_dvb_s2(data: bytes | bytearray, crc: int = 0) -> int:
-    """CRC8 with polynomial 0xD5 (DVB-S2), as MSP v2 specifies."""
+def _crc8_dvb_s2_bitwise(data: bytes | bytearray, crc: int = 0) -> int:
+    """CRC8 with polynomial 0xD5 (DVB-S2), bit by bit: the definition the table below is built from."""
     for byte in data:
         crc ^= byte
         for _ in range(8):
             crc = ((crc << 1) ^ 0xD5) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+    return crc
+
+
+# One lookup per byte instead of eight shifts: every frame of every control tick is checked (50 Hz, ~11 frames).
+_CRC8_TABLE = tuple(_crc8_dvb_s2_bitwise(bytes([byte])) for byte in range(256))
+
+
+def crc8_dvb_s2(data: bytes | bytearray, crc: int = 0) -> int:
+    """CRC8 with polynomial 0xD5 (DVB-S2), as MSP v2 specifies."""
+    table = _CRC8_TABLE
+    for byte in data:
+        crc = table[crc ^ byte]
     return crc
 
 
@@ -60,6 +73,18 @@ class MspFrame:
 
 def encode_v2(command: int, payload: bytes = b"", direction: Direction = "<", flags: int = 0) -> bytes:
     """An MSP v2 frame (``$X``) for ``command`` (0..65535)."""
+    if not payload:
+        return _encode_v2_empty(command, direction, flags)
+    return _encode_v2(command, payload, direction, flags)
+
+
+@functools.lru_cache(maxsize=64)
+def _encode_v2_empty(command: int, direction: Direction, flags: int) -> bytes:
+    """A frame without payload (every telemetry request), built once: the control loop asks the same few each tick."""
+    return _encode_v2(command, b"", direction, flags)
+
+
+def _encode_v2(command: int, payload: bytes, direction: Direction, flags: int) -> bytes:
     if not 0 <= command <= 0xFFFF:
         raise ValueError(f"MSP v2 command must be 0..65535, got {command}")
     if len(payload) > 0xFFFF:

@@ -2,7 +2,8 @@
 
 A thin shell around :class:`FlightController`. Every period it polls the
 board (on the service's one serial thread, so the loop never blocks on the port and the
-port is never used from two threads at once),
+port is never used from two threads at once; that thread also waits out the period
+before the poll, so a tick wakes the loop once),
 steps the controller with the wearer's dead-man command and the soften
 flag, commands the motors at once, and publishes altitude, heading, battery
 and link state. When the port disappears it keeps stepping the controller
@@ -26,6 +27,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import os
+import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import suppress
@@ -39,6 +41,7 @@ from feelium.priority import name_current_thread
 from feelium.flight.controller import ControlOutput, FlightController
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
+from feelium.flight.telemetry import Telemetry
 from feelium.flight.transport import ByteLink, open_serial
 from feelium.hub import Hub
 
@@ -160,6 +163,8 @@ class FlightService:
         self._next_open_t = float("-inf")
         self._backoff_s = min(config.reconnect_min_s, config.reconnect_max_s)
         self._serial: ThreadPoolExecutor | None = None
+        self._sending: tuple[MspClient, Future[None]] | None = None  # the last motor command queued, not yet checked
+        self._wake = threading.Event()  # set when the link is released: a poll waiting for its tick is not made
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
         """Run a port operation on this run's serial thread (jobs run one at a time, in order)."""
@@ -171,20 +176,19 @@ class FlightService:
         period = 1.0 / self.config.rate_hz
         events = self.hub.bus.subscribe(types=(TouchEvent, InteractionEvent), maxsize=64)
         serial = self._serial = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flight-serial", initializer=name_current_thread)
+        self._wake.clear()
         try:
             next_t = self.hub.clock()
             while not self.stopping:
-                await self._cycle(events)
+                await self._cycle(events, next_t)
                 next_t += period
-                delay = next_t - self.hub.clock()
-                if delay < 0:
+                if next_t < self.hub.clock():
                     self.overruns += 1
                     next_t = self.hub.clock()
-                    delay = 0.0
-                await asyncio.sleep(delay)
         finally:
             events.close()
             self._release()  # a crash or a cancel must not leave the last command on the motors
+            self._sending = None  # its outcome is the released client's, not the next run's
             serial.shutdown(wait=False)  # queued jobs (the neutral) still run; the thread then ends
             self._serial = None
 
@@ -207,6 +211,7 @@ class FlightService:
     def _release(self) -> Future[None] | None:
         """Detach the link (the loop sees none from now on); queue neutral-then-close as the serial thread's next job."""
         client, self.link, self.client = self.client, None, None
+        self._wake.set()  # a poll waiting for its tick gives way at once: the neutral is the next thing written
         if client is None:
             return None
         self._retire(client)
@@ -282,25 +287,34 @@ class FlightService:
             log.warning("flight: motor board link %s (%s)", state, LINK_REASONS[state])
 
     # ------------------------------------------------------------ one cycle
-    async def _cycle(self, events: Any) -> None:
+    async def _cycle(self, events: Any, due: float) -> None:
+        """One control cycle at ``due``: poll, step, command, publish.
+
+        With a link, the serial thread waits for ``due`` before it polls (:meth:`_poll_when_due`), so a tick
+        wakes the loop once, for the telemetry, instead of once more for a timer. Without one, the loop sleeps.
+        """
+        if self.client is None or self.stopping:
+            await asyncio.sleep(max(0.0, due - self.hub.clock()))
         now = self.hub.clock()
-        for event in events.drain():
-            try:
-                self.soften.observe(event, now)
-            except (AttributeError, TypeError, ValueError):
-                self.bad_events += 1
         if self.client is None and now >= self._next_open_t and not self.stopping:
             await self._open(now)
         telemetry = None
         client = self.client
         if client is not None:
             try:
-                telemetry = await self._on_serial_thread(client.poll, self.cycles % self.config.battery_every == 0)
+                battery = self.cycles % self.config.battery_every == 0
+                telemetry = await self._on_serial_thread(self._poll_when_due, client, due, battery)
             except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
                 await self._lost(now, exc)
             else:
                 self._observe_link(client)
         now = self.hub.clock()
+        await self._sent(now)  # the last cycle's motor command went out before this poll: settled by now
+        for event in events.drain():  # after the poll: events that came while it waited count this cycle
+            try:
+                self.soften.observe(event, now)
+            except (AttributeError, TypeError, ValueError):
+                self.bad_events += 1
         soft = self.soften.active(now)
         command = self.hub.motion.active(now)
         setpoint = setpoint_for_motion(command.name if command else None, self.config, soften=soft)
@@ -310,11 +324,39 @@ class FlightService:
         self.heartbeat_at = now
         self._rate.tick(now)
         if self.client is not None and not self.stopping:
-            try:
-                await self._on_serial_thread(self.client.send_motors, out.motors_us)
-            except (OSError, ValueError) as exc:
-                await self._lost(now, exc)
+            # Queued, not awaited: nothing in this cycle needs its outcome, and the next poll runs after it on the
+            # same thread anyway. Waiting cost the loop a wake-up and a future per tick; a failed write is taken
+            # up in the next cycle, once that poll is back (_sent), and loses the link as a failed poll does.
+            self._sending = (self.client, self._serial_job(self.client.send_motors, out.motors_us))
         self._publish(out)
+
+    def _poll_when_due(self, client: MspClient, due: float, with_battery: bool) -> Telemetry | None:
+        """Serial-thread job: wait for the tick on this thread, then poll; nothing if the link was released meanwhile."""
+        delay = due - self.hub.clock()
+        if delay > 0.0 and self._wake.wait(delay):
+            return None
+        return client.poll(with_battery)
+
+    def _serial_job(self, call: Callable[..., Any], *args: Any) -> Future[Any]:
+        """Queue a port operation on this run's serial thread without waiting for it."""
+        assert self._serial is not None, "serial I/O outside run()"
+        return self._serial.submit(call, *args)
+
+    async def _sent(self, now: float) -> None:
+        """The outcome of the last cycle's motor command: a write that failed loses the link, as a failed poll does.
+
+        Only for the client that wrote it: one that stop() or a loss has released since is no longer ours."""
+        sending, self._sending = self._sending, None
+        if sending is None:
+            return
+        client, job = sending
+        try:
+            if not job.done():  # rare: the write is still queued behind a slow exchange
+                await asyncio.wrap_future(job)
+            job.result()
+        except (OSError, ValueError) as exc:
+            if client is self.client:
+                await self._lost(now, exc)
 
     def _observe_link(self, client: MspClient) -> None:
         """After a poll: the client's view of the line becomes the link state, its newest telemetry the age.

@@ -17,6 +17,7 @@ from __future__ import annotations
 from typing import Any, Protocol
 
 import numpy as np
+from smbus2 import i2c_msg
 
 from feelium.thermal import registers as reg
 
@@ -81,8 +82,6 @@ class SMBus2Transport:
                 self.retries += 1
 
     def read_words(self, address: int, count: int) -> np.ndarray:
-        from smbus2 import i2c_msg
-
         if not 0 <= address <= 0xFFFF or count < 1 or address + count - 1 > 0xFFFF:
             raise ValueError(f"cannot read {count} words from 0x{address:04X}")
         chunks = []
@@ -96,8 +95,6 @@ class SMBus2Transport:
         return np.concatenate(chunks).astype(np.uint16)
 
     def write_word(self, address: int, value: int) -> None:
-        from smbus2 import i2c_msg
-
         if reg.is_eeprom_address(address):
             raise PermissionError(f"refusing to write 0x{address:04X}: the EEPROM (0x2400..0x273F) is never written")
         if not 0 <= value <= 0xFFFF:

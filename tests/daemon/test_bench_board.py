@@ -5,6 +5,7 @@ Speed claims live in the benchmark (docs/performance.md), not here: nothing belo
 
 from __future__ import annotations
 
+import asyncio
 import json
 import math
 
@@ -30,6 +31,35 @@ def test_modules_and_threads_are_charged_to_their_service():
     assert charged["projector"] == {"pool": 0.5}
     assert charged[LOOP_OTHER]["loop"] == pytest.approx(0.25)  # main + pool time no callback or job accounts for
     assert charged[OTHER_THREADS] == {"native-7": pytest.approx(0.1)}
+
+
+async def test_loop_callbacks_are_counted_by_the_service_they_wake() -> None:
+    """A sleep's timer and a worker's result are asyncio's own callbacks, counted for the task they wake."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from feelium.flight import service as flight_service  # any module under a service package
+    from feelium.lab.daemon.attribution import charge_loop_callbacks
+
+    namespace: dict = {"asyncio": asyncio}
+    exec(  # a coroutine whose code lives in the flight package, as the service's would
+        compile("async def tick(pool):\n    await asyncio.sleep(0.001)\n"
+                "    await asyncio.get_running_loop().run_in_executor(pool, int)\n", flight_service.__file__, "exec"),
+        namespace,
+    )
+    ledger = Ledger()
+    undo = charge_loop_callbacks(ledger)
+    try:
+        with ThreadPoolExecutor(1) as pool:
+            ledger.counting = True
+            for _ in range(5):
+                await asyncio.get_running_loop().create_task(namespace["tick"](pool))
+            ledger.counting = False
+    finally:
+        undo()
+    # per tick: the task's steps (3) plus the timer and the worker's result, which name no service themselves
+    assert ledger.callbacks_by["flight"] >= 5 * 5
+    assert ledger.callbacks_by["flight"] > ledger.callbacks_by[LOOP_OTHER]
+    assert sum(ledger.callbacks_by.values()) == ledger.callbacks
 
 
 @pytest.mark.slow

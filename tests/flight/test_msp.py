@@ -8,12 +8,31 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from feelium.flight import messages as m
-from feelium.flight.msp import MspFrame, MspParser, crc8_dvb_s2, encode_v1, encode_v2
+from feelium.flight.msp import MspFrame, MspParser, _crc8_dvb_s2_bitwise, crc8_dvb_s2, encode_v1, encode_v2
 
 
 def test_crc8_dvb_s2_known_vector() -> None:
     # Standard check value of CRC-8/DVB-S2 over the ASCII digits 1..9.
     assert crc8_dvb_s2(b"123456789") == 0xBC
+
+
+@given(data=st.binary(max_size=80), start=st.integers(0, 255))
+def test_the_table_crc_is_the_bitwise_definition(data: bytes, start: int) -> None:
+    assert crc8_dvb_s2(data, start) == _crc8_dvb_s2_bitwise(data, start)
+    assert crc8_dvb_s2(bytearray(data), start) == _crc8_dvb_s2_bitwise(data, start)
+
+
+def test_a_request_without_payload_is_the_same_frame_each_time_and_a_bad_command_still_raises() -> None:
+    first = encode_v2(m.MSP_ATTITUDE)
+    assert encode_v2(m.MSP_ATTITUDE) is first  # built once
+    assert first == b"$X<\x00" + bytes([m.MSP_ATTITUDE, 0, 0, 0]) + bytes([crc8_dvb_s2(first[3:8])])
+    assert encode_v2(m.MSP_ATTITUDE, direction=">") != first
+    for _ in range(2):
+        try:
+            encode_v2(0x10000)
+        except ValueError:
+            continue
+        raise AssertionError("a command above 65535 must raise")
 
 
 def test_v1_request_bytes_match_the_classic_attitude_request() -> None:

@@ -166,7 +166,7 @@ async def test_health_measures_the_control_rate_and_says_when_the_loop_stalls(mo
         await wait_for(lambda: service.health()["fps"] > 0.5 * CONFIG.rate_hz)
         assert service.health()["condition"] == "ok"
 
-        async def stuck(events) -> None:  # a cycle that never returns: the loop is alive, flight is not
+        async def stuck(*_: object) -> None:  # a cycle that never returns: the loop is alive, flight is not
             await asyncio.Event().wait()
 
         monkeypatch.setattr(service, "_cycle", stuck)

@@ -141,3 +141,28 @@ def test_power_on_ram_is_not_decoded():
     driver.start()
     assert driver.poll() is None  # nothing measured yet: no new-data bit
     assert driver.counters.not_ready == 1
+
+
+def _word_by_word(sensor: SimMlx90640, address: int, count: int) -> list[int]:
+    """What a read returns, by the register map one word at a time: the definition the device's range copy must meet."""
+    out = []
+    for a in range(address, address + count):
+        if reg.EEPROM_START <= a <= reg.EEPROM_END:
+            out.append(int(sensor.eeprom[a - reg.EEPROM_START]))
+        elif reg.RAM_START <= a <= reg.RAM_END:
+            out.append(int(sensor.ram[a - reg.RAM_START]))
+        else:
+            out.append({reg.STATUS: sensor.status, reg.CONTROL: sensor.control, reg.I2C_CONFIG: sensor.i2c_config}.get(a, 0))
+    return out
+
+
+@pytest.mark.parametrize(
+    "address, count",
+    [(reg.RAM_START, reg.RAM_WORDS), (reg.EEPROM_START, reg.EEPROM_WORDS), (reg.STATUS, 1), (reg.CONTROL, 3),
+     (reg.RAM_START - 5, 20), (reg.RAM_END - 3, 10), (reg.EEPROM_START - 2, 5), (reg.EEPROM_END - 1, 4),
+     (reg.STATUS - 2, 18), (0, 3), (reg.RAM_START + 700, 132)],
+)
+def test_a_read_returns_the_register_map_word_by_word(address: int, count: int) -> None:
+    clock, sensor, _, driver = rig()
+    run(clock, driver, polls=12)  # RAM holds a measured sub-page, status and control are set
+    assert sensor.read(address, count).tolist() == _word_by_word(sensor, address, count)

@@ -110,3 +110,42 @@ async def test_bad_eeprom_is_reported_and_retried():
     await run_until(service, clock, 0.5)
     health = service.health()
     assert health["frames"] == 0 and "all zero" in health["last_error"] and health["failures"] >= 2
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+async def test_between_sub_pages_it_sleeps_yet_reads_every_one_even_when_the_loop_wakes_it_late(seed):
+    """Time passes only in the service's sleeps, each overslept by up to 40 ms (a loaded loop): at 8 Hz every
+    sub-page the device writes is still read, no later than when polling all the time, with about two polls
+    each instead of four or five."""
+    from feelium.thermal.sim_device import VirtualClock
+
+    clock = VirtualClock()
+    rng = np.random.default_rng(seed)
+    hub = Hub(clock=clock)
+    cfg = ThermalConfig(refresh_hz=8.0)
+    renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
+    sensor = SimMlx90640(lambda t: renderer.frame(t, []), clock=clock, sleep=clock.sleep, rng=np.random.default_rng(1))
+
+    def make_driver():
+        return Mlx90640Driver(SMBus2Transport(sensor.bus(), max_read_words=cfg.max_read_words), reg.ControlSettings(8.0, 18, "chess"))
+
+    async def late_sleep(dt):
+        clock.sleep(dt + (float(rng.uniform(0.0, 0.04)) if rng.random() < 0.3 else 0.0))
+        await asyncio.sleep(0)
+
+    service = ThermalService(cfg, hub, make_driver, "sim", sleep=late_sleep)
+    waits = []  # how long each sub-page had been ready when it was read (reads take no virtual time here)
+    publish = service._publish
+
+    def timed_publish(t, image):
+        waits.append(t - (sensor._t0 + sensor._measured * sensor.period_s))
+        publish(t, image)
+
+    service._publish = timed_publish
+    await run_until(service, clock, 20.0)
+    counters = service.driver.counters
+    polls = counters.subpages + counters.not_ready + counters.torn + counters.stale
+    assert counters.torn == 0 and counters.stale == 0
+    assert counters.subpages >= sensor.subpages_written - 1  # the one being written when the test stopped
+    assert polls <= 2.5 * counters.subpages
+    assert max(waits) <= 0.25 / 8.0 + 0.04 + 1e-9  # a poll period and the worst oversleep, as when polling all the time

@@ -88,12 +88,29 @@ def _service_of_callback(callback: Any) -> str:
     return service_of_module(type(protocol if protocol is not None else owner).__module__) or LOOP_OTHER
 
 
+def _service_of_handle(args: tuple[Any, ...]) -> str:
+    """The service of the task a future among a callback's arguments will wake (before the callback runs).
+
+    A sleep's timer (``futures._set_result_unless_cancelled(future, ...)``) and a worker thread's result
+    (``_chain_future``'s ``_set_state(future, ...)``, by ``call_soon_threadsafe``) are asyncio's own functions,
+    but each completes a future one service's task waits on: counted by origin, that is the service's wake-up.
+    """
+    for arg in args:
+        if isinstance(arg, asyncio.Future):
+            for waiter, _ in getattr(arg, "_callbacks", None) or ():
+                service = _service_of_callback(waiter)
+                if service != LOOP_OTHER:
+                    return service
+    return LOOP_OTHER
+
+
 class Ledger:
     """CPU seconds per service from the pool and the loop; thread-safe, started and stopped with the window."""
 
     def __init__(self) -> None:
         self.seconds: dict[tuple[str, str], float] = defaultdict(float)  # (service, "loop" or "pool") -> s
         self.callbacks = 0  # loop callbacks timed while counting
+        self.callbacks_by: dict[str, int] = defaultdict(int)  # ...and by the service each was charged to
         self.counting = False
         self._lock = threading.Lock()
 
@@ -133,13 +150,19 @@ def charge_loop_callbacks(ledger: Ledger) -> Callable[[], None]:
     original = handle._run
 
     def timed_run(self: Any) -> None:
+        # Asyncio's own plumbing (a timer, a worker's result) is counted for the service it wakes: the future it
+        # completes names that service's task only until it runs. Its CPU stays with event loop (other), as in
+        # every run before, so the per-service figures compare.
+        woken = _service_of_handle(self._args) if ledger.counting and self._args else LOOP_OTHER
         start = time.thread_time()
         try:
             original(self)
         finally:
             if ledger.counting:
+                service = _service_of_callback(self._callback)
                 ledger.callbacks += 1
-                ledger.add(_service_of_callback(self._callback), "loop", time.thread_time() - start)
+                ledger.callbacks_by[service if service != LOOP_OTHER else woken] += 1
+                ledger.add(service, "loop", time.thread_time() - start)
 
     handle._run = timed_run  # type: ignore[method-assign]
     return lambda: setattr(handle, "_run", original)
@@ -164,6 +187,7 @@ def callback_overhead_s(loop: asyncio.AbstractEventLoop, ledger: Ledger, calls: 
     ledger.counting = False
     ledger.seconds.clear()
     ledger.callbacks = 0
+    ledger.callbacks_by.clear()
     return max(0.0, (timed - bare) / calls)
 
 

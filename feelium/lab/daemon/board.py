@@ -175,6 +175,7 @@ async def _measure(
                 cpu_s=(cpu_after.user + cpu_after.system) - (cpu_before.user + cpu_before.system),
                 charged=charge(threads_before, threads_after, ledger),
                 callbacks=ledger.callbacks,
+                callbacks_by=dict(ledger.callbacks_by),
                 callback_overhead_s=overhead_s,
                 loop_thread_s=threads_after.get("MainThread", 0.0) - threads_before.get("MainThread", 0.0),
                 headset=json.loads((await asyncio.to_thread(headset.communicate, None, 30.0))[0].strip().splitlines()[-1]),
@@ -302,6 +303,9 @@ def bench_board(
         "process_cpu_ms_per_s": round(1000.0 * measured["cpu_s"] / wall, 1),
         "loop_thread_ms_per_s": round(1000.0 * measured["loop_thread_s"] / wall, 1),
         "loop_callbacks_per_s": round(measured["callbacks"] / wall),
+        "loop_callbacks_per_s_by_origin": {
+            name: round(count / wall, 1) for name, count in sorted(measured["callbacks_by"].items(), key=lambda kv: -kv[1])
+        },
         "bench_overhead_ms_per_s": round(1000.0 * measured["callbacks"] * measured["callback_overhead_s"] / wall, 1),
         "loop_lag_p50_ms": round(_percentile(measured["lags_ms"], 50), 2),
         "loop_lag_p99_ms": round(_percentile(measured["lags_ms"], 99), 2),
@@ -354,7 +358,8 @@ def format_table(result: dict[str, Any]) -> str:
         f"  process CPU ms/s {result['process_cpu_ms_per_s']}; loop lag p50 / p99 / max "
         f"{result['loop_lag_p50_ms']} / {result['loop_lag_p99_ms']} / {result['loop_lag_max_ms']} ms",
         f"  the bench's own timing of {result['loop_callbacks_per_s']} loop callbacks/s costs ~"
-        f"{result['bench_overhead_ms_per_s']} ms/s of that (charged to the services, not subtracted)",
+        f"{result['bench_overhead_ms_per_s']} ms/s of that (charged to the services, not subtracted); by origin: "
+        + ", ".join(f"{name} {rate}" for name, rate in result["loop_callbacks_per_s_by_origin"].items()),
         f"  RSS steady / peak {result['rss_mb']} / {result['rss_peak_mb']} MB (preloaded frames, "
         f"{result['preloaded_frames_mb']} MB, taken out); growth after warm-up {result['rss_growth_mb']} MB",
         f"  projected onto the Pi (x{result['pi_factor']}): {result['pi_cores']} of 4 cores used, "

@@ -1,0 +1,85 @@
+"""The control tick's outputs, pinned bit for bit on seeded flights.
+
+Speed-ups of the tick (the MSP framing, the controller's arithmetic) must not change what it
+commands. These digests were computed with the code before any of them (commit 5ff8adb; the two flights
+that hover in drafts re-pinned on 1550168, whose controller holds a reversing motor's partner and smooths the
+hover heading (issue 13), before the speed-ups were merged onto it, and equal after): every
+cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
+that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
+dropouts, drafts, a stalled link with its flood of replies and a lagging one. A change in the last
+bit of any float changes the digest.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import replace
+
+import pytest
+
+from feelium.daemon.config import Config
+from feelium.flight.blimp_model import DraftParams
+from feelium.flight.faulty_link import LinkFaults, Window
+from feelium.flight.setpoint import HOLD, Setpoint, setpoint_for_motion
+from feelium.flight.sim_board import BoardParams, SensorParams, board_with
+from feelium.lab.flight.simulation import SimFlight
+
+CONFIG = Config().flight
+SCRIPT = (  # (until s, motion command or setpoint)
+    (1.5, None), (3.0, "forward"), (4.0, None), (5.2, "turn_right"), (6.0, None), (7.0, "up"),
+    (7.6, None), (8.4, "down"), (9.0, "soften"), (10.0, "backward"), (10.8, "turn_left"),
+    (11.5, Setpoint(altitude_m=1.2, heading_deg=30.0)), (12.0, None),
+)
+
+
+def _setpoint(t: float) -> Setpoint:
+    for until, what in SCRIPT:
+        if t < until:
+            if isinstance(what, Setpoint):
+                return what
+            if what == "soften":
+                return setpoint_for_motion(None, CONFIG, soften=True)
+            return setpoint_for_motion(what, CONFIG)
+    return HOLD
+
+
+def _digest(flight: SimFlight, seconds: float) -> str:
+    h = hashlib.sha256()
+    end = flight.t + seconds - 1e-9
+    while flight.t < end:
+        out = flight.step(_setpoint(flight.t + flight.period))
+        h.update(repr((out.commands, out.motors_us, out.mode, out.altitude_m, out.altitude_target_m, out.climb_m_s,
+                       out.heading_deg, out.heading_target_deg, out.speed_m_s, out.battery, out.speed_measured)).encode())
+    estimates = flight.controller.estimates(flight.t)  # type: ignore[attr-defined]
+    h.update(repr(sorted(estimates.items())).encode())
+    h.update(repr(sorted(flight.client.health().items())).encode())
+    return h.hexdigest()[:24]
+
+
+FLIGHTS = {
+    "drafts_dropouts": (
+        CONFIG,
+        board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
+        None,
+        "eaff8c779681c11a0563e225",
+    ),
+    "fitted_still_air": (
+        replace(CONFIG, plant_uncertainty=1.0),
+        board_with(BoardParams(drafts=None), z=2.2),
+        None,
+        "3a1b7d999268f6931ff626dd",
+    ),
+    "stall_and_lag": (
+        CONFIG,
+        board_with(BoardParams(drafts=DraftParams()), z=1.5),
+        LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
+        "69d3ac57236eeedd6eb28ab8",
+    ),
+}
+
+
+@pytest.mark.parametrize("name", sorted(FLIGHTS))
+def test_the_ticks_commands_are_those_pinned(name: str) -> None:
+    config, board, faults, expected = FLIGHTS[name]
+    flight = SimFlight(config, board, seed=7, faults=faults)
+    assert _digest(flight, 12.0) == expected
