@@ -84,9 +84,7 @@ class Renderer:
         x0, y0, x1, y1 = self._box
         map1, map2 = cv2.convertMaps(map_x[y0:y1, x0:x1], map_y[y0:y1, x0:x1], cv2.CV_16SC2)
         border = tuple(int(c * 0.5) for c in BACKGROUND_BGR)
-        blank = np.empty((config.height, config.width, 3), np.uint8)
-        blank[...] = border
-        self.tiles = TileWarp(map1, map2, self._box, self.canvas_size, blank, border)
+        self.tiles = TileWarp(map1, map2, self._box, self.canvas_size, (config.width, config.height), border)
         self.avatar = Avatar(cw, ch)
         self._last: _Shown | None = None
         self._canvas = np.empty((ch, cw, 3), np.uint8)
