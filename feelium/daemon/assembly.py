@@ -33,7 +33,7 @@ from feelium.hub import Hub
 from feelium.service import Service
 from feelium.settings import ConfigError
 from feelium.skin.annotation import ProjectorAnnotation
-from feelium.skin.projector_map import CalibrationError, calibration_path, default_calibration, load_calibration, load_or_default
+from feelium.skin.projector_map import CalibrationError, calibration_path, default_calibration, load_or_default, load_shared
 from feelium.skin.projector_map import DEFAULT_CAMERA_SIZE, DEFAULT_ROI
 from feelium.skin.regions import Regions
 
@@ -236,7 +236,7 @@ def load_projector_annotation(config: Config, path: Path | None = None) -> Proje
     try:
         from feelium.touch.face import face_for
 
-        calibration = load_calibration(path)
+        calibration = load_shared(path)  # the projector's own map: one copy
         face = face_for(config.touch, calibration.camera_size)
         annotation = ProjectorAnnotation(calibration, Regions.from_config(config.interactions), face)
     except Exception as exc:
@@ -267,7 +267,7 @@ def load_projected_light(config: Config, backend: str, path: Path | None = None)
         from feelium.projector.canvaslight import CanvasLightPredictor
         from feelium.touch.face import face_for
 
-        calibration = load_calibration(path)
+        calibration = load_shared(path)  # the projector's own map: one copy
         face = face_for(config.touch, calibration.camera_size)  # the projector's canvas spans the same u, v
     except Exception as exc:
         log.error("touch: projector calibration %s unusable (%s); no projection compensation", path, exc)

@@ -75,24 +75,29 @@ class Renderer:
         off = ~(np.isfinite(map_x) & np.isfinite(map_y))
         map_x[off] = -10.0  # outside the canvas: the border colour
         map_y[off] = -10.0
-        self.covered = ~off  # projector pixels that land on the sensitive patch
+        # Projector pixels that land on the sensitive patch, kept as bits (0.1 MB; a bool frame is 0.9 MB).
+        self._covered_bits = np.packbits(~off)
         # Only the covered box is remapped each frame; the rest of the frame is the constant border.
-        ys, xs = np.nonzero(self.covered)
+        ys, xs = np.nonzero(~off)
         if len(xs) == 0:
             raise ValueError("the calibration covers no projector pixel")
         self._box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
         x0, y0, x1, y1 = self._box
         map1, map2 = cv2.convertMaps(map_x[y0:y1, x0:x1], map_y[y0:y1, x0:x1], cv2.CV_16SC2)
         border = tuple(int(c * 0.5) for c in BACKGROUND_BGR)
-        blank = np.empty((config.height, config.width, 3), np.uint8)
-        blank[...] = border
-        self.tiles = TileWarp(map1, map2, self._box, self.canvas_size, blank, border)
+        self.tiles = TileWarp(map1, map2, self._box, self.canvas_size, (config.width, config.height), border)
         self.avatar = Avatar(cw, ch)
         self._last: _Shown | None = None
         self._canvas = np.empty((ch, cw, 3), np.uint8)
         self._canvas_lock = threading.Lock()  # render() may be called from two threads (the service, a preview)
         self.skipped: dict[str, int] = {}
         self.lift = SensingLift(config.sensing_floor, config.fade_floor)
+
+    @property
+    def covered(self) -> np.ndarray:
+        """(H_p, W_p) bool: projector pixels that land on the sensitive patch (unpacked on each call)."""
+        shape = (self.config.height, self.config.width)
+        return np.unpackbits(self._covered_bits, count=shape[0] * shape[1]).astype(bool).reshape(shape)
 
     def fit_face(self, face: np.ndarray) -> np.ndarray:
         """The wearer's face image scaled to cover the canvas (centre crop), BGR uint8."""

@@ -45,13 +45,15 @@ class TileWarp:
         map2: np.ndarray,
         box: tuple[int, int, int, int],
         canvas_size: tuple[int, int],
-        blank: np.ndarray,
+        frame_size: tuple[int, int],
         border: tuple[int, ...],
     ) -> None:
-        """``map1``/``map2``: ``cv2.convertMaps(..., CV_16SC2)`` output for the ``box`` (x0, y0, x1, y1) of
-        ``blank`` (the frame outside what the maps cover); ``canvas_size`` (w, h) of the canvases to warp."""
+        """``map1``/``map2``: ``cv2.convertMaps(..., CV_16SC2)`` output for the ``box`` (x0, y0, x1, y1) of a
+        ``frame_size`` (w, h) BGR frame whose pixels outside the box are ``border``; ``canvas_size`` (w, h) of the
+        canvases to warp. No blank frame is kept to copy from: a new frame is filled with ``border`` (a kept
+        template was 2.7 MB resident for the daemon's whole life)."""
         self._map1, self._map2, self._box = map1, map2, box
-        self._blank, self._border = blank, border
+        self._frame_shape, self._border = (frame_size[1], frame_size[0], len(border)), border
         cw, ch = canvas_size
         self._grid = (-(-ch // SOURCE_TILE), -(-cw // SOURCE_TILE))
         ny, nx = self._grid
@@ -68,7 +70,7 @@ class TileWarp:
 
     def full(self, canvas: np.ndarray) -> np.ndarray:
         """The straightforward warp: every covered pixel remapped into a new frame."""
-        frame = self._blank.copy()
+        frame = self._blank()
         self._remap_box(canvas, frame)
         return frame
 
@@ -124,7 +126,7 @@ class TileWarp:
         for buffer in self._pool:
             if buffer is not self._frame and sys.getrefcount(buffer.array) <= 2:  # the pool's and the argument's
                 return buffer
-        fresh = _Buffer(self._blank.copy(), self._reads.copy())
+        fresh = _Buffer(self._blank(), self._reads.copy())
         self.allocated += 1
         if len(self._pool) < POOL_SIZE:
             self._pool.append(fresh)
@@ -132,6 +134,12 @@ class TileWarp:
             held = next(b for b in self._pool if b is not self._frame)
             self._pool[self._pool.index(held)] = fresh
         return fresh
+
+    def _blank(self) -> np.ndarray:
+        """A new frame of the border colour (the box is written over by the caller)."""
+        frame = np.empty(self._frame_shape, np.uint8)
+        frame[...] = self._border
+        return frame
 
     def _in_box(self, frame: np.ndarray) -> np.ndarray:
         x0, y0, x1, y1 = self._box

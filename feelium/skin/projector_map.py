@@ -9,12 +9,15 @@ what structured light decodes); the renderer needs the other direction
 derives once by a least-squares polynomial fit of the inverse.
 
 Pure: arrays in, arrays out; :func:`load_calibration`/:meth:`save` are the only I/O.
+:func:`load_shared` is how the daemon reads the file: one map in memory for every part that uses it.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import threading
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -205,7 +208,8 @@ def load_calibration(path: str | Path) -> ProjectorMap:
             cw, ch = (int(v) for v in data["camera_size"])
             pw, ph = (int(v) for v in data["projector_size"])
             roi = tuple(int(v) for v in data["roi"])
-            proj_x, proj_y = data["proj_x"].astype(np.float32), data["proj_y"].astype(np.float32)
+            proj_x = data["proj_x"].astype(np.float32, copy=False)  # saved as float32: no second copy
+            proj_y = data["proj_y"].astype(np.float32, copy=False)
             source = str(data["source"])
             photo = data["photometric"] if "photometric" in data.files else np.array([np.nan, np.nan])
             black_level = float(photo[0]) if np.isfinite(photo[0]) else None
@@ -220,6 +224,31 @@ def load_calibration(path: str | Path) -> ProjectorMap:
         )
     except CalibrationError as exc:
         raise CalibrationError(f"{path}: {exc}") from exc
+
+
+_shared: weakref.WeakValueDictionary[tuple[str, int, int], ProjectorMap] = weakref.WeakValueDictionary()
+_shared_lock = threading.Lock()
+
+
+def load_shared(path: str | Path) -> ProjectorMap:
+    """:func:`load_calibration`, but one map in memory for every caller while any of them holds it.
+
+    The daemon's projector renders through the calibration, and the touch service annotates events and
+    predicts the projected light through the same file: read separately, each part kept its own 2.4 MB copy
+    (640x480 float32, x and y). The map's arrays are made read-only, so no part can change what the others see.
+    A file rewritten since (``feelium calibrate projector``: new size or modification time) is read again.
+    """
+    path = Path(path)
+    stat = path.stat() if path.exists() else None
+    key = (str(path.resolve()), stat.st_mtime_ns if stat else -1, stat.st_size if stat else -1)
+    with _shared_lock:  # services are built one after another, but keep two loads of one file from racing
+        calibration = _shared.get(key)
+        if calibration is None:
+            calibration = load_calibration(path)
+            calibration.proj_x.setflags(write=False)
+            calibration.proj_y.setflags(write=False)
+            _shared[key] = calibration
+    return calibration
 
 
 def calibration_path(file: str | Path, config_file: str | Path | None = None) -> Path:
@@ -243,7 +272,7 @@ def load_or_default(path: Path, projector_size: Size, rear_roi: Roi | None) -> P
     another projector resolution is logged and replaced by the stand-in.
     """
     if path.exists():
-        calibration = load_calibration(path)
+        calibration = load_shared(path)
         if calibration.projector_size == tuple(projector_size):
             return calibration
         log.warning("%s is for a %s projector; using the uncalibrated map", path, calibration.projector_size)

@@ -126,15 +126,17 @@ class ProjectorResponse:
         assert self._sums is not None and self.slope is not None
         n, sx, sxx, sf, sfx = self._sums
         buf = self._scratch  # each line's arithmetic in the same order as written out in the docstring
-        seen = np.greater(n, np.float32(1e-3), out=buf.like("fit.seen", n, bool))
-        n = np.maximum(n, np.float32(1e-3), out=buf.like("fit.n", n))
-        mx = np.divide(sx, n, out=buf.like("fit.mx", n))
-        mf = np.divide(sf, n, out=buf.like("fit.mf", n))
-        tmp = buf.like("fit.tmp", n)
-        var = np.divide(sxx, n, out=buf.like("fit.var", n))
+        # Only :meth:`learn` calls this, after its frame's terms went into the sums: its buffers are free again,
+        # so the fit writes into them (six working images fewer held, 0.2 MB each at 320x240).
+        seen = np.greater(n, np.float32(1e-3), out=buf.like("learn.check", n, bool))
+        n = np.maximum(n, np.float32(1e-3), out=buf.like("learn.w", n))
+        mx = np.divide(sx, n, out=buf.like("learn.x", n))
+        mf = np.divide(sf, n, out=buf.like("learn.f", n))
+        tmp = buf.like("learn.xx", n)
+        var = np.divide(sxx, n, out=buf.like("learn.fx", n))
         var -= np.multiply(mx, mx, out=tmp)
         np.maximum(var, np.float32(0.0), out=var)
-        cov = np.divide(sfx, n, out=buf.like("fit.cov", n))
+        cov = np.divide(sfx, n, out=buf.like("compensate.part", n))  # compensate()'s temporary: free here too
         cov -= np.multiply(mx, mf, out=tmp)
         self.share = self._pooled_share(var, cov, mx, mf, seen)
         share = np.float32(INITIAL_SHARE if self.share is None else self.share)

@@ -100,3 +100,24 @@ def test_sim_calibration_recovers_the_true_map_within_one_pixel():
     assert result.calibration.gamma == pytest.approx(light.optics.gamma, abs=0.05)
     assert result.summary["fit_residual_px"]["median"] < 0.5
     json.dumps(result.summary)  # machine-readable as it stands
+
+
+def test_a_calibration_file_is_held_once_however_many_parts_load_it(tmp_path):
+    """The renderer, the touch annotation and the light predictor each loaded their own 2.4 MB copy before."""
+    from feelium.skin.projector_map import load_shared
+
+    path = truth_calibration().save(tmp_path / "cal.npz")
+    first = load_shared(path)
+    assert load_shared(tmp_path / "." / "cal.npz") is first
+    for array in (first.proj_x, first.proj_y):
+        assert array.dtype == np.float32 and array.shape == (CAMERA[1], CAMERA[0])
+        assert not array.flags.writeable  # shared: no part may change what the others see
+        with pytest.raises(ValueError):
+            array[0, 0] = 1.0
+    assert load_calibration(path).proj_x.flags.writeable  # a plain load stays the caller's own
+    moved = default_calibration(CAMERA, ROI, PROJECTOR)
+    moved.save(path)  # recalibrated: the new file is read, not the map in memory
+    again = load_shared(path)
+    assert again is not first and again.source == "default"
+    with pytest.raises(CalibrationError):
+        load_shared(tmp_path / "missing.npz")

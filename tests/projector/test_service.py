@@ -117,6 +117,54 @@ def test_build_projector_without_calibration_uses_the_default_map(tmp_path, monk
     assert load_or_default(calibration_path(config.projector.calibration.file), size, None).source == "truth"
 
 
+def test_the_daemon_holds_one_calibration_for_the_projector_and_touch(tmp_path):
+    """The projector's renderer, the touch annotation and the light predictor share one map (was three)."""
+    import gc
+
+    from feelium.daemon.assembly import load_projected_light, load_projector_annotation
+
+    path = truth_calibration().save(tmp_path / "projector_calibration.npz")
+    config = Config()
+    config = dataclasses.replace(
+        config,
+        projector=dataclasses.replace(
+            config.projector, backend="sim", calibration=dataclasses.replace(config.projector.calibration, file=str(path))
+        ),
+        rear_camera=dataclasses.replace(config.rear_camera, projection_compensation="on"),
+    )
+    def maps() -> set[int]:
+        gc.collect()
+        return {id(o) for o in gc.get_objects() if type(o).__name__ == "ProjectorMap"}
+
+    before = maps()  # whatever earlier tests left alive
+    service = build_projector(config, Hub())
+    annotation = load_projector_annotation(config)
+    projected = load_projected_light(config, "sim")
+    assert annotation is not None and projected is not None
+    assert annotation.calibration is service.calibration
+    assert maps() - before == {id(service.calibration)}  # the predictor's factory holds that one too, no copy
+    assert not service.calibration.proj_x.flags.writeable
+
+
+def test_the_renderer_keeps_no_blank_or_coverage_frame(tmp_path):
+    """Full-size arrays a renderer keeps are its pooled frames only (a 2.7 MB blank and a 0.9 MB coverage mask
+    were kept for the daemon's whole life before)."""
+    from feelium.projector.renderer import Renderer
+
+    config = Config().projector
+    calibration = truth_calibration()
+    renderer = Renderer(config, calibration)
+    renderer.render(0.0, None, [])
+    pooled = {id(b.array) for b in renderer.tiles._pool}
+    kept = [
+        (owner, name) for owner in (renderer, renderer.tiles) for name, value in vars(owner).items()
+        if isinstance(value, np.ndarray) and value.shape[:2] == (config.height, config.width) and id(value) not in pooled
+    ]
+    assert kept == []
+    assert renderer.covered.shape == (config.height, config.width) and renderer.covered.dtype == bool
+    assert renderer.covered.any() and not renderer.covered.all()
+
+
 class _SlowDisplay(SimDisplay):
     """Takes three frame periods to show a frame."""
 

@@ -29,9 +29,7 @@ def small_warp(seed: int, canvas_size: tuple[int, int], frame_size: tuple[int, i
     map_x = cw / 2 + scale * bulge * cw * (np.cos(angle) * u - np.sin(angle) * v)
     map_y = ch / 2 + scale * bulge * ch * (np.sin(angle) * u + np.cos(angle) * v)
     map1, map2 = cv2.convertMaps(map_x.astype(np.float32), map_y.astype(np.float32), cv2.CV_16SC2)
-    blank = np.empty((fh, fw, 3), np.uint8)
-    blank[...] = BORDER
-    return TileWarp(map1, map2, box, canvas_size, blank, BORDER)
+    return TileWarp(map1, map2, box, canvas_size, (fw, fh), BORDER)
 
 
 rects = st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 0.6), st.floats(0, 0.6))
