@@ -127,7 +127,12 @@ class _FrameFeed:
         waited = 0.0
         while True:
             if stop is not None and stop.is_set():
-                return "stopped"
+                self._done.set()  # read no more; what was read already still goes into the take
+                try:
+                    item = self._queue.get_nowait()
+                except queue.Empty:
+                    return "stopped"
+                return "stopped" if item is self._END or isinstance(item, BaseException) else item
             try:
                 item = self._queue.get(timeout=_POLL_S)
             except queue.Empty:

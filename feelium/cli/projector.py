@@ -12,9 +12,16 @@ from feelium.cli import CommandRegistry
 def register(registry: CommandRegistry) -> None:
     cal = registry.subcommand(
         "calibrate", "projector",
-        "Project Gray-code and phase patterns, decode them in the rear camera, save the camera-to-projector map.",
+        "Project Gray-code and phase patterns, decode them in the rear camera, save the camera-to-projector map; "
+        "or fit it offline from a calibration RECORDING.",
         _calibrate,
     )
+    cal.add_argument(
+        "recording", nargs="?",
+        help="fit offline from this recording (an empty scene whose projector stream shows structured light: "
+        "decoded from the recorded frames, the project's own sequence or binary patterns with their inverses)",
+    )  # fmt: skip
+    cal.add_argument("--record", metavar="DIR", help="also write the run as a calibration recording here (to fit again offline)")
     cal.add_argument("--config", help="TOML config file; the map is saved beside it (projector.calibration.file)")
     cal.add_argument("--sim", action="store_true", help="run against the scene simulator's known warp and report the error to the truth")
     cal.add_argument("--json", action="store_true", help="print a machine-readable summary")
@@ -59,13 +66,33 @@ def _calibrate(args: argparse.Namespace) -> int:
         light = ProjectedLight(warp, (WIDTH, HEIGHT))
         capture = SimPatternCapture(Session("projector-calibration"), light, np.random.default_rng(args.seed))
         truth = warp.truth_map(*capture.camera_size)
-        result = run_calibration(capture, projector.calibration, size, source="sim")
-    else:
-        capture = _device_capture(config)
+    if args.recording:
+        from feelium.lab.projector.from_recording import calibrate_recording
+        from feelium.recording import Recording, RecordingError
+
         try:
-            result = run_calibration(capture, projector.calibration, size, source="device")
+            result = calibrate_recording(Recording(Path(args.recording)), projector.calibration, config.touch.projector_latency_s)
+        except (RecordingError, ValueError) as exc:
+            print(f"feelium calibrate projector: {exc}", file=sys.stderr)
+            return 1
+    else:
+        device = None if args.sim else _device_capture(config)
+        live = capture if device is None else device
+        recorder = None
+        if args.record:
+            from feelium.lab.projector.from_recording import RecordingCapture
+
+            recorder = live = RecordingCapture(
+                live, Path(args.record), size, config.rear_camera.fps, session="projector-calibration",
+                source="synthetic" if device is None else "device",
+            )
+        try:
+            result = run_calibration(live, projector.calibration, size, source="sim" if device is None else "device")
         finally:
-            capture.close()
+            if recorder is not None:
+                print(f"calibration recording: {recorder.close()}", file=sys.stderr)
+            if device is not None:
+                device.close()
     summary = dict(result.summary)
     summary["source"] = result.calibration.source
     if truth is not None:
@@ -100,6 +127,7 @@ class _DeviceCapture:
         self._camera = camera
         self.camera_size = camera_size
         self.roi = roi
+        self.last_t = 0.0
 
     def show(self, pattern) -> None:
         import cv2
@@ -110,6 +138,7 @@ class _DeviceCapture:
         frame = self._camera.read()
         if frame is None:
             raise RuntimeError("the rear camera stopped delivering frames during calibration")
+        self.last_t = frame.t  # the camera's own time, for a calibration recording (--record)
         return frame.image
 
     def close(self) -> None:

@@ -11,8 +11,8 @@ from feelium.cli import CommandRegistry
 
 
 _CALIBRATION_HELP = (
-    "camera-to-projector map (.npz) for recordings with a projector stream (default: projector-calibration.npz"
-    " beside the trials)"
+    "camera-to-projector map (.npz), or a calibration recording to fit it from, for recordings with a projector "
+    "stream (default: projector-calibration.npz or a recording with meta purpose projector-calibration beside the trials)"
 )
 
 

@@ -152,7 +152,7 @@ class FlightService:
         self.stopping = False
         self.cycles = 0
         self.heartbeat_at: float | None = None  # hub time at the end of the newest control cycle
-        self._rate = RateMeter()  # control cycles completed: the measured rate, which decays when the loop stalls
+        self._rate = RateMeter()  # cycles flown with the board answering: decays when the loop or the link stalls
         self.overruns = 0
         self.link_losses = 0
         self.reconnects = 0
@@ -237,7 +237,7 @@ class FlightService:
             "modes": dict(self.controller.mode_counts),
             "battery": out.battery if out else "unknown",
             "last_error": self.last_error,
-            "fps": round(self._rate.rate(self.hub.clock()), 1),
+            "fps": round(self._rate.rate(self.hub.clock()), 1) if self.link_state == "up" else 0.0,
             "estimates": self.controller.estimates(self.hub.clock()),
         }
         if out is not None and out.mode != "waiting" and not out.speed_measured:
@@ -322,7 +322,8 @@ class FlightService:
         self.last = out
         self.cycles += 1
         self.heartbeat_at = now
-        self._rate.tick(now)
+        if self.link_state == "up":
+            self._rate.tick(now)
         if self.client is not None and not self.stopping:
             # Queued, not awaited: nothing in this cycle needs its outcome, and the next poll runs after it on the
             # same thread anyway. Waiting cost the loop a wake-up and a future per tick; a failed write is taken

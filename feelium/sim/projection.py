@@ -184,6 +184,11 @@ class SimPatternCapture:
     def show(self, pattern: np.ndarray) -> None:
         self._factor = self._light.factor(pattern)
 
+    @property
+    def last_t(self) -> float:
+        """The newest frame's time on the simulated camera's clock."""
+        return self._t
+
     def capture(self) -> np.ndarray:
         self._t += self._period
         return self._renderer.frame(self._t, SceneState())

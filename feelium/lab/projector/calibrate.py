@@ -100,26 +100,38 @@ def calibrate(
         camera_size, (plan.width, plan.height), roi, proj_x, proj_y, source=source, black_level=black_level, gamma=gamma
     )
 
+    summary = summarise_map(calibration, decoded.proj_x, decoded.proj_y, patterns=len(make_patterns(plan)))
+    summary["black_level"] = None if black_level is None else round(black_level, 4)
+    summary["gamma"] = None if gamma is None else round(gamma, 3)
+    return CalibrationResult(calibration, summary)
+
+
+def summarise_map(calibration: ProjectorMap, raw_x: np.ndarray, raw_y: np.ndarray, *, patterns: int) -> dict[str, Any]:
+    """A fitted map's quality: coverage, the raw decoded positions' distance to the smoothed map (projector px,
+    the measurement noise) and the camera -> projector -> camera round trip through the inverse the renderer
+    uses (camera px)."""
+    w, h = calibration.camera_size
     covered = calibration.covered
-    residual = np.hypot(decoded.proj_x - proj_x, decoded.proj_y - proj_y)[covered]
+    residual = np.hypot(raw_x - calibration.proj_x, raw_y - calibration.proj_y)[covered]
+    pw, ph = calibration.projector_size
     summary: dict[str, Any] = {
-        "camera": {"width": w, "height": h, "roi": list(roi)},
-        "projector": {"width": plan.width, "height": plan.height},
-        "patterns": len(make_patterns(plan)),
+        "camera": {"width": w, "height": h, "roi": list(calibration.roi)},
+        "projector": {"width": pw, "height": ph},
+        "patterns": patterns,
         "coverage": round(calibration.coverage(), 4),
         "fit_residual_px": _stats(residual),
-        "black_level": None if black_level is None else round(black_level, 4),
-        "gamma": None if gamma is None else round(gamma, 3),
+        "black_level": None,
+        "gamma": None,
     }
     if covered.sum() >= 50:
         inv_x, inv_y = calibration.projector_to_camera()
         ys, xs = np.nonzero(covered)
-        back_x = sample(inv_x, proj_x[ys, xs], proj_y[ys, xs])
-        back_y = sample(inv_y, proj_x[ys, xs], proj_y[ys, xs])
+        back_x = sample(inv_x, calibration.proj_x[ys, xs], calibration.proj_y[ys, xs])
+        back_y = sample(inv_y, calibration.proj_x[ys, xs], calibration.proj_y[ys, xs])
         summary["roundtrip_px"] = _stats(np.hypot(back_x - xs, back_y - ys))
     else:
         summary["roundtrip_px"] = _stats(np.array([]))
-    return CalibrationResult(calibration, summary)
+    return summary
 
 
 def truth_error(calibration: ProjectorMap, truth_x: np.ndarray, truth_y: np.ndarray) -> dict[str, float | None]:

@@ -9,18 +9,22 @@ exposure with the latency's spread (:class:`feelium.touch.projected.ExposureLigh
 the source of a frame's light: the daemon predicts it from the grey skin canvas it drew
 (:mod:`feelium.projector.canvaslight`), a recording only holds the projector's frame, so the frame
 predictor (:class:`feelium.projector.backlight.BacklightPredictor`, the reference the canvas predictor is
-checked against) is used, through the camera-to-projector calibration found for the recording.
+checked against) is used, through the camera-to-projector calibration found for the recording: a saved map, or a calibration recording
+beside the trials, fitted offline (:mod:`feelium.lab.projector.from_recording`).
 """
 
 from __future__ import annotations
 
+import functools
+import json
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
+from feelium.lab.projector.from_recording import PURPOSE, calibrate_recording
 from feelium.projector.backlight import BacklightPredictor
-from feelium.projector.config import ProjectorConfig
+from feelium.projector.config import CalibrationConfig, ProjectorConfig
 from feelium.recording import Recording, RecordingError
 from feelium.skin.projector_map import CalibrationError, ProjectorMap, load_calibration
 from feelium.touch.config import TouchConfig
@@ -55,16 +59,43 @@ class RecordedLight:
 
 
 def find_calibration(recording: Path, root: Path) -> Path | None:
-    """The calibration beside the trials: :data:`CALIBRATION_FILE` in the recording's folder or the nearest
-    folder above it, up to the dataset ``root``."""
+    """The calibration beside the trials, in the recording's folder or the nearest folder above it up to the
+    dataset ``root``: a saved map (:data:`CALIBRATION_FILE`), else a calibration recording (``meta.purpose``
+    ``"projector-calibration"``, the first by name) to fit the map from."""
     here, top = recording.resolve(), root.resolve()
     for folder in (here, *here.parents):
         candidate = folder / CALIBRATION_FILE
         if candidate.is_file():
             return candidate
+        recordings = _calibration_recordings(folder)
+        if recordings:
+            return recordings[0]
         if folder == top or top not in folder.parents:
             break
     return None
+
+
+@functools.lru_cache(maxsize=256)
+def _calibration_recordings(folder: Path) -> tuple[Path, ...]:
+    """The calibration recordings directly in ``folder`` (cached: every trial of a dataset asks its folder)."""
+    found = []
+    for child in sorted(folder.iterdir()) if folder.is_dir() else ():
+        try:
+            meta = json.loads((child / "meta.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(meta, dict) and meta.get("purpose") == PURPOSE:
+            found.append(child)
+    return tuple(found)
+
+
+@functools.lru_cache(maxsize=8)
+def fitted_calibration(path: Path, config: CalibrationConfig, latency_s: float) -> ProjectorMap:
+    """The map fitted from a calibration recording, once per recording however many trials use it."""
+    try:
+        return calibrate_recording(Recording(path), config, latency_s).calibration
+    except ValueError as exc:
+        raise RecordingError(path, f"cannot fit the projector calibration from it: {exc}") from exc
 
 
 def recorded_light(
@@ -80,12 +111,16 @@ def recorded_light(
     path = calibration if calibration is not None else find_calibration(recording.path, root)
     if path is None:
         raise RecordingError(
-            recording.path, f"has a projector stream but no projector calibration ({CALIBRATION_FILE} beside it or --projector-calibration)"
+            recording.path, f"has a projector stream but no projector calibration ({CALIBRATION_FILE} or a calibration recording beside it, "
+            "or --projector-calibration)"
         )
-    try:
-        cal: ProjectorMap = load_calibration(path)
-    except CalibrationError as exc:
-        raise RecordingError(path, str(exc)) from exc
+    if path.is_dir():  # a calibration recording: fitted offline, as `feelium calibrate projector RECORDING` does
+        cal = fitted_calibration(path.resolve(), projector.calibration, touch.projector_latency_s)
+    else:
+        try:
+            cal = load_calibration(path)
+        except CalibrationError as exc:
+            raise RecordingError(path, str(exc)) from exc
     camera = recording.meta.camera
     predictor = BacklightPredictor(projector, cal, (camera.width, camera.height))
     return RecordedLight(recording.projector_frames(), predictor, touch)

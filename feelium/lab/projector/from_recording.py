@@ -1,0 +1,249 @@
+"""The camera-to-projector map fitted offline from a recording whose projector stream shows structured light.
+
+A real blimp's projector and optics are not the simulator's; what the daemon knows for sure is what it
+showed and what the rear camera saw. A calibration recording (``meta.purpose`` ``"projector-calibration"``,
+an empty scene, docs/recording-format.md) carries both, so the map is decoded from the recorded projector
+frames themselves, whatever the sequence was:
+
+- each distinct projector frame is paired with the mean of the camera frames that saw only it (from its
+  display time plus the projector's latency to the next one's, after ``settle_frames``);
+- a sequence that is this project's own (``feelium calibrate projector`` on the blimp: Gray-code blocks
+  and phase fringes, recognised by comparing the recorded frames with the patterns the config would make)
+  is decoded by that decoder, to a fraction of a pixel;
+- any other sequence of binary patterns each shown with its inverse (OpenCV's ``GrayCodePattern``, or
+  someone's own) is decoded generically: a camera pixel's bits, coarsest pattern first, as far as they are
+  seen with contrast, name the projector region that lit it, and the region's centroid is its position.
+  Finer stripes than the optics resolve simply end the code early, so the map is as fine as they allowed.
+
+Both end in the same smoothing and summary as a live calibration (:func:`calibrate.summarise_map`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from feelium.lab.projector.calibrate import CalibrationResult, PatternCapture, calibrate, summarise_map
+from feelium.lab.projector.graycode import PatternPlan, make_patterns, smooth_map
+from feelium.projector.config import CalibrationConfig
+from feelium.recording import Recording, RecordingError, RecordingWriter
+from feelium.skin.projector_map import ProjectorMap
+
+PURPOSE = "projector-calibration"
+OUTLIER_MIN_PX = 4.0  # generic decoding: raw points this far (projector px) from the local fit, and
+OUTLIER_FACTOR = 5.0  # this many times the typical distance, are misread codes, refitted without
+
+
+@dataclass(frozen=True)
+class Shown:
+    """One projector frame as it was on the skin, and what the camera saw of it (mean of its frames)."""
+
+    pattern: np.ndarray  # (H_p, W_p) uint8, as recorded
+    image: np.ndarray  # (h, w) float32, camera
+    frames: int
+
+
+def shown_patterns(recording: Recording, latency_s: float, settle_frames: int) -> list[Shown]:
+    """Each distinct projector frame of the recording with the mean camera image of the frames that saw it.
+
+    A camera frame at ``t`` saw the projector frame shown last at or before ``t - latency_s``; the first
+    ``settle_frames`` of each are left out (the projector and the exposure settling). Consecutive equal
+    frames (a pattern held over several projector refreshes) are one.
+    """
+    if not recording.has_projector:
+        raise RecordingError(recording.path / "projector.mkv", "missing file: a calibration recording needs its projector stream")
+    starts: list[float] = []
+    patterns: list[np.ndarray] = []
+    for t, frame in recording.projector_frames(gray=True):
+        if patterns and np.array_equal(frame, patterns[-1]):
+            continue
+        starts.append(t)
+        patterns.append(frame)
+    if not patterns:
+        raise RecordingError(recording.path / "projector.mkv", "holds no frame")
+    sums: list[np.ndarray | None] = [None] * len(patterns)
+    counts = [0] * len(patterns)
+    seen = [0] * len(patterns)
+    order = np.asarray(starts)
+    for t, frame in recording.frames(gray=True):
+        index = int(np.searchsorted(order, t - latency_s, side="right")) - 1
+        if index < 0:
+            continue
+        seen[index] += 1
+        if seen[index] <= settle_frames:
+            continue
+        image = frame.astype(np.float32)
+        sums[index] = image if sums[index] is None else sums[index] + image
+        counts[index] += 1
+    shown = [Shown(pattern, total / np.float32(n), n) for pattern, total, n in zip(patterns, sums, counts) if total is not None]
+    if not shown:
+        raise RecordingError(
+            recording.path / "camera_ts.txt",
+            f"no projector frame was seen by more than {settle_frames} camera frames (settle_frames): nothing to decode",
+        )
+    return shown
+
+
+def own_plan(shown: list[Shown], config: CalibrationConfig) -> PatternPlan | None:
+    """The project's own pattern plan when every one of its patterns is among the recorded frames, else ``None``."""
+    h, w = shown[0].pattern.shape
+    plan = PatternPlan(w, h, config.block_px, config.phase_period_px, config.phase_steps)
+    try:
+        wanted = make_patterns(plan)
+    except (ValueError, RuntimeError):
+        return None
+    recorded = {s.pattern.tobytes(): s for s in shown}
+    return plan if all(p.image.tobytes() in recorded for p in wanted) else None
+
+
+def _binary_pairs(shown: list[Shown]) -> list[tuple[Shown, Shown]]:
+    """Patterns shown with their exact inverse (two levels, each pixel one or the other), coarsest first."""
+    pairs = []
+    used: set[int] = set()
+    for i, a in enumerate(shown):
+        if i in used or np.unique(a.pattern).size != 2:
+            continue
+        inverse = a.pattern.max() + a.pattern.min() - a.pattern.astype(np.int32)
+        for j in range(i + 1, len(shown)):
+            if j not in used and np.array_equal(shown[j].pattern, inverse):
+                pairs.append((a, shown[j]))
+                used |= {i, j}
+                break
+    def transitions(pair: tuple[Shown, Shown]) -> int:
+        bits = pair[0].pattern > pair[0].pattern.min()
+        return int(np.count_nonzero(np.diff(bits, axis=0)) + np.count_nonzero(np.diff(bits, axis=1)))
+
+    return sorted(pairs, key=transitions)
+
+
+def decode_generic(shown: list[Shown], min_contrast: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Projector x, y per camera pixel (NaN where undecoded), the decoded mask, and the number of pairs used.
+
+    A camera pixel's code is its bits (pattern brighter than its inverse) from the coarsest pair on, up to
+    the first one it sees with less than ``min_contrast``; its position is the centroid of the projector
+    pixels with the same code prefix.
+    """
+    pairs = _binary_pairs(shown)[:62]  # codes are int64
+    if not pairs:
+        raise ValueError("the projector stream holds no binary pattern shown with its inverse: nothing to decode")
+    h, w = shown[0].image.shape
+    ph, pw = shown[0].pattern.shape
+    cam_code = np.zeros((h, w), np.int64)
+    cam_len = np.zeros((h, w), np.int32)
+    open_ = np.ones((h, w), bool)
+    proj_code = np.zeros((ph, pw), np.int64)
+    proj_codes: list[np.ndarray] = []  # the projector's code after each number of bits
+    for a, b in pairs:
+        diff = a.image - b.image
+        bit = diff > 0
+        open_ &= np.abs(diff) >= min_contrast
+        cam_code = np.where(open_, (cam_code << 1) | bit, cam_code)
+        cam_len += open_
+        proj_code = (proj_code << 1) | (a.pattern > a.pattern.min())
+        proj_codes.append(proj_code.copy())
+    ys, xs = np.mgrid[0:ph, 0:pw]
+    out_x = np.full((h, w), np.nan, np.float32)
+    out_y = np.full((h, w), np.nan, np.float32)
+    for length in range(1, len(pairs) + 1):
+        pixels = cam_len == length
+        if not pixels.any():
+            continue
+        codes, inverse = np.unique(proj_codes[length - 1].ravel(), return_inverse=True)
+        count = np.bincount(inverse)
+        cx = np.bincount(inverse, xs.ravel()) / count
+        cy = np.bincount(inverse, ys.ravel()) / count
+        wanted = cam_code[pixels]
+        at = np.clip(np.searchsorted(codes, wanted), 0, len(codes) - 1)
+        found = codes[at] == wanted
+        px = np.where(found, cx[at], np.nan)
+        py = np.where(found, cy[at], np.nan)
+        out_x[pixels] = px
+        out_y[pixels] = py
+    valid = np.isfinite(out_x) & (cam_len > 0)
+    return out_x, out_y, valid, len(pairs)
+
+
+def calibrate_recording(recording: Recording, config: CalibrationConfig, latency_s: float) -> CalibrationResult:
+    """The map and its summary from one calibration recording (either decoder, see the module's docstring)."""
+    shown = shown_patterns(recording, latency_s, config.settle_frames)
+    camera_size = (recording.meta.camera.width, recording.meta.camera.height)
+    source = f"recording {recording.path.name}"
+    plan = own_plan(shown, config)
+    if plan is not None:
+        by_pattern = {s.pattern.tobytes(): s.image for s in shown}
+        captures = {p.name: by_pattern[p.image.tobytes()] for p in make_patterns(plan)}
+        result = calibrate(captures, plan, config, camera_size, recording.meta.roi, source)
+        return CalibrationResult(result.calibration, {**result.summary, "decoder": "own sequence", "patterns_seen": len(shown)})
+    raw_x, raw_y, valid, used = decode_generic(shown, config.min_contrast)
+    w, h = camera_size
+    roi = recording.meta.roi if recording.meta.roi is not None else (0, 0, w, h)
+    x, y, rw, rh = roi
+    inside = np.zeros((h, w), bool)
+    inside[y : y + rh, x : x + rw] = True
+    valid &= inside
+    proj_x = smooth_map(raw_x, valid, config.smooth_sigma_px)
+    proj_y = smooth_map(raw_y, valid, config.smooth_sigma_px)
+    # A coarse bit misread (noise at a stripe's edge) puts a pixel a whole stripe away: drop the points far
+    # from their neighbours' fit and fit again without them.
+    residual = np.hypot(raw_x - proj_x, raw_y - proj_y)
+    typical = float(np.nanmedian(residual[valid])) if valid.any() else 0.0
+    keep = valid & (residual <= max(OUTLIER_MIN_PX, OUTLIER_FACTOR * typical))
+    if keep.sum() < valid.sum():
+        valid = keep
+        proj_x = smooth_map(raw_x, valid, config.smooth_sigma_px)
+        proj_y = smooth_map(raw_y, valid, config.smooth_sigma_px)
+    ph, pw = shown[0].pattern.shape
+    calibration = ProjectorMap(camera_size, (pw, ph), roi, proj_x, proj_y, source=source)
+    summary = summarise_map(calibration, raw_x, raw_y, patterns=len(shown))
+    return CalibrationResult(calibration, {**summary, "decoder": "generic binary pairs", "pairs_used": used, "patterns_seen": len(shown)})
+
+
+class RecordingCapture:
+    """A pattern capture that also writes what it showed and saw as a calibration recording.
+
+    Wraps the live capture (the blimp's projector and rear camera, or the simulator's), so a calibration
+    run leaves the recording to fit again offline, or to judge a new decoder on. Times are the camera's
+    (``last_t`` of the wrapped capture); a pattern is stamped just after the newest frame, when it went up.
+    """
+
+    def __init__(
+        self, inner: PatternCapture, out: Path, projector_size: tuple[int, int], fps: float, session: str = "", source: str = "device"
+    ) -> None:
+        self._inner = inner
+        self.camera_size, self.roi = inner.camera_size, inner.roi
+        self._projector_size, self._fps = projector_size, fps
+        self._out, self._session, self._source = out, session, source
+        self._writer: RecordingWriter | None = None
+        self._pending: np.ndarray | None = None
+        self._last_t = 0.0
+
+    def show(self, pattern: np.ndarray) -> None:
+        self._inner.show(pattern)
+        self._pending = pattern
+
+    def capture(self) -> np.ndarray:
+        frame = self._inner.capture()
+        t = float(self._inner.last_t)  # type: ignore[attr-defined]
+        writer = self._writer or self._open(frame)
+        if self._pending is not None:
+            writer.add_projector_frame(min(t, self._last_t + 1e-3), self._pending)
+            self._pending = None
+        writer.add_frame(t, frame)
+        self._last_t = t
+        return frame
+
+    def _open(self, first: np.ndarray) -> RecordingWriter:
+        h, w = first.shape[:2]
+        writer = RecordingWriter(
+            self._out, name=self._out.name, width=w, height=h, fps=self._fps, session=self._session, source=self._source,
+            pixel_format="gray8" if first.ndim == 2 else "bgr8", roi=self.roi, extra_meta={"purpose": PURPOSE},
+        )  # fmt: skip
+        writer.set_projector(*self._projector_size, self._fps)
+        self._writer = writer
+        return writer
+
+    def close(self) -> Path | None:
+        """Finish the recording (atomically, as every recording); ``None`` if nothing was captured."""
+        return self._writer.close() if self._writer is not None else None
