@@ -8,7 +8,19 @@
 set -eu
 cd "$(dirname "$0")/.."
 root=$(pwd)
-[ -x .venv-pi/bin/python ] || python3 -m venv .venv-pi
+# The blimp's Python is Bookworm's 3.11, and numpy 1.x has no wheels for the newest Pythons: check with 3.11.
+interpreter=""
+for candidate in python3.11 python3; do
+  if command -v "$candidate" >/dev/null 2>&1 && "$candidate" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then
+    interpreter=$candidate
+    break
+  fi
+done
+if [ -z "$interpreter" ]; then
+  echo "pi versions: skipped: no Python 3.11 here (the Pi's version; numpy 1.x may not install on another)" >&2
+  exit 0
+fi
+[ -x .venv-pi/bin/python ] || "$interpreter" -m venv .venv-pi
 py="$root/.venv-pi/bin/python"
 "$py" -m pip install -q -c constraints/pi-bookworm.txt "$root"
 work=$(mktemp -d)
