@@ -27,27 +27,7 @@ from feelium.flight.controller import FlightController
 from feelium.flight.service import FlightService, SerialOpener
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.hub import Hub
-
-
-class _CallbackCount:
-    """Counts the event loop's callbacks (every ``asyncio`` handle run) while installed: the loop's wake-ups."""
-
-    def __init__(self) -> None:
-        self.calls = 0
-        self._original = asyncio.events.Handle._run
-
-    def __enter__(self) -> "_CallbackCount":
-        original, counter = self._original, self
-
-        def counted(handle: asyncio.events.Handle) -> None:
-            counter.calls += 1
-            original(handle)
-
-        asyncio.events.Handle._run = counted  # type: ignore[method-assign]
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        asyncio.events.Handle._run = self._original  # type: ignore[method-assign]
+from loop_callbacks import CallbackCount  # benchmarks/ is the script's own folder
 
 
 def _serial_thread_cpu(service: FlightService) -> float:
@@ -64,7 +44,7 @@ async def _run(config: Config, port: str, seconds: float) -> dict[str, float]:
     await asyncio.sleep(2.0)  # warm-up: the link is up, the controller holds
     cycles0, loop0 = service.cycles, time.thread_time()
     serial0 = await asyncio.get_running_loop().run_in_executor(None, _serial_thread_cpu, service)
-    with _CallbackCount() as count:
+    with CallbackCount() as count:
         await asyncio.sleep(seconds)
     serial1 = await asyncio.get_running_loop().run_in_executor(None, _serial_thread_cpu, service)
     cycles, loop = service.cycles - cycles0, time.thread_time() - loop0

@@ -21,28 +21,8 @@ import time
 
 from feelium.daemon.config import Config
 from feelium.hub import Hub
+from loop_callbacks import CallbackCount  # benchmarks/ is the script's own folder
 from feelium.thermal.service import ThermalService, sim_driver
-
-
-class _CallbackCount:
-    """Counts the event loop's callbacks (every ``asyncio`` handle run) while installed: the loop's wake-ups."""
-
-    def __init__(self) -> None:
-        self.calls = 0
-        self._original = asyncio.events.Handle._run
-
-    def __enter__(self) -> "_CallbackCount":
-        original, counter = self._original, self
-
-        def counted(handle: asyncio.events.Handle) -> None:
-            counter.calls += 1
-            original(handle)
-
-        asyncio.events.Handle._run = counted  # type: ignore[method-assign]
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        asyncio.events.Handle._run = self._original  # type: ignore[method-assign]
 
 
 async def _run(seconds: float) -> dict[str, float]:
@@ -59,7 +39,7 @@ async def _run(seconds: float) -> dict[str, float]:
 
     subpages0, polls0 = counters.subpages, polls()
     cpu0, loop0 = time.process_time(), time.thread_time()
-    with _CallbackCount() as count:
+    with CallbackCount() as count:
         await asyncio.sleep(seconds)
     cpu, loop = time.process_time() - cpu0, time.thread_time() - loop0
     subpages, polled = counters.subpages - subpages0, polls() - polls0
