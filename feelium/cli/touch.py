@@ -37,6 +37,12 @@ def register(registry: CommandRegistry) -> None:
         help="also score each condition alone (meta generator.condition, else the first folder; added as \"conditions\")",
     )
     ev.add_argument(
+        "--paper-gates",
+        action="store_true",
+        help="also replay every recording as the paper's two gates alone (no contact edge, blind to the projected light) "
+        "and report it beside this pipeline (added as \"paper_gates\"; twice the replay time)",
+    )
+    ev.add_argument(
         "--fit-on-clips",
         action="store_true",
         help="fit the gates' thresholds on the dataset's contact and hover clips first, then score with them",

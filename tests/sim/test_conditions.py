@@ -128,3 +128,25 @@ def test_the_multitouch_plan_runs_every_scene_round_robin_over_the_sessions():
         "multitouch-swipe-cross/s3/swipe-cross-s3-001",
     ]  # fmt: skip
     assert len(conditions.plan("faceon", ("static", "face"), 0.05)) == 2 * 13
+
+
+def test_the_paper_gates_alone_are_scored_beside_the_pipeline_on_the_same_frames(tmp_path, monkeypatch, capsys):
+    """faceon/face, a hover: the project's pipeline (contact edge, light predicted from the recorded stream) stays
+    silent; the paper's two gates, blind to the face, are reported beside it on the same frames."""
+    monkeypatch.setattr(faceon, "WARMUP_S", 1.0)
+    item = _first("hover")
+    monkeypatch.setattr(conditions, "plan", lambda c, v, s: [conditions.Job("faceon", "face", f"faceon-face/{item.relpath}", item)])
+    conditions.simulate_condition(tmp_path, "faceon", variants=("face",), scale=0.01)
+    report_path = tmp_path / "report.json"
+    assert main(["eval", str(tmp_path), "--by-condition", "--paper-gates", "--json", str(report_path),
+                 "--figure", str(tmp_path / "f.png")]) == 0  # fmt: skip
+    report = json.loads(report_path.read_text())
+    ours, paper = report["conditions"]["faceon/face"], report["conditions"]["faceon/face"]["paper_gates"]
+    assert ours["trials"]["n"] == paper["trials"]["n"] == 1
+    assert ours["trials"]["fp"] == 0
+    assert paper["margins"]["trials"]["edge"]["threshold"] == 0.0  # no contact edge: only the two gates decide
+    hardest = [r["margins"]["trials"]["sustained"]["hardest_negative"] for r in (ours, paper)]
+    assert hardest[0] != hardest[1]  # replayed blind to the face: another pipeline's scores, not a copy of ours
+    assert report["paper_gates"]["trials"]["n"] == 1 and "conditions" not in report["paper_gates"]
+    printed = capsys.readouterr().out
+    assert "the paper's two gates alone" in printed and "faceon/face" in printed.split("the paper's two gates alone")[1]

@@ -199,6 +199,7 @@ def evaluate_dataset(
     plain: bool = False,
     skips: Skips | None = None,
     by_condition: bool = False,
+    paper_gates: bool = False,
     projector: ProjectorConfig | None = None,
     calibration: Path | None = None,
 ):
@@ -211,9 +212,16 @@ def evaluate_dataset(
     Bad recordings are reported through ``skips`` and left out (a fresh :class:`Skips` when not given). With
     ``by_condition`` the report gains ``"conditions"``: the same report for each condition's recordings alone
     (:func:`condition_of`), a key the evaluation spec allows beside its own.
+
+    With ``paper_gates`` every recording is also replayed as the paper's detector (:func:`paper_config`: its
+    two gates alone, no contact edge, and blind to the projected light, which the paper did not predict) and
+    the report, and each condition's, gains ``"paper_gates"``: the same report for that detector, so what the
+    project's additions buy (or cost) is read per condition on the same frames.
     """
     skips = skips if skips is not None else Skips("eval")
-    groups: dict[str, tuple[list[TrialData], list[ClipData], list[np.ndarray]]] = {}
+    ours = _Groups()
+    paper = _Groups()
+    paper_cfg = paper_config(config)
     for recording in skips.recordings(root):
         if recording.labels is None:
             continue
@@ -225,27 +233,61 @@ def evaluate_dataset(
         )  # fmt: skip
         if result is None:
             continue
-        trials, clips, timings = groups.setdefault(condition_of(root, recording) if by_condition else ".", ([], [], []))
+        condition = condition_of(root, recording) if by_condition else "."
+        ours.add(condition, root, result)
+        blind = skips.attempt(lambda: replay_recording(recording, paper_cfg, plain=plain)) if paper_gates else None
+        if blind is not None:
+            paper.add(condition, root, blind)
+    if not ours.groups:
+        raise RecordingError(root, "holds no labelled recording to evaluate")
+    name = dataset_name or str(root)
+    report, all_clips = ours.report(name, config, by_condition)
+    if paper_gates:
+        report["paper_gates"], _ = paper.report(name, paper_cfg, by_condition)
+        for condition, sub in report.get("conditions", {}).items():
+            sub["paper_gates"] = report["paper_gates"]["conditions"][condition]
+        report["paper_gates"].pop("conditions", None)
+    return report, all_clips
+
+
+def paper_config(config: TouchConfig) -> TouchConfig:
+    """The paper's detector within this pipeline: its instant and sustained-anchoring gates alone.
+
+    ``contact_edge = 0`` makes every seen shadow count as landed (:mod:`feelium.touch.gates`), so nothing but
+    the two gates decides; replayed without a light feed, it is also blind to the projected light, as the
+    paper was. The front end (reference, depth, candidates) stays the project's: the comparison isolates the
+    decision and the light, not the image processing.
+    """
+    return replace(config, contact_edge=0.0)
+
+
+class _Groups:
+    """Scoring inputs grouped by condition, and the report built from them."""
+
+    def __init__(self) -> None:
+        self.groups: dict[str, tuple[list[TrialData], list[ClipData], list[np.ndarray]]] = {}
+
+    def add(self, condition: str, root: Path, result: ReplayResult) -> None:
+        trials, clips, timings = self.groups.setdefault(condition, ([], [], []))
         timings.append(result.seconds_per_frame)
         item = scoring_input(root, result)
         (clips if isinstance(item, ClipData) else trials).append(item)  # type: ignore[arg-type]
-    if not groups:
-        raise RecordingError(root, "holds no labelled recording to evaluate")
-    gates = GateThresholds(config.contact_edge, config.instant_depth, config.anchor_threshold, config.anchor_min_age_s)
 
-    def report_of(name: str, trials: list[TrialData], clips: list[ClipData], timings: list[np.ndarray]) -> dict[str, Any]:
-        seconds = np.concatenate(timings) if timings else np.zeros(0)
-        report = build_report(name, trials, clips, seconds, config.width, config.height, gates)
-        report["contacts"] = score_contacts(trials, config.px_per_mm or 2.0)  # added key: several contacts
-        return report
+    def report(self, name: str, config: TouchConfig, by_condition: bool) -> tuple[dict[str, Any], list[ClipData]]:
+        gates = GateThresholds(config.contact_edge, config.instant_depth, config.anchor_threshold, config.anchor_min_age_s)
 
-    every = [g for g in groups.values()]
-    all_trials = [t for g in every for t in g[0]]
-    all_clips = [c for g in every for c in g[1]]
-    report = report_of(dataset_name or str(root), all_trials, all_clips, [s for g in every for s in g[2]])
-    if by_condition:
-        report["conditions"] = {name: report_of(name, *groups[name]) for name in sorted(groups)}
-    return report, all_clips
+        def report_of(title: str, trials: list[TrialData], clips: list[ClipData], timings: list[np.ndarray]) -> dict[str, Any]:
+            seconds = np.concatenate(timings) if timings else np.zeros(0)
+            report = build_report(title, trials, clips, seconds, config.width, config.height, gates)
+            report["contacts"] = score_contacts(trials, config.px_per_mm or 2.0)  # added key: several contacts
+            return report
+
+        every = list(self.groups.values())
+        all_clips = [c for g in every for c in g[1]]
+        report = report_of(name, [t for g in every for t in g[0]], all_clips, [s for g in every for s in g[2]])
+        if by_condition:
+            report["conditions"] = {title: report_of(title, *self.groups[title]) for title in sorted(self.groups)}
+        return report, all_clips
 
 
 def run_eval(args: argparse.Namespace) -> int:
@@ -270,7 +312,7 @@ def run_eval(args: argparse.Namespace) -> int:
     skips = Skips("eval")
     report, clips = evaluate_dataset(
         root, config, dataset_name=args.dataset, skips=skips, by_condition=args.by_condition,
-        projector=whole.projector, calibration=_calibration(args),
+        paper_gates=args.paper_gates, projector=whole.projector, calibration=_calibration(args),
     )  # fmt: skip
     report["touch_config"] = {
         "fitted_on_clips": fitted is not None,
@@ -293,6 +335,9 @@ def run_eval(args: argparse.Namespace) -> int:
     for name, sub in report.get("conditions", {}).items():
         print(f"\n== condition {name}")
         print(format_report(sub))
+    if "paper_gates" in report:
+        print("\n== the paper's two gates alone (no contact edge, blind to the projected light), beside this pipeline")
+        print(format_comparison(report))
     if drawn:
         print(f"figure: {figure}")
     if args.json:
@@ -361,6 +406,26 @@ def _contact_rows(c: dict[str, Any] | None) -> list[tuple[str, str]]:
         ("  contact kind right", f"{c['kind_right']} of {c['kind_scored']} ({kinds})"),
         ("  error px (median/max)", "n/a" if err is None else f"{err['median']:.2f} / {err['max']:.2f}"),
     ]  # fmt: skip
+
+
+def _outcome(report: dict[str, Any]) -> str:
+    """Precision / recall, negatives fired and the localisation median of one report, in one cell."""
+    t = report["trials"]
+    error = report["localisation"]["error_px"]
+    return (
+        f"{_fmt(t['precision'])} / {_fmt(t['recall'])}, {t['fp']} of {t['fp'] + t['tn']} negatives fired, "
+        f"{'n/a' if not error else format(error['median'], '.2f')} px"
+    )
+
+
+def format_comparison(report: dict[str, Any]) -> str:
+    """Per condition (and overall), this pipeline against the paper's two gates alone on the same frames."""
+    rows = [("all recordings", report)] + list(report.get("conditions", {}).items())
+    width = max(len(name) for name, _ in rows)
+    lines = [f"{'condition':<{width}}  this pipeline | the paper's two gates"]
+    for name, sub in rows:
+        lines.append(f"{name:<{width}}  {_outcome(sub)} | {_outcome(sub['paper_gates'])}")
+    return "\n".join(lines)
 
 
 def _signed(value: float | None) -> str:
