@@ -458,6 +458,11 @@ def fsync_path(path: Path) -> None:
         os.close(fd)
 
 
+OWN_FILES = frozenset(
+    ("meta.json", "camera.mkv", "camera_ts.txt", "labels.json", "thermal.npz", "projector.mkv", "projector_ts.txt")
+)  # the format's own files: what ``add_file`` must not overwrite
+
+
 class RecordingWriter:
     """Writes one recording atomically: into a temp dir beside the target, fsynced, renamed on close.
 
@@ -525,6 +530,7 @@ class RecordingWriter:
         self._thermal: ThermalData | None = None
         self._projector: Any = None  # cv2.VideoWriter of projector.mkv once set_projector is called
         self._projector_times: list[float] = []
+        self._files: dict[str, bytes] = {}
         self.frames_written = 0
 
     def add_frame(self, t: float, frame: np.ndarray) -> None:
@@ -576,6 +582,13 @@ class RecordingWriter:
         self._projector.write(np.ascontiguousarray(gray))
         self._projector_times.append(t)
 
+    def add_file(self, name: str, data: bytes) -> None:
+        """Keep one more file in the recording (a projector calibration beside its stream), written durably on
+        close. Only a plain name that none of the format's own files uses."""
+        if Path(name).name != name or name in OWN_FILES or name.startswith("."):
+            raise ValueError(f"{name!r} is not a plain file name free in a recording")
+        self._files[name] = bytes(data)
+
     def set_thermal(self, thermal: ThermalData, fps: float) -> None:
         self._thermal = thermal
         self._meta["thermal"] = {"width": 32, "height": 24, "fps": fps}
@@ -616,6 +629,8 @@ class RecordingWriter:
             buffer = io.BytesIO()
             np.savez_compressed(buffer, **arrays)
             write_durably(self._tmp / "thermal.npz", buffer.getvalue())
+        for name, data in self._files.items():
+            write_durably(self._tmp / name, data)
         fsync_path(self._tmp / "camera.mkv")
         fsync_path(self._tmp)
 

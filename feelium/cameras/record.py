@@ -25,6 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+import cv2
+
 from feelium.cameras.base import Camera
 from feelium.recording import DiskFull, RecordingWriter, ThermalData
 
@@ -45,6 +47,76 @@ class ThermalCapture(Protocol):
         ...
 
 
+class ProjectorStream(Protocol):
+    """Shows projector frames on its own thread and reports each with the time the display got it
+    (:class:`feelium.projector.showloop.ShowLoop`), so the take keeps what lit the membrane."""
+
+    size: tuple[int, int]
+    fps: float
+    error: BaseException | None
+
+    def start(self, sink: Callable[[float, Any], None]) -> None: ...
+
+    def stop(self) -> None: ...
+
+
+PROJECTOR_LEAD = 4  # frames shown up to the first camera frame that are kept: they lit its exposure
+FIRST_SHOW_S = 2.0  # how long the take waits for the projector's first frame before the camera starts
+PROJECTOR_HELD = 8  # at most this many frames wait for the take to start (grey 1280x720: 0.9 MB each)
+
+
+class _ProjectorSink:
+    """Takes the projector's frames from its thread into the take, on the camera's time axis.
+
+    The show starts before the camera's first frame (whose exposure it lights), when the writer and the time
+    origin do not exist yet: the last few frames are held (grey, as the stream keeps them) until
+    :meth:`attach`, which keeps the last :data:`PROJECTOR_LEAD` shown up to the first frame and every one
+    after. A full disk ends the stream (counted, named) while the camera's own frames meet the same reserve
+    and end the take.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._held: list[tuple[float, Any]] = []
+        self._writer: RecordingWriter | None = None
+        self._t0 = 0.0
+        self.first_shown = threading.Event()
+        self.frames = 0
+        self.problem = ""
+
+    def __call__(self, shown_at: float, frame: Any) -> None:
+        self.first_shown.set()
+        with self._lock:
+            if self._writer is None:
+                grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame.copy()
+                self._held = [*self._held[-(PROJECTOR_HELD - 1):], (shown_at, grey)]
+                return
+            self._write(shown_at, frame)
+
+    def _write(self, shown_at: float, frame: Any) -> None:
+        if self.problem or self._writer is None:
+            return
+        try:
+            self._writer.add_projector_frame(shown_at - self._t0, frame)
+            self.frames += 1
+        except DiskFull as exc:
+            self.problem = f"projector stream cut: {exc.strerror or 'disk full'}"
+
+    def attach(self, writer: RecordingWriter, t0: float) -> None:
+        with self._lock:
+            self._writer, self._t0 = writer, t0
+            before = [item for item in self._held if item[0] <= t0][-PROJECTOR_LEAD:]
+            for shown_at, frame in before + [item for item in self._held if item[0] > t0]:
+                self._write(shown_at, frame)
+            self._held = []
+
+    def detach(self) -> None:
+        """No frame reaches the writer after this returns (it is about to be closed)."""
+        with self._lock:
+            self._writer = None
+            self.problem = self.problem or "detached"
+
+
 @dataclass(frozen=True)
 class Take:
     """A finished recording and why it ended: ``"time limit"``, ``"source ended"``, ``"stopped"``, ``"disk full"``
@@ -55,6 +127,8 @@ class Take:
     seconds: float
     ended: str
     problem: str = ""  # the one-line complaint when ``ended`` is ``"disk full"`` or ``"camera stalled"``
+    projector_frames: int = 0  # projector frames kept with the take (``projector.mkv``), when it projected
+    projector_problem: str = ""  # why the projector stream ended before the take did, if it did
 
 
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
@@ -162,19 +236,34 @@ def record(
     on_frame: Callable[[int, float], None] | None = None,
     writer_options: dict[str, Any] | None = None,
     stall_s: float = STALL_S,
+    projector: ProjectorStream | None = None,
+    files: dict[str, bytes] | None = None,
 ) -> Take:
     """Record frames until ``seconds`` of camera time have passed, the source ends, ``stop`` is set, the disk
     fills or the camera delivers nothing for ``stall_s`` (``ended == "camera stalled"``: what came before is kept).
 
-    ``writer_options`` go to :class:`RecordingWriter` (a test's tiny disk).
+    ``projector``: shown while recording, each frame kept in the take with the time it was shown, on the
+    camera's clock (the stream's clock must be the camera's). ``files``: more files to keep in the take (the
+    projector calibration its replay needs). ``writer_options`` go to :class:`RecordingWriter` (a test's tiny
+    disk).
     """
+    sink = _ProjectorSink() if projector is not None else None
+    if projector is not None and sink is not None:
+        projector.start(sink)
+        # the camera starts once something is shown, so the first exposure is lit by a frame the take keeps
+        if not sink.first_shown.wait(FIRST_SHOW_S):
+            log.warning("the projector showed nothing in %.0f s; recording without its first frames", FIRST_SHOW_S)
     feed = _FrameFeed(camera)
     try:
-        return _record_from(feed, out, seconds=seconds, fps=fps, name=name, session=session, source=source,
+        take = _record_from(feed, out, seconds=seconds, fps=fps, name=name, session=session, source=source,
                             extra_meta=extra_meta, thermal=thermal, stop=stop, on_frame=on_frame,
-                            writer_options=writer_options, stall_s=stall_s)  # fmt: skip
+                            writer_options=writer_options, stall_s=stall_s, projector=projector, sink=sink,
+                            files=files or {})  # fmt: skip
     finally:
         feed.close()
+        if projector is not None:
+            projector.stop()
+    return take
 
 
 def _record_from(
@@ -192,6 +281,9 @@ def _record_from(
     on_frame: Callable[[int, float], None] | None,
     writer_options: dict[str, Any] | None,
     stall_s: float,
+    projector: ProjectorStream | None,
+    sink: _ProjectorSink | None,
+    files: dict[str, bytes],
 ) -> Take:
     first = feed.next(stop, stall_s)
     if first in (None, "stopped"):
@@ -218,6 +310,11 @@ def _record_from(
     frame = first
     ended, problem = "source ended", ""
     try:
+        for file_name, data in files.items():
+            writer.add_file(file_name, data)
+        if projector is not None and sink is not None:
+            writer.set_projector(*projector.size, projector.fps)
+            sink.attach(writer, t0)
         while True:
             t = frame.t - t0
             if t <= last_t:  # a sensor that repeats a timestamp: keep the file valid, drop the frame
@@ -253,15 +350,24 @@ def _record_from(
         ended = "stopped"
         log.info("interrupted: finishing the recording")
     except BaseException:
+        if sink is not None:
+            sink.detach()
         writer.abort()
         raise
+    cut = ""
+    if sink is not None:
+        cut = sink.problem
+        sink.detach()
+        if projector is not None and projector.error is not None:
+            cut = cut or f"projector stream cut: {projector.error}"
     if writer.frames_written == 0:  # the disk was full before the first frame: no player or replay accepts an empty take
         writer.abort()
         raise OSError(errno.ENOSPC, problem or "disk full", str(out))
     if thermal is not None and (data := thermal.result()) is not None:
         writer.set_thermal(data, thermal.fps)
     path = writer.close()
-    return Take(path, writer.frames_written, max(last_t, 0.0), ended, problem)
+    projected = sink.frames if sink is not None else 0
+    return Take(path, writer.frames_written, max(last_t, 0.0), ended, problem, projected, cut)
 
 
 def default_name(now: float) -> str:

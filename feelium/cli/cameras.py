@@ -21,6 +21,16 @@ def register(registry: CommandRegistry) -> None:
     rec.add_argument("--sim", action="store_true", help="record the scene simulator instead of the camera")
     rec.add_argument("--name", help="recording name (default: rec-<date>-<time>)")
     rec.add_argument("--session", default="", help="free text grouping recordings taken under the same conditions")
+    rec.add_argument(
+        "--projector",
+        choices=("none", "flat", "avatar", "face"),
+        default="none",
+        help="what the projector shows while recording (the daemon must be stopped): none (leave it as it is), flat "
+        "(full white: the paper's static back-light, no stream kept), avatar (the default face, talking) or face "
+        "(--face-video looped); avatar and face keep the projector stream and the calibration in the take, so replay "
+        "and eval predict the light as the daemon does (docs/recording-format.md)",
+    )
+    rec.add_argument("--face-video", metavar="FILE", help="with --projector face: the video to show (any file OpenCV reads)")
     lens = registry.subcommand(
         "calibrate", "lens",
         "Fit the front fisheye's lens model (OpenCV fisheye K, D) from views of a printed chessboard or ChArUco board "
@@ -74,6 +84,9 @@ def _record(args: argparse.Namespace) -> int:
     if args.seconds is not None and not args.seconds > 0:
         print("feelium record: --seconds must be positive", file=sys.stderr)
         return 2
+    if args.face_video and args.projector != "face":
+        print("feelium record: --face-video needs --projector face", file=sys.stderr)
+        return 2
     out = Path(args.out)
     if out.exists():
         print(f"feelium record: {out} already exists", file=sys.stderr)
@@ -89,6 +102,19 @@ def _record(args: argparse.Namespace) -> int:
         return 1
     if source.backend == "sim" and asked_auto:  # asked for the camera, got the simulator: say so
         print("feelium record: recording the scene simulator (`auto` off a Raspberry Pi)", file=sys.stderr)
+    show, files = None, {}
+    if args.projector != "none":
+        from feelium.daemon.assembly import build_show_loop
+
+        try:
+            video = Path(args.face_video) if args.face_video else None
+            show, calibration = build_show_loop(config, args.projector, video, args.config)
+        except (ValueError, OSError) as exc:
+            camera.close()
+            print(f"feelium record: --projector {args.projector}: {exc}", file=sys.stderr)
+            return 1
+        if calibration is not None:
+            files["projector-calibration.npz"] = calibration  # what replay and eval look for beside the trials
     name = args.name or default_name(time.time())
     shown = {"at": 0.0}
 
@@ -103,6 +129,9 @@ def _record(args: argparse.Namespace) -> int:
             say(f"{frames} frames, {t:.1f} s", sys.stderr)
 
     stop = threading.Event()
+    lit_only = show is not None and not files  # the flat back-light: shown, not kept (nothing to predict)
+    if lit_only:
+        show.start(lambda _shown_at, _frame: None)
     try:
         with stop_on_signals(stop) as caught:
             take = record(
@@ -116,6 +145,8 @@ def _record(args: argparse.Namespace) -> int:
                 extra_meta={"recorder": {"backend": source.backend, "config": dataclasses.asdict(config.rear_camera)}},
                 stop=stop,
                 on_frame=progress,
+                projector=show if files else None,
+                files=files,
             )
     except OSError as exc:  # the writer removed its temp dir: nothing half is left
         print(f"feelium record: cannot write {out}: {exc.strerror or exc}; nothing kept", file=sys.stderr)
@@ -125,7 +156,13 @@ def _record(args: argparse.Namespace) -> int:
         return 1
     finally:
         camera.close()
+        if lit_only:
+            show.stop()
     summary = f"{take.path} ({take.frames} frames, {take.seconds:.1f} s)"
+    if take.projector_frames:
+        summary += f", {take.projector_frames} projector frames"
+    if take.projector_problem:
+        say(f"feelium record: {take.projector_problem}; the take's projector stream is shorter than its camera's", sys.stderr)
     if take.ended == "disk full":
         say(f"feelium record: {take.problem} in {out.parent}: kept a shorter take {summary}", sys.stderr)
         return 1

@@ -24,6 +24,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from feelium.skin.annotation import ProjectorAnnotation
 from feelium.skin.projector_map import CalibrationError, calibration_path, default_calibration, load_or_default, load_shared
 from feelium.skin.projector_map import DEFAULT_CAMERA_SIZE, DEFAULT_ROI
 from feelium.skin.regions import Regions
+
+if TYPE_CHECKING:
+    from feelium.projector.showloop import ShowLoop
 
 log = logging.getLogger(__name__)
 
@@ -137,6 +141,40 @@ def build_projector(config: Config, hub: Hub) -> Service | None:
 
     face = face_for(config.touch, calibration.camera_size)  # the touch side's u, v, for the canvas
     return ProjectorService(config.projector, config.interactions, hub, display, calibration, face)
+
+
+def build_show_loop(
+    config: Config, content: str, face_video: Path | None = None, config_file: str | Path | None = None
+) -> tuple[ShowLoop, bytes | None]:
+    """The projector driven outside the daemon (``feelium record --projector``) and the calibration file's
+    bytes, which a take projected through it needs to be replayed (None for the flat back-light, which needs
+    no map and is recorded without a stream).
+
+    Raises ``ValueError`` naming what is missing: projecting the face or avatar through an uncalibrated
+    stand-in map would record light that no replay can predict.
+    """
+    from feelium.projector.display import open_display
+    from feelium.projector.renderer import Renderer
+    from feelium.projector.showloop import ShowLoop
+    from feelium.touch.face import face_for
+
+    size = (config.projector.width, config.projector.height)
+    rear_roi = tuple(config.rear_camera.roi) if config.rear_camera.roi else None
+    path = calibration_path(config.projector.calibration.file, config_file)  # where `calibrate projector --config` saved it
+    data: bytes | None = None
+    if content == "flat":
+        calibration = default_calibration(DEFAULT_CAMERA_SIZE, rear_roi or DEFAULT_ROI, size)  # type: ignore[arg-type]
+    else:
+        if not path.is_file():
+            raise ValueError(f"no projector calibration at {path}: run `feelium calibrate projector` first")
+        try:
+            calibration = load_or_default(path, size, rear_roi)  # type: ignore[arg-type]
+        except CalibrationError as exc:
+            raise ValueError(f"projector calibration {path} unusable: {exc}") from exc
+        data = path.read_bytes()
+    renderer = Renderer(config.projector, calibration, face_for(config.touch, calibration.camera_size))
+    display = open_display(config.projector.backend, config.projector.fb_device)
+    return ShowLoop(renderer, display, fps=config.projector.fps, content=content, face_video=face_video), data
 
 
 # --- moving: the headset's commands reach the motors ---------------------------------------------------------------
