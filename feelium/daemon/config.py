@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import codecs
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -125,7 +125,24 @@ def load_config(path: str | Path | None) -> Config:
     except UnicodeDecodeError as exc:
         offset = bom + exc.start
         raise ConfigError(str(path), "(file)", f"not UTF-8 text: byte 0x{data[offset]:02x} at offset {offset}") from exc
-    return parse_config(text, str(path))
+    return beside(parse_config(text, str(path)), path)
+
+
+def beside(config: Config, config_file: Path) -> Config:
+    """The config with its relative calibration files taken beside ``config_file``, as their settings say.
+
+    ``feelium calibrate projector|lens --config X`` saves beside X; a daemon started with ``--config X`` from
+    any working directory must read the same files (before, it read them relative to its working directory,
+    right only under the unit's ``WorkingDirectory=/etc/feelium``).
+    """
+    base = config_file.resolve().parent
+
+    def absolute(file: str) -> str:
+        return file if not file or Path(file).is_absolute() else str(base / file)
+
+    projector = replace(config.projector, calibration=replace(config.projector.calibration, file=absolute(config.projector.calibration.file)))
+    front = replace(config.front_camera, lens_file=absolute(config.front_camera.lens_file))
+    return replace(config, projector=projector, front_camera=front)
 
 
 def render_config(config: Config) -> str:

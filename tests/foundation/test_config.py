@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from feelium.cli import main
-from feelium.daemon.config import Config, load_config, parse_config, render_config
+from feelium.daemon.config import Config, beside, load_config, parse_config, render_config
 from feelium.settings import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -99,7 +99,7 @@ def test_a_leading_byte_order_mark_is_accepted(tmp_path):
 def test_an_empty_file_means_every_default(tmp_path):
     path = tmp_path / "empty.toml"
     path.write_bytes(b"")
-    assert load_config(path) == Config()
+    assert load_config(path) == beside(Config(), path)  # every default, the calibration files taken beside it
 
 
 def test_non_utf8_is_one_line_naming_the_file_and_the_byte(tmp_path, capsys):
@@ -119,3 +119,19 @@ def test_a_headset_token_too_short_is_refused_by_config_check_naming_the_file(tm
     assert main(["config", "check", str(path)]) == 1
     err = capsys.readouterr().err
     assert str(path) in err and "token must be at least 16 characters" in err
+
+
+def test_relative_calibration_files_are_read_beside_the_config_from_any_working_directory(tmp_path, monkeypatch):
+    """`calibrate projector|lens --config X` saves beside X; the daemon started with X elsewhere reads the same."""
+    from feelium.skin.projector_map import calibration_path
+
+    folder = tmp_path / "etc"
+    folder.mkdir()
+    path = folder / "feelium.toml"
+    path.write_text('[projector.calibration]\nfile = "maps/p.npz"\n[front_camera]\nlens_file = "/abs/lens.json"\n', encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    config = load_config(path)
+    assert calibration_path(config.projector.calibration.file) == folder / "maps" / "p.npz"
+    assert calibration_path(config.projector.calibration.file) == calibration_path("maps/p.npz", path)  # where calibrate saves
+    assert config.front_camera.lens_file == "/abs/lens.json"  # an absolute path is kept
+    assert load_config(None).projector.calibration.file == "projector_calibration.npz"  # no file: the working directory's
