@@ -41,6 +41,11 @@ def register(registry: CommandRegistry) -> None:
         help="how the headset sends its 20 Hz motion: messages on the events WebSocket (default) or POST /motion",
     )
     board.add_argument(
+        "--numeric-split-seconds", type=float, default=20.0,
+        help="then profile the daemon this long for each service's numpy/OpenCV share, projected at 6x (the rest at "
+        "10x); 0 = everything at 10x (default 20)",
+    )
+    board.add_argument(
         "--projected-light", choices=("on", "off"), default="on",
         help="touch compensates the projector's light with a simulated calibration, as on the blimp (default on)",
     )

@@ -64,7 +64,7 @@ async def test_loop_callbacks_are_counted_by_the_service_they_wake() -> None:
 
 @pytest.mark.slow
 def test_bench_board_runs_every_service_and_writes_finite_json():
-    result = bench_board(Config(), 2.0 / 60.0, warmup_s=1.0)
+    result = bench_board(Config(), 2.0 / 60.0, warmup_s=1.0, numeric_split_s=2.0)
     text = json.dumps(result, allow_nan=False)  # raises on NaN or infinity
     assert {"pi_cores", "rss_mb", "rss_peak_mb", "loop_lag_p99_ms", "services"} <= json.loads(text).keys()
     for name in ("touch", "front_camera", "thermal", "audio", "projector", "flight", "http"):
@@ -74,3 +74,6 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
         assert row["rate_hz"] > 0, name
     assert 0 < result["rss_mb"] <= result["rss_peak_mb"]
     assert "pi_cores" in format_table(result)
+    shares = result["numeric_split"]["shares"]  # a second, profiled run: each part's numpy/OpenCV share
+    assert 0 < shares["touch"]["thread"] <= 1 and 0 < shares["projector"]["pool"] <= 1
+    assert result["pi_cores_at_6x"] <= result["pi_cores"] <= result["pi_cores_at_10x"]

@@ -39,6 +39,7 @@ THREAD_SERVICES = {"rear-camera": "touch", "touch-pipeline": "touch", "front-cam
 HTTP_LIBRARIES = ("aiohttp", "yarl", "multidict")
 POOL_PREFIX = "bench-pool"
 LOOP_OTHER = "event loop (other)"
+JOB_SERVICE = threading.local()  # ``.name``: the service whose job a pool thread runs now (for the numeric split)
 OTHER_THREADS = "other threads"
 
 
@@ -135,11 +136,13 @@ class ChargingExecutor(ThreadPoolExecutor):
         ledger = self.ledger
 
         def timed() -> Any:
+            JOB_SERVICE.name = service
             start = time.thread_time()
             try:
                 return fn(*args, **kwargs)
             finally:
                 ledger.add(service, "pool", time.thread_time() - start)
+                JOB_SERVICE.name = None
 
         return super().submit(timed)
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import dataclasses
 import json
 import os
@@ -28,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +44,7 @@ from feelium.hub import Hub
 from feelium.priority import background_nice, set_background_nice
 from feelium.lab.daemon.attribution import ChargingExecutor, Ledger, callback_overhead_s, charge, charge_loop_callbacks, thread_cpu
 from feelium.lab.daemon.bench import memory_mb
+from feelium.lab.daemon.numeric import NumericProfiler, numeric_shares
 from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_frames
 from feelium.lab.daemon.projection import project
 from feelium.lab.daemon.quota import join
@@ -138,9 +141,20 @@ def _start_headset(port: int, seconds: float, motion_transport: str) -> subproce
 
 
 async def _measure(
-    config: Config, cameras: Cameras, seconds: float, warmup_s: float, cgroup: Path | None, motion_transport: str = "websocket"
+    config: Config,
+    cameras: Cameras,
+    seconds: float,
+    warmup_s: float,
+    cgroup: Path | None,
+    motion_transport: str = "websocket",
+    profiler: NumericProfiler | None = None,
 ) -> dict[str, Any]:
-    """Run the daemon; measure over ``seconds`` after the warm-up while the headset process drives it."""
+    """Run the daemon; measure over ``seconds`` after the warm-up while the headset process drives it.
+
+    ``profiler``: installed before any service thread starts, counting over the same window (its hook slows
+    the profiled threads: such a run gives shares, not figures)."""
+    if profiler is not None:
+        profiler.install()
     ledger = Ledger()
     loop = asyncio.get_running_loop()
     loop.set_default_executor(ChargingExecutor(ledger, WORKER_THREADS))
@@ -164,11 +178,15 @@ async def _measure(
             first, threads_before, cpu_before = hub.health(), thread_cpu(), os.times()
             lags.clear()
             ledger.counting = True
+            if profiler is not None:
+                profiler.counting = True
             start = time.monotonic()
             while (elapsed := time.monotonic() - start) < seconds:
                 rss.append((elapsed, memory_mb()["rss"]))
                 await asyncio.sleep(min(0.5, seconds - elapsed))
             ledger.counting = False
+            if profiler is not None:
+                profiler.counting = False
             cpu_after, threads_after = os.times(), thread_cpu()
             out.update(
                 wall=time.monotonic() - start, first=first, last=hub.health(),
@@ -200,6 +218,8 @@ async def _measure(
         stop.set()
         lag_stop.set()
         undo()
+        if profiler is not None:
+            profiler.uninstall()
         done = await asyncio.gather(*tasks, return_exceptions=True)
     if isinstance(done[0], Exception):
         raise done[0]  # the measurement failed (e.g. the headset process): not a report with holes
@@ -255,6 +275,17 @@ def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, fro
     return rows
 
 
+@contextlib.contextmanager
+def _board_process() -> Iterator[str]:
+    """The emulated motor board in a process of its own; yields its serial port (it serves one connection)."""
+    board = subprocess.Popen([sys.executable, "-m", "feelium.lab.daemon.board_server"], stdout=subprocess.PIPE, text=True)
+    try:
+        yield board.stdout.readline().strip() if board.stdout else ""
+    finally:
+        board.kill()
+        board.wait()
+
+
 def bench_board(
     config: Config,
     minutes: float,
@@ -265,28 +296,37 @@ def bench_board(
     cgroup: Path | None = None,
     motion_transport: str = "websocket",
     projected_light: bool = True,
+    numeric_split_s: float = 0.0,
 ) -> dict[str, Any]:
     """Start the board process, run and measure the daemon for ``minutes``, project; every number in one dict.
 
     ``projected_light``: give the daemon a projector calibration (:func:`simulated_calibration`) so touch
     compensates the projected light in every rear frame as it does on the blimp (the preloaded frames hold no
-    projector light, so this measures the cost, not the benefit)."""
-    board = subprocess.Popen([sys.executable, "-m", "feelium.lab.daemon.board_server"], stdout=subprocess.PIPE, text=True)
+    projector light, so this measures the cost, not the benefit).
+
+    ``numeric_split_s``: then run the daemon again, this long, with the numeric profiler
+    (:mod:`feelium.lab.daemon.numeric`), and project each service's parts by their measured numeric share;
+    0 projects everything at 10x."""
     scratch = tempfile.TemporaryDirectory(prefix="feelium-bench-")
+    split: dict[str, Any] | None = None
     try:
-        port = board.stdout.readline().strip() if board.stdout else ""
-        calibration = simulated_calibration(config, Path(scratch.name)) if projected_light else None
-        config = bench_config(config, rear_fps, port, calibration)
-        front_fps = front_fps or config.front_camera.fps
-        malloc = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
-        set_background_nice(background_nice_here(config.daemon.background_nice, on_pi=True))  # as `feelium run` does on the Pi
-        cameras = prepare(config, front_fps)
-        load_before = os.getloadavg()[0]
-        measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
-        load_after = os.getloadavg()[0]
+        with _board_process() as port:
+            calibration = simulated_calibration(config, Path(scratch.name)) if projected_light else None
+            config = bench_config(config, rear_fps, port, calibration)
+            front_fps = front_fps or config.front_camera.fps
+            malloc = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
+            set_background_nice(background_nice_here(config.daemon.background_nice, on_pi=True))  # as `feelium run` does on the Pi
+            cameras = prepare(config, front_fps)
+            load_before = os.getloadavg()[0]
+            measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
+            load_after = os.getloadavg()[0]
+        if numeric_split_s > 0:
+            with _board_process() as port:
+                profiler = NumericProfiler()
+                profiled = dataclasses.replace(config, flight=dataclasses.replace(config.flight, port=port))
+                run = asyncio.run(_measure(profiled, cameras, numeric_split_s, warmup_s, None, motion_transport, profiler))
+                split = {"seconds": round(run["wall"], 2), "shares": numeric_shares(profiler.seconds, run["charged"])}
     finally:
-        board.kill()
-        board.wait()
         scratch.cleanup()
     wall = measured["wall"]
     preload_mb = cameras.nbytes / 2**20
@@ -320,7 +360,8 @@ def bench_board(
         "services": rows,
         "headset": measured["headset"],
     }
-    result.update(project(result))
+    result["numeric_split"] = split
+    result.update(project(result, split["shares"] if split is not None else None))
     return result
 
 
@@ -362,11 +403,15 @@ def format_table(result: dict[str, Any]) -> str:
         + ", ".join(f"{name} {rate}" for name, rate in result["loop_callbacks_per_s_by_origin"].items()),
         f"  RSS steady / peak {result['rss_mb']} / {result['rss_peak_mb']} MB (preloaded frames, "
         f"{result['preloaded_frames_mb']} MB, taken out); growth after warm-up {result['rss_growth_mb']} MB",
-        f"  projected onto the Pi (x{result['pi_factor']}): {result['pi_cores']} of 4 cores used, "
-        f"{result['pi_cores_left']} left (at x6: {result['pi_cores_at_6x']}); event loop thread "
+        f"  projected onto the Pi ({result['pi_factor']}): {result['pi_cores']} of 4 cores used, "
+        f"{result['pi_cores_left']} left (all at x10: {result['pi_cores_at_10x']}, all at x6: {result['pi_cores_at_6x']}); event loop thread "
         f"{result['pi_loop_thread_cores']} of its one core",
         "  budget: " + ", ".join(f"{k} {'ok' if v else 'MISSED'}" for k, v in result["budget"].items()),
     ]
+    if result.get("numeric_split"):
+        shares = result["numeric_split"]["shares"]
+        lines.insert(-2, f"  numeric share (lower bound, {result['numeric_split']['seconds']} s profiled): "
+                     + ", ".join(f"{name} {kind} {share:.2f}" for name, kinds in sorted(shares.items()) for kind, share in sorted(kinds.items())))
     return "\n".join(lines)
 
 
@@ -380,7 +425,11 @@ def bench_board_command(args: argparse.Namespace) -> int:
         print("feelium bench board: --minutes must be positive", file=sys.stderr)
         return 2
     cgroup = Path(args.cgroup) if args.cgroup else None
+    if args.numeric_split_seconds < 0:
+        print("feelium bench board: --numeric-split-seconds must not be negative", file=sys.stderr)
+        return 2
     result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps, cgroup=cgroup,
-                         motion_transport=args.motion_transport, projected_light=args.projected_light == "on")
+                         motion_transport=args.motion_transport, projected_light=args.projected_light == "on",
+                         numeric_split_s=args.numeric_split_seconds)
     emit_report(format_table(result), result, args.json)
     return 0

@@ -5,21 +5,30 @@ Published comparisons of the A53 (in-order, 2-wide, 1 GHz, 512 kB L2 shared)
 with a recent x86 core (out-of-order, 3.5-5 GHz) put single-thread speed
 apart by about 5-8x on vectorised numeric code (OpenCV and numpy use NEON on
 the A53, which is narrower than AVX2) and by about 8-12x on interpreted
-Python, where clock speed, branch prediction and cache sizes all count. No
-service here has been timed on the Pi yet, and splitting each service's time
-between the two kinds of work would be a guess, so every figure is projected
-with the conservative 10x of Python-level work; the same totals at 6x (all
-numeric) are given as the optimistic end. Replace both with a run on the
-board itself (``feelium bench board`` runs there unchanged) when one exists.
+Python, where clock speed, branch prediction and cache sizes all count. Issue
+16 fixes the two ends: 6x for numpy/OpenCV work, 10x for Python-level work.
+
+Which share of each service's CPU is which is measured
+(:mod:`feelium.lab.daemon.numeric`, a profiled window after the measured one):
+each part of a service (its dedicated threads, its pool jobs) is projected at
+``10 - 4 * share``, where ``share`` is the part's numeric share, a lower bound.
+The event loop's thread and any CPU no service accounts for stay at 10x;
+OpenCV's own worker threads run only native numeric code, at 6x. Without a
+measured split every figure is projected at the conservative 10x, as before
+2026-11-26. The totals at 10x and at 6x are always given beside it. Replace
+all of it with a run on the board itself (``feelium bench board`` runs there
+unchanged) when one exists.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+from feelium.lab.daemon.attribution import OTHER_THREADS
+
 PI_CORES = 4
-PI_FACTOR = 10.0  # conservative: Python-level work, and the bound used for every service
-PI_FACTOR_NUMERIC = 6.0  # optimistic: if all of it were numpy/OpenCV work
+PI_FACTOR = 10.0  # Python-level work; every figure when no split was measured
+PI_FACTOR_NUMERIC = 6.0  # numpy/OpenCV work
 BUDGET = {
     "pi_cores": 2.0,  # half the board stays for the OS, Wi-Fi and bursts
     "rate_fraction": 0.97,
@@ -45,16 +54,47 @@ def check_budget(result: dict[str, Any], pi_cores: float) -> dict[str, bool]:
     }
 
 
-def project(result: dict[str, Any]) -> dict[str, Any]:
-    """``pi_ms_per_s`` per service and the projected cores; adds to ``result['services']`` in place."""
-    for row in result["services"].values():
-        row["pi_ms_per_s"] = round(PI_FACTOR * row["cpu_ms_per_s"], 1)
+def part_factor(share: float) -> float:
+    """The factor of a part of a service whose CPU is ``share`` numeric (0..1) and the rest Python-level."""
+    return PI_FACTOR - (PI_FACTOR - PI_FACTOR_NUMERIC) * min(1.0, max(0.0, share))
+
+
+def _pi_ms(name: str, row: dict[str, Any], shares: dict[str, dict[str, float]]) -> float:
+    """One service's projected ms per second: each part at its measured factor (the loop's at 10x)."""
+    if name == OTHER_THREADS:
+        return PI_FACTOR_NUMERIC * row["cpu_ms_per_s"]  # OpenCV's worker pool: native numeric code only
+    by_kind = row.get("cpu_ms_per_s_by_kind") or {"loop": row["cpu_ms_per_s"]}
+    return sum(ms * (PI_FACTOR if kind == "loop" else part_factor(shares.get(name, {}).get(kind, 0.0))) for kind, ms in by_kind.items())
+
+
+def project(result: dict[str, Any], shares: dict[str, dict[str, float]] | None = None) -> dict[str, Any]:
+    """``pi_ms_per_s`` per service and the projected cores; adds to ``result['services']`` in place.
+
+    ``shares``: the measured numeric share per service and part (:func:`feelium.lab.daemon.numeric.numeric_shares`);
+    without it every figure is projected at 10x.
+    """
     here_cores = result["process_cpu_ms_per_s"] / 1000.0
-    pi_cores = round(PI_FACTOR * here_cores, 2)
+    if shares is None:
+        for row in result["services"].values():
+            row["pi_ms_per_s"] = round(PI_FACTOR * row["cpu_ms_per_s"], 1)
+        pi_cores = round(PI_FACTOR * here_cores, 2)
+    else:
+        charged = 0.0
+        total = 0.0
+        for name, row in result["services"].items():
+            pi_ms = _pi_ms(name, row, shares)
+            row["pi_ms_per_s"] = round(pi_ms, 1)
+            if row["cpu_ms_per_s"] > 0:
+                row["pi_factor"] = round(pi_ms / row["cpu_ms_per_s"], 2)
+            charged += row["cpu_ms_per_s"]
+            total += pi_ms
+        unaccounted = max(0.0, result["process_cpu_ms_per_s"] - charged)  # at 10x: nothing says it is numeric
+        pi_cores = round((total + PI_FACTOR * unaccounted) / 1000.0, 2)
     return {
-        "pi_factor": PI_FACTOR,
+        "pi_factor": "measured split (6x numeric, 10x Python-level)" if shares is not None else PI_FACTOR,
         "pi_cores": pi_cores,
         "pi_cores_left": round(PI_CORES - pi_cores, 2),
+        "pi_cores_at_10x": round(PI_FACTOR * here_cores, 2),
         "pi_cores_at_6x": round(PI_FACTOR_NUMERIC * here_cores, 2),
         "pi_loop_thread_cores": round(PI_FACTOR * result["loop_thread_ms_per_s"] / 1000.0, 2),
         "budget": check_budget(result, pi_cores),

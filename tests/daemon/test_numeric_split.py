@@ -1,0 +1,92 @@
+"""The numeric split behind the projection onto the Pi: numpy/OpenCV time counted per service, projected at 6x."""
+
+from __future__ import annotations
+
+import threading
+
+import cv2
+import numpy as np
+import pytest
+
+from feelium.lab.daemon.attribution import JOB_SERVICE, OTHER_THREADS
+from feelium.lab.daemon.numeric import NumericProfiler, is_numeric, numeric_shares
+from feelium.lab.daemon.projection import PI_FACTOR, PI_FACTOR_NUMERIC, part_factor, project
+
+
+def test_opencv_and_numpy_functions_are_numeric_and_python_builtins_are_not():
+    a = np.zeros(4)
+    assert all(is_numeric(f) for f in (cv2.GaussianBlur, cv2.remap, cv2.fisheye.undistortPoints, a.sum, np.add.reduce, np.zeros))
+    assert not any(is_numeric(f) for f in ([].append, len, sorted, threading.current_thread))
+
+
+def _work(blurs: int) -> None:
+    image = np.random.default_rng(1).random((120, 160)).astype(np.float32)
+    total = 0
+    for _ in range(blurs):
+        cv2.GaussianBlur(image, (0, 0), 2.0)
+        total += sum(range(300))  # Python-level work beside it
+
+
+def _run(name: str, job_service: str | None = None) -> float:
+    """Run the work in a thread of that name; its thread CPU seconds."""
+    spent = []
+
+    def body() -> None:
+        import time
+
+        JOB_SERVICE.name = job_service
+        start = time.thread_time()
+        _work(60)
+        spent.append(time.thread_time() - start)
+
+    thread = threading.Thread(target=body, name=name)
+    thread.start()
+    thread.join()
+    return spent[0]
+
+
+def test_the_profiler_charges_numeric_time_to_the_service_of_the_thread_or_the_pool_job():
+    profiler = NumericProfiler()
+    profiler.install()
+    try:
+        profiler.counting = True
+        touch_cpu = _run("touch-pipeline_0")
+        _run("bench-pool_0", job_service="projector")
+        _run("somebody-else")  # a thread no service owns: not charged
+        profiler.counting = False
+        _run("touch-pipeline_1")  # outside the window: not counted
+    finally:
+        profiler.uninstall()
+    assert set(profiler.seconds) == {("touch", "thread"), ("projector", "pool")}
+    assert 0 < profiler.seconds["touch", "thread"] < touch_cpu  # the blurs, not the Python loop beside them
+    shares = numeric_shares(profiler.seconds, {"touch": {"thread": touch_cpu}, "projector": {"pool": 0.0}})
+    assert shares == {"touch": {"thread": pytest.approx(profiler.seconds["touch", "thread"] / touch_cpu, abs=1e-3)}}
+
+
+def test_each_part_is_projected_by_its_measured_share_and_the_rest_at_ten():
+    result = {
+        "process_cpu_ms_per_s": 200.0,
+        "loop_thread_ms_per_s": 50.0,
+        "rss_mb": 100.0,
+        "rss_peak_mb": 110.0,
+        "loop_lag_p99_ms": 1.0,
+        "services": {
+            "touch": {"rate_hz": 30.0, "target_hz": 30.0, "miss_pct": 0.0, "cpu_ms_per_s": 100.0,
+                      "cpu_ms_per_s_by_kind": {"thread": 80.0, "loop": 20.0}},
+            OTHER_THREADS: {"rate_hz": None, "target_hz": None, "miss_pct": None, "cpu_ms_per_s": 30.0,
+                            "cpu_ms_per_s_by_kind": {"native-1": 30.0}},
+            "flight": {"rate_hz": 50.0, "target_hz": 50.0, "miss_pct": 0.0, "cpu_ms_per_s": 50.0,
+                       "cpu_ms_per_s_by_kind": {"thread": 50.0}},
+        },
+    }  # fmt: skip
+    plain = project({**result, "services": {k: dict(v) for k, v in result["services"].items()}})
+    assert plain["pi_cores"] == plain["pi_cores_at_10x"] == 2.0
+    split = project(result, {"touch": {"thread": 0.5}})
+    touch = 80.0 * part_factor(0.5) + 20.0 * PI_FACTOR  # 80 ms at 8x, the loop's 20 at 10x
+    other = 30.0 * PI_FACTOR_NUMERIC
+    flight = 50.0 * PI_FACTOR  # no share measured: Python-level
+    unaccounted = (200.0 - 180.0) * PI_FACTOR
+    assert result["services"]["touch"]["pi_ms_per_s"] == pytest.approx(touch)
+    assert split["pi_cores"] == pytest.approx((touch + other + flight + unaccounted) / 1000.0, abs=0.01)
+    assert split["pi_cores_at_6x"] <= split["pi_cores"] < split["pi_cores_at_10x"]
+    assert part_factor(0.0) == PI_FACTOR and part_factor(1.0) == PI_FACTOR_NUMERIC and part_factor(7.0) == PI_FACTOR_NUMERIC
