@@ -47,6 +47,11 @@ def register(registry: CommandRegistry) -> None:
     cond.add_argument("--scale", type=float, default=0.1, help="trials times F (0 < F <= 1; litroom, faceon: the protocol's 228 trials, face: 5 per label and zone, multitouch: 6 runs per scene)")
     cond.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), help="parallel rendering processes")
     cond.add_argument("--overwrite", action="store_true", help="replace recordings that already exist")
+    cond.add_argument(
+        "--clips", action="store_true",
+        help="litroom, faceon: also the protocol's continuous contact, hover and empty clips, to fit the gates under the "
+        "condition (calibrate touch, eval --fit-on-clips)",
+    )
     cond.add_argument("--quiet", action="store_true", help="no progress lines")
     bench = registry.subcommand("bench", "sim", "Scene simulator render time per 640x480 frame, by scene, against an empty frame.", _bench)
     bench.add_argument("--frames", type=int, default=60, help="frames per scene")
@@ -80,7 +85,7 @@ def _condition(args: argparse.Namespace) -> int:
     try:
         written = simulate_condition(
             args.out, args.condition, variants=variants, seed=max(0, args.seed), scale=args.scale,
-            jobs=max(1, args.jobs), overwrite=args.overwrite, progress=progress,
+            jobs=max(1, args.jobs), overwrite=args.overwrite, progress=progress, clips=args.clips,
         )  # fmt: skip
     except ValueError as exc:
         print(f"{name}: {exc}", file=sys.stderr)

@@ -53,7 +53,8 @@ def register(registry: CommandRegistry) -> None:
     )
     cal.add_argument("dataset", help="dataset directory holding continuous contact and hover clips")
     cal.add_argument("--out", metavar="FILE", help="write the [touch] TOML fragment here (default: print it)")
-    cal.add_argument("--config", help="TOML config file to start from")
+    cal.add_argument("--config", help="TOML config file to start from (its [projector] gives the optics for clips with a projector stream)")
+    cal.add_argument("--projector-calibration", metavar="FILE", help=_CALIBRATION_HELP)
 
     bench = registry.subcommand(
         "bench", "touch", "Speed against accuracy of the touch pipeline at several working resolutions.", _bench

@@ -56,7 +56,7 @@ def test_a_tap_under_the_face_is_recorded_with_what_was_projected_and_scored_wit
     """faceon/face: the projector stream and the calibration beside the trial; eval predicts the light from them."""
     monkeypatch.setattr(faceon, "WARMUP_S", 1.0)  # the experiment's 5 s warm-up, cut to keep the test short
     item = _first("tap")
-    monkeypatch.setattr(conditions, "plan", lambda c, v, s: [conditions.Job("faceon", "face", f"faceon-face/{item.relpath}", item)])
+    monkeypatch.setattr(conditions, "plan", lambda c, v, s, clips=False: [conditions.Job("faceon", "face", f"faceon-face/{item.relpath}", item)])
     (path,) = conditions.simulate_condition(tmp_path, "faceon", variants=("face",), scale=0.01)
     recording = Recording(path)
     assert recording.has_projector and recording.meta.raw["generator"]["condition"] == "faceon/face"
@@ -92,8 +92,8 @@ def test_the_cli_writes_one_folder_per_variant_and_eval_reports_each(tmp_path, c
     """The command-line path; the plan cut to one empty trial per variant asked for, to keep the test short."""
     whole = conditions.plan
 
-    def one_each(condition, variants, scale):
-        jobs = [job for job in whole(condition, variants, scale) if job.trial.label == "empty"]
+    def one_each(condition, variants, scale, clips=False):
+        jobs = [job for job in whole(condition, variants, scale, clips) if job.trial.label == "empty"]
         return [next(job for job in jobs if job.variant == v) for v in variants]
 
     monkeypatch.setattr(conditions, "plan", one_each)
@@ -135,7 +135,7 @@ def test_the_paper_gates_alone_are_scored_beside_the_pipeline_on_the_same_frames
     silent; the paper's two gates, blind to the face, are reported beside it on the same frames."""
     monkeypatch.setattr(faceon, "WARMUP_S", 1.0)
     item = _first("hover")
-    monkeypatch.setattr(conditions, "plan", lambda c, v, s: [conditions.Job("faceon", "face", f"faceon-face/{item.relpath}", item)])
+    monkeypatch.setattr(conditions, "plan", lambda c, v, s, clips=False: [conditions.Job("faceon", "face", f"faceon-face/{item.relpath}", item)])
     conditions.simulate_condition(tmp_path, "faceon", variants=("face",), scale=0.01)
     report_path = tmp_path / "report.json"
     assert main(["eval", str(tmp_path), "--by-condition", "--paper-gates", "--json", str(report_path),
@@ -150,3 +150,31 @@ def test_the_paper_gates_alone_are_scored_beside_the_pipeline_on_the_same_frames
     assert report["paper_gates"]["trials"]["n"] == 1 and "conditions" not in report["paper_gates"]
     printed = capsys.readouterr().out
     assert "the paper's two gates alone" in printed and "faceon/face" in printed.split("the paper's two gates alone")[1]
+
+
+def test_face_on_clips_are_fitted_with_the_light_predicted_from_their_stream(tmp_path, monkeypatch):
+    """`simulate condition faceon --clips` writes continuous clips with their projector stream; `calibrate touch` fits
+    the gates on them as the daemon sees them, the face's light predicted, never blind."""
+    from feelium.lab.touch import commands
+    from feelium.lab.touch.skips import Skips
+
+    monkeypatch.setattr(faceon, "WARMUP_S", 1.0)
+    whole = conditions.plan
+    monkeypatch.setattr(conditions, "plan", lambda c, v, s, clips=False: [
+        j for j in whole(c, v, s, clips) if j.trial.clip and j.trial.label in ("contact", "hover")])  # fmt: skip
+    written = conditions.simulate_condition(tmp_path, "faceon", variants=("face",), scale=0.01, clips=True)
+    assert [Recording(p).labels.label for p in written] == ["contact", "hover"]
+    fed = []
+    real = commands.recorded_light
+
+    def counted(recording, root, projector, touch, calibration=None):
+        light = real(recording, root, projector, touch, calibration)
+        fed.append(light is not None)
+        return light
+
+    monkeypatch.setattr(commands, "recorded_light", counted)
+    fit = commands.fit_on_clips([Recording(p) for p in written], TouchConfig(), Skips("test"), root=tmp_path)
+    assert fed == [True] * 4  # both clips, in both passes (the edge, then the depth gates with the fitted edge)
+    assert 0 < fit.values()["contact_edge"] and 0 < fit.values()["instant_depth"] < 1
+    with pytest.raises(ValueError, match="only litroom and faceon"):
+        conditions.simulate_condition(tmp_path / "x", "multitouch", scale=0.01, clips=True)

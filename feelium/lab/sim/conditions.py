@@ -65,8 +65,11 @@ class Job:
     frame: tuple[int, int] = face_zones.FRAME  # the whole face's camera frame (its lens fills it)
 
 
-def plan(condition: str, variants: tuple[str, ...], scale: float) -> list[Job]:
-    """The recordings of ``condition``'s ``variants`` at ``scale`` (the protocol's trials, or face trials per zone)."""
+def plan(condition: str, variants: tuple[str, ...], scale: float, clips: bool = False) -> list[Job]:
+    """The recordings of ``condition``'s ``variants`` at ``scale`` (the protocol's trials, or face trials per zone).
+
+    ``clips``: litroom and faceon also get the protocol's continuous contact, hover and empty clips, so the
+    gates can be fitted under the condition (``feelium calibrate touch``, ``eval --fit-on-clips``)."""
     known = CONDITIONS.get(condition)
     if known is None:
         raise ValueError(f"unknown condition {condition!r}; expected one of {', '.join(CONDITIONS)}")
@@ -75,7 +78,7 @@ def plan(condition: str, variants: tuple[str, ...], scale: float) -> list[Job]:
         raise ValueError(f"{condition}: unknown variant(s) {', '.join(bad)}; expected some of {', '.join(known)}")
     jobs: list[Job] = []
     if condition in ("litroom", "faceon"):
-        trials = [item for item in protocol.plan(scale) if not item.clip]
+        trials = [item for item in protocol.plan(scale) if clips or not item.clip]
         for variant in variants:
             jobs += [Job(condition, variant, f"{condition}-{variant}/{item.relpath}", item) for item in trials]
     elif condition == "multitouch":
@@ -209,11 +212,14 @@ def simulate_condition(
     jobs: int = 1,
     overwrite: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
+    clips: bool = False,
 ) -> list[Path]:
     """Write every recording of ``condition`` (all its variants unless ``variants``) under ``out``."""
     if not (0.0 < scale <= 1.0):
         raise ValueError(f"scale must be in (0, 1], got {scale}")
-    todo = plan(condition, variants if variants else CONDITIONS.get(condition, ()), scale)
+    if clips and condition not in ("litroom", "faceon"):
+        raise ValueError(f"{condition}: only litroom and faceon have continuous clips")
+    todo = plan(condition, variants if variants else CONDITIONS.get(condition, ()), scale, clips)
     args = [(job, Path(out), seed, scale, overwrite) for job in todo]
     written: list[Path] = []
     if jobs <= 1:

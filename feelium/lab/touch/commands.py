@@ -26,10 +26,6 @@ from feelium.lab.touch.replay import ReplayResult, relative_name, replay_recordi
 from feelium.projector.config import ProjectorConfig
 
 
-def _touch_config(path: str | None) -> TouchConfig:
-    return load_config(path).touch
-
-
 def _calibration(args: argparse.Namespace) -> Path | None:
     given = getattr(args, "projector_calibration", None)
     return Path(given) if given else None
@@ -116,29 +112,49 @@ def _clip_series(result: ReplayResult) -> ClipSeries:
     return ClipSeries(labels.label, result.t, result.anchor, result.core_depth, result.edge, contact)
 
 
-def fit_on_clips(recordings: list[Recording], config: TouchConfig, skips: Skips) -> Fit:
+def fit_on_clips(
+    recordings: list[Recording],
+    config: TouchConfig,
+    skips: Skips,
+    *,
+    root: Path | None = None,
+    projector: ProjectorConfig | None = None,
+    calibration: Path | None = None,
+) -> Fit:
     """Fit the contact edge first, then replay the clips with it and fit the depth thresholds.
 
-    A clip whose video turns out bad while replaying is reported through ``skips`` and left out.
+    A clip recorded with its projector stream (``feelium record --projector``) is replayed with the light the
+    daemon would predict, as ``eval`` does (the map from ``calibration``, else the one beside it under
+    ``root``): fitted blind to the face, the gates would be another pipeline's. A clip whose video turns out
+    bad while replaying, or that has a stream and no map, is reported through ``skips`` and left out.
     """
+    optics = projector or ProjectorConfig()
+
+    def replay(recording: Recording, touch: TouchConfig) -> ReplayResult:
+        top = root if root is not None else recording.path.parent
+        return replay_recording(recording, touch, light=recorded_light(recording, top, optics, touch, calibration))
+
     first: list[tuple[Recording, ReplayResult]] = []
     for r in recordings:
         if r.labels is not None and r.labels.clip and r.labels.label in ("contact", "hover"):
-            result = skips.attempt(lambda: replay_recording(r, config))
+            result = skips.attempt(lambda: replay(r, config))
             if result is not None:
                 first.append((r, result))
     if not first:
         raise ValueError("no continuous contact/hover clips in this dataset (labels with \"clip\": true)")
     edge = fit_edge([_clip_series(result) for _, result in first], held_frames=config.down_frames)
     with_edge = replace(config, contact_edge=edge.threshold)
-    return fit_gates([_clip_series(replay_recording(r, with_edge)) for r, _ in first], edge)
+    return fit_gates([_clip_series(replay(r, with_edge)) for r, _ in first], edge)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    config = _touch_config(args.config)
+    whole = load_config(args.config)
+    config = whole.touch
     skips = Skips("calibrate touch")
+    root = Path(args.dataset)
     try:
-        fit = fit_on_clips(list(skips.recordings(Path(args.dataset))), config, skips)
+        fit = fit_on_clips(list(skips.recordings(root)), config, skips, root=root, projector=whole.projector,
+                           calibration=_calibration(args))  # fmt: skip
     except ValueError as exc:
         print(f"feelium calibrate touch: {exc}", file=sys.stderr)
         return 1
@@ -300,7 +316,8 @@ def run_eval(args: argparse.Namespace) -> int:
         try:
             # quiet: the scoring pass below meets the same bad recordings and reports them once
             fitting = Skips("eval", err=io.StringIO())
-            fit = fit_on_clips(list(fitting.recordings(root)), config, fitting)
+            fit = fit_on_clips(list(fitting.recordings(root)), config, fitting, root=root, projector=whole.projector,
+                               calibration=_calibration(args))  # fmt: skip
         except ValueError as exc:
             print(f"feelium eval: --fit-on-clips: {exc}", file=sys.stderr)
             return 1
