@@ -40,6 +40,9 @@ class Microphone(Protocol):
     async def close(self) -> None: ...
 
 
+ALSA_HINT = "sudo apt install alsa-utils (docs/deploy.md)"
+
+
 def alsa_available() -> bool:
     """True when alsa-utils is installed and the kernel lists a sound card."""
     cards = Path("/proc/asound/cards")
@@ -66,10 +69,14 @@ class _AlsaTool:
         self._proc: asyncio.subprocess.Process | None = None
 
     async def _spawn(self, *, stdin: int, stdout: int) -> None:
-        self._proc = await asyncio.create_subprocess_exec(
-            self.program, "-D", self.device, *_pcm_args(self.rate), stdin=stdin, stdout=stdout,
-            stderr=asyncio.subprocess.PIPE,
-        )  # fmt: skip
+        """Start the tool; a missing one says what to install (health shows this line as the reason)."""
+        try:
+            self._proc = await asyncio.create_subprocess_exec(
+                self.program, "-D", self.device, *_pcm_args(self.rate), stdin=stdin, stdout=stdout,
+                stderr=asyncio.subprocess.PIPE,
+            )  # fmt: skip
+        except FileNotFoundError:
+            raise FileNotFoundError(f"{self.program} is not installed: {ALSA_HINT}") from None
 
     async def close(self) -> None:
         await _end(self._proc)

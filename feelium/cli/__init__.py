@@ -52,7 +52,8 @@ class CommandRegistry:
             "simulate": "Generate labelled datasets with the scene simulator.",
             "thermal": "The MLX90640 thermal camera: live view and offline decoding.",
             "flight": "The motor board and the flight controller.",
-        }.get(group, group)
+            "token": "The headset token (docs/deploy.md, where it is kept).",
+        }.get(group, f"feelium {group} commands.")  # never the bare name: that read "token token" in the help
         parser = self.group(group, group_help).add_parser(name, help=help, description=help)
         parser.set_defaults(handler=handler)
         return parser

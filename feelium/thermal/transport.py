@@ -14,12 +14,19 @@ here: a write to 0x2400..0x273F raises before touching the bus.
 
 from __future__ import annotations
 
+import os
 from typing import Any, Protocol
 
 import numpy as np
 from smbus2 import i2c_msg
 
 from feelium.thermal import registers as reg
+
+
+I2C_HINT = (
+    "enable I2C and load i2c-dev (sudo raspi-config nonint do_i2c 0, or dtparam=i2c_arm=on in "
+    "/boot/firmware/config.txt and i2c-dev in /etc/modules-load.d/), then reboot (docs/deploy.md)"
+)
 
 
 class I2CTransport(Protocol):
@@ -64,8 +71,13 @@ class SMBus2Transport:
     def open(
         cls, bus_number: int, device: int = reg.I2C_ADDRESS, max_read_words: int = 512, attempts: int = 3
     ) -> "SMBus2Transport":
-        """Open ``/dev/i2c-<bus_number>``; OSError if it does not exist."""
+        """Open ``/dev/i2c-<bus_number>``; OSError if it does not exist, saying how to make it exist (the
+        usual cause on a fresh Pi, and what health and ``feelium thermal read`` then show)."""
         from smbus2 import SMBus
+
+        node = f"/dev/i2c-{bus_number}"
+        if not os.path.exists(node):
+            raise FileNotFoundError(f"{node} is missing: {I2C_HINT}")
 
         return cls(SMBus(bus_number), device, max_read_words, attempts)
 

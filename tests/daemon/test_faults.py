@@ -134,16 +134,18 @@ def _transitions(caplog: pytest.LogCaptureFixture, part: str, state: str) -> lis
     return [r for r in caplog.records if r.name == "feelium.daemon.health" and r.getMessage().startswith(f"{part}: {state}")]
 
 
-async def test_on_a_pi_missing_hardware_fails_loudly_never_silently_simulated(caplog):
-    """No camera, no I2C sensor, no motor board, no framebuffer: each part failed with its reason, one error line each."""
-    base = _config(rear_camera="auto", thermal="auto", flight="auto", projector="auto")
+async def test_on_a_pi_missing_hardware_fails_loudly_never_silently_simulated(caplog, tmp_path, monkeypatch):
+    """No camera, no I2C sensor, no motor board, no framebuffer, no alsa-utils: each part failed with its reason,
+    one error line each; the thermal and audio reasons say what to enable or install."""
+    monkeypatch.setenv("PATH", str(tmp_path))  # no aplay/arecord: alsa-utils not installed
+    base = _config(rear_camera="auto", thermal="auto", flight="auto", projector="auto", audio="auto")
     config = dataclasses.replace(
         base,
         thermal=dataclasses.replace(base.thermal, i2c_bus=250, retry_backoff_s=0.05),
         flight=dataclasses.replace(base.flight, port="/dev/feelium-test-no-board"),
         projector=dataclasses.replace(base.projector, fb_device="/dev/feelium-test-no-fb"),
     )
-    parts = ("touch", "thermal", "flight", "projector")
+    parts = ("touch", "thermal", "flight", "projector", "audio")
     watchdog = Watchdog()
 
     async def script(hub: Hub, supervisor: Supervisor) -> None:
@@ -156,7 +158,10 @@ async def test_on_a_pi_missing_hardware_fails_loudly_never_silently_simulated(ca
         assert all(services[p]["state"] == "failed" and not services[p]["simulated"] for p in parts), services
         assert "picamera2" in services["touch"]["reason"].lower() or "camera" in services["touch"]["reason"].lower()
         assert "/dev/feelium-test-no-board" in services["flight"]["reason"]
-        assert "i2c" in services["thermal"]["reason"].lower() or "250" in services["thermal"]["reason"]
+        assert "/dev/i2c-250 is missing" in services["thermal"]["reason"]
+        assert "raspi-config nonint do_i2c 0" in services["thermal"]["reason"] and "i2c-dev" in services["thermal"]["reason"]
+        assert "aplay is not installed: sudo apt install alsa-utils" in services["audio"]["reason"]
+        assert "\n" not in services["thermal"]["reason"] + services["audio"]["reason"]
         assert services["projector"]["reason"].startswith("cannot build") and "retrying in" in services["projector"]["reason"]
         assert services["touch"]["crashes"] >= 3 and services["touch"]["since_s"] >= 1.5
         # the flight loop still runs (its link is down): the watchdog is fed though nothing works
