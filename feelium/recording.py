@@ -414,6 +414,15 @@ def find_recordings(root: str | Path) -> list[Path]:
 RESERVE_BYTES = 32 * 1024 * 1024
 """Free space a take stops at, so the small files that close it still fit (see :class:`DiskFull`)."""
 
+SET_ASIDE_BYTES = 8 * 1024 * 1024
+"""Room a take claims at its start (a preallocated file in its temp dir) and gives back when it closes.
+
+:data:`RESERVE_BYTES` only helps while this take is what fills the disk; another process can take the last
+byte between two frames. Closing then still needs room: FFmpeg's Matroska muxer holds the current cluster in
+memory (up to 5 MiB or 5 s) and writes it and the index on release, then come the timestamps and meta.json.
+8 MiB covers that for a camera take of hours (11 bytes of timestamp a frame)."""
+SET_ASIDE_NAME = ".set-aside"
+
 
 class DiskFull(OSError):
     """The disk is nearly full: the take stops here and can still be closed as a valid, shorter recording."""
@@ -439,6 +448,35 @@ def _umask() -> int:
 def free_bytes(path: Path) -> int:
     """Bytes an unprivileged writer may still use on the file system holding ``path``."""
     return shutil.disk_usage(path).free
+
+
+def set_aside(path: Path, size: int) -> None:
+    """Claim ``size`` bytes of the disk as the new file ``path`` (blocks allocated, not just a sparse size),
+    so that deleting it later is sure to give that much room back; :class:`OSError` (ENOSPC) if there is not."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    try:
+        if size > 0:
+            os.posix_fallocate(fd, 0, size)  # glibc writes the blocks itself where the file system cannot
+    finally:
+        os.close(fd)
+
+
+def frames_held(video: Path, written: int) -> int:
+    """How many of the ``written`` frames ``video`` really holds.
+
+    FFmpeg writes where Python cannot see a failed write, and once one write fails it drops every later one,
+    the index included. A video closed whole declares its length (Matroska's duration: ``written`` frames at
+    the writer's fixed rate), which is checked first and costs one open; one that does not is counted by
+    decoding, up to where the file ends."""
+    cap = cv2.VideoCapture(str(video))
+    declared = cap.get(cv2.CAP_PROP_FRAME_COUNT) if cap.isOpened() else -1.0
+    cap.release()
+    if round(declared) == written:
+        return written
+    try:
+        return min(written, _probe_video(video)[0])
+    except RecordingError:  # not even a header reached the disk
+        return 0
 
 
 def write_durably(path: Path, data: bytes) -> None:
@@ -470,9 +508,13 @@ class RecordingWriter:
     partial recording, so a crash never leaves something that looks whole.
     The video goes to disk as frames come (FFmpeg writes it, where Python
     cannot see a failed write), so ``add_frame`` refuses a frame with
-    :class:`DiskFull` once less than ``reserve_bytes`` are free; the frame
-    times stay in memory until ``close`` and so always match the frames
-    written. ``free`` is how free space is measured (a test gives a tiny disk).
+    :class:`DiskFull` once less than ``reserve_bytes`` are free, or once the
+    video writer says a frame was not written (OpenCV >= 5 does). A disk
+    filled by another process between two frames is why ``set_aside_bytes``
+    are claimed at the start and given back first thing in ``close``, and
+    why ``close`` cuts the frame times (kept in memory until then) to the
+    frames the video really holds. ``free`` is how free space is measured
+    (a test gives a tiny disk).
     """
 
     def __init__(
@@ -490,6 +532,7 @@ class RecordingWriter:
         extra_meta: dict[str, Any] | None = None,
         overwrite: bool = False,
         reserve_bytes: int = RESERVE_BYTES,
+        set_aside_bytes: int = SET_ASIDE_BYTES,
         free: Callable[[Path], int] | None = None,
     ) -> None:
         if pixel_format not in PIXEL_FORMATS:
@@ -501,6 +544,12 @@ class RecordingWriter:
         self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", dir=self.path.parent))
         # mkdtemp makes it 0700 and the rename keeps that; a finished take is shared like any new directory
         os.chmod(self._tmp, 0o777 & ~_umask())
+        self._set_aside = self._tmp / SET_ASIDE_NAME
+        try:
+            set_aside(self._set_aside, set_aside_bytes)
+        except OSError:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise
         self._overwrite = overwrite
         self._meta: dict[str, Any] = {
             "format": FORMAT,
@@ -532,6 +581,7 @@ class RecordingWriter:
         self._projector_times: list[float] = []
         self._files: dict[str, bytes] = {}
         self.frames_written = 0
+        self.frames_lost = 0
 
     def add_frame(self, t: float, frame: np.ndarray) -> None:
         """Append one frame with its capture time (seconds; must not go backwards)."""
@@ -548,7 +598,8 @@ class RecordingWriter:
             frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
         if (free := self._free(self._tmp)) < self._reserve:
             raise DiskFull(self._tmp, free)
-        self._video.write(np.ascontiguousarray(frame))
+        if self._video.write(np.ascontiguousarray(frame)) is False:  # OpenCV >= 5 says; 4.x returns None
+            raise DiskFull(self._tmp, self._free(self._tmp))
         self._times.append(t)
         self._last_t = t
         self.frames_written += 1
@@ -579,7 +630,8 @@ class RecordingWriter:
         if (free := self._free(self._tmp)) < self._reserve:
             raise DiskFull(self._tmp, free)
         gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
-        self._projector.write(np.ascontiguousarray(gray))
+        if self._projector.write(np.ascontiguousarray(gray)) is False:
+            raise DiskFull(self._tmp, self._free(self._tmp))
         self._projector_times.append(t)
 
     def add_file(self, name: str, data: bytes) -> None:
@@ -593,15 +645,36 @@ class RecordingWriter:
         self._thermal = thermal
         self._meta["thermal"] = {"width": 32, "height": 24, "fps": fps}
 
-    def close(self) -> Path:
-        """Finish the files, make them durable and move the recording into place.
+    @property
+    def projector_frames(self) -> int:
+        """Projector frames kept (after ``close``: those ``projector.mkv`` holds)."""
+        return len(self._projector_times)
 
-        If that fails (a full disk, say) the temp dir is removed and the error raised: nothing half is left.
+    @property
+    def seconds(self) -> float:
+        """The time of the last frame kept (0 before the first)."""
+        return self._times[-1] if self._times else 0.0
+
+    def close(self) -> Path:
+        """Give back the room set aside, finish the files with the frame times cut to the frames the video
+        holds, make them durable and move the recording into place.
+
+        If that fails (no frame reached the disk, or no room even so) the temp dir is removed and the error
+        raised: nothing half is left. ``frames_lost`` says how many frames the cut took off.
         """
+        self._set_aside.unlink(missing_ok=True)  # first: FFmpeg's release writes its last cluster and index
         self._video.release()
         if self._projector is not None:
             self._projector.release()
         try:
+            held = frames_held(self._tmp / "camera.mkv", len(self._times))
+            self.frames_lost = len(self._times) - held
+            del self._times[held:]
+            self.frames_written = held
+            if held == 0:
+                raise OSError(errno.ENOSPC, "no frame reached the disk", str(self.path))
+            if self._projector is not None:
+                del self._projector_times[frames_held(self._tmp / "projector.mkv", len(self._projector_times)) :]
             self._finish_files()
             if self.path.exists() and self._overwrite:
                 shutil.rmtree(self.path)

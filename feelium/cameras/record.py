@@ -366,8 +366,11 @@ def _record_from(
     if thermal is not None and (data := thermal.result()) is not None:
         writer.set_thermal(data, thermal.fps)
     path = writer.close()
-    projected = sink.frames if sink is not None else 0
-    return Take(path, writer.frames_written, max(last_t, 0.0), ended, problem, projected, cut)
+    if writer.frames_lost:  # the disk filled between two frames (another process): the video holds fewer
+        ended = "disk full"
+        problem = f"{problem or 'disk full'}; the last {writer.frames_lost} frames did not reach the disk"
+    projected = writer.projector_frames if sink is not None else 0  # after close's cut to what the video holds
+    return Take(path, writer.frames_written, writer.seconds, ended, problem, projected, cut)
 
 
 def default_name(now: float) -> str:
