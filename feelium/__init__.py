@@ -13,3 +13,9 @@ __version__ = "0.1.0"
 for _name in ("OPENCV_THREAD_POOL_ACTIVE_WAIT_WORKER", "OPENCV_THREAD_POOL_ACTIVE_WAIT_MAIN"):
     _os.environ.setdefault(_name, "0")
 del _name
+
+# numpy's and OpenCV's OpenBLAS each start a thread per core when they load. The daemon's BLAS work is vector
+# dots and a small least-squares fit when a calibration is built, which never splits over threads, so those
+# threads (three each on the Pi) only cost their stacks and buffers. Read once, at load: set here, before any
+# module of the package imports numpy; a value in the environment wins.
+_os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

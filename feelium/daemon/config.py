@@ -70,6 +70,12 @@ class DaemonConfig:
         min=-1,
         max=19,
     )
+    malloc_trim_interval_s: float = setting(
+        1.0,
+        "How often the free pages inside glibc's heaps go back to the system (malloc_trim); 0 = never.",
+        min=0.0,
+        max=3600.0,
+    )
     malloc_mmap_threshold_kb: int = setting(
         128,
         "Allocations from this size (KB) are mmap'd and returned to the system when freed, so frame buffers do not "

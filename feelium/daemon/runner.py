@@ -27,7 +27,7 @@ from typing import Any, get_args, get_type_hints
 from feelium.daemon.config import PI_BACKGROUND_NICE, Config
 from feelium.daemon.assembly import SERVICES, ServiceBuilder, build_services
 from feelium.daemon.backends import backend_names, on_raspberry_pi, resolve_auto, simulated_parts
-from feelium.daemon.memory import tune_malloc
+from feelium.daemon.memory import FreeMemoryReturner, tune_malloc
 from feelium.daemon.sdnotify import Notifier
 from feelium.daemon.supervisor import Supervisor
 from feelium.hub import Hub
@@ -143,6 +143,7 @@ async def _watch(config: Config, supervisor: Supervisor, notifier: Notifier, sto
     """Until ``stop``: feed the watchdog while the flight loop lives, follow health, send the status line."""
     tick = min(config.daemon.status_interval_s, notifier.watchdog_interval or 1.0, 1.0)
     next_status = hub.clock() + config.daemon.status_interval_s
+    trimmer = FreeMemoryReturner(config.daemon.malloc_trim_interval_s)
     fed = True
     while not stop.is_set():
         try:
@@ -150,6 +151,7 @@ async def _watch(config: Config, supervisor: Supervisor, notifier: Notifier, sto
         except asyncio.TimeoutError:
             pass
         now = hub.clock()
+        trimmer.maybe(now)
         report = supervisor.report()  # every tick: state changes reach the log within a tick
         if notifier.watchdog_interval is not None:
             alive = supervisor.vital_alive(now, config.daemon.flight_heartbeat_s)

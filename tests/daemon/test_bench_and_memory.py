@@ -8,13 +8,30 @@ import pytest
 
 from feelium.daemon.config import Config
 from feelium.lab.daemon.bench import bench_daemon, cpu_by_group, format_table, thread_group
-from feelium.daemon.memory import tune_malloc
+from feelium.daemon.memory import FreeMemoryReturner, tune_malloc
 
 
 def test_malloc_tuning_is_a_no_op_at_zero_and_applies_on_glibc():
     assert tune_malloc(0, 0) == {}
     if platform.libc_ver()[0] == "glibc":
         assert tune_malloc(2, 128) == {"malloc_arenas": 2, "malloc_mmap_threshold_kb": 128}
+
+
+def test_free_memory_goes_back_at_most_once_per_interval_and_never_at_zero():
+    calls: list[int] = []
+    trimmer = FreeMemoryReturner(1.0, trim=lambda pad: calls.append(pad) or 1)
+    for now in (10.0, 10.5, 10.99, 11.0, 11.2, 12.5):
+        trimmer.maybe(now)
+    assert calls == [0, 0, 0] and trimmer.calls == 3  # at 10, 11 and 12.5: every page above no padding
+    off = FreeMemoryReturner(0.0, trim=lambda pad: calls.append(pad) or 1)
+    off.maybe(100.0)
+    assert off.calls == 0 and len(calls) == 3
+
+
+def test_the_daemons_trim_calls_glibc_where_there_is_one():
+    trimmer = FreeMemoryReturner(1.0)
+    trimmer.maybe(0.0)  # must not raise, with or without glibc
+    assert trimmer.calls == (1 if platform.libc_ver()[0] == "glibc" else 0)
 
 
 def test_thread_cpu_is_summed_per_service_group_and_counts_threads_born_meanwhile():
