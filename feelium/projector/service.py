@@ -22,6 +22,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from feelium.cameras.reader import Worker
 from feelium.events import TouchEvent, WearerAction
 from feelium.hub import Hub
 from feelium.interactions.config import InteractionsConfig
@@ -151,13 +152,18 @@ class ProjectorService:
 
     async def run(self) -> None:
         period = 1.0 / self.config.fps
+        # Rendering runs on a thread of its own, not the shared pool: OpenCV 5 keeps a ~5.7 MB font cache in
+        # every thread that draws text (the answers' labels) for the thread's life, and the pool's threads took
+        # turns rendering, so each held one (docs/performance.md, *Resident memory*).
+        render = Worker("projector-render")
         with self.hub.bus.subscribe((TouchEvent, WearerAction), maxsize=512) as subscription:
             try:
-                await self._loop(subscription, period)
+                await self._loop(subscription, period, render)
             finally:
+                render.shutdown()
                 self.display.close()
 
-    async def _loop(self, subscription: Any, period: float) -> None:
+    async def _loop(self, subscription: Any, period: float, render: Worker) -> None:
         # Frames are due on an absolute schedule (the loop's clock, which its sleeps follow): sleeping "the rest
         # of the period" after each frame loses every wake-up's lateness (~2 % of 30 fps). A frame that finishes
         # after the next one was due is late; the schedule then restarts from now instead of rushing to catch up.
@@ -168,7 +174,7 @@ class ProjectorService:
             self.step_engine(subscription, now)
             await self.update_face()
             answers = self.engine.answers(now) if self.engine is not None else ()
-            frame, canvas, shown = await asyncio.to_thread(self._render_and_show, now, self._face, answers)
+            frame, canvas, shown = await render.call(self._render_and_show, now, self._face, answers)
             self.hub.projector_canvas.publish(shown, canvas)
             self.hub.projector_video.publish(shown, frame)
             self.counters["frames"] += 1

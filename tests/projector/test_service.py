@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
+import threading
+import time
 
 import cv2
 import numpy as np
@@ -185,3 +187,30 @@ async def test_a_frame_slower_than_its_period_is_counted_late():
     await service.stop()
     await asyncio.wait_for(task, 5.0)
     assert service.counters["late_frames"] >= 2 and service.health()["late_frames"] == service.counters["late_frames"]
+
+
+class _ThreadRecordingDisplay(SimDisplay):
+    """Notes which thread each frame is shown from (rendering and showing run in one job)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.threads: set[str] = set()
+
+    def show(self, frame: np.ndarray) -> None:
+        self.threads.add(threading.current_thread().name)
+        super().show(frame)
+
+
+async def test_every_frame_is_rendered_on_the_projectors_own_thread_while_the_shared_pool_is_busy():
+    """OpenCV 5 keeps a ~5.7 MB font cache in each thread that draws text: one rendering thread holds one,
+    where the loop's shared pool had each of its threads take a turn (and hold one)."""
+    hub = Hub()
+    display = _ThreadRecordingDisplay()
+    service = ProjectorService(Config().projector, Config().interactions, hub, display, truth_calibration())
+    task = asyncio.create_task(service.run())
+    busy = [asyncio.create_task(asyncio.to_thread(time.sleep, 0.05)) for _ in range(8)]  # the pool's threads exist
+    await _until(lambda: service.counters["frames"] >= 12)
+    await asyncio.gather(*busy)
+    await service.stop()
+    await asyncio.wait_for(task, 5.0)
+    assert display.threads == {"projector-render_0"}

@@ -3,8 +3,8 @@
 Three kinds of thread run a service's work, and each is charged differently:
 
 - dedicated threads (``rear-camera``, ``touch-pipeline``, ``front-camera``,
-  ``flight-serial``) by their name, from ``/proc/self/task/*/stat``;
-- the loop's shared pool (projector rendering, thermal reads, JPEG encoding)
+  ``flight-serial``, ``projector-render``) by their name, from ``/proc/self/task/*/stat``;
+- the loop's shared pool (the projector's face decoding, thermal reads, JPEG encoding)
   by the module of the function each job runs, timed with ``time.thread_time``
   around the job in :class:`ChargingExecutor`;
 - the event loop's thread by the coroutine a callback resumes, timed around
@@ -35,7 +35,10 @@ from typing import Any
 from feelium.priority import lower_current_thread
 
 SERVICE_PACKAGES = ("touch", "front_camera", "thermal", "audio", "projector", "flight", "http")
-THREAD_SERVICES = {"rear-camera": "touch", "touch-pipeline": "touch", "front-camera": "front_camera", "flight-serial": "flight"}
+THREAD_SERVICES = {
+    "rear-camera": "touch", "touch-pipeline": "touch", "front-camera": "front_camera", "flight-serial": "flight",
+    "projector-render": "projector",
+}
 HTTP_LIBRARIES = ("aiohttp", "yarl", "multidict")
 POOL_PREFIX = "bench-pool"
 LOOP_OTHER = "event loop (other)"
