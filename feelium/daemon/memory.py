@@ -56,9 +56,10 @@ class FreeMemoryReturner:
     """Hands the free pages inside glibc's heaps back to the kernel (``malloc_trim(0)``) every ``interval_s``.
 
     glibc gives back only the top of a heap by itself; the holes that the frame-rate churn of blocks under
-    the mmap threshold (a 320x240 grey image is 75 KB) leaves inside stay resident. Trimming every second
-    took 1.3-2.2 MB off the daemon's resident memory in ``feelium bench board`` for 0.2-0.4 ms a call
-    (docs/performance.md, *Resident memory*). A no-op where there is no glibc.
+    the mmap threshold (a 320x240 grey image is 75 KB) leaves inside stay resident. In ``feelium bench
+    board`` each trim handed back 1.3-2.2 MB for 0.2-0.4 ms; the holes fill again within the second, so
+    trimming every second moves the steady figure by ~0.4 MB (docs/performance.md, *Latest: resident memory
+    under 150 MB*): small, and free. A no-op where there is no glibc.
     """
 
     def __init__(self, interval_s: float, trim: Callable[[int], int] | None = None) -> None:
