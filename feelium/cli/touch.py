@@ -18,14 +18,14 @@ _CALIBRATION_HELP = (
 
 def register(registry: CommandRegistry) -> None:
     replay = registry.command(
-        "replay", "Run the touch pipeline over a recording or dataset; print events as JSON lines (exit 3: bad recordings skipped).", _replay
+        "replay", "Run the touch pipeline over a recording or dataset; print events as JSON lines (exit 3: bad recordings skipped; 1: none usable).", _replay
     )
     replay.add_argument("path", help="a recording directory or a dataset (any tree of recordings)")
     replay.add_argument("--config", help="TOML config file (its [touch] section is used)")
     replay.add_argument("--annotate", metavar="OUT", help="write an annotated video (a directory for datasets)")
     replay.add_argument("--projector-calibration", metavar="FILE", help=_CALIBRATION_HELP)
 
-    ev = registry.command("eval", "Score the touch pipeline on a labelled dataset (docs/evaluation.md; exit 3: bad recordings skipped).", _eval)
+    ev = registry.command("eval", "Score the touch pipeline on a labelled dataset (docs/evaluation.md; exit 3: bad recordings skipped; 1: none usable).", _eval)
     ev.add_argument("dataset", help="dataset directory")
     ev.add_argument("--json", metavar="REPORT", help="write the version-1 report as JSON here")
     ev.add_argument("--figure", metavar="PNG", help="anchoring figure (default: beside the report, or ./touch-anchoring.png)")
@@ -49,7 +49,7 @@ def register(registry: CommandRegistry) -> None:
     )
 
     cal = registry.subcommand(
-        "calibrate", "touch", "Fit the touch gates' thresholds on a dataset's contact and hover clips (exit 3: bad recordings skipped).", _calibrate
+        "calibrate", "touch", "Fit the touch gates' thresholds on a dataset's contact and hover clips (exit 3: bad recordings skipped; 1: none usable).", _calibrate
     )
     cal.add_argument("dataset", help="dataset directory holding continuous contact and hover clips")
     cal.add_argument("--out", metavar="FILE", help="write the [touch] TOML fragment here (default: print it)")

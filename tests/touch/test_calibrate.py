@@ -170,3 +170,14 @@ def test_an_edge_gap_too_small_warns_and_falls_back_to_the_centred_fit():
     assert fit.threshold == pytest.approx(fit_centred_threshold(pos, neg))
     gates = fit_gates([contact, hover], fit)
     assert gates.contact_edge == fit.threshold and any("contact_edge" in w for w in gates.warnings)
+
+
+def test_a_clips_recorded_warm_up_before_0_s_is_neither_its_hover_nor_part_of_its_span():
+    """The simulator records 5 s of hand-free warm-up before 0 s: a clip's fit/hold-out split and its hover frames
+    start at 0 s, or a 6 s clip's first 60 % would end before its contact begins."""
+    from feelium.lab.touch.commands import clip_frames
+
+    t = np.arange(-5.0, 6.0, 0.5)
+    keep = clip_frames(t)
+    assert t[keep][0] == 0.0 and keep.sum() == 12
+    assert clip_frames(np.array([0.5, 1.0])).all() and clip_frames(np.array([-2.0, -1.0])).all()  # no 0 s: all of it

@@ -53,3 +53,11 @@ def test_the_calibration_is_found_beside_the_trials_and_not_above_the_dataset(tm
     assert find_calibration(trial, root) == (root / "faceon-face" / CALIBRATION_FILE).resolve()
     (trial / CALIBRATION_FILE).write_bytes(b"")
     assert find_calibration(trial, root) == (trial / CALIBRATION_FILE).resolve()
+
+
+def test_a_map_copied_from_the_blimp_under_its_own_name_is_found_too(tmp_path):
+    """`calibrate projector --config` saves `projector_calibration.npz`; copied beside the trials it needs no renaming."""
+    trial = tmp_path / "s1" / "s1-tap-001"
+    trial.mkdir(parents=True)
+    (tmp_path / "projector_calibration.npz").write_bytes(b"")
+    assert find_calibration(trial, tmp_path) == (tmp_path / "projector_calibration.npz").resolve()

@@ -32,11 +32,13 @@ import cv2
 import numpy as np
 
 from feelium.daemon.config import load_config
-from feelium.recording import Recording, find_recordings
+from feelium.projector.config import ProjectorConfig
+from feelium.recording import Recording, RecordingError, find_recordings
 from feelium.lab.daemon.projection import PI_FACTOR
 from feelium.lab.touch.commands import condition_of, scoring_input
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
+from feelium.lab.touch.recorded_light import recorded_light
 from feelium.lab.touch.replay import replay_recording
 
 RESOLUTIONS = ((640, 480), (320, 240), (160, 120))
@@ -85,11 +87,19 @@ def run_variants(root: Path, variants: list[Variant], *, progress: bool = False,
         recording = Recording(path)
         if recording.labels is None:
             continue
+        try:
+            recorded_light(recording, root, ProjectorConfig(), variants[0].config)  # its map is there (or no stream)
+        except RecordingError as exc:
+            print(f"feelium bench touch: skipped: {exc}", file=sys.stderr)
+            continue
         condition = condition_of(root, recording) if by_condition else "."
         sizes.setdefault(condition, (recording.meta.camera.width, recording.meta.camera.height))
         frames = list(recording.frames(gray=True))
         for variant in variants:
-            result = replay_recording(recording, variant.config, plain=variant.plain, frames=iter(frames))
+            # a recording with its projector stream is replayed as eval replays it: the light predicted and divided
+            # out (the division is timed with the pipeline; the prediction is not, as in eval)
+            light = recorded_light(recording, root, ProjectorConfig(), variant.config)
+            result = replay_recording(recording, variant.config, plain=variant.plain, frames=iter(frames), light=light)
             item = scoring_input(root, result)
             variant.add(result.cpu_seconds_per_frame, result.seconds_per_frame, item)
             if by_condition:

@@ -103,13 +103,23 @@ class _VideoOut:
 # -- calibrate ---------------------------------------------------------------------------
 
 
+def clip_frames(t: np.ndarray) -> np.ndarray:
+    """The frames of a clip that belong to it: from 0 s on. Frames before 0 s are a recorded warm-up (the
+    simulator's hand-free seconds that teach the reference, docs/touch.md): the pipeline sees them, but they
+    are neither the clip's hover nor part of its time span, which the fit/hold-out split divides."""
+    inside = t >= 0.0
+    return inside if inside.any() else np.ones(t.size, bool)
+
+
 def _clip_series(result: ReplayResult) -> ClipSeries:
     labels = result.recording.labels
     assert labels is not None
-    contact = np.zeros(result.t.size, bool)
+    keep = clip_frames(result.t)
+    t = result.t[keep]
+    contact = np.zeros(t.size, bool)
     for c in labels.contacts:
-        contact |= (result.t >= c.t_on) & (result.t < c.t_off)
-    return ClipSeries(labels.label, result.t, result.anchor, result.core_depth, result.edge, contact)
+        contact |= (t >= c.t_on) & (t < c.t_off)
+    return ClipSeries(labels.label, t, result.anchor[keep], result.core_depth[keep], result.edge[keep], contact)
 
 
 def fit_on_clips(
@@ -180,7 +190,8 @@ def scoring_input(root: Path, result: ReplayResult) -> TrialData | ClipData:
     labels = result.recording.labels
     assert labels is not None
     if labels.clip:
-        return ClipData(labels, result.t, result.anchor, result.core_depth, result.edge)
+        keep = clip_frames(result.t)
+        return ClipData(labels, result.t[keep], result.anchor[keep], result.core_depth[keep], result.edge[keep])
     return TrialData(
         name=relative_name(root, result.recording.path),
         labels=labels,

@@ -31,6 +31,9 @@ from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
 
 CALIBRATION_FILE = "projector-calibration.npz"  # a map saved by ProjectorMap.save, found beside the trials
+# The name `feelium calibrate projector` saves on the blimp (`[projector.calibration] file`): a map copied from
+# the blimp beside the trials is found under it too.
+CALIBRATION_FILES = (CALIBRATION_FILE, "projector_calibration.npz")
 
 
 class RecordedLight:
@@ -64,9 +67,10 @@ def find_calibration(recording: Path, root: Path) -> Path | None:
     ``"projector-calibration"``, the first by name) to fit the map from."""
     here, top = recording.resolve(), root.resolve()
     for folder in (here, *here.parents):
-        candidate = folder / CALIBRATION_FILE
-        if candidate.is_file():
-            return candidate
+        for name in CALIBRATION_FILES:
+            candidate = folder / name
+            if candidate.is_file():
+                return candidate
         recordings = _calibration_recordings(folder)
         if recordings:
             return recordings[0]
