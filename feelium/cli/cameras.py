@@ -113,8 +113,12 @@ def _record(args: argparse.Namespace) -> int:
             camera.close()
             print(f"feelium record: --projector {args.projector}: {exc}", file=sys.stderr)
             return 1
-        if calibration is not None:
+        if calibration is not None and source.backend == "picamera2":
             files["projector-calibration.npz"] = calibration  # what replay and eval look for beside the trials
+        elif calibration is not None:  # the simulated or replayed camera never sees the projector's light
+            print(f"feelium record: the {source.backend} rear camera does not see the projector: showing "
+                  f"{args.projector} without keeping its stream (replay would compensate light the frames never had)",
+                  file=sys.stderr)  # fmt: skip
     name = args.name or default_name(time.time())
     shown = {"at": 0.0}
 

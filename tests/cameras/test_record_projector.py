@@ -116,14 +116,26 @@ def test_the_show_loop_plays_a_face_video_looped(tmp_path):
 
 @pytest.mark.slow
 def test_record_with_the_avatar_keeps_a_replayable_take(tmp_path, monkeypatch):
-    """End to end on the simulator: the avatar shown on its thread, the stream covering every exposure, the
-    calibration in the take, and replay finds it there."""
+    """End to end: the avatar shown on its thread, the stream covering every exposure, the calibration in the take,
+    and replay finds it there; kept only from the device camera, which sees the projector."""
     config_file = tmp_path / "feelium.toml"
     config = ProjectorConfig()
     default_calibration(DEFAULT_CAMERA_SIZE, DEFAULT_ROI, (config.width, config.height)).save(tmp_path / "projector_calibration.npz")
     config_file.write_text('[projector]\nbackend = "sim"\n', encoding="utf-8")
     out = tmp_path / "take"
-    assert main(["record", "--sim", "--config", str(config_file), "--out", str(out), "--seconds", "1", "--projector", "avatar"]) == 0
+    sim_take = tmp_path / "sim-take"
+    assert main(["record", "--sim", "--config", str(config_file), "--out", str(sim_take), "--seconds", "0.5", "--projector", "avatar"]) == 0
+    assert not Recording(sim_take).has_projector  # the simulated camera does not see the projector: no stream kept
+    from feelium.cameras import select
+    from feelium.daemon import assembly
+
+    real = assembly.rear_camera
+
+    def device(config, clock):  # the simulated frames, as if from the blimp's camera, which does see the projector
+        return select.CameraSource("picamera2", real(config, clock).open)
+
+    monkeypatch.setattr(assembly, "rear_camera", device)
+    assert main(["record", "--config", str(config_file), "--out", str(out), "--seconds", "1", "--projector", "avatar"]) == 0
     rec = Recording(out)
     shown = [t for t, _ in rec.projector_frames()]
     assert shown[0] <= rec.timestamps[0] and shown[-1] >= rec.timestamps[-1] - 0.1
