@@ -34,14 +34,28 @@ class Latest(Generic[T]):
     def __init__(self) -> None:
         self._item: Stamped[T] | None = None
         self._changed = asyncio.Event()
+        self._listeners: list[Callable[[Stamped[T]], None]] = []
         self.published = 0
 
     def publish(self, t: float, value: T) -> Stamped[T]:
         self.published += 1
-        self._item = Stamped(self.published, t, value)
+        item = self._item = Stamped(self.published, t, value)
         self._changed.set()
         self._changed = asyncio.Event()
-        return self._item
+        for listener in tuple(self._listeners):
+            listener(item)
+        return item
+
+    def listen(self, listener: Callable[[Stamped[T]], None]) -> Callable[[], None]:
+        """Call ``listener`` with every item from now on, and with the current one at once; returns the unlisten.
+
+        For a reader that needs every item and does little with each (the touch side records each projector
+        canvas): a call inside ``publish`` instead of a task that the loop wakes for every item.
+        """
+        self._listeners.append(listener)
+        if self._item is not None:
+            listener(self._item)
+        return lambda: self._listeners.remove(listener)
 
     def get(self) -> Stamped[T] | None:
         return self._item

@@ -1,4 +1,4 @@
-"""Moving frames from a blocking camera thread to the event loop: newest wins, nothing queues without bound."""
+"""Camera threads and their services: the dedicated worker thread, the rate meter, the frame-fed condition, closing."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
-from feelium.cameras.base import Camera, Frame
+from feelium.cameras.base import Camera
 from feelium.priority import lower_current_thread
 
 T = TypeVar("T")
@@ -86,64 +86,6 @@ def frame_condition(last_frame_at: float | None, now: float, stale_after_s: floa
     if age > stale_after_s:
         return {"condition": "degraded", "reason": f"no {what} frame for {age:.1f} s"}
     return {"condition": "ok"}
-
-
-class FrameSlot:
-    """A one-frame hand-over: a new frame replaces one the consumer has not taken yet (counted as dropped).
-
-    Lossless mode makes the producer wait instead, for sources that deliver
-    on demand (a replay as fast as possible), so every frame is processed.
-    All methods run on the event loop's thread.
-    """
-
-    def __init__(self) -> None:
-        self._frame: Frame | None = None
-        self._ended = False
-        self._filled = asyncio.Event()
-        self._emptied = asyncio.Event()
-        self._emptied.set()
-        self.dropped = 0
-
-    def put(self, frame: Frame) -> None:
-        if self._frame is not None:
-            self.dropped += 1
-        self._frame = frame
-        self._emptied.clear()
-        self._filled.set()
-
-    async def put_waiting(self, frame: Frame) -> None:
-        await self._emptied.wait()
-        self.put(frame)
-
-    def end(self) -> None:
-        """The source has ended: the consumer gets ``None`` once it has taken what is left."""
-        self._ended = True
-        self._filled.set()
-
-    async def take(self) -> Frame | None:
-        while self._frame is None:
-            if self._ended:
-                return None
-            self._filled.clear()
-            await self._filled.wait()
-        frame, self._frame = self._frame, None
-        self._emptied.set()
-        return frame
-
-
-async def pump(camera: Camera, slot: FrameSlot, worker: Worker) -> None:
-    """Read frames on ``worker`` and hand them over until the camera ends (raises what the camera raises)."""
-    try:
-        while True:
-            frame = await worker.call(camera.read)
-            if frame is None:
-                return
-            if camera.realtime:
-                slot.put(frame)
-            else:
-                await slot.put_waiting(frame)
-    finally:
-        slot.end()
 
 
 async def close_camera(camera: Camera, worker: Worker) -> None:

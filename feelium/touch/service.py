@@ -1,11 +1,14 @@
 """The touch service: rear camera -> touch pipeline -> event bus (plus a debug view and the touch state).
 
-A thin shell. The camera is read in a worker thread into a one-frame slot, so
+A thin shell. The camera is read in its own thread into a one-frame slot, so
 the newest frame wins when the pipeline falls behind (drops are counted);
-the pipeline and the overlay run in a worker thread too (OpenCV and numpy
-release the GIL), so HTTP and serial stay responsive. Bad frames are counted
-and skipped; anything else the pipeline raises crashes this service only, and
-the supervisor restarts it with a fresh camera and pipeline.
+the pipeline and the overlay run in a second thread, which takes frames from
+that slot directly (OpenCV and numpy release the GIL), so HTTP and serial stay
+responsive. Only what must be published goes to the event loop, through a
+:class:`~feelium.cameras.handoff.LoopInbox`: one loop wake-up per frame instead
+of nine (docs/performance.md). Bad frames are counted and skipped; anything
+else the pipeline raises crashes this service only, and the supervisor
+restarts it with a fresh camera and pipeline.
 """
 
 from __future__ import annotations
@@ -14,16 +17,19 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
+import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from feelium.cameras.base import Frame
-from feelium.cameras.reader import FrameSlot, RateMeter, Worker, close_camera, frame_condition, pump
+from feelium.cameras.handoff import LoopInbox, ThreadSlot, read_into
+from feelium.cameras.reader import RateMeter, Worker, close_camera, frame_condition
 from feelium.cameras.select import CameraSource
 from feelium.events import TouchEvent
-from feelium.hub import Hub
+from feelium.hub import Hub, Stamped
 from feelium.skin.annotation import ProjectorAnnotation
 from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
@@ -35,6 +41,35 @@ PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, 
 # Per camera frame size (width, height): a projector frame to the light it puts on the membrane, camera frame size.
 ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray], np.ndarray]]
 Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Processed:
+    """A frame the pipeline processed, with what the loop publishes for it."""
+
+    frame: Frame
+    result: Any
+    debug: np.ndarray | None
+    sample: SensingSample | None
+    frame_size: tuple[int, int] | None
+
+
+@dataclass(frozen=True)
+class Rejected:
+    """A frame that could not go through the pipeline, and why."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class Released:
+    """Contacts a pipeline released when its segment ended (at the frame size they were found at)."""
+
+    events: tuple[TouchEvent, ...]
+    frame_size: tuple[int, int] | None
+
+
+Delivery = Processed | Rejected | Released
 
 
 def _default_pipeline(config: TouchConfig, size: tuple[int, int], roi: tuple[int, int, int, int] | None) -> Any:
@@ -122,17 +157,21 @@ class TouchService:
         self.overlay_errors = 0
         self.last_overlay_error: str | None = None
         self.last_frame_at: float | None = None
-        self.cpu_s = 0.0  # worker-thread time spent in the pipeline (wall time of the calls)
+        self.cpu_s = 0.0  # pipeline-thread time spent in the pipeline (wall time of the calls)
         self._rate = RateMeter()
         self._pipeline: Any = None
         self._pipeline_key: tuple[Any, ...] | None = None
         self._last_debug: float | None = None
-        self._slot: FrameSlot | None = None
+        self._slot: ThreadSlot | None = None
+        self._inbox: LoopInbox[Delivery] | None = None
+        self._delivery_error: Exception | None = None
+        self._past_wakeups = 0  # loop wake-ups of earlier runs' inboxes
         self._stopping = False
 
     async def run(self) -> None:
         self._pipeline, self._pipeline_key = None, None  # a restart starts from a fresh reference
         self._stopping = False
+        self._delivery_error = None
         camera_worker = Worker("rear-camera")
         try:
             camera = await camera_worker.call(self.source.open)
@@ -141,60 +180,85 @@ class TouchService:
             raise
         self.opens += 1
         log.info("touch: rear camera on the %s backend", self.source.backend)
-        slot = self._slot = FrameSlot()
-        reader = asyncio.create_task(pump(camera, slot, camera_worker), name="touch.camera")
-        follower = asyncio.create_task(self._follow_projector(), name="touch.projector") if self.projected else None
+        slot = self._slot = ThreadSlot()
+        inbox = self._inbox = LoopInbox(asyncio.get_running_loop(), self._deliver)
+        unlisten = self.hub.projector_canvas.listen(self._record_projector) if self.projected else None
+        # Each thread runs one job for the whole run: frames go camera -> pipeline thread to thread, and the
+        # results reach the loop through the inbox, one wake-up per frame (fewer when the loop lags).
+        reading = asyncio.ensure_future(camera_worker.call(read_into, camera, slot))
         pipeline_worker = Worker("touch-pipeline")
         try:
-            await self._consume(slot, pipeline_worker)
+            await pipeline_worker.call(self._process_frames, slot, inbox)
+            log.info("touch: %s after %d frames", "stopped" if self._stopping else "rear camera source ended", self.frames)
+            if self._delivery_error is not None:
+                raise self._delivery_error
             if not self._stopping:
-                await reader  # the source ended: re-raise a camera error, if that was why
+                await reading  # the source ended: re-raise a camera error, if that was why
         finally:
+            slot.end()
+            inbox.close()
             self.dropped_frames += slot.dropped
-            self._slot = None
-            reader.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await reader
-            if follower is not None:
-                follower.cancel()
-                with contextlib.suppress(asyncio.CancelledError):
-                    await follower
+            self._past_wakeups += inbox.wakeups
+            self._slot = self._inbox = None
+            if unlisten is not None:
+                unlisten()
             pipeline_worker.shutdown()
-            await close_camera(camera, camera_worker)
+            await close_camera(camera, camera_worker)  # after the read loop, which ends with the slot
+            with contextlib.suppress(Exception):
+                await reading
 
-    async def _consume(self, slot: FrameSlot, worker: Worker) -> None:
+    def _process_frames(self, slot: ThreadSlot, inbox: LoopInbox[Delivery]) -> None:
+        """Pipeline-thread job for the whole run: take each frame, process it, post what the loop must publish."""
         while True:
-            frame = await slot.take()
+            frame = slot.take()
             if frame is None:
-                self._flush()
-                log.info("touch: %s after %d frames", "stopped" if self._stopping else "rear camera source ended", self.frames)
+                released = self._flush()
+                if released.events:
+                    inbox.post(released)
                 return
             problem = _check_frame(frame.image)
             if problem is not None:
-                self._reject(problem)
+                inbox.post(Rejected(problem))
                 continue
-            pipeline = self._pipeline_for(frame)
+            pipeline, flushed = self._pipeline_for(frame)
+            if flushed is not None and flushed.events:
+                inbox.post(flushed)
             want_debug = self.debug_period is not None and (
                 self._last_debug is None or frame.t - self._last_debug >= self.debug_period or frame.t < self._last_debug
             )
-            loop = asyncio.get_running_loop()
-            started = loop.time()
+            started = time.perf_counter()
             try:
-                result, debug = await worker.call(self._step, pipeline, frame, want_debug)
+                result, debug = self._step(pipeline, frame, want_debug)
             except ValueError as exc:  # bad input (e.g. a timestamp that goes backwards): count and skip
-                self._reject(str(exc))
+                inbox.post(Rejected(str(exc)))
                 continue
-            self.cpu_s += loop.time() - started
-            self._publish(frame, result, debug)
+            self.cpu_s += time.perf_counter() - started
+            if debug is not None:
+                self._last_debug = frame.t
+            inbox.post(Processed(frame, result, debug, self._sample(frame.t), self._frame_size))
 
-    async def _follow_projector(self) -> None:
-        """Record the canvas of every frame the projector service shows (newest-wins slot, woken on each publish)."""
-        seq = 0
-        while True:
-            item = await self.hub.projector_canvas.next_after(seq, timeout=1.0)
-            if item is not None and item.seq > seq:
-                seq = item.seq
-                self.projector_history.record(item.t, item.seq, item.value)
+    def _deliver(self, items: list[Delivery]) -> None:
+        """On the loop: publish a batch from the pipeline thread, in order. A failure here crashes the service
+        (the pipeline thread is stopped and ``run()`` raises it), as a failure in the pipeline does."""
+        try:
+            for item in items:
+                if isinstance(item, Processed):
+                    self._publish(item)
+                elif isinstance(item, Rejected):
+                    self._reject(item.reason)
+                else:
+                    for event in item.events:
+                        self._publish_event(event, item.frame_size)
+        except Exception as exc:
+            self._delivery_error = exc
+            if self._slot is not None:
+                self._slot.end()
+            if self._inbox is not None:
+                self._inbox.close()
+
+    def _record_projector(self, item: Stamped[Any]) -> None:
+        """Record the canvas of every frame the projector service shows (called on the loop as it publishes)."""
+        self.projector_history.record(item.t, item.seq, item.value)
 
     def _step(self, pipeline: Any, frame: Frame, want_debug: bool) -> tuple[Any, np.ndarray | None]:
         """Worker-thread part: the pipeline and, at the debug rate, the overlay."""
@@ -224,11 +288,13 @@ class TouchService:
             self.last_projected_error = f"{type(exc).__name__}: {exc}"
             return None
 
-    def _pipeline_for(self, frame: Frame) -> Any:
+    def _pipeline_for(self, frame: Frame) -> tuple[Any, Released | None]:
+        """The pipeline for this frame's segment, size and ROI, and the contacts the one it replaces released."""
         size = (int(frame.image.shape[1]), int(frame.image.shape[0]))
         key = (frame.segment, size, frame.roi)
+        flushed = None
         if self._pipeline is None or key != self._pipeline_key:
-            self._flush()
+            flushed = self._flush()
             self._pipeline = self.pipeline_factory(self.touch_config, size, frame.roi)
             self._pipeline_key = key
             self._frame_size = size
@@ -236,40 +302,38 @@ class TouchService:
                 ExposureLight(self.projected(size), self.touch_config) if self.projected is not None else None
             )
             self._last_debug = None
-        return self._pipeline
+        return self._pipeline, flushed
 
-    def _sense(self, t: float) -> None:
-        """Feed the light monitor from the pipeline that just ran (on the loop's thread, as health reads it)."""
+    def _sample(self, t: float) -> SensingSample | None:
+        """What the light monitor needs from the pipeline that just ran (read on its thread, used on the loop's)."""
         pipeline = self._pipeline
         masked, geometry = getattr(pipeline, "masked", None), getattr(pipeline, "geometry", None)
         if masked is None or geometry is None:
-            return
+            return None
         response = getattr(pipeline, "response", None)
         width, height = geometry.work_size
-        self.sensing.update(SensingSample(
+        return SensingSample(
             t=t, pixels=int(width * height), dark=masked.dark, saturated=masked.saturated,
             projector_share=None if response is None else response.share,
-        ))  # fmt: skip
+        )  # fmt: skip
 
-    def _flush(self) -> None:
+    def _flush(self) -> Released:
         """Release contacts still down when a segment ends, so no consumer waits for an ``up`` forever."""
         finish = getattr(self._pipeline, "finish", None)
-        if finish is None:
-            return
-        for event in finish():
-            self._publish_event(event)
+        return Released(tuple(finish()) if finish is not None else (), self._frame_size)
 
-    def _publish(self, frame: Frame, result: Any, debug: np.ndarray | None) -> None:
+    def _publish(self, item: Processed) -> None:
+        frame, result, debug = item.frame, item.result, item.debug
         now = self.hub.clock()
-        self._sense(frame.t)
+        if item.sample is not None:
+            self.sensing.update(item.sample)
         for event in result.events:
-            self._publish_event(event)
+            self._publish_event(event, item.frame_size)
         self.frames += 1
         self.last_frame_at = now
         self._rate.tick(now)
         if debug is not None:
             self.hub.rear_video.publish(frame.t, debug)
-            self._last_debug = frame.t
         self.hub.state.update(
             "touch",
             t=round(float(result.t), 4),
@@ -280,9 +344,9 @@ class TouchService:
             backend=self.source.backend,
         )
 
-    def _publish_event(self, event: TouchEvent) -> None:
-        if self.annotation is not None and self._frame_size is not None:
-            event = self.annotation(event, self._frame_size)
+    def _publish_event(self, event: TouchEvent, frame_size: tuple[int, int] | None) -> None:
+        if self.annotation is not None and frame_size is not None:
+            event = self.annotation(event, frame_size)
         self.hub.bus.publish(event)
         self.events += 1
 
@@ -312,6 +376,7 @@ class TouchService:
             "fps": round(self._rate.rate(now), 2),
             "events": self.events,
             "dropped_frames": self.dropped_frames + slot_drops,
+            "loop_wakeups": self._past_wakeups + (self._inbox.wakeups if self._inbox is not None else 0),
             "bad_frames": self.bad_frames,
             "last_bad_frame": self.last_error,
             "opens": self.opens,

@@ -1,14 +1,11 @@
-"""The pacing of simulated cameras and the newest-wins hand-over from camera threads."""
+"""The pacing of simulated cameras and the time-based rate meter (the hand-overs: test_handoff.py)."""
 
 from __future__ import annotations
 
-import asyncio
-
-import numpy as np
 import pytest
 
-from feelium.cameras.base import Frame, Pacer
-from feelium.cameras.reader import FrameSlot, RateMeter, Worker, pump
+from feelium.cameras.base import Pacer
+from feelium.cameras.reader import RateMeter
 
 
 class FakeClock:
@@ -67,73 +64,3 @@ def test_rate_meter_decays_to_zero_when_ticks_stop():
     rates = [meter.rate(last + dt) for dt in (0.2, 0.5, 0.8)]
     assert rates[0] < 15.0 and rates == sorted(rates, reverse=True)  # falls as the gap grows
     assert meter.rate(last + 1.0) == 0.0
-
-
-def _frame(i: int) -> Frame:
-    return Frame(t=float(i), image=np.zeros((2, 2), np.uint8))
-
-
-async def test_slot_keeps_the_newest_frame_and_counts_the_ones_it_replaced():
-    slot = FrameSlot()
-    for i in range(5):
-        slot.put(_frame(i))
-    taken = await slot.take()
-    assert taken is not None and taken.t == 4.0
-    assert slot.dropped == 4
-    slot.end()
-    assert await slot.take() is None
-
-
-async def test_slot_hands_over_what_is_left_before_reporting_the_end():
-    slot = FrameSlot()
-    slot.put(_frame(1))
-    slot.end()
-    first = await slot.take()
-    assert first is not None and first.t == 1.0
-    assert await slot.take() is None
-
-
-class ListCamera:
-    name = "list"
-
-    def __init__(self, n: int, realtime: bool) -> None:
-        self.frames = [_frame(i) for i in range(n)]
-        self.realtime = realtime
-
-    def read(self) -> Frame | None:
-        return self.frames.pop(0) if self.frames else None
-
-    def close(self) -> None:
-        pass
-
-
-async def test_pump_of_an_on_demand_source_loses_nothing_for_a_slow_consumer():
-    slot = FrameSlot()
-    worker = Worker("test")
-    task = asyncio.create_task(pump(ListCamera(20, realtime=False), slot, worker))
-    seen = []
-    while (frame := await slot.take()) is not None:
-        seen.append(frame.t)
-        await asyncio.sleep(0.001)  # slower than the camera
-    await task
-    worker.shutdown()
-    assert seen == [float(i) for i in range(20)]
-    assert slot.dropped == 0
-
-
-class RaisingCamera(ListCamera):
-    def read(self) -> Frame | None:
-        if not self.frames:
-            raise OSError("unplugged")
-        return super().read()
-
-
-async def test_pump_ends_the_slot_and_raises_when_the_camera_fails():
-    slot = FrameSlot()
-    worker = Worker("test")
-    task = asyncio.create_task(pump(RaisingCamera(2, realtime=True), slot, worker))
-    while await slot.take() is not None:
-        pass
-    with pytest.raises(OSError, match="unplugged"):
-        await task
-    worker.shutdown()

@@ -124,6 +124,17 @@ async def test_events_reach_the_bus_and_the_state_board():
     assert health["last_frame_at"] is not None and camera.closed
 
 
+async def test_each_frame_wakes_the_event_loop_once():
+    """Camera to pipeline thread to thread; the loop is woken only to publish (a batch, if it lags)."""
+    hub = Hub()
+    camera = ScriptedCamera([_frame(0.1 * i) for i in range(1, 11)], delay=0.005)
+    service = TouchService(CameraSource("s", lambda: camera), hub, TouchConfig(), pipeline_factory=FakePipeline, overlay=_overlay)
+    await service.run()
+    health = service.health()
+    assert health["frames"] == 10
+    assert 1 <= health["loop_wakeups"] <= 11  # at most one per frame, plus the contacts released at the end
+
+
 async def test_bad_frames_are_counted_and_skipped():
     hub = Hub()
     frames = [

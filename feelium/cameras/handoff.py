@@ -1,0 +1,129 @@
+"""Frames between threads, and results back to the event loop, with as few loop wake-ups as the work allows.
+
+A frame that went camera thread -> loop -> pipeline thread -> loop woke the
+event loop about nine times (each ``run_in_executor`` round trip is a self-pipe
+read, the future's state copy and the task's step, twice, plus the slot's
+event). Here the camera thread hands frames straight to the pipeline thread
+(:class:`ThreadSlot`), and the pipeline thread hands its results to the loop
+through a :class:`LoopInbox`, which wakes the loop once per batch: once per
+frame when the loop keeps up, once for several when it lags. Both are bounded,
+so a slow side makes the other drop (the camera's frames, newest wins) or wait
+(the pipeline, for a loop that has not drained its results), never queue
+without bound.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections.abc import Callable
+from typing import Generic, TypeVar
+
+from feelium.cameras.base import Camera, Frame
+
+T = TypeVar("T")
+
+
+class ThreadSlot:
+    """A one-frame hand-over between two threads: a new frame replaces one not yet taken (counted as dropped).
+
+    ``put(..., wait=True)`` makes the producer wait until the slot is empty instead, for sources that deliver on
+    demand (a replay as fast as possible), so every frame is processed. After :meth:`end` the consumer still gets
+    the frame left in the slot, then ``None``; a producer gets ``False`` and should stop.
+    """
+
+    def __init__(self) -> None:
+        self._changed = threading.Condition()
+        self._frame: Frame | None = None
+        self._ended = False
+        self.dropped = 0
+
+    def put(self, frame: Frame, *, wait: bool = False) -> bool:
+        """Offer ``frame``; ``False`` once the slot has ended (the frame is not kept)."""
+        with self._changed:
+            if wait:
+                self._changed.wait_for(lambda: self._frame is None or self._ended)
+            if self._ended:
+                return False
+            if self._frame is not None:
+                self.dropped += 1
+            self._frame = frame
+            self._changed.notify_all()
+            return True
+
+    def take(self) -> Frame | None:
+        """The next frame, waiting for one; ``None`` once the slot has ended and is empty."""
+        with self._changed:
+            self._changed.wait_for(lambda: self._frame is not None or self._ended)
+            frame, self._frame = self._frame, None
+            self._changed.notify_all()
+            return frame
+
+    def end(self) -> None:
+        """No more frames: wakes both sides (safe from any thread, any number of times)."""
+        with self._changed:
+            self._ended = True
+            self._changed.notify_all()
+
+
+def read_into(camera: Camera, slot: ThreadSlot) -> None:
+    """Camera-thread job: read frames into ``slot`` until the camera or the slot ends (raises what the camera raises).
+
+    A realtime camera never waits for the consumer (the newest frame wins); one that delivers on demand does.
+    """
+    try:
+        while True:
+            frame = camera.read()
+            if frame is None or not slot.put(frame, wait=not camera.realtime):
+                return
+    finally:
+        slot.end()
+
+
+class LoopInbox(Generic[T]):
+    """Items a worker thread hands to the event loop, delivered in order and in batches: one wake-up per batch.
+
+    The first item of a batch schedules one ``call_soon_threadsafe``; items posted before the loop runs it join
+    that batch. At ``limit`` undelivered items :meth:`post` waits for the loop (back-pressure instead of a queue
+    that grows while the loop is stuck). After :meth:`close` posts are dropped and never wait.
+    """
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, deliver: Callable[[list[T]], None], limit: int = 30) -> None:
+        self._loop = loop
+        self._deliver = deliver
+        self._limit = limit
+        self._changed = threading.Condition()
+        self._items: list[T] = []
+        self._closed = False
+        self.wakeups = 0  # batches scheduled on the loop
+        self.posted = 0
+
+    def post(self, item: T) -> None:
+        """From the worker thread: queue ``item`` for the loop, waking it only if no batch is pending."""
+        with self._changed:
+            self._changed.wait_for(lambda: len(self._items) < self._limit or self._closed)
+            if self._closed:
+                return
+            self._items.append(item)
+            self.posted += 1
+            first = len(self._items) == 1
+            if first:
+                self.wakeups += 1
+        if first:
+            self._loop.call_soon_threadsafe(self._drain)
+
+    def close(self) -> None:
+        """No more deliveries; a worker waiting in :meth:`post` goes on at once."""
+        with self._changed:
+            self._closed = True
+            self._items.clear()
+            self._changed.notify_all()
+
+    def _drain(self) -> None:
+        """On the loop: deliver the whole batch."""
+        with self._changed:
+            items, self._items = self._items, []
+            closed = self._closed
+            self._changed.notify_all()
+        if items and not closed:
+            self._deliver(items)
