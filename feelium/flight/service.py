@@ -39,6 +39,7 @@ from feelium.flight.client import MspClient
 from feelium.flight.config import FlightConfig
 from feelium.priority import name_current_thread
 from feelium.flight.controller import ControlOutput, FlightController
+from feelium.flight.lateness import LatenessHistogram
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
 from feelium.flight.telemetry import Telemetry
@@ -165,6 +166,11 @@ class FlightService:
         self._serial: ThreadPoolExecutor | None = None
         self._sending: tuple[MspClient, Future[None]] | None = None  # the last motor command queued, not yet checked
         self._wake = threading.Event()  # set when the link is released: a poll waiting for its tick is not made
+        # How late each tick runs against its due time: the poll's start (on the serial thread) and the controller's
+        # step (on the loop, after the telemetry is back): what the event loop's load can delay (docs/daemon.md).
+        self.start_late = LatenessHistogram()
+        self.step_late = LatenessHistogram()
+        self._poll_started: float | None = None  # set on the serial thread, read on the loop after the poll returns
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
         """Run a port operation on this run's serial thread (jobs run one at a time, in order)."""
@@ -229,6 +235,7 @@ class FlightService:
             **self._link_counts(),
             "cycles": self.cycles,
             "overruns": self.overruns,
+            "tick_late_ms": {"start": self.start_late.snapshot(), "step": self.step_late.snapshot()},
             "link_losses": self.link_losses,
             "reconnects": self.reconnects,
             "open_failures": self.open_failures,
@@ -300,6 +307,7 @@ class FlightService:
             await self._open(now)
         telemetry = None
         client = self.client
+        self._poll_started = None
         if client is not None:
             try:
                 battery = self.cycles % self.config.battery_every == 0
@@ -309,6 +317,9 @@ class FlightService:
             else:
                 self._observe_link(client)
         now = self.hub.clock()
+        started = self._poll_started
+        self.start_late.record((now if started is None else started) - due)
+        self.step_late.record(now - due)
         await self._sent(now)  # the last cycle's motor command went out before this poll: settled by now
         for event in events.drain():  # after the poll: events that came while it waited count this cycle
             try:
@@ -336,6 +347,7 @@ class FlightService:
         delay = due - self.hub.clock()
         if delay > 0.0 and self._wake.wait(delay):
             return None
+        self._poll_started = self.hub.clock()
         return client.poll(with_battery)
 
     def _serial_job(self, call: Callable[..., Any], *args: Any) -> Future[Any]:

@@ -23,6 +23,7 @@ import asyncio
 import contextlib
 import dataclasses
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -41,6 +42,7 @@ from feelium.daemon.config import Config, load_config
 from feelium.daemon.memory import tune_malloc
 from feelium.daemon.runner import WORKER_THREADS, background_nice_here, run_daemon, with_overrides
 from feelium.daemon.sdnotify import Notifier
+from feelium.flight.lateness import counts_between, percentile_ms
 from feelium.hub import Hub
 from feelium.priority import background_nice, set_background_nice
 from feelium.lab.daemon.attribution import ChargingExecutor, Ledger, callback_overhead_s, charge, charge_loop_callbacks, thread_cpu
@@ -243,6 +245,23 @@ def _delta(first: dict[str, Any], last: dict[str, Any], service: str, key: str) 
     return float(b) - float(a) if isinstance(a, (int, float)) and isinstance(b, (int, float)) else 0.0
 
 
+def _tick_lateness(first: dict[str, Any], last: dict[str, Any]) -> dict[str, float | str | None]:
+    """The flight tick's lateness over the window (p50, p99 as bin upper bounds, ms): the poll's start on the serial
+    thread and the controller's step on the loop, each against the tick's due time. Above the last bin it is
+    the string ``">EDGE"`` (JSON has no infinity)."""
+    out: dict[str, float | str | None] = {}
+    for part in ("start", "step"):
+        a = first["services"].get("flight", {}).get("tick_late_ms", {}).get(part)
+        b = last["services"].get("flight", {}).get("tick_late_ms", {}).get(part)
+        if a is None or b is None:
+            continue
+        window = counts_between(a["counts"], b["counts"])
+        for q in (50, 99):
+            value = percentile_ms(b["edges_ms"], window, q)
+            out[f"tick_{part}_late_ms_p{q}"] = f">{b['edges_ms'][-1]}" if value == math.inf else value
+    return out
+
+
 def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, front_fps: float) -> dict[str, dict[str, Any]]:
     """Rate, target and misses per service over the window, and the CPU ms per second charged to it.
 
@@ -272,6 +291,8 @@ def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, fro
     }
     rows["front_camera"]["late_frames_total"] = cameras.front.late
     rows["flight"]["link_losses"] = int(_delta(first, last, "flight", "link_losses"))  # a starved board process shows here
+    rows["flight"].update(_tick_lateness(first, last))
+    rows["touch"]["loop_wakeups_per_frame"] = round(_delta(first, last, "touch", "loop_wakeups") / max(touch_frames, 1.0), 2)
     moves = headset["motion"]
     rows["headset_motion"] = {"transport": moves["transport"], "rate_hz": moves["rate_hz"], "target_hz": moves["target_hz"], "miss_kind": "counted",
                               "miss_pct": round(100.0 * moves["late"] / max(moves["sent"], 1), 2),
@@ -411,6 +432,10 @@ def format_table(result: dict[str, Any]) -> str:
         f"  the bench's own timing of {result['loop_callbacks_per_s']} loop callbacks/s costs ~"
         f"{result['bench_overhead_ms_per_s']} ms/s of that (charged to the services, not subtracted); by origin: "
         + ", ".join(f"{name} {rate}" for name, rate in result["loop_callbacks_per_s_by_origin"].items()),
+        "  flight tick late p50 / p99 (bin upper bounds): poll start {} / {} ms, controller step {} / {} ms; "
+        "touch loop wake-ups per frame {}".format(*(result["services"]["flight"].get(k) for k in (
+            "tick_start_late_ms_p50", "tick_start_late_ms_p99", "tick_step_late_ms_p50", "tick_step_late_ms_p99")),
+            result["services"]["touch"].get("loop_wakeups_per_frame")),
         f"  RSS steady / peak {result['rss_mb']} / {result['rss_peak_mb']} MB (preloaded frames, "
         f"{result['preloaded_frames_mb']} MB, taken out); growth after warm-up {result['rss_growth_mb']} MB",
         f"  projected onto the Pi ({result['pi_factor']}): {result['pi_cores']} of 4 cores used, "
