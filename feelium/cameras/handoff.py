@@ -90,7 +90,7 @@ class LoopInbox(Generic[T]):
 
     def __init__(self, loop: asyncio.AbstractEventLoop, deliver: Callable[[list[T]], None], limit: int = 30) -> None:
         self._loop = loop
-        self._deliver = deliver
+        self.deliver = deliver  # public: the bench charges each batch to the service that ``deliver`` belongs to
         self._limit = limit
         self._changed = threading.Condition()
         self._items: list[T] = []
@@ -126,4 +126,4 @@ class LoopInbox(Generic[T]):
             closed = self._closed
             self._changed.notify_all()
         if items and not closed:
-            self._deliver(items)
+            self.deliver(items)

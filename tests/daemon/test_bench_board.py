@@ -62,6 +62,28 @@ async def test_loop_callbacks_are_counted_by_the_service_they_wake() -> None:
     assert sum(ledger.callbacks_by.values()) == ledger.callbacks
 
 
+async def test_a_worker_threads_batch_is_counted_for_the_service_that_publishes_it() -> None:
+    from feelium.cameras.handoff import LoopInbox
+    from feelium.cameras.select import CameraSource
+    from feelium.hub import Hub
+    from feelium.lab.daemon.attribution import charge_loop_callbacks
+    from feelium.touch.config import TouchConfig
+    from feelium.touch.service import Rejected, TouchService
+
+    touch = TouchService(CameraSource("none", lambda: None), Hub(), TouchConfig())
+    ledger = Ledger()
+    undo = charge_loop_callbacks(ledger)
+    try:
+        inbox = LoopInbox(asyncio.get_running_loop(), touch._deliver)
+        ledger.counting = True
+        await asyncio.to_thread(lambda: [inbox.post(Rejected("test")) for _ in range(3)])
+        await asyncio.sleep(0)
+        ledger.counting = False
+    finally:
+        undo()
+    assert touch.bad_frames == 3 and ledger.callbacks_by["touch"] == inbox.wakeups >= 1  # each batch charged to touch
+
+
 @pytest.mark.slow
 def test_bench_board_runs_every_service_and_writes_finite_json():
     result = bench_board(Config(), 2.0 / 60.0, warmup_s=1.0, numeric_split_s=2.0)
@@ -73,6 +95,8 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
         assert all(math.isfinite(row[key]) for key in ("rate_hz", "target_hz", "miss_pct", "cpu_ms_per_s")), name
         assert row["rate_hz"] > 0, name
     assert 0 < result["rss_mb"] <= result["rss_peak_mb"]
+    assert result["services"]["flight"]["tick_step_late_ms_p99"] is not None  # the loop's delay of the control step
+    assert 0 < result["services"]["touch"]["loop_wakeups_per_frame"] <= 1.0
     assert "pi_cores" in format_table(result)
     shares = result["numeric_split"]["shares"]  # a second, profiled run: each part's numpy/OpenCV share
     assert 0 < shares["touch"]["thread"] <= 1 and 0 < shares["projector"]["pool"] <= 1

@@ -32,6 +32,7 @@ from pathlib import Path
 from types import CodeType
 from typing import Any
 
+from feelium.cameras.handoff import LoopInbox
 from feelium.priority import lower_current_thread
 
 SERVICE_PACKAGES = ("touch", "front_camera", "thermal", "audio", "projector", "flight", "http")
@@ -88,6 +89,8 @@ def _service_of_callback(callback: Any) -> str:
         return LOOP_OTHER
     if owner is None:
         return service_of_module(getattr(callback, "__module__", None)) or LOOP_OTHER
+    if isinstance(owner, LoopInbox):  # a worker thread's batch: the service that publishes it
+        return _service_of_callback(owner.deliver)
     protocol = getattr(owner, "_protocol", None)  # a transport's read/write callback: charge its protocol
     return service_of_module(type(protocol if protocol is not None else owner).__module__) or LOOP_OTHER
 
