@@ -1,10 +1,19 @@
-"""The front camera service: the fisheye's frames to ``hub.front_video`` for the headset."""
+"""The front camera service: the fisheye's frames to ``hub.front_video`` for the headset.
+
+The camera thread reads and checks frames in one job for the whole run and hands them to the event loop through
+a :class:`~feelium.cameras.handoff.LoopInbox`: one loop wake-up per frame (fewer when the loop lags), not a
+``run_in_executor`` round trip per read (docs/performance.md).
+"""
 
 from __future__ import annotations
 
+import asyncio
 import logging
+import threading
 from typing import Any
 
+from feelium.cameras.base import Camera, Frame
+from feelium.cameras.handoff import LoopInbox
 from feelium.cameras.reader import RateMeter, Worker, close_camera, frame_condition
 from feelium.cameras.select import CameraSource
 from feelium.hub import Hub
@@ -27,10 +36,11 @@ class FrontCameraService:
         self.opens = 0
         self.last_frame_at: float | None = None
         self._rate = RateMeter()
-        self._stopping = False
+        self._inbox: LoopInbox[Frame | None] | None = None
+        self._past_wakeups = 0
+        self._ending: threading.Event | None = None
 
     async def run(self) -> None:
-        self._stopping = False
         worker = Worker("front-camera")
         try:
             camera = await worker.call(self.source.open)
@@ -39,26 +49,44 @@ class FrontCameraService:
             raise
         self.opens += 1
         log.info("front camera: %s backend", self.source.backend)
+        ending = self._ending = threading.Event()
+        inbox = self._inbox = LoopInbox(asyncio.get_running_loop(), self._publish)
         try:
-            while not self._stopping:
-                frame = await worker.call(camera.read)
-                if frame is None:
-                    log.info("front camera: source ended")
-                    return
-                image = frame.image
-                if image.ndim != 3 or image.shape[2] != 3 or image.dtype.name != "uint8":
-                    self.bad_frames += 1  # a BGR uint8 frame is what the headset stream encodes
-                    continue
-                now = self.hub.clock()
-                self.hub.front_video.publish(frame.t, image)
-                self.frames += 1
-                self.last_frame_at = now
-                self._rate.tick(now)
+            if await worker.call(self._read_frames, camera, inbox, ending):
+                log.info("front camera: source ended")
         finally:
+            ending.set()  # a cancelled run: the read loop ends after its current read, then the camera closes
+            inbox.close()
+            self._past_wakeups += inbox.wakeups
+            self._inbox = None
             await close_camera(camera, worker)
 
+    def _read_frames(self, camera: Camera, inbox: LoopInbox[Frame | None], ending: threading.Event) -> bool:
+        """Camera-thread job: read until the source ends (``True``) or the service stops (``False``)."""
+        while not ending.is_set():
+            frame = camera.read()
+            if frame is None:
+                return True
+            image = frame.image
+            ok = image.ndim == 3 and image.shape[2] == 3 and image.dtype.name == "uint8"
+            inbox.post(frame if ok else None)  # a BGR uint8 frame is what the headset stream encodes
+        return False
+
+    def _publish(self, frames: list[Frame | None]) -> None:
+        """On the loop: each good frame of a batch to the hub, in order; the others counted."""
+        for frame in frames:
+            if frame is None:
+                self.bad_frames += 1
+                continue
+            now = self.hub.clock()
+            self.hub.front_video.publish(frame.t, frame.image)
+            self.frames += 1
+            self.last_frame_at = now
+            self._rate.tick(now)
+
     async def stop(self) -> None:
-        self._stopping = True
+        if self._ending is not None:
+            self._ending.set()
 
     def health(self) -> dict[str, Any]:
         now = self.hub.clock()
@@ -68,6 +96,7 @@ class FrontCameraService:
             "frames": self.frames,
             "fps": round(self._rate.rate(now), 2),
             "bad_frames": self.bad_frames,
+            "loop_wakeups": self._past_wakeups + (self._inbox.wakeups if self._inbox is not None else 0),
             "opens": self.opens,
             "last_frame_at": self.last_frame_at,
         }

@@ -41,3 +41,24 @@ async def test_publishes_bgr_frames_and_skips_others():
     health = service.health()
     assert health["frames"] == 2 and health["bad_frames"] == 2 and health["backend"] == "scripted"
     assert camera.closed
+
+
+async def test_each_frame_wakes_the_event_loop_at_most_once_and_stop_ends_the_run():
+    import asyncio
+    import time
+
+    class Endless(ScriptedCamera):
+        def read(self):
+            time.sleep(0.005)
+            self.t += 0.01
+            return Frame(t=self.t, image=np.zeros((4, 6, 3), np.uint8))
+
+    camera = Endless([])
+    service = FrontCameraService(CameraSource("endless", lambda: camera), Hub())
+    task = asyncio.create_task(service.run())
+    while service.frames < 5:
+        await asyncio.sleep(0.01)
+    await service.stop()
+    await asyncio.wait_for(task, 2.0)
+    health = service.health()
+    assert 1 <= health["loop_wakeups"] <= health["frames"] and camera.closed

@@ -57,6 +57,7 @@ from feelium.service import Service
 
 TOKEN = "bench-board-token"
 WARMUP_S = 3.0  # devices open, caches warm, the headset clients connect
+FIRST_TOUCH_FRAME_S = 30.0  # the longest the window waits for the touch pipeline's first frame
 LAG_PROBE_S = 0.01
 REAR_LOOP_S = 6.0  # seconds of rear frames preloaded (touches every ~1.5 s); longer only costs memory
 FRONT_LOOP_S = 1.0
@@ -182,6 +183,11 @@ async def _measure(
         await started.wait()
         while not isinstance(port := hub.health()["services"]["http"].get("port"), int):
             await asyncio.sleep(0.05)  # bound once the http service has started
+        # The touch pipeline is built at its first frame, in its own thread (seconds on a loaded machine, with the
+        # projected-light predictor): start-up, not steady state, so the warm-up starts after it (bounded).
+        deadline = time.monotonic() + FIRST_TOUCH_FRAME_S
+        while not hub.health()["services"].get("touch", {}).get("frames") and time.monotonic() < deadline:
+            await asyncio.sleep(0.05)
         headset = _start_headset(port, seconds + warmup_s, motion_transport)
         try:
             if cgroup is not None:
