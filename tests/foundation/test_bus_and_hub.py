@@ -58,6 +58,18 @@ async def test_latest_wakes_readers_with_newest_only():
     assert newest is not None and newest.value == 2 and newest.seq == 2
 
 
+def test_a_listener_gets_the_current_item_then_every_one_until_it_unlistens():
+    slot: Latest[str] = Latest()
+    slot.publish(0.0, "before")
+    seen: list[tuple[int, str]] = []
+    unlisten = slot.listen(lambda item: seen.append((item.seq, item.value)))
+    slot.publish(0.1, "a")
+    slot.publish(0.2, "b")  # no reader ran in between: a listener still sees both
+    unlisten()
+    slot.publish(0.3, "after")
+    assert seen == [(1, "before"), (2, "a"), (3, "b")]
+
+
 def test_state_board_snapshot_is_a_copy():
     board = StateBoard()
     board.update("flight", altitude_m=1.2)
