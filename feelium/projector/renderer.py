@@ -28,6 +28,7 @@ from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.layers import DRAWERS
 from feelium.projector.lift import SensingLift
+from feelium.projector.strokes import StrokeLayer
 from feelium.projector.tilewarp import TileWarp
 
 
@@ -92,6 +93,7 @@ class Renderer:
         self._canvas_lock = threading.Lock()  # render() may be called from two threads (the service, a preview)
         self.skipped: dict[str, int] = {}
         self.lift = SensingLift(config.sensing_floor, config.fade_floor)
+        self.strokes = StrokeLayer(cw, ch)
 
     @property
     def covered(self) -> np.ndarray:
@@ -125,7 +127,15 @@ class Renderer:
         else:
             self.avatar.render(now, talking=talking, out=img)
         self.lift.measure(img)  # on the picture alone: answers are drawn over it and lifted with it
+        answers = tuple(answers)
+        self.strokes.update([a for a in answers if a.kind == "stroke"])
+        strokes_laid = False
         for answer in answers:
+            if answer.kind == "stroke":  # the round's strokes, drawn once each, laid where the first one comes
+                if not strokes_laid:
+                    self.strokes.compose(img)
+                    strokes_laid = True
+                continue
             drawer = DRAWERS.get(answer.kind)
             if drawer is None:
                 self.skipped[answer.kind] = self.skipped.get(answer.kind, 0) + 1
@@ -154,31 +164,35 @@ class Renderer:
         Neither is written again once returned, and a frame shown again comes with the same canvas array.
 
         The canvas is drawn into one reused buffer: a new 0.6 MB array per frame would be an mmap and its page
-        faults under the daemon's malloc settings (``[daemon]``). A frame with no answer whose face is the
-        previous frame's (the same array: a face is never changed in place) or whose avatar pose is the previous
+        faults under the daemon's malloc settings (``[daemon]``). A frame with no answer but strokes nobody drew
+        into since (the stroke layer's version) whose face is the previous frame's (the same array: a face is never changed in place) or whose avatar pose is the previous
         one's is the previous frame, returned without drawing, lifting or comparing anything: between a face
         video's frames, and for the avatar between its one-pixel moves, that is most frames of a quiet skin.
         """
         answers = tuple(answers)
         with self._canvas_lock:
             pose = None if face is not None else self.avatar.pose(now, talking)
-            if not answers and self._last is not None and self._last.shows(face, pose):
+            # Strokes change only when drawn into: with nothing else on the skin the frame is still.
+            still = all(a.kind == "stroke" for a in answers)
+            strokes = self.strokes.update(answers) if still else None
+            if still and self._last is not None and self._last.shows(face, pose, strokes):
                 return self._last.frame, self._last.grey
             canvas = self.canvas(now, face, answers, talking, out=self._canvas)
             frame = self.warp(canvas)
             grey = cv2.cvtColor(canvas, cv2.COLOR_BGR2GRAY)
-            self._last = _Shown(face, pose, frame, grey) if not answers else None
+            self._last = _Shown(face, pose, strokes, frame, grey) if still else None
             return frame, grey
 
 
 @dataclass(frozen=True, eq=False)
 class _Shown:
-    """The newest frame drawn without answers, and what it shows (the face array itself, or the avatar's pose)."""
+    """The newest frame drawn without answers but strokes, and what it shows (the face array itself, or the avatar's pose)."""
 
     face: np.ndarray | None
     pose: tuple[int, ...] | None
+    strokes: int | None  # the stroke layer's version
     frame: np.ndarray
     grey: np.ndarray  # its canvas in grey
 
-    def shows(self, face: np.ndarray | None, pose: tuple[int, ...] | None) -> bool:
-        return face is self.face and (face is not None or pose == self.pose)
+    def shows(self, face: np.ndarray | None, pose: tuple[int, ...] | None, strokes: int | None) -> bool:
+        return face is self.face and (face is not None or pose == self.pose) and strokes == self.strokes
