@@ -65,9 +65,9 @@ def polyline(points: Sequence[Point], width: int, height: int) -> np.ndarray:
     return np.array([[u * width, v * height] for u, v in points], np.int32).reshape(-1, 1, 2)
 
 
-def draw_segments(img: np.ndarray, px: Sequence[tuple[int, int]], start: int, color: int, thickness: int) -> None:
-    """The segments ``px[start - 1] -> px[start] -> ...`` exactly as ``cv2.polylines(..., cv2.LINE_AA)`` draws them
-    within the whole polyline ``px``.
+def draw_segments(img: np.ndarray, px: Sequence[tuple[int, int]], first: bool, color: int, thickness: int) -> None:
+    """The segments ``px[0] -> px[1] -> ...`` exactly as ``cv2.polylines(..., cv2.LINE_AA)`` draws them within a
+    polyline that starts at ``px[0]`` (``first``) or earlier (the tail of a stroke drawn before).
 
     OpenCV draws a thick polyline segment by segment: a convex quadrilateral, a round cap at the segment's end, and at
     the first segment's start too (``ThickLine`` in imgproc/src/drawing.cpp). Drawing a new tail as a polyline of its
@@ -75,7 +75,7 @@ def draw_segments(img: np.ndarray, px: Sequence[tuple[int, int]], start: int, co
     anti-aliased rim a second time; so the same quadrilaterals and caps are drawn here, with OpenCV's own
     fixed-point arithmetic (16 fractional bits), and a polyline drawn in pieces equals the polyline drawn at once.
     """
-    for i in range(max(start, 1), len(px)):
+    for i in range(1, len(px)):
         (x0, y0), (x1, y1) = px[i - 1], px[i]
         if thickness <= 1:
             cv2.line(img, (x0, y0), (x1, y1), color, 1, cv2.LINE_AA)
@@ -89,7 +89,7 @@ def draw_segments(img: np.ndarray, px: Sequence[tuple[int, int]], start: int, co
             ox, oy = round(dy * r), round(dx * r)  # cvRound: half to even, as Python's round
             quad = np.array([[sx0 + ox, sy0 + oy], [sx0 - ox, sy0 - oy], [sx1 - ox, sy1 - oy], [sx1 + ox, sy1 + oy]], np.int32)
             cv2.fillConvexPoly(img, quad, color, cv2.LINE_AA, _XY_SHIFT)
-        caps = ((sx0, sy0), (sx1, sy1)) if i == 1 else ((sx1, sy1),)
+        caps = ((sx0, sy0), (sx1, sy1)) if first and i == 1 else ((sx1, sy1),)
         for centre in caps:
             cv2.ellipse(img, centre, (half, half), 0, 0, 360, color, -1, cv2.LINE_AA, _XY_SHIFT)
 
@@ -138,6 +138,7 @@ class StrokeLayer:
     def __init__(self, width: int, height: int) -> None:
         self.size = (width, height)
         self.version = 0  # changes whenever what the layer shows changes
+        self._seen: list[Answer] = []  # the answers the layer was last brought to
         self._drawn: dict[Hashable, _Drawn] = {}
         self._order: list[Hashable] = []  # strokes in the layer, in drawing order; the last one is live
         self._arrays: _Arrays | None = None
@@ -145,18 +146,20 @@ class StrokeLayer:
     def update(self, strokes: Sequence[Answer]) -> int:
         """Bring the layer to ``strokes`` (stroke answers, in drawing order) and return its version."""
         strokes = [a for a in strokes if a.detail.get("points")]  # nothing to draw, as layers.draw_stroke
+        if len(strokes) == len(self._seen) and all(a is b for a, b in zip(strokes, self._seen)):
+            return self.version  # the very answers of last time (the engine replaces only a growing stroke's)
+        seen = {id(a) for a in self._seen}  # answers met last time hold what was drawn of them then
+        self._seen = strokes
         keys = [stroke_key(a) for a in strokes]
         if not strokes:
             if self._order:
                 self._drop()
             return self.version
         points = [tuple(a.detail.get("points", ())) for a in strokes]
-        if keys == self._order and all(self._unchanged(k, p) for k, p in zip(keys, points)):
+        same = [id(a) in seen or self._unchanged(k, p) for a, k, p in zip(strokes, keys, points)]
+        if keys == self._order and all(same):
             return self.version
-        old = keys[: len(self._order)] if len(keys) >= len(self._order) else None
-        frozen_same = old is not None and old == self._order and all(
-            self._unchanged(k, p) for k, p in zip(keys[: len(self._order) - 1], points)
-        )
+        frozen_same = keys[: len(self._order)] == self._order and all(same[: len(self._order) - 1])
         if self._arrays is None or not self._order or not frozen_same or len(keys) > len(self._order) + 1:
             self._rebuild(keys, points)
         else:
@@ -168,6 +171,11 @@ class StrokeLayer:
             self._grow(keys[-1], points[-1])
         self.version += 1
         return self.version
+
+    @property
+    def keys(self) -> tuple[Hashable, ...]:
+        """The strokes the layer holds, in drawing order."""
+        return tuple(self._order)
 
     def compose(self, canvas: np.ndarray) -> None:
         """Lay the strokes over ``canvas`` (BGR uint8, canvas-sized) in place."""
@@ -211,6 +219,7 @@ class StrokeLayer:
     def _drop(self) -> None:
         """The round ended or its strokes left the skin: free the layer (2.4 MB)."""
         self._arrays = None
+        self._seen = []
         self._drawn = {}
         self._order = []
         self.version += 1
@@ -262,9 +271,10 @@ class _Arrays:
             if len(points) == 1:
                 draw_points(self.halo, points, (255,), None)
             else:
-                px = [(int(x), int(y)) for x, y in polyline(points, self.width, self.height).reshape(-1, 2)]
-                draw_segments(self.halo, px, start, 255, halo_t)
-                draw_segments(self.core, px, start, 255, core_t)
+                tail = points[max(start - 1, 0) :]  # from the last point drawn: only new segments
+                px = [(int(x), int(y)) for x, y in polyline(tail, self.width, self.height).reshape(-1, 2)]
+                draw_segments(self.halo, px, start == 0, 255, halo_t)
+                draw_segments(self.core, px, start == 0, 255, core_t)
             box = _box_of(points[max(start - 1, 0) :], self.width, self.height)
             self.live_box = _union(self.live_box, box)
             self.box = _union(self.box, box)

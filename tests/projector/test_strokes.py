@@ -76,7 +76,7 @@ def test_polyline_drawn_in_pieces_is_the_polyline(seed, step, thick):
     done = 1
     while done < n:
         upto = min(n, done + step)
-        draw_segments(pieces, px[:upto], done, 255, thickness)
+        draw_segments(pieces, px[done - 1 : upto], done == 1, 255, thickness)
         done = upto
     assert np.array_equal(whole, pieces)
 
@@ -170,5 +170,19 @@ def test_renderer_shows_a_still_drawing_without_drawing_it_again():
     assert renderer.render(1 / 30, face, answers) is first  # same face, strokes unchanged: the same frame
     grown = answers[:-1] + [_stroke(8, answers[-1].detail["points"] + ((0.5, 0.5),))]
     assert renderer.render(2 / 30, face, grown) is not first
-    with_ripple = renderer.render(3 / 30, face, grown + [Answer("ripple", 0.0, 0.4, 0.4, 1.2)])
-    assert renderer.render(4 / 30, face, grown + [Answer("ripple", 0.0, 0.4, 0.4, 1.2)]) is not with_ripple
+
+
+
+def test_answers_move_on_at_answer_fps_and_at_once_with_a_new_face_or_answer():
+    renderer = Renderer(replace(ProjectorConfig(), answer_fps=15.0), truth_calibration())
+    face, other_face = renderer.fit_face(_background(9)), renderer.fit_face(_background(10))
+    ripple = Answer("ripple", 0.0, 0.4, 0.4, 1.2)
+    first = renderer.render(0.5, face, [ripple])
+    assert renderer.render(0.5 + 1 / 30, face, [ripple]) is first  # drawn 33 ms ago: shown again
+    assert renderer.render(0.57, face, [ripple]) is not first  # over 1 / answer_fps old: moves on
+    moved = renderer.render(0.57, face, [ripple])
+    assert renderer.render(0.58 + 0.01, other_face, [ripple]) is not moved  # a new face frame: at once
+    again = renderer.render(0.58 + 0.02, other_face, [ripple])
+    assert renderer.render(0.58 + 0.03, other_face, [ripple, Answer("heart", 0.6, 0.3, 0.6, 2.6)]) is not again
+    reference = Renderer(replace(ProjectorConfig(), answer_fps=15.0), truth_calibration())
+    assert np.array_equal(again, reference.render(0.58 + 0.01, other_face, [ripple]))  # drawn at its time
