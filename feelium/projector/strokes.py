@@ -10,8 +10,9 @@ The layer is premultiplied BGRA: OpenCV's anti-aliased drawing of colour ``C``
 with coverage ``c`` onto a pixel ``P`` gives ``P + (C - P) c``, which on a
 premultiplied layer that starts transparent is exactly Porter-Duff "over", so
 ``layer + canvas (1 - alpha)`` is the stroke drawn onto the canvas, up to the
-rounding of 8-bit steps on the anti-aliased rim (at most 5 grey levels in
-tests/projector/test_strokes.py; untouched pixels are exact). Each stroke is a
+8-bit steps rounding apart on anti-aliased rims (tests/projector/test_strokes.py:
+at most 9 grey levels measured where 64 strokes overlap, 1-3 on the ~4 % of
+drawn pixels that differ at all). Each stroke is a
 wide halo under a thin white core, both over the whole stroke; so the newest
 stroke, the one still growing, keeps its halo and core as two coverage masks to
 which only new segments are added, exactly as the whole polyline would draw
@@ -309,6 +310,7 @@ class _Arrays:
         self.clear_alpha[y0:y1, x0:x1] = (255 - np.clip(np.rint(alpha), 0, 255).astype(np.uint8))
 
     def compose(self, canvas: np.ndarray) -> None:
+        """canvas = canvas (255 - alpha) / 255 + premultiplied colour, on the drawn box: two uint8 passes."""
         if self.box is None:
             return
         x0, y0, x1, y1 = self.box
