@@ -241,7 +241,9 @@ class InteractionEngine:
                 contact.sent_points = len(contact.points)
                 self._emit("drawing", "stroke", now, contact, stroke=contact.stroke, points=[[round(u, 4), round(v, 4)] for u, v in new])
                 points = tuple(contact.points)
-                self._answer(f"stroke:{contact.stroke}", Answer("stroke", contact.t_down, contact.u, contact.v, detail={"points": points}))
+                # Round and stroke number: the renderer keeps each stroke drawn by this identity (projector/strokes.py).
+                detail = {"points": points, "stroke": contact.stroke, "round": self._rounds}
+                self._answer(f"stroke:{contact.stroke}", Answer("stroke", contact.t_down, contact.u, contact.v, detail=detail))
                 if self._round is not None:
                     self._round.strokes[contact.stroke] = points
                     self._round.last_activity = now

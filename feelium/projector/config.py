@@ -44,6 +44,15 @@ class ProjectorConfig:
     width: int = setting(1280, "Projector native width (Ultimems HD309: 1280).", min=16, max=7680)
     height: int = setting(720, "Projector native height (Ultimems HD309: 720).", min=16, max=4320)
     fps: float = setting(30.0, "Render rate.", min=1.0, max=120.0)
+    answer_fps: float = setting(
+        15.0,
+        "Highest rate at which answers (ripples, glows, hearts) move on when nothing else changed: a frame shows "
+        "them (and a growing stroke) at most 1/answer_fps old, a new face frame or a new or ended answer redraws "
+        "at once, and a frame with nothing new is the previous one shown again (docs/performance.md). "
+        "Set it to fps to animate every frame.",
+        min=1.0,
+        max=120.0,
+    )
     fb_device: str = setting("/dev/fb0", "Linux framebuffer device of the fbdev backend.")
     canvas_width: int = setting(
         512, "Width of the skin canvas (the camera's sensitive patch) that layers are drawn on before warping.", min=16, max=4096

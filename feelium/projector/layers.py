@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from feelium.interactions.answers import Answer
+from feelium.projector.strokes import CORE_BGR, STROKE_BGR, draw_points, polyline
 
 RIPPLE_BGR = (255, 230, 170)
 WARM_BGR = (60, 150, 255)
@@ -25,7 +26,6 @@ PALM_PARTNER_BGR = (60, 140, 255)
 PALM_WEARER_BGR = (255, 150, 60)
 BREATH_BGR = (40, 110, 200)
 SHIMMER_BGR = (255, 220, 200)
-STROKE_BGR = (255, 255, 90)
 FIRE_BGR = ((0, 80, 255), (0, 180, 255), (120, 240, 255))
 
 
@@ -179,20 +179,13 @@ def draw_shimmer(canvas: np.ndarray, a: Answer, now: float) -> None:
 
 def _polyline(canvas: np.ndarray, points: tuple[tuple[float, float], ...]) -> np.ndarray:
     h, w = canvas.shape[:2]
-    return np.array([[u * w, v * h] for u, v in points], np.int32).reshape(-1, 1, 2)
+    return polyline(points, w, h)
 
 
 def draw_stroke(canvas: np.ndarray, a: Answer, now: float) -> None:
-    points = a.detail.get("points", ())
-    w = canvas.shape[1]
-    if len(points) == 1:
-        cx, cy = _to_px(canvas, *points[0])
-        cv2.circle(canvas, (int(cx), int(cy)), max(3, w // 90), STROKE_BGR, -1, cv2.LINE_AA)
-        return
-    if len(points) >= 2:
-        line = _polyline(canvas, points)
-        cv2.polylines(canvas, [line], False, STROKE_BGR, max(4, w // 70), cv2.LINE_AA)
-        cv2.polylines(canvas, [line], False, (255, 255, 255), max(1, w // 250), cv2.LINE_AA)
+    """The whole stroke, drawn again: the renderer keeps a round's strokes in a
+    :class:`~feelium.projector.strokes.StrokeLayer` instead; this is the picture that layer must match."""
+    draw_points(canvas, a.detail.get("points", ()), STROKE_BGR, CORE_BGR)
 
 
 def draw_ignite(canvas: np.ndarray, a: Answer, now: float) -> None:

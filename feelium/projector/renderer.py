@@ -7,15 +7,16 @@ a precomputed fixed-point map then carries the canvas to the projector's
 native resolution, so what is meant for a spot on the skin lands there through
 the fisheye, and a circle drawn on the canvas is a circle on the skin.
 
-Time, face image and answers in, a BGR frame out; the only state kept between frames is the previous
-canvas and frame, so that only what changed is re-warped (the result is the full warp's), and what the newest
-frame without answers showed, so that the same face or avatar pose again costs nothing.
+Time, face image and answers in, a BGR frame out; the state kept between frames is the previous canvas and
+frame, so that only what changed is re-warped (the result is the full warp's), what the newest frame showed,
+so that a frame with nothing new costs nothing, and the drawing round's strokes, each drawn once
+(:class:`~feelium.projector.strokes.StrokeLayer`).
 """
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterable
+from collections.abc import Hashable, Iterable
 from dataclasses import dataclass
 
 import cv2
@@ -28,6 +29,7 @@ from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.layers import DRAWERS
 from feelium.projector.lift import SensingLift
+from feelium.projector.strokes import StrokeLayer
 from feelium.projector.tilewarp import TileWarp
 
 
@@ -92,6 +94,9 @@ class Renderer:
         self._canvas_lock = threading.Lock()  # render() may be called from two threads (the service, a preview)
         self.skipped: dict[str, int] = {}
         self.lift = SensingLift(config.sensing_floor, config.fade_floor)
+        self.strokes = StrokeLayer(cw, ch)
+        self._answer_period = 1.0 / config.answer_fps
+        self.rendered = 0  # frames drawn (the rest were the previous frame shown again)
 
     @property
     def covered(self) -> np.ndarray:
@@ -125,7 +130,15 @@ class Renderer:
         else:
             self.avatar.render(now, talking=talking, out=img)
         self.lift.measure(img)  # on the picture alone: answers are drawn over it and lifted with it
+        answers = tuple(answers)
+        self.strokes.update([a for a in answers if a.kind == "stroke"])
+        strokes_laid = False
         for answer in answers:
+            if answer.kind == "stroke":  # the round's strokes, drawn once each, laid where the first one comes
+                if not strokes_laid:
+                    self.strokes.compose(img)
+                    strokes_laid = True
+                continue
             drawer = DRAWERS.get(answer.kind)
             if drawer is None:
                 self.skipped[answer.kind] = self.skipped.get(answer.kind, 0) + 1
@@ -154,31 +167,53 @@ class Renderer:
         Neither is written again once returned, and a frame shown again comes with the same canvas array.
 
         The canvas is drawn into one reused buffer: a new 0.6 MB array per frame would be an mmap and its page
-        faults under the daemon's malloc settings (``[daemon]``). A frame with no answer whose face is the
-        previous frame's (the same array: a face is never changed in place) or whose avatar pose is the previous
-        one's is the previous frame, returned without drawing, lifting or comparing anything: between a face
-        video's frames, and for the avatar between its one-pixel moves, that is most frames of a quiet skin.
+        faults under the daemon's malloc settings (``[daemon]``). A frame that would show what the previous one
+        shows is the previous one, returned without drawing, lifting, warping or comparing anything: the same face
+        array (a face is never changed in place) or avatar pose, the same stroke layer, the same answer objects
+        (the engine replaces an answer it changes) and strokes drawn less than ``1 / answer_fps`` ago. So answers
+        move and strokes grow on screen at ``answer_fps`` when nothing else changes, and with every new face frame
+        when it does (a face video carries them along); a new or ended answer or stroke shows at once.
         """
         answers = tuple(answers)
         with self._canvas_lock:
             pose = None if face is not None else self.avatar.pose(now, talking)
-            if not answers and self._last is not None and self._last.shows(face, pose):
-                return self._last.frame, self._last.grey
+            moving = tuple(a for a in answers if a.kind != "stroke")
+            version = self.strokes.update([a for a in answers if a.kind == "stroke"])
+            last = self._last
+            if last is not None and last.shows(face, pose, self.strokes.keys, moving):
+                still = not moving and version == last.strokes  # nothing that moves, no stroke grew
+                if still or 0.0 <= now - last.at < self._answer_period:
+                    return last.frame, last.grey
             canvas = self.canvas(now, face, answers, talking, out=self._canvas)
             frame = self.warp(canvas)
             grey = cv2.cvtColor(canvas, cv2.COLOR_BGR2GRAY)
-            self._last = _Shown(face, pose, frame, grey) if not answers else None
+            self._last = _Shown(face, pose, version, self.strokes.keys, moving, now, frame, grey)
+            self.rendered += 1
             return frame, grey
 
 
 @dataclass(frozen=True, eq=False)
 class _Shown:
-    """The newest frame drawn without answers, and what it shows (the face array itself, or the avatar's pose)."""
+    """The newest frame drawn, and what it shows: the face array itself or the avatar's pose, the stroke layer's
+    version, the other answers (the very objects: the engine replaces an answer it changes) and their time."""
 
     face: np.ndarray | None
     pose: tuple[int, ...] | None
+    strokes: int  # the stroke layer's version
+    stroke_keys: tuple[Hashable, ...]  # which strokes it holds
+    moving: tuple[Answer, ...]
+    at: float  # the time the answers were drawn at
     frame: np.ndarray
     grey: np.ndarray  # its canvas in grey
 
-    def shows(self, face: np.ndarray | None, pose: tuple[int, ...] | None) -> bool:
-        return face is self.face and (face is not None or pose == self.pose)
+    def shows(
+        self, face: np.ndarray | None, pose: tuple[int, ...] | None, stroke_keys: tuple[Hashable, ...], moving: tuple[Answer, ...]
+    ) -> bool:
+        """The same picture and the same answers, though maybe at another time (strokes maybe longer)."""
+        return (
+            face is self.face
+            and (face is not None or pose == self.pose)
+            and stroke_keys == self.stroke_keys
+            and len(moving) == len(self.moving)
+            and all(a is b for a, b in zip(moving, self.moving))
+        )

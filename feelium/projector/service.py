@@ -191,6 +191,7 @@ class ProjectorService:
         report = dict(self.counters)
         report["display"] = self.display.name
         report["calibration"] = self.calibration.source
+        report["rendered"] = self.renderer.rendered  # the rest of "frames" showed the previous frame again
         if self.engine is not None:
             report["engine"] = dict(self.engine.counts)
         return report

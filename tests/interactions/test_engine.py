@@ -134,7 +134,8 @@ def test_drawing_strokes_stream_live_and_a_correct_guess_ignites():
     strokes = [e for e in d.events if e.phase == "stroke"]
     sent = [p for e in strokes for p in e.detail["points"]]
     assert len(sent) >= 10 and sent[-1] == pytest.approx([0.52, 0.61], abs=1e-3)
-    assert any(a.kind == "stroke" for a in d.engine.answers(d.now))
+    stroke = next(a for a in d.engine.answers(d.now) if a.kind == "stroke")
+    assert (stroke.detail["round"], stroke.detail["stroke"]) == (1, 1)  # the projector's stroke layer keys on these
     prompt = next(a for a in d.engine.answers(d.now) if a.kind == "prompt")
     word = prompt.detail["text"].removeprefix("draw: ")
     d.feed([WearerAction("guess", 3.0, {"word": "definitely wrong"}), WearerAction("guess", 3.5, {"word": word.upper() + "S"})])
