@@ -10,7 +10,7 @@ from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight
 
 
-def _predict(frame: np.ndarray) -> np.ndarray:
+def _predict(frame: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     return np.full((3, 4), float(frame.mean()) / 100.0, np.float32)
 
 
