@@ -44,7 +44,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 ServiceBuilder = Callable[[Config, Hub], "Service | None"]
-ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray], np.ndarray]]
+ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray, np.ndarray | None], np.ndarray]]
 
 
 # --- sensing: cameras and the thermal camera feed the bus -------------------------------------------------------

@@ -112,25 +112,44 @@ class CanvasLightPredictor:
         weight = lit.astype(np.float32)
         blurred = cv2.GaussianBlur(weight, (0, 0), self.diffusion_px) if self.diffusion_px > 0 else weight
         self._lit_blur = np.maximum(blurred, 1e-3)
+        # The per-frame intermediates of :meth:`gain`, allocated once (sizes are fixed at construction).
+        rw, rh = self._reduced_size
+        self._lut_out = np.empty((self.canvas_size[1], self.canvas_size[0]), np.float32)
+        self._reduced = np.empty((rh, rw), np.float32)
+        self._seen = np.empty((fh, fw), np.float32)
+        self._blurred = np.empty((fh, fw), np.float32)
 
-    def gain(self, canvas_grey: np.ndarray) -> np.ndarray:
-        """(H, W) float32 gain at the touch pipeline's frame size for a grey (uint8) skin canvas."""
+    def gain(self, canvas_grey: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """(H, W) float32 gain at the touch pipeline's frame size for a grey (uint8) skin canvas.
+
+        ``out`` (frame size, float32): write the gain there (the caller recycles the arrays of frames it no longer
+        needs). Every intermediate is one of the predictor's own buffers: the daemon maps allocations from 128 KB
+        (``[daemon] malloc_mmap_threshold_kb``), so a fresh 0.8 MB light table and three 0.3 MB images per frame
+        cost page faults that tripled the prediction's CPU time (docs/performance.md).
+        """
         cw, ch = self.canvas_size
         if canvas_grey.shape != (ch, cw) or canvas_grey.dtype != np.uint8:
             raise ValueError(f"canvas must be {cw}x{ch} grey uint8, got {canvas_grey.shape} {canvas_grey.dtype}")
-        light = cv2.LUT(canvas_grey, self._lut)
+        fw, fh = self.frame_size
+        if out is None or out.shape != (fh, fw) or out.dtype != np.float32:
+            out = np.empty((fh, fw), np.float32)
+        light = cv2.LUT(canvas_grey, self._lut, dst=self._lut_out)
         if self._undrawn is not None:
             light.ravel()[self._undrawn] = self._border
         if self.reduce > 1:
-            light = _area_reduce(light, self.reduce, self._reduced_size, self._border)
-        seen = cv2.remap(light, self._map1, self._map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                         borderValue=self._border)
-        if self.diffusion_px > 0:
+            light = _area_reduce(light, self.reduce, self._reduced_size, self._border, self._reduced)
+        if self.diffusion_px <= 0:
+            cv2.remap(light, self._map1, self._map2, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=self._border)
+        else:
+            seen = cv2.remap(light, self._map1, self._map2, cv2.INTER_LINEAR, dst=self._seen,
+                             borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
             # Blur over the lit pixels only (normalised): nothing is known of the light beyond the band.
             seen[self._dark] = 0.0
-            seen = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px) / self._lit_blur
-        seen[self._uncovered] = 1.0
-        return seen
+            blurred = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px, dst=self._blurred)
+            np.divide(blurred, self._lit_blur, out=out)
+        out[self._uncovered] = 1.0
+        return out
 
 
 def _renderer_camera_points(
@@ -186,10 +205,11 @@ def _reduction(map_x: np.ndarray, map_y: np.ndarray, off: np.ndarray) -> int:
     return max(1, int(np.floor(_scale(map_x, map_y, off) + 0.25)))
 
 
-def _area_reduce(light: np.ndarray, factor: int, size: tuple[int, int], pad: float) -> np.ndarray:
-    """Average ``factor`` x ``factor`` blocks; a canvas not a multiple of ``factor`` is padded with ``pad``."""
+def _area_reduce(light: np.ndarray, factor: int, size: tuple[int, int], pad: float, dst: np.ndarray) -> np.ndarray:
+    """Average ``factor`` x ``factor`` blocks into ``dst``; a canvas not a multiple of ``factor`` is padded with
+    ``pad``."""
     rw, rh = size
     h, w = light.shape
     if (rw * factor, rh * factor) != (w, h):
         light = cv2.copyMakeBorder(light, 0, rh * factor - h, 0, rw * factor - w, cv2.BORDER_CONSTANT, value=pad)
-    return cv2.resize(light, (rw, rh), interpolation=cv2.INTER_AREA)
+    return cv2.resize(light, (rw, rh), dst=dst, interpolation=cv2.INTER_AREA)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from feelium.touch.buffers import Scratch
@@ -37,7 +38,12 @@ FRAME_MAX = 1e4  # grey levels (any camera depth, any working dtype) above which
 SHARE_SAMPLE_STEP = 4
 MIN_INFORMATIVE = 50  # pixels whose light varied, needed to pool the projector's share
 SHARE_LIMITS = (0.05, 1.0)
-INITIAL_SHARE = 0.5  # the projector's share of the light assumed before it is learned  # the projector's share of the light, as far as it is believed
+INITIAL_SHARE = 0.5  # the projector's share of the light assumed before it is learned
+# How often the slope is solved from the sums once the share is known (s). The sums take every hand-free frame;
+# the solve (a dozen passes over the image and a median) is most of the learning's cost and the response it solves
+# for moves with a time constant of ``tau_s`` (20 s): in 0.2 s the sums give 1 % of their weight to new frames, so a
+# solve every frame moved the slope by about a hundredth of what 0.2 s of frames can teach.
+FIT_INTERVAL_S = 0.2
 
 
 class ProjectorResponse:
@@ -51,6 +57,9 @@ class ProjectorResponse:
         self.share: float | None = None  # projector's share of a pixel's light under flat grey, once learned
         self._sums: list[np.ndarray] | None = None  # weights, light, light^2, frame, frame * light
         self._last_t: float | None = None
+        self._last_fit_t: float | None = None
+        self._fit_due = False  # a caller saw the light change: solve on the next learned frame
+        self.fits = 0
         self._scratch = Scratch()  # learn's and the fit's per-frame temporaries: it runs on every hand-free frame
 
     def reset(self) -> None:
@@ -59,6 +68,13 @@ class ProjectorResponse:
         self.share = None
         self._sums = None
         self._last_t = None
+        self._last_fit_t = None
+        self._fit_due = False
+
+    def request_fit(self) -> None:
+        """Solve on the next :meth:`learn`, whatever the interval: the caller saw the membrane's light change (a lamp,
+        an exposure step), which is when the projector's share of the light can move."""
+        self._fit_due = True
 
     def compensate(self, frame: np.ndarray, light: np.ndarray) -> np.ndarray:
         """``frame + a * (1 - light)``: the frame as the flat grey would have lit it (one reused buffer, valid
@@ -80,14 +96,25 @@ class ProjectorResponse:
         return np.add(frame, part, out=buf.get("compensated", shape, np.result_type(frame, part)))
 
     def learn(self, t: float, frame: np.ndarray, light: np.ndarray, usable: np.ndarray) -> None:
-        """Add one hand-free frame (``usable``: unshadowed, unsaturated, finite pixels) to the fit."""
+        """Add one hand-free frame (``usable``: unshadowed, unsaturated, finite pixels) to the sums; solve the slope
+        when it is due.
+
+        The solve is due on every frame until the projector's share is known (nothing is settled before), then
+        every :data:`FIT_INTERVAL_S` of frame time, and on the first frame after :meth:`request_fit`.
+        """
         # Values outside what a camera and a prediction can give (NaN, inf, negative, absurdly large) teach nothing.
         buf = self._scratch
-        check = buf.like("learn.check", usable)
-        usable = np.logical_and(usable, np.greater_equal(frame, 0.0, out=check), out=buf.like("learn.usable", usable))
-        usable &= np.less_equal(frame, FRAME_MAX, out=check)
-        usable &= np.greater_equal(light, 0.0, out=check)
-        usable &= np.less_equal(light, LIGHT_MAX, out=check)
+        # One pass each proves the usual case, every value in range (the pipeline cleans the light, a camera gives
+        # finite values), and then masking is a product with the 0/1 weights; else each pixel is checked.
+        in_range = bool(cv2.checkRange(frame, True, 0.0, FRAME_MAX)[0]) and bool(
+            cv2.checkRange(light, True, 0.0, LIGHT_MAX)[0]
+        )
+        if not in_range:
+            check = buf.like("learn.check", usable)
+            usable = np.logical_and(usable, np.greater_equal(frame, 0.0, out=check), out=buf.like("learn.usable", usable))
+            usable &= np.less_equal(frame, FRAME_MAX, out=check)
+            usable &= np.greater_equal(light, 0.0, out=check)
+            usable &= np.less_equal(light, LIGHT_MAX, out=check)
         if not usable.any():
             return
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
@@ -98,21 +125,28 @@ class ProjectorResponse:
         if self.slope is None:
             self.compensate(frame, light)
         f = buf.like("learn.f", usable, np.float32)
-        f.fill(0.0)
-        np.copyto(f, frame, where=usable)
         x = buf.like("learn.x", usable, np.float32)
-        x.fill(0.0)
-        np.copyto(x, light, where=usable)
+        if in_range:  # finite and >= 0: a product with 0 or 1 is the value or +0, exactly as the copy below
+            np.multiply(frame, w, out=f)
+            np.multiply(light, w, out=x)
+        else:
+            f.fill(0.0)
+            np.copyto(f, frame, where=usable)
+            x.fill(0.0)
+            np.copyto(x, light, where=usable)
         xx = np.multiply(x, x, out=buf.like("learn.xx", x))
         fresh = [w, x, xx, f, np.multiply(f, x, out=buf.like("learn.fx", x))]
         if self._sums is None:
             self._sums = [a.copy() for a in fresh]  # kept across frames: never a scratch buffer
         else:
             for total, add in zip(self._sums, fresh):
-                total *= keep
-                total += add
+                cv2.scaleAdd(total, float(keep), add, dst=total)  # total * keep + add in one pass
         self.updates += 1
-        self._fit()
+        due = self._last_fit_t is None or t - self._last_fit_t >= FIT_INTERVAL_S - 1e-6  # 6 / 30 s is 0.2 s too
+        if self.share is None or self._fit_due or due:
+            self._fit()
+            self.fits += 1
+            self._last_fit_t, self._fit_due = t, False
 
     def _fit(self) -> None:
         """Ridge slope per pixel: (cov(light, frame) + prior_var * prior) / (var(light) + prior_var).

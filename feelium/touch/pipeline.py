@@ -195,6 +195,7 @@ class TouchPipeline:
         stepped = abs(gain / ref.gain - 1.0) > cfg.rebaseline_gain_step
         if self.settled and self._follow_light(work, stepped):
             gain = ref.measure_gain(work, self._shadow)
+            self.response.request_fit()  # the room's light changed: the projector's share of it may have too
         if self.settled:
             ref.observe_gain(gain, work, self._shadow)
         ref.measure_rows(work, self._deep)
@@ -221,8 +222,9 @@ class TouchPipeline:
         self.noise = float(floor.max()) if floor.size else 0.0
         uncertain = None
         if spread is not None and self.response.slope is not None:
-            expected = np.maximum(ref.image * ref.expected_gain(), np.float32(cfg.dark_reference_level))
-            bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma)
+            expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("uncertainty.expected", ref.image))
+            np.maximum(expected, np.float32(cfg.dark_reference_level), out=expected)
+            bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma, buf)
             smooth -= bound  # the smallest depth the prediction allows: its error cannot make a shadow
             uncertain = bound >= cfg.noise_floor
             self.uncertain_frames += bool(uncertain.any())
@@ -367,7 +369,8 @@ class TouchPipeline:
         g = self.geometry
         out = self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype)
         light = g.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False), out=out)
-        np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
+        if not cv2.checkRange(light)[0]:  # one pass, and almost always all finite: nan_to_num takes four
+            np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
         np.clip(light, 0.0, LIGHT_MAX, out=light)
         return light
 

@@ -67,9 +67,11 @@ class ProjectorHistory:
 class ExposureLight:
     """Per camera frame size: (light, spread) a camera exposure saw, from the recent projector frames."""
 
-    def __init__(self, predict: Callable[[np.ndarray], np.ndarray], config: TouchConfig) -> None:
-        """``predict``: a projector frame's grey canvas to its light at the camera frame size (relative to the flat
-        grey)."""
+    def __init__(self, predict: Callable[[np.ndarray, np.ndarray | None], np.ndarray], config: TouchConfig) -> None:
+        """``predict(canvas, out)``: a projector frame's grey canvas to its light at the camera frame size (relative
+        to the flat grey), written into ``out`` when it is an array of that size (float32) or a new array when it is
+        None or not. ``out`` is the light of a frame that left the window: recycling it keeps the daemon from
+        mapping and faulting in a new 0.3 MB image per projector frame (allocations from 128 KB are mmapped)."""
         self._predict = predict
         self._latency = config.projector_latency_s
         self._sigma = config.projector_latency_sigma_s
@@ -79,6 +81,7 @@ class ExposureLight:
         # frame in which nothing changed (canvases are never rewritten once published), and its light is the same.
         self._sources: dict[int, np.ndarray] = {}
         self._scratch = Scratch()  # the mixes: the pipeline reads them within the same camera frame
+        self._free: list[np.ndarray] = []  # lights of frames no longer in the window, to predict into
         self.predicted = 0
 
     def __call__(self, frames: list[tuple[float, int, np.ndarray]], t: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -98,7 +101,8 @@ class ExposureLight:
                 if same is not None:
                     light = self._lights[same]
                 else:
-                    light = self._predict(frame).astype(np.float32, copy=False)
+                    out = self._free.pop() if self._free else None
+                    light = self._predict(frame, out).astype(np.float32, copy=False)
                     self.predicted += 1
                 self._lights[seq], self._sources[seq] = light, frame
             return light
@@ -113,5 +117,9 @@ class ExposureLight:
             scratch=self._scratch,
         )
         for seq in [s for s in self._lights if s not in by_seq]:
-            del self._lights[seq], self._sources[seq]
+            light = self._lights.pop(seq)
+            del self._sources[seq]
+            if not any(other is light for other in self._lights.values()):  # a frame shown again shares its light
+                self._free.append(light)
+        del self._free[2:]  # one or two new frames per camera frame
         return result

@@ -38,8 +38,9 @@ from feelium.touch.sensing import SensingMonitor, SensingSample
 log = logging.getLogger(__name__)
 
 PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, int] | None"], Any]
-# Per camera frame size (width, height): a projector frame to the light it puts on the membrane, camera frame size.
-ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray], np.ndarray]]
+# Per camera frame size (width, height): a projector frame to the light it puts on the membrane, camera frame size
+# (``predict(canvas, out)``: ``out`` a recycled array to write into, or None; see ExposureLight).
+ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray, np.ndarray | None], np.ndarray]]
 Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
 
 

@@ -96,7 +96,7 @@ def predicted_exposure(
             if out is None:
                 out = np.multiply(light, np.float32(w), out=buf.get(name, light.shape, dtype))
             else:
-                out += np.multiply(light, np.float32(w), out=buf.get("exposure.term", light.shape, dtype))
+                cv2.scaleAdd(light.astype(dtype, copy=False), float(w), out, dst=out)  # out += w * light, one pass
         assert out is not None
         return out
 
@@ -105,25 +105,34 @@ def predicted_exposure(
     if latency_sigma_s <= 0.0:
         spread.fill(0)
         return light, spread
-    np.abs(np.subtract(mix(latency_s - latency_sigma_s, "exposure.other"), light, out=spread), out=spread)
+    cv2.absdiff(mix(latency_s - latency_sigma_s, "exposure.other"), light, dst=spread)
     other = mix(latency_s + latency_sigma_s, "exposure.other")
-    np.abs(np.subtract(other, light, out=other), out=other)
-    np.maximum(spread, other, out=spread)
+    cv2.absdiff(other, light, dst=other)
+    cv2.max(spread, other, dst=spread)
     return light, spread
 
 
-def depth_uncertainty(spread: np.ndarray, slope: np.ndarray, expected: np.ndarray, sigma: float) -> np.ndarray:
+def depth_uncertainty(
+    spread: np.ndarray, slope: np.ndarray, expected: np.ndarray, sigma: float, scratch: Scratch | None = None
+) -> np.ndarray:
     """Per working pixel, the largest smoothed depth a prediction error within ``spread`` can fake.
 
     An error ``e`` of the predicted light moves the compensated frame by ``slope * e`` (the pixel's gain for
     projected light), so its depth by ``slope * e / expected`` (``expected``: the reference times the exposure
     gain, floored by the caller). The depth map is smoothed by a Gaussian of ``sigma`` before any decision, and
-    ``|G * x| <= G * |x|``, so the same smoothing of the bound bounds the smoothed error.
+    ``|G * x| <= G * |x|``, so the same smoothing of the bound bounds the smoothed error. With ``scratch`` the
+    result is one of its buffers (valid until its next use).
     """
-    with np.errstate(invalid="ignore", over="ignore"):
-        bound = spread * slope / expected
-    np.nan_to_num(bound, copy=False, nan=0.0, posinf=1.0, neginf=0.0)
+    buf = Scratch() if scratch is None else scratch
+    dtype = np.result_type(spread, slope, expected)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        bound = np.multiply(spread, slope, out=buf.get("uncertainty.bound", spread.shape, dtype))
+        np.divide(bound, expected, out=bound)
+    if not cv2.checkRange(bound)[0]:  # one pass; finite inputs (the pipeline cleans them) give a finite bound
+        np.nan_to_num(bound, copy=False, nan=0.0, posinf=1.0, neginf=0.0)
     np.clip(bound, 0.0, 1.0, out=bound)
     if sigma > 0.2:
-        bound = cv2.GaussianBlur(bound, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+        bound = cv2.GaussianBlur(
+            bound, (0, 0), sigma, dst=buf.like("uncertainty.smooth", bound), borderType=cv2.BORDER_REPLICATE
+        )
     return bound

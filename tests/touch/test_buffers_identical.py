@@ -11,6 +11,11 @@ forced update), an exposure step (the re-baseline), added room light (the
 illumination re-seed), a saturated patch, and the projected-light compensation
 with its spread (NaN included). A buffer that leaks between frames or between
 two stages, or any reordering of the arithmetic, changes the digest.
+
+The compensated digest was re-pinned on branch i16t (2026-11-26), deliberately: the photometric response is
+solved every 0.2 s instead of every frame once its share is known (``FIT_INTERVAL_S``), and its sums decay in one
+``cv2.scaleAdd`` pass (a last-bit rounding difference). Every other change of that branch (buffers, the fast
+finite paths, the light predicted into recycled arrays) kept both digests; the static one did not move.
 """
 
 from __future__ import annotations
@@ -81,7 +86,7 @@ def _rounded(value: object) -> object:
     ("projected", "expected"),
     [
         (False, "55e1393eb6860ec6b4240dacf0334d3e721f9a3c49d44dbbde7d82025f9e36b9"),
-        (True, "7639e6d81fdfa50e49f3eb4c25e525202bae4b12730dd8bc6f2bbfd77cdb5ca7"),
+        (True, "be0861732e5f3d55b6d237e07ff25bb192e656204ac2cc6b0e11907ea6cd3e44"),
     ],
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:

@@ -10,7 +10,7 @@ from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight
 
 
-def _predict(frame: np.ndarray) -> np.ndarray:
+def _predict(frame: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     return np.full((3, 4), float(frame.mean()) / 100.0, np.float32)
 
 
@@ -35,3 +35,30 @@ def test_a_repeated_frame_gets_the_same_light_without_a_new_prediction(seed, rep
         np.testing.assert_allclose(got[0], want[0], rtol=1e-6)
         np.testing.assert_allclose(got[1], want[1], rtol=1e-6, atol=1e-7)
     assert memo.predicted == distinct and fresh.predicted == len(repeats)
+
+
+def _predict_into(frame: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """As _predict, writing into ``out`` when given (as CanvasLightPredictor.gain does)."""
+    out = np.empty((3, 4), np.float32) if out is None else out
+    out.fill(float(frame.mean()) / 100.0)
+    return out
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.lists(st.booleans(), min_size=2, max_size=40))
+def test_recycled_lights_give_what_fresh_ones_give(seed, repeats):
+    """Predicting into the arrays of frames that left the window never overwrites a light still in use."""
+    rng = np.random.default_rng(seed)
+    config = TouchConfig()
+    recycled, fresh = ExposureLight(_predict_into, config), ExposureLight(_predict, config)
+    frames: list[tuple[float, int, np.ndarray]] = []
+    current = rng.integers(0, 255, (6, 8, 3), np.uint8)
+    for i, repeat in enumerate(repeats):
+        if not repeat and i:
+            current = rng.integers(0, 255, (6, 8, 3), np.uint8)
+        frames = (frames + [(i / 30.0, i + 1, current)])[-int(rng.integers(2, 8)) :]
+        t = i / 30.0 + config.projector_latency_s
+        got, want = recycled(frames, t), fresh(frames, t)
+        assert got is not None and want is not None
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])

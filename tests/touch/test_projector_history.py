@@ -30,7 +30,7 @@ def test_at_30_fps_six_canvases_are_kept_at_most_twelve_at_any_rate():
     assert sum(c.nbytes for _, _, c in held.frames()) <= HISTORY_MAX * 512 * 384  # 3.1 MB, was 12 x 2.7 MB
 
 
-def _predict(canvas: np.ndarray) -> np.ndarray:
+def _predict(canvas: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     return np.full((3, 4), float(canvas[0, 0]) / 100.0, np.float32)
 
 

@@ -311,7 +311,7 @@ async def test_the_projected_light_of_each_exposure_goes_with_its_frame_at_the_f
 
     def projected(size):
         sizes.append(size)
-        return lambda canvas: np.full((size[1], size[0]), float(canvas[0, 0]) / 100.0, np.float32)
+        return lambda canvas, out=None: np.full((size[1], size[0]), float(canvas[0, 0]) / 100.0, np.float32)
 
     hub = Hub()
     hub.projector_canvas.publish(0.0, np.full((4, 4), 50, np.uint8))
@@ -361,7 +361,7 @@ def test_projection_compensation_only_for_frames_that_contain_the_projectors_lig
 
 async def test_a_failing_light_prediction_costs_only_the_compensation():
     def projected(size):
-        def predict(frame):
+        def predict(frame, out=None):
             raise ValueError("canvas must be 512x384 grey uint8")
 
         return predict

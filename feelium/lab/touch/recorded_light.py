@@ -46,7 +46,7 @@ class RecordedLight:
         self._next: tuple[float, np.ndarray] | None = next(frames, None)
         self._seq = 0
         self._history = ProjectorHistory(history_window_s(config))
-        self._light = ExposureLight(predictor.gain, config)
+        self._light = ExposureLight(lambda frame, _out: predictor.gain(frame), config)  # allocates: lab replay
 
     def __call__(self, t: float) -> dict[str, np.ndarray]:
         """What the daemon would know at camera time ``t``: every projector frame shown up to ``t``."""

@@ -1,0 +1,164 @@
+"""Thread CPU per camera frame of touch with the projected light compensated, as `feelium bench board` runs it:
+the rear frames the bench plays (320x240), the bench's projector calibration, a talking face on the skin (the
+face-on experiment's wearer video through the daemon's renderer, 30 fps), each camera frame's light and spread
+mixed by :class:`feelium.touch.projected.ExposureLight` and the pipeline fed with them.
+
+    PYTHONPATH=$PWD python3 benchmarks/touch_compensated_cost.py [--loops 3] [--profile] [--json FILE]
+
+One OpenCV thread (the daemon's touch thread competes with the projector's pool: its own figure is the one that
+counts). Reports ms per camera frame: ``predict`` (each new projector canvas to its light), ``mix`` (the exposure
+mixes and spread), ``pipeline`` (``TouchPipeline.process``) and ``total``; ``--profile`` also splits the
+pipeline's time by stage (timing wrappers: they add a few microseconds a call). The bench's frames hold no
+projection, so this measures cost, not accuracy (the face-on experiment measures that). The first loop warms
+up; each figure is the median over the later loops of their means. For an A/B run it from the older tree with
+``PYTHONPATH`` pointing there, back to back.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import json
+import statistics
+import tempfile
+import time
+from collections import defaultdict
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from feelium.daemon.config import Config
+from feelium.daemon.memory import tune_malloc
+from feelium.lab.daemon.board import simulated_calibration
+from feelium.lab.daemon.preloaded import rear_frames
+from feelium.lab.touch.faceon import FaceScript, FaceVideo
+from feelium.projector.canvaslight import CanvasLightPredictor
+from feelium.projector.renderer import Renderer
+from feelium.skin.projector_map import load_or_default
+from feelium.touch import pipeline as pipeline_module
+from feelium.touch.pipeline import TouchPipeline
+from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
+
+FPS = 30.0
+SHOWN_OFFSET_S = 0.004  # the projector's frames are handed over a little after the camera's (unsynchronised clocks)
+
+STAGES = {  # (owner, attribute) timed with --profile, charged to the name
+    "compensate": ("response", "compensate"),
+    "learn (sums + fit)": ("response", "learn"),
+    "fit": ("response", "_fit"),
+    "follow light": ("pipeline", "_follow_light"),
+    "cut light/spread": ("pipeline", "_cut_light"),
+    "prepare": ("pipeline", "_prepare"),
+    "depth_uncertainty": ("module", "depth_uncertainty"),
+    "relative_depth": ("module", "relative_depth"),
+    "find_candidates": ("module", "find_candidates"),
+    "noise floor": ("module", "_noise_floor_map"),
+    "reference update": ("reference", "update"),
+    "tracker": ("tracker", "step"),
+}
+
+
+def _timed(fn: Callable[..., Any], name: str, sink: dict[str, float]) -> Callable[..., Any]:
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        start = time.thread_time()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            sink[name] += time.thread_time() - start
+
+    return wrapper
+
+
+def _instrument(pipeline: TouchPipeline, sink: dict[str, float]) -> None:
+    owners = {"response": pipeline.response, "pipeline": pipeline, "reference": pipeline.reference,
+              "tracker": pipeline.tracker}  # fmt: skip
+    for name, (owner, attr) in STAGES.items():
+        if owner == "module":
+            setattr(pipeline_module, attr, _timed(getattr(pipeline_module, attr), name, sink))
+        else:
+            target = owners[owner]
+            setattr(target, attr, _timed(getattr(target, attr), name, sink))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--loops", type=int, default=3, help="passes over the 6 s of frames (the first warms up)")
+    parser.add_argument("--profile", action="store_true", help="split the pipeline's time by stage")
+    parser.add_argument("--json", help="write the figures here")
+    args = parser.parse_args()
+    cv2.setNumThreads(1)
+    config = Config()
+    tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
+    size = (config.touch.width, config.touch.height)
+    frames, roi = rear_frames(config.sim, size, FPS, 6.0)
+    with tempfile.TemporaryDirectory() as scratch:
+        path = simulated_calibration(config, Path(scratch))
+        calibration = load_or_default(path, (config.projector.width, config.projector.height), None)
+    renderer = Renderer(config.projector, calibration)
+    source = Renderer(replace(config.projector, sensing_floor=0.0, fade_floor=0.0), calibration)
+    video = FaceVideo(renderer, source, FaceScript(), 0.0)
+    loops = max(2, args.loops)
+    canvases = [video.shown(k)[1] for k in range(len(frames) * loops + 2)]  # rendered outside the timing
+    predictor = CanvasLightPredictor(config.projector, calibration, size)
+    cpu: dict[str, float] = defaultdict(float)
+
+    recycles = "out" in inspect.signature(predictor.gain).parameters  # older trees: predict(canvas) only
+
+    def predict(canvas: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        start = time.thread_time()
+        try:
+            return predictor.gain(canvas, out) if recycles else predictor.gain(canvas)
+        finally:
+            cpu["predict"] += time.thread_time() - start
+
+    pipeline = TouchPipeline(config.touch, size, roi)
+    if args.profile:
+        _instrument(pipeline, cpu)
+    exposure = ExposureLight(predict, config.touch)
+    history = ProjectorHistory(history_window_s(config.touch))
+    per_loop: list[dict[str, float]] = []
+    shown = 0
+    for loop in range(loops):
+        cpu.clear()
+        for i, frame in enumerate(frames):
+            t = (loop * len(frames) + i) / FPS
+            while shown / FPS + SHOWN_OFFSET_S <= t:
+                history.record(shown / FPS + SHOWN_OFFSET_S, shown + 1, canvases[shown])
+                shown += 1
+            start = time.thread_time()
+            mixed = exposure(history.frames(), t)
+            middle = time.thread_time()
+            if mixed is None:
+                pipeline.process(t, frame)
+            else:
+                pipeline.process(t, frame, projected_light=mixed[0], projected_spread=mixed[1])
+            end = time.thread_time()
+            cpu["exposure light"] += middle - start
+            cpu["pipeline"] += end - middle
+        row = {name: 1000.0 * value / len(frames) for name, value in cpu.items()}
+        row["mix"] = row["exposure light"] - row.get("predict", 0.0)
+        row["total"] = row["exposure light"] + row["pipeline"]
+        per_loop.append(row)
+    later = per_loop[1:]
+    report = {
+        "frames_per_loop": len(frames),
+        "loops": loops,
+        "response_fits": getattr(pipeline.response, "fits", pipeline.response.updates),
+        "response_updates": pipeline.response.updates,
+        "projector_frames_predicted": exposure.predicted,
+        "ms_per_frame": {k: round(statistics.median(r.get(k, 0.0) for r in later), 3) for k in sorted(later[0])},
+        "total_by_loop": [round(r["total"], 3) for r in per_loop],
+    }
+    print(json.dumps(report, indent=1))
+    if args.json:
+        with open(args.json, "w") as out:
+            json.dump(report, out, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
