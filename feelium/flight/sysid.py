@@ -174,6 +174,8 @@ class Signals:
     accel: dict[str, np.ndarray]  # d rate / dt over each period, length N - 1
     trusted: dict[str, np.ndarray]
     sigma: dict[str, float]  # smoothing in samples, applied to the regressors as well
+    measured: dict[str, np.ndarray]  # the raw readings at the ticks t_k, length N: altitude m, forward speed m/s, yaw rate rad/s
+    inside_heave: np.ndarray  # per tick: the altitude is clear of the floor and ceiling limits
 
 
 def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: float = math.inf,
@@ -195,8 +197,8 @@ def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: f
     w = np.gradient(z, dt)
     mid_w = 0.5 * (w[1:] + w[:-1])
     rate["heave"], accel["heave"] = mid_w, np.diff(w) / dt
-    inside = (z[1:] > floor_limit_m + NEAR_LIMIT_M) & (z[1:] < ceiling_limit_m - NEAR_LIMIT_M)
-    trusted["heave"] = ok[1:] & ok[:-1] & inside & np.isfinite(mid_w)
+    clear = (z > floor_limit_m + NEAR_LIMIT_M) & (z < ceiling_limit_m - NEAR_LIMIT_M)
+    trusted["heave"] = ok[1:] & ok[:-1] & clear[1:] & np.isfinite(mid_w)
 
     height = np.interp(grid, grid[np.isfinite(z)], z[np.isfinite(z)]) if np.isfinite(z).any() else np.full(grid.size, np.nan)
     flow_u = _on_grid(record, np.asarray(record.flow_x_rad_s, float), FLOW_LATENCY_S, grid) * height
@@ -207,7 +209,8 @@ def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: f
         rate[axis] = 0.5 * (value[1:] + value[:-1])
         accel[axis] = np.diff(value) / dt
         trusted[axis] = ok[1:] & ok[:-1] & np.isfinite(rate[axis])
-    return Signals(dt, commands, rate, accel, trusted, sigma)
+    measured = {"heave": z_raw, "surge": flow_u, "yaw": gyro}
+    return Signals(dt, commands, rate, accel, trusted, sigma, measured, clear)
 
 
 # ---------------------------------------------------------------- least squares
