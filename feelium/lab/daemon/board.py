@@ -51,6 +51,7 @@ from feelium.lab.daemon.numeric import NumericProfiler, numeric_shares
 from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_frames
 from feelium.lab.daemon.projection import project
 from feelium.lab.daemon.quota import join
+from feelium.lab.daemon.samples import SampleBlock
 from feelium.lab.report import emit_report
 from feelium.skin.projector_map import load_or_default
 from feelium.service import Service
@@ -59,6 +60,7 @@ TOKEN = "bench-board-token"
 WARMUP_S = 3.0  # devices open, caches warm, the headset clients connect
 FIRST_TOUCH_FRAME_S = 30.0  # the longest the window waits for the touch pipeline's first frame
 LAG_PROBE_S = 0.01
+RSS_EVERY_S = 0.5
 REAR_LOOP_S = 6.0  # seconds of rear frames preloaded (touches every ~1.5 s); longer only costs memory
 FRONT_LOOP_S = 1.0
 
@@ -138,12 +140,12 @@ def _percentile(values: list[float], q: float) -> float:
     return float(np.percentile(np.asarray(values, dtype=np.float64), q)) if values else float("nan")
 
 
-async def _lag_probe(lags_ms: list[float], stop: asyncio.Event) -> None:
+async def _lag_probe(lags_ms: SampleBlock, stop: asyncio.Event) -> None:
     """How late the loop wakes a 10 ms sleeper: what any callback waits behind the others."""
     while not stop.is_set():
         due = time.perf_counter() + LAG_PROBE_S
         await asyncio.sleep(LAG_PROBE_S)
-        lags_ms.append(1000.0 * max(0.0, time.perf_counter() - due))
+        lags_ms.add(1000.0 * max(0.0, time.perf_counter() - due))
 
 
 def _start_headset(port: int, seconds: float, motion_transport: str) -> subprocess.Popen[str]:
@@ -174,8 +176,10 @@ async def _measure(
     undo = charge_loop_callbacks(ledger)
     overhead_s = callback_overhead_s(loop, ledger)
     hub, stop, lag_stop = Hub(), asyncio.Event(), asyncio.Event()
-    lags: list[float] = []
-    rss: list[tuple[float, float]] = []
+    # Fixed blocks, written before the run: the bench's own samples must not show as the daemon's memory growth.
+    lags = SampleBlock(math.ceil(seconds / LAG_PROBE_S) + 1)  # the probe sleeps at least LAG_PROBE_S between samples
+    rss = SampleBlock(math.ceil(seconds / RSS_EVERY_S) + 2)
+    peak_mb = [0.0]  # start-up included in the peak, not in the steady figure
     out: dict[str, Any] = {}
     started = asyncio.Event()
 
@@ -200,8 +204,8 @@ async def _measure(
                 profiler.counting = True
             start = time.monotonic()
             while (elapsed := time.monotonic() - start) < seconds:
-                rss.append((elapsed, memory_mb()["rss"]))
-                await asyncio.sleep(min(0.5, seconds - elapsed))
+                rss.add(memory_mb()["rss"])
+                await asyncio.sleep(min(RSS_EVERY_S, seconds - elapsed))
             ledger.counting = False
             if profiler is not None:
                 profiler.counting = False
@@ -223,8 +227,8 @@ async def _measure(
 
     async def peak() -> None:
         while not stop.is_set():
-            rss.append((-1.0, memory_mb()["rss"]))  # start-up included in the peak, not in the steady figure
-            await asyncio.sleep(0.5)
+            peak_mb[0] = max(peak_mb[0], memory_mb()["rss"])
+            await asyncio.sleep(RSS_EVERY_S)
 
     tasks = [asyncio.create_task(window()), asyncio.create_task(_lag_probe(lags, lag_stop)), asyncio.create_task(peak())]
     try:
@@ -241,8 +245,9 @@ async def _measure(
         done = await asyncio.gather(*tasks, return_exceptions=True)
     if isinstance(done[0], Exception):
         raise done[0]  # the measurement failed (e.g. the headset process): not a report with holes
-    out["lags_ms"] = list(lags)
-    out["rss"] = rss
+    out["lags_ms"] = lags.values().tolist()
+    out["rss"] = rss.values().tolist()
+    out["rss_peak"] = max(peak_mb[0], *out["rss"]) if out["rss"] else peak_mb[0]
     return out
 
 
@@ -367,7 +372,7 @@ def bench_board(
         scratch.cleanup()
     wall = measured["wall"]
     preload_mb = cameras.nbytes / 2**20
-    window = [mb for t, mb in measured["rss"] if t >= 0]
+    window = measured["rss"]
     rows = service_rows(measured, config, cameras, front_fps)
     result: dict[str, Any] = {
         "seconds": round(wall, 2),
@@ -389,7 +394,7 @@ def bench_board(
         "loop_lag_max_ms": round(max(measured["lags_ms"], default=float("nan")), 2),
         "preloaded_frames_mb": round(preload_mb, 1),
         "rss_mb": round(statistics.median(window[len(window) // 2 :]) - preload_mb, 1),
-        "rss_peak_mb": round(max(mb for _, mb in measured["rss"]) - preload_mb, 1),
+        "rss_peak_mb": round(measured["rss_peak"] - preload_mb, 1),
         "rss_growth_mb": _growth_mb(window),
         "cpu_quota": measured.get("cpu_quota"),
         "projected_light_compensation": projected_light,
