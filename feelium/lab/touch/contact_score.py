@@ -21,6 +21,7 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.lab.touch.evaluate import TrialData
+from feelium.lab.touch.ownership import tally_owners
 from feelium.recording import CONTACT_KINDS, Contact
 
 EARLY_S, LATE_S = 0.1, 0.4
@@ -51,27 +52,15 @@ def _trial(contacts: tuple[Contact, ...], events: list[TouchEvent], px_per_mm: f
             final[e.id] = e.shape.contact if e.shape is not None else None
         elif best >= 0:
             errors[best].append(best_d)
-    ids_of: list[set[int]] = [set() for _ in contacts]
-    swaps = phantoms = 0
-    kinds = {k: {c: 0 for c in (*CONTACT_KINDS, "none")} for k in CONTACT_KINDS}
-    for eid, owners in owner.items():
-        known = [o for o in owners if o >= 0]
-        if not known:
-            phantoms += 1
-            continue
-        swaps += sum(1 for a, b in zip(known, known[1:]) if a != b)
-        for o in set(known):
-            ids_of[o].add(eid)
-        main = max(set(known), key=known.count)
-        kinds[contacts[main].contact or "finger"][final.get(eid) or "none"] += 1
+    tally = tally_owners(owner, final, [c.contact or "finger" for c in contacts], CONTACT_KINDS)
     return {
         "contacts": len(contacts),
-        "touches": len(owner),
-        "missed": sum(1 for ids in ids_of if not ids),
-        "split": sum(max(len(ids) - 1, 0) for ids in ids_of),
-        "swaps": swaps,
-        "phantoms": phantoms,
-        "kinds": kinds,
+        "touches": tally["touches"],
+        "missed": tally["missed"],
+        "split": tally["split"],
+        "swaps": tally["swaps"],
+        "phantoms": tally["phantoms"],
+        "kinds": tally["confusion"],
         "errors": [float(np.median(v)) for v in errors if v],
     }
 

@@ -42,6 +42,7 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.lab.report import finish_experiment
+from feelium.lab.touch.ownership import tally_owners
 from feelium.sim.camera import frame_times
 from feelium.sim.hand import hand_parts
 from feelium.sim.hand_paths import HandTrack, Keyframe, LeanTrack, Tremor
@@ -189,27 +190,15 @@ def score(scene: Scene, events: list[TouchEvent], px_per_mm: float) -> dict[str,
             final[e.id] = e.shape.contact if e.shape is not None else None
             if e.shape is not None and e.shape.area_mm2 is not None and best >= 0:
                 areas[scene.truths[best].kind].append(e.shape.area_mm2)
-    ids_of: dict[int, set[int]] = {i: set() for i in range(len(scene.truths))}
-    swaps = phantoms = 0
-    confusion = {k: {c: 0 for c in (*KINDS, "none")} for k in KINDS}
-    for eid, owners in owner.items():
-        known = [o for o in owners if o >= 0]
-        if not known:
-            phantoms += 1
-            continue
-        swaps += sum(1 for a, b in zip(known, known[1:]) if a != b)
-        for o in set(known):
-            ids_of[o].add(eid)
-        main = max(set(known), key=known.count)
-        confusion[scene.truths[main].kind][final.get(eid) or "none"] += 1
+    tally = tally_owners(owner, final, [truth.kind for truth in scene.truths], KINDS)
     return {
         "truths": len(scene.truths),
-        "touches": len(owner),
-        "missed": sum(1 for ids in ids_of.values() if not ids),
-        "split": sum(max(len(ids) - 1, 0) for ids in ids_of.values()),
-        "swaps": swaps,
-        "phantoms": phantoms,
-        "confusion": confusion,
+        "touches": tally["touches"],
+        "missed": tally["missed"],
+        "split": tally["split"],
+        "swaps": tally["swaps"],
+        "phantoms": tally["phantoms"],
+        "confusion": tally["confusion"],
         "errors_px": [float(np.median(v)) for v in errors.values() if v],
         "areas_mm2": areas,
     }
