@@ -190,12 +190,14 @@ class TileWarp:
         margin of ``SCALE_MARGIN`` scale steps (whole steps, so it starts on a box pixel) is scaled with it
         and cut off, except at the grid's own edges, where the whole resize replicates too.
         """
+        coarse = self._coarse
+        assert coarse is not None, "scaled up only with a coarse grid"
         num, den = self._scale
-        h, w = self._coarse.shape[:2]
+        h, w = coarse.shape[:2]
         margin = SCALE_MARGIN * num
         a, b = max(ys.start - margin, 0), min(ys.stop + margin, h)
         c, d = max(xs.start - margin, 0), min(xs.stop + margin, w)
-        part = cv2.resize(self._coarse[a:b, c:d], ((d - c) * den // num, (b - a) * den // num), interpolation=cv2.INTER_LINEAR)
+        part = cv2.resize(coarse[a:b, c:d], ((d - c) * den // num, (b - a) * den // num), interpolation=cv2.INTER_LINEAR)
         r0, r1 = max(ys.start - num, 0) * den // num, min(ys.stop + num, h) * den // num
         c0, c1 = max(xs.start - num, 0) * den // num, min(xs.stop + num, w) * den // num
         into[r0:r1, c0:c1] = part[r0 - a * den // num : r1 - a * den // num, c0 - c * den // num : c1 - c * den // num]
