@@ -2,7 +2,7 @@
 another process (`feelium.lab.daemon.board_server`, as `feelium bench board` runs it), the service on an event loop
 of its own, nothing else running in the process.
 
-    python benchmarks/flight_tick_cost.py [--seconds 20] [--profile N] [--json FILE]
+    python benchmarks/flight_tick_cost.py [--seconds 20] [--profile N [--sort cumulative]] [--json FILE]
 
 It reports the serial thread's and the loop thread's CPU per cycle (ms), their sum (what one 50 Hz tick costs
 the daemon) and the event loop's callbacks per tick (its wake-ups, asyncio's plumbing included). ``--profile N`` prints cProfile's N most expensive functions of the same work run in one thread instead
@@ -64,7 +64,7 @@ async def _run(config: Config, port: str, seconds: float) -> dict[str, float]:
     }
 
 
-def _profile(config: Config, port: str, seconds: float, top: int) -> None:
+def _profile(config: Config, port: str, seconds: float, top: int, sort: str = "tottime") -> None:
     """The tick's work in one thread under cProfile: poll, step, send, sleep to the next period."""
     link = SerialOpener(port, config.flight.baudrate, config.flight.reply_timeout_s).open()
     client = MspClient(link, timeout_s=config.flight.reply_timeout_s)
@@ -85,13 +85,14 @@ def _profile(config: Config, port: str, seconds: float, top: int) -> None:
         time.sleep(max(0.0, next_t - time.monotonic()))
     profiler.disable()
     link.close()
-    pstats.Stats(profiler).sort_stats("tottime").print_stats(top)
+    pstats.Stats(profiler).sort_stats(sort).print_stats(top)
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--profile", type=int, default=0, help="print cProfile's N top functions instead")
+    parser.add_argument("--sort", default="tottime", help="cProfile's order with --profile (tottime, cumulative)")
     parser.add_argument("--json", help="write the figures here")
     args = parser.parse_args()
     config = Config()
@@ -99,7 +100,7 @@ def main() -> int:
     try:
         port = board.stdout.readline().strip() if board.stdout else ""
         if args.profile:
-            _profile(config, port, args.seconds, args.profile)
+            _profile(config, port, args.seconds, args.profile, args.sort)
             return 0
         report = asyncio.run(_run(config, port, args.seconds))
     finally:

@@ -24,20 +24,29 @@ class Setpoint:
 
 
 HOLD = Setpoint()
+SOFT = Setpoint(soften=True)  # a partner is holding or hugging it: no wearer motion into them
+
+# Each motion command: the setpoint field it drives, the FlightConfig rate it drives it at, and the sign.
+_MOTIONS = {
+    "forward": ("forward_m_s", "forward_speed_m_s", 1.0),
+    "backward": ("forward_m_s", "forward_speed_m_s", -1.0),
+    "up": ("climb_m_s", "climb_rate_m_s", 1.0),
+    "down": ("climb_m_s", "climb_rate_m_s", -1.0),
+    "turn_left": ("yaw_rate_dps", "yaw_rate_dps", -1.0),
+    "turn_right": ("yaw_rate_dps", "yaw_rate_dps", 1.0),
+}
 
 
 def setpoint_for_motion(name: str | None, config: FlightConfig, soften: bool = False) -> Setpoint:
-    """The setpoint for one of the six motion commands (``None`` or ``stop``: hold)."""
-    speed, climb, yaw = config.forward_speed_m_s, config.climb_rate_m_s, config.yaw_rate_dps
-    table = {
-        "forward": Setpoint(forward_m_s=speed),
-        "backward": Setpoint(forward_m_s=-speed),
-        "up": Setpoint(climb_m_s=climb),
-        "down": Setpoint(climb_m_s=-climb),
-        "turn_left": Setpoint(yaw_rate_dps=-yaw),
-        "turn_right": Setpoint(yaw_rate_dps=yaw),
-    }
-    chosen = table.get(name or "", HOLD)
+    """The setpoint for one of the six motion commands (``None``, ``stop`` or an unknown name: hold).
+
+    Called every control tick: only the chosen setpoint is built (building the six of the table each
+    time was the tick's largest allocation), and hold and soften are shared constants (setpoints are frozen).
+    """
     if soften:
-        return Setpoint(soften=True)  # a partner is holding or hugging it: no wearer motion into them
-    return chosen
+        return SOFT
+    motion = _MOTIONS.get(name or "")
+    if motion is None:
+        return HOLD
+    field_name, rate_name, sign = motion
+    return Setpoint(**{field_name: sign * getattr(config, rate_name)})

@@ -58,6 +58,12 @@ class ProjectorConfig:
         512, "Width of the skin canvas (the camera's sensitive patch) that layers are drawn on before warping.", min=16, max=4096
     )
     canvas_height: int = setting(384, "Height of the skin canvas.", min=16, max=4096)
+    warp_resolution: Literal["optics", "full"] = setting(
+        "optics",
+        "optics: warp the canvas onto the coarsest grid (1/2, 2/3 or all of the projector's pixels per axis) that "
+        "still has a sample per canvas pixel, then scale it up bilinearly (the membrane's blur hides the second "
+        "interpolation; docs/projector.md); full: remap every projector pixel.",
+    )
     gamma: float = setting(2.2, "Projector gamma: light output ~ (value / 255) ^ gamma.", min=1.0, max=3.0)
     black_level: float = setting(
         0.03, "Light a black projector pixel still gives, relative to white (predicts the back-light).", min=0.0, max=0.5

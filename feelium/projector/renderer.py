@@ -4,7 +4,8 @@ Layers are composed on a *skin canvas* that spans the camera's sensitive
 patch (u, v in 0..1, the touch events' own coordinates): the wearer's face (or
 the default avatar), then every answer at the spot it answers. One remap with
 a precomputed fixed-point map then carries the canvas to the projector's
-native resolution, so what is meant for a spot on the skin lands there through
+native resolution (onto the coarsest grid that keeps every canvas pixel, scaled up:
+:mod:`feelium.projector.optics`), so what is meant for a spot on the skin lands there through
 the fisheye, and a circle drawn on the canvas is a circle on the skin.
 
 Time, face image and answers in, a BGR frame out; the state kept between frames is the previous canvas and
@@ -29,6 +30,7 @@ from feelium.skin.projector_map import ProjectorMap
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.layers import DRAWERS
 from feelium.projector.lift import SensingLift
+from feelium.projector.optics import OFF_SKIN, canvas_density, coarse_maps, fit_box, warp_scale
 from feelium.projector.strokes import StrokeLayer
 from feelium.projector.tilewarp import TileWarp
 
@@ -75,8 +77,6 @@ class Renderer:
         inv_x, inv_y = calibration.projector_to_camera()
         map_x, map_y = canvas_map(inv_x, inv_y, calibration, self.canvas_size, face)
         off = ~(np.isfinite(map_x) & np.isfinite(map_y))
-        map_x[off] = -10.0  # outside the canvas: the border colour
-        map_y[off] = -10.0
         # Projector pixels that land on the sensitive patch, kept as bits (0.1 MB; a bool frame is 0.9 MB).
         self._covered_bits = np.packbits(~off)
         # Only the covered box is remapped each frame; the rest of the frame is the constant border.
@@ -84,10 +84,19 @@ class Renderer:
         if len(xs) == 0:
             raise ValueError("the calibration covers no projector pixel")
         self._box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
-        x0, y0, x1, y1 = self._box
-        map1, map2 = cv2.convertMaps(map_x[y0:y1, x0:x1], map_y[y0:y1, x0:x1], cv2.CV_16SC2)
+        frame_size = (config.width, config.height)
+        # Warped on the coarsest grid that keeps every canvas pixel, then scaled up (feelium.projector.optics).
+        self.warp_scale = warp_scale(canvas_density(map_x, map_y)) if config.warp_resolution == "optics" else (1, 1)
+        if self.warp_scale != (1, 1):
+            self._box = fit_box(self._box, frame_size, self.warp_scale[1])
+            map1, map2 = coarse_maps(map_x, map_y, self._box, self.warp_scale)
+        else:
+            map_x[off] = OFF_SKIN
+            map_y[off] = OFF_SKIN
+            x0, y0, x1, y1 = self._box
+            map1, map2 = cv2.convertMaps(map_x[y0:y1, x0:x1], map_y[y0:y1, x0:x1], cv2.CV_16SC2)
         border = tuple(int(c * 0.5) for c in BACKGROUND_BGR)
-        self.tiles = TileWarp(map1, map2, self._box, self.canvas_size, (config.width, config.height), border)
+        self.tiles = TileWarp(map1, map2, self._box, self.canvas_size, frame_size, border, self.warp_scale)
         self.avatar = Avatar(cw, ch)
         self._last: _Shown | None = None
         self._canvas = np.empty((ch, cw, 3), np.uint8)

@@ -12,6 +12,12 @@ fixed-point map (``CV_16SC2``) holds each pixel's integer source position,
 and bilinear interpolation reads it and its right, lower and diagonal
 neighbours. So the result is the full warp's, pixel for pixel.
 
+With a ``scale`` below one the maps are for a coarser grid than the projector's (the resolution the skin
+resolves, chosen by :func:`feelium.projector.optics.warp_scale`): the canvas is remapped onto that grid, which
+is kept whole, and the changed part of it is scaled up to projector pixels with a bilinear resize, several
+times cheaper per pixel than a remap. The full and the tiled warp then agree to within a grey level (the
+resize's fixed-point weights of a piece and of the whole may round apart), not pixel for pixel.
+
 Frames handed out are never written while anyone holds them: the display,
 the HTTP preview and the back-light predictor can keep one as long as they
 like. A frame buffer is reused only once nothing but the pool refers to it.
@@ -30,6 +36,7 @@ import numpy as np
 DEST_TILE = (32, 16)  # (w, h) projector pixels re-warped together: a run of these is one remap call
 SOURCE_TILE = 16  # canvas pixels per side of the squares compared between frames
 FULL_ABOVE = 0.5  # above this fraction of dirty destination tiles one full remap is cheaper than the runs
+SCALE_MARGIN = 2  # scale steps around a re-warped piece scaled up with it (bilinear reads one coarse pixel on)
 POOL_SIZE = 3  # frame buffers kept for reuse: the newest (shown, previewed), one being drawn, one held late
 
 
@@ -47,11 +54,24 @@ class TileWarp:
         canvas_size: tuple[int, int],
         frame_size: tuple[int, int],
         border: tuple[int, ...],
+        scale: tuple[int, int] = (1, 1),
     ) -> None:
         """``map1``/``map2``: ``cv2.convertMaps(..., CV_16SC2)`` output for the ``box`` (x0, y0, x1, y1) of a
         ``frame_size`` (w, h) BGR frame whose pixels outside the box are ``border``; ``canvas_size`` (w, h) of the
         canvases to warp. No blank frame is kept to copy from: a new frame is filled with ``border`` (a kept
-        template was 2.7 MB resident for the daemon's whole life)."""
+        template was 2.7 MB resident for the daemon's whole life).
+
+        ``scale`` (num, den): the maps are for a grid num/den of the box's size in each axis (the box's sides
+        are den/num times the maps'), whose every point (j, i) is the box pixel ((j + 0.5) den/num - 0.5, ...);
+        num must divide the destination tile's sides so that tiles fall on whole box pixels."""
+        num, den = scale
+        h, w = map1.shape[:2]
+        x0, y0, x1, y1 = box
+        if (x1 - x0) * num != w * den or (y1 - y0) * num != h * den or DEST_TILE[0] % num or DEST_TILE[1] % num:
+            raise ValueError(f"a {w}x{h} map at scale {num}/{den} does not cover the {x1 - x0}x{y1 - y0} box in whole tiles")
+        self._scale = scale
+        # The coarse grid's picture, kept whole between calls: what changed is re-warped into it, then scaled up.
+        self._coarse = np.empty((h, w, len(border)), np.uint8) if num != den else None
         self._map1, self._map2, self._box = map1, map2, box
         self._frame_shape, self._border = (frame_size[1], frame_size[0], len(border)), border
         cw, ch = canvas_size
@@ -93,24 +113,33 @@ class TileWarp:
         self.last_dirty_fraction = float(dirty.mean())
         if current is not None and not dirty.any():
             return current.array  # unchanged: the newest frame again (a pool never writes its newest)
+        # Scaled up, a re-warped tile's edge blends into its neighbours' edges: they change too (a ring of
+        # one coarse pixel, redone with the tile), and other buffers must catch up on them.
+        touched = dirty if self._coarse is None else _grow(dirty)
         target = self._free_buffer()
         if current is None or dirty.mean() > FULL_ABOVE:
             self._remap_box(canvas, target.array)
         else:
             # The buffer holds an older frame: bring the tiles that changed since then up to date from the
             # newest frame (a copy), then re-warp what changed now.
-            behind = target.stale & ~dirty
+            behind = target.stale & ~dirty  # copied before the rings around the dirty tiles are redone
             into, newest = self._in_box(target.array), self._in_box(current.array)
+            num, den = self._scale
             if behind.mean() > FULL_ABOVE:
                 np.copyto(into, newest)
             else:
-                for ys, xs in self._runs(behind):
+                for ys, xs in self._runs(behind, den, num):
                     into[ys, xs] = newest[ys, xs]
-            for ys, xs in self._runs(dirty):
-                cv2.remap(canvas, self._map1[ys, xs], self._map2[ys, xs], cv2.INTER_LINEAR, dst=into[ys, xs],
+            coarse = into if self._coarse is None else self._coarse
+            runs = list(self._runs(dirty))
+            for ys, xs in runs:
+                cv2.remap(canvas, self._map1[ys, xs], self._map2[ys, xs], cv2.INTER_LINEAR, dst=coarse[ys, xs],
                           borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
+            if self._coarse is not None:
+                for ys, xs in runs:
+                    self._scale_up_part(ys, xs, into)
         for buffer in self._pool:
-            buffer.stale |= dirty
+            buffer.stale |= touched
         target.stale[...] = False
         self._frame = target
         return target.array
@@ -126,7 +155,7 @@ class TileWarp:
         for buffer in self._pool:
             if buffer is not self._frame and sys.getrefcount(buffer.array) <= 2:  # the pool's and the argument's
                 return buffer
-        fresh = _Buffer(self._blank(), self._reads.copy())
+        fresh = _Buffer(self._blank(), self._reads.copy() if self._coarse is None else _grow(self._reads))
         self.allocated += 1
         if len(self._pool) < POOL_SIZE:
             self._pool.append(fresh)
@@ -146,8 +175,32 @@ class TileWarp:
         return frame[y0:y1, x0:x1]
 
     def _remap_box(self, canvas: np.ndarray, frame: np.ndarray) -> None:
-        cv2.remap(canvas, self._map1, self._map2, cv2.INTER_LINEAR, dst=self._in_box(frame),
+        into = self._in_box(frame)
+        coarse = into if self._coarse is None else self._coarse
+        cv2.remap(canvas, self._map1, self._map2, cv2.INTER_LINEAR, dst=coarse,
                   borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
+        if self._coarse is not None:
+            cv2.resize(self._coarse, (into.shape[1], into.shape[0]), dst=into, interpolation=cv2.INTER_LINEAR)
+
+    def _scale_up_part(self, ys: slice, xs: slice, into: np.ndarray) -> None:
+        """Scale the coarse grid's rows ``ys``, columns ``xs`` and a ring of one scale step (``num`` coarse
+        pixels) around them up into their box pixels of ``into``: the ring's box pixels blend the piece's.
+
+        Bilinear weights near a piece's edge would read past it (the resize replicates the edge), so a
+        margin of ``SCALE_MARGIN`` scale steps (whole steps, so it starts on a box pixel) is scaled with it
+        and cut off, except at the grid's own edges, where the whole resize replicates too.
+        """
+        coarse = self._coarse
+        assert coarse is not None, "scaled up only with a coarse grid"
+        num, den = self._scale
+        h, w = coarse.shape[:2]
+        margin = SCALE_MARGIN * num
+        a, b = max(ys.start - margin, 0), min(ys.stop + margin, h)
+        c, d = max(xs.start - margin, 0), min(xs.stop + margin, w)
+        part = cv2.resize(coarse[a:b, c:d], ((d - c) * den // num, (b - a) * den // num), interpolation=cv2.INTER_LINEAR)
+        r0, r1 = max(ys.start - num, 0) * den // num, min(ys.stop + num, h) * den // num
+        c0, c1 = max(xs.start - num, 0) * den // num, min(xs.stop + num, w) * den // num
+        into[r0:r1, c0:c1] = part[r0 - a * den // num : r1 - a * den // num, c0 - c * den // num : c1 - c * den // num]
 
     def _changed_source_tiles(self, canvas: np.ndarray, prev: np.ndarray) -> np.ndarray:
         """(ny, nx) bool: source tiles with any channel of any pixel different from ``prev``."""
@@ -167,10 +220,10 @@ class TileWarp:
         i00, i01, i10, i11 = self._corners
         return (flat[i11] - flat[i01] - flat[i10] + flat[i00] > 0).reshape(self._reads.shape)
 
-    def _runs(self, tiles: np.ndarray) -> Iterator[tuple[slice, slice]]:
-        """Slices (rows, columns) of the box for each rectangle of marked destination tiles
-        (:func:`tile_rectangles`): one remap or copy per rectangle."""
-        tw, th = DEST_TILE
+    def _runs(self, tiles: np.ndarray, den: int = 1, num: int = 1) -> Iterator[tuple[slice, slice]]:
+        """Slices (rows, columns) of the maps' grid, or with ``den``/``num`` the scale, of the box, for each
+        rectangle of marked destination tiles (:func:`tile_rectangles`): one remap or copy per rectangle."""
+        tw, th = DEST_TILE[0] * den // num, DEST_TILE[1] * den // num
         for r0, r1, c0, c1 in tile_rectangles(tiles):
             yield slice(r0 * th, r1 * th), slice(c0 * tw, c1 * tw)  # slicing clips the last tiles to the box
 
@@ -183,7 +236,9 @@ def tile_rectangles(tiles: np.ndarray) -> list[tuple[int, int, int, int]]:
     extends that rectangle downwards: an animated answer's blob is a few tall rectangles, so a few remap
     calls (each costs ~10 us of set-up whatever its size) instead of one per row.
     """
-    edges = np.diff(np.pad(tiles.astype(np.int8), ((0, 0), (1, 1))), axis=1)
+    padded = np.zeros((tiles.shape[0], tiles.shape[1] + 2), np.int8)  # np.pad cost ~50 us a call, 3x this
+    padded[:, 1:-1] = tiles
+    edges = np.diff(padded, axis=1)
     start_rows, start_cols = np.nonzero(edges > 0)
     end_cols = np.nonzero(edges < 0)[1]  # row-major like the starts: the i-th end closes the i-th start
     done: list[tuple[int, int, int, int]] = []
@@ -198,6 +253,18 @@ def tile_rectangles(tiles: np.ndarray) -> list[tuple[int, int, int, int]]:
         growing[(c0, c1)] = (row, row)
     done.extend((r0, r1 + 1, c0, c1) for (c0, c1), (r0, r1) in growing.items())
     return done
+
+
+def _grow(tiles: np.ndarray) -> np.ndarray:
+    """The marked tiles and their eight neighbours."""
+    rows, cols = tiles.shape
+    padded = np.zeros((rows + 2, cols + 2), bool)
+    padded[1:-1, 1:-1] = tiles
+    grown = np.zeros_like(tiles)
+    for dy in range(3):
+        for dx in range(3):
+            grown |= padded[dy : dy + rows, dx : dx + cols]
+    return grown
 
 
 @dataclass(eq=False)

@@ -1,4 +1,6 @@
-"""The tiled warp re-warps only what changed and still equals the full warp, pixel for pixel."""
+"""The tiled warp re-warps only what changed and still equals the full warp: pixel for pixel at the projector's
+resolution, within a grey level on a coarse grid scaled up (the resize's fixed-point weights of a piece and of
+the whole may round apart)."""
 
 from __future__ import annotations
 
@@ -9,6 +11,7 @@ from hypothesis import strategies as st
 
 from feelium.lab.projector.stream import answers_at
 from feelium.projector.config import ProjectorConfig
+from feelium.projector.optics import coarse_maps, fit_box
 from feelium.projector.renderer import Renderer
 from feelium.projector.tilewarp import TileWarp, tile_rectangles
 from tests.projector.helpers import truth_calibration
@@ -16,20 +19,29 @@ from tests.projector.helpers import truth_calibration
 BORDER = (35, 25, 20)
 
 
-def small_warp(seed: int, canvas_size: tuple[int, int], frame_size: tuple[int, int]) -> TileWarp:
-    """A random smooth map (a rotation, a scale and a bulge) that also reads outside the canvas."""
+def small_warp(
+    seed: int, canvas_size: tuple[int, int], frame_size: tuple[int, int], scale: tuple[int, int] = (1, 1)
+) -> TileWarp:
+    """A random smooth map (a rotation, a scale and a bulge) that also reads outside the canvas; with ``scale``
+    for a coarse grid of the box (feelium.projector.optics), as the renderer builds it."""
     rng = np.random.default_rng(seed)
     cw, ch = canvas_size
     fw, fh = frame_size
     box = (int(rng.integers(0, 9)), int(rng.integers(0, 9)), fw - int(rng.integers(0, 9)), fh - int(rng.integers(0, 9)))
-    ys, xs = np.mgrid[box[1] : box[3], box[0] : box[2]].astype(np.float32)
-    angle, scale = rng.uniform(-0.6, 0.6), rng.uniform(0.4, 1.6)
+    ys, xs = np.mgrid[0:fh, 0:fw].astype(np.float32)
+    angle, zoom = rng.uniform(-0.6, 0.6), rng.uniform(0.4, 1.6)
     u, v = (xs - fw / 2) / fw, (ys - fh / 2) / fh
     bulge = 1 + rng.uniform(-0.3, 0.3) * (u * u + v * v)
-    map_x = cw / 2 + scale * bulge * cw * (np.cos(angle) * u - np.sin(angle) * v)
-    map_y = ch / 2 + scale * bulge * ch * (np.sin(angle) * u + np.cos(angle) * v)
-    map1, map2 = cv2.convertMaps(map_x.astype(np.float32), map_y.astype(np.float32), cv2.CV_16SC2)
-    return TileWarp(map1, map2, box, canvas_size, (fw, fh), BORDER)
+    map_x = cw / 2 + zoom * bulge * cw * (np.cos(angle) * u - np.sin(angle) * v)
+    map_y = ch / 2 + zoom * bulge * ch * (np.sin(angle) * u + np.cos(angle) * v)
+    if scale != (1, 1):
+        box = fit_box(box, frame_size, scale[1])
+        map1, map2 = coarse_maps(map_x, map_y, box, scale)
+    else:
+        x0, y0, x1, y1 = box
+        crop = (slice(y0, y1), slice(x0, x1))
+        map1, map2 = cv2.convertMaps(map_x[crop].astype(np.float32), map_y[crop].astype(np.float32), cv2.CV_16SC2)
+    return TileWarp(map1, map2, box, canvas_size, (fw, fh), BORDER, scale)
 
 
 rects = st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 0.6), st.floats(0, 0.6))
@@ -59,6 +71,33 @@ def test_tiled_warp_equals_full_warp_over_random_canvases_and_changed_rects(seed
         expected.append(warp.full(canvas))
     for got, want in zip(frames, expected):
         assert np.array_equal(got, want)  # every frame handed out, too: none was written after
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**16),
+    scale=st.sampled_from([(1, 2), (2, 3)]),
+    changes=st.lists(st.tuples(st.lists(rects, min_size=0, max_size=3), st.booleans()), min_size=1, max_size=8),
+)
+def test_scaled_up_tiled_warp_stays_within_a_grey_level_of_the_full_one(seed, scale, changes):
+    """Re-warped pieces scaled up with their margins, their neighbours' edges redone, held frames kept:
+    every frame handed out stays within 1 of the full warp of its canvas (random canvases: the worst case)."""
+    warp = small_warp(seed, (80, 60), (320, 240), scale)
+    rng = np.random.default_rng(seed)
+    canvas = rng.integers(0, 256, (60, 80, 3), np.uint8)
+    kept = [(warp.warp(canvas), warp.full(canvas))]
+    for rect_list, keep in changes:
+        canvas = canvas.copy()
+        for fx, fy, fw, fh in rect_list:
+            x0, y0 = int(fx * 80), int(fy * 60)
+            patch = canvas[y0 : y0 + 1 + int(fh * 60), x0 : x0 + 1 + int(fw * 80)]
+            patch[...] = rng.integers(0, 256, patch.shape, np.uint8)
+        frame = warp.warp(canvas)
+        if keep:
+            kept.append((frame, warp.full(canvas)))
+        assert np.abs(frame.astype(int) - warp.full(canvas).astype(int)).max() <= 1
+    for frame, want in kept:
+        assert np.abs(frame.astype(int) - want.astype(int)).max() <= 1
 
 
 @settings(max_examples=30, deadline=None)
