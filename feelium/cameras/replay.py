@@ -1,7 +1,10 @@
 """Replay of recordings (format v1) as a camera: the same frames and timestamps the blimp saw.
 
 A path may be one recording or a dataset; recordings play one after another,
-each a new ``segment``. Times are shifted so they keep increasing across
+each a new ``segment``. A bad recording in a dataset (it fails validation, or
+its video ends early) is logged once, naming the file, and left out: the good
+ones still play, as ``feelium replay`` and ``eval`` do. Only a path with no
+usable recording fails the camera. Times are shifted so they keep increasing across
 recordings and loops. ``realtime`` replays sleep to the recordings' own
 pace and stamp each frame with the time it was due on ``clock`` (the
 daemon's, so a replaying daemon's API times mean what a live one's do);
@@ -11,12 +14,15 @@ the recordings' clock.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from feelium.cameras.base import ClosableReader, Frame
-from feelium.recording import Recording, find_recordings
+from feelium.recording import Recording, RecordingError, find_recordings
+
+log = logging.getLogger(__name__)
 
 
 class ReplayCamera:
@@ -37,7 +43,15 @@ class ReplayCamera:
         if not str(path):
             raise ValueError("the replay backend needs a recording path (rear_camera.replay_path or --replay PATH)")
         self.paths = find_recordings(path)
-        self.recordings = [Recording(p) for p in self.paths]  # validates every recording before the first frame
+        self.skipped: list[RecordingError] = []
+        self.recordings: list[Recording] = []
+        for recording_path in self.paths:  # validates every recording before the first frame
+            try:
+                self.recordings.append(Recording(recording_path))
+            except RecordingError as exc:
+                self._skip(exc)
+        if not self.recordings:
+            raise RecordingError(path, f"no usable recording ({len(self.skipped)} skipped: {self.skipped[0]})")
         self.realtime = realtime
         self.loop = loop
         self._gray = gray
@@ -46,28 +60,36 @@ class ReplayCamera:
         self._frames = self._generate()
         self._guard = ClosableReader()
 
+    def _skip(self, problem: RecordingError) -> None:
+        self.skipped.append(problem)
+        log.warning("replay: skipped %s", problem)
+
     def _generate(self) -> Iterator[Frame]:
         offset = 0.0
         segment = 0
         wall_start: float | None = None
-        while True:
-            for recording in self.recordings:
+        while self.recordings:
+            for recording in list(self.recordings):
                 ts = recording.timestamps
                 if len(ts) == 0:
                     continue
                 period = float(ts[-1] - ts[0]) / max(len(ts) - 1, 1) if len(ts) > 1 else 1.0 / recording.meta.camera.fps
                 shift = offset - float(ts[0]) if segment else 0.0  # the first recording keeps its own clock
-                for t, image in recording.frames(gray=self._gray):
-                    t_out = t + shift
-                    stamp = t_out
-                    if self.realtime:
-                        now = self._clock()
-                        if wall_start is None:
-                            wall_start = now - t_out
-                        stamp = wall_start + t_out  # when it is due, on the clock: like a live camera's frame
-                        if stamp > now:
-                            self._sleep(stamp - now)
-                    yield Frame(t=stamp, image=image, segment=segment, roi=recording.meta.roi)
+                try:
+                    for t, image in recording.frames(gray=self._gray):
+                        t_out = t + shift
+                        stamp = t_out
+                        if self.realtime:
+                            now = self._clock()
+                            if wall_start is None:
+                                wall_start = now - t_out
+                            stamp = wall_start + t_out  # when it is due, on the clock: like a live camera's frame
+                            if stamp > now:
+                                self._sleep(stamp - now)
+                        yield Frame(t=stamp, image=image, segment=segment, roi=recording.meta.roi)
+                except RecordingError as exc:  # its video ended early: the frames it gave stand, it plays no more
+                    self.recordings.remove(recording)
+                    self._skip(exc)
                 offset = float(ts[-1]) + shift + period
                 segment += 1
             if not self.loop:

@@ -44,7 +44,9 @@ def judge(task: str, own: dict[str, Any], simulated: str | None, crash: str | No
     if task == "stopped":
         return "stopped", None
     if task == "finished":
-        condition, reason = "ok", "finished its work"
+        # Every part of the daemon is meant to run until shutdown: one whose task returned (a replay that
+        # ended without looping) no longer does its job, whatever it last said about itself.
+        return "degraded", "finished its work: its input ended and it no longer runs"
     else:
         condition = own.get("condition", "ok")
         reason = own.get("reason")
@@ -110,10 +112,13 @@ class HealthTracker:
         }
 
 
-def overall(states: list[str]) -> str:
-    """The daemon's status from its parts: any trouble is ``degraded``; all good is ``ok``."""
-    if any(state in BAD_STATES for state in states):
+def overall(states: dict[str, str], vital: frozenset[str] = frozenset()) -> str:
+    """The daemon's status from its parts' states: ``failed`` when a vital part (flight) failed, so a monitor
+    can tell a grounded blimp from a dropped camera frame; any other trouble is ``degraded``; all good is ``ok``."""
+    if any(states.get(name) == "failed" for name in vital):
+        return "failed"
+    if any(state in BAD_STATES for state in states.values()):
         return "degraded"
-    if any(state == "starting" for state in states):
+    if any(state == "starting" for state in states.values()):
         return "starting"
     return "ok"

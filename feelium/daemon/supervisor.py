@@ -210,6 +210,10 @@ class Supervisor:
                     log.error("service %s ended with %s", record.service.name, exc)
         self.phase = "stopped"
 
+    def vital_names(self) -> frozenset[str]:
+        """The services the blimp cannot do without (the flight loop): one of them failed fails the whole status."""
+        return frozenset(name for name, record in self.records.items() if getattr(record.service, "vital", False))
+
     def vital_alive(self, now: float, max_age_s: float) -> bool:
         """True while every vital service (the flight loop) runs and its heartbeat is at most ``max_age_s`` old.
 
@@ -261,7 +265,7 @@ class Supervisor:
             services[part] = {**self.tracker.entry(part), "task": "unbuilt", "simulated": part in self.simulated, "last_error": error}
         phase = self.phase
         report: dict[str, Any] = {
-            "status": phase if phase != "running" else overall([s["state"] for s in services.values()]),
+            "status": phase if phase != "running" else overall({n: s["state"] for n, s in services.items()}, self.vital_names()),
             "uptime_s": round(now - self.started_at, 3),
             "services": services,
         }

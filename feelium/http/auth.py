@@ -42,10 +42,13 @@ def load_or_create_token(configured: str, token_file: str) -> str:
     except FileExistsError:
         return _read_token(path)
     except FileNotFoundError:
-        path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        except OSError as exc:
+            raise TokenError(f"{path}: cannot create the token file ([http] token_file): {exc.strerror}") from exc
     except OSError as exc:
-        raise TokenError(f"{path}: cannot create the token file: {exc.strerror}") from exc
+        raise TokenError(f"{path}: cannot create the token file ([http] token_file): {exc.strerror}") from exc
     token = secrets.token_urlsafe(TOKEN_BYTES)
     with os.fdopen(fd, "w", encoding="ascii") as fh:
         fh.write(token + "\n")

@@ -71,3 +71,39 @@ def test_missing_path_and_bad_recordings_are_named(tmp_path):
         ReplayCamera("")
     with pytest.raises(RecordingError, match="no such file"):
         ReplayCamera(tmp_path / "absent")
+
+
+def test_a_bad_recording_in_a_dataset_is_skipped_and_named_and_the_good_ones_play(tmp_path, caplog):
+    _write(tmp_path / "a", [0.0, 0.1, 0.2])
+    bad = _write(tmp_path / "b", [0.0, 0.1, 0.2])
+    (bad / "camera_ts.txt").write_text("0.0\n0.1\n0.1\n")  # a time that repeats: fails validation
+    _write(tmp_path / "c", [5.0, 5.1])
+    with caplog.at_level("WARNING", logger="feelium.cameras.replay"):
+        camera = ReplayCamera(tmp_path, realtime=False)
+    frames = _drain(camera)
+    assert [f.segment for f in frames] == [0, 0, 0, 1, 1]
+    assert len(camera.skipped) == 1 and camera.skipped[0].path.is_relative_to(bad)
+    assert [r.message for r in caplog.records].count(f"replay: skipped {camera.skipped[0]}") == 1
+
+
+def test_a_video_that_ends_early_plays_what_it_holds_then_is_left_out_of_the_loop(tmp_path, caplog):
+    short = _write(tmp_path / "a", [0.0, 0.1, 0.2, 0.3])
+    # The video of "a" is swapped for a two-frame one while its timestamps still promise four.
+    spare = _write(tmp_path.parent / f"{tmp_path.name}-spare", [0.0, 0.1])
+    (short / "camera.mkv").write_bytes((spare / "camera.mkv").read_bytes())
+    _write(tmp_path / "b", [1.0, 1.1])
+    camera = ReplayCamera(tmp_path, realtime=False, loop=True)
+    with caplog.at_level("WARNING", logger="feelium.cameras.replay"):
+        frames = [camera.read() for _ in range(8)]
+    assert all(f is not None for f in frames)
+    segments = [f.segment for f in frames]
+    assert segments[:2] == [0, 0] and 1 in segments  # a's two frames, then b, then b again on each loop
+    assert len(camera.skipped) == 1 and camera.skipped[0].path.is_relative_to(short)
+    assert len(camera.recordings) == 1
+
+
+def test_a_dataset_with_no_usable_recording_fails_naming_the_problem(tmp_path):
+    bad = _write(tmp_path / "b", [0.0, 0.1])
+    (bad / "camera_ts.txt").write_text("0.1\n0.0\n")
+    with pytest.raises(RecordingError, match="no usable recording"):
+        ReplayCamera(tmp_path, realtime=False)

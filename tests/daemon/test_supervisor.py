@@ -179,7 +179,11 @@ async def test_a_service_that_returns_is_finished_not_restarted():
     supervisor.start()
     await _until(lambda: supervisor.records["oneshot"].state == "finished")
     await asyncio.sleep(0.05)
-    assert one.ticks == 1 and supervisor.report()["services"]["oneshot"]["healthy"] is True
+    report = supervisor.report()
+    assert one.ticks == 1 and supervisor.records["oneshot"].starts == 1  # not restarted
+    # ... but not healthy: every part is meant to run until shutdown (a replay that ended no longer senses)
+    assert report["services"]["oneshot"]["state"] == "degraded" and report["services"]["oneshot"]["healthy"] is False
+    assert "finished" in report["services"]["oneshot"]["reason"] and report["status"] == "degraded"
     await supervisor.shutdown()
 
 
@@ -220,3 +224,31 @@ def test_vital_alive_follows_the_flight_loop_heartbeat():
     assert not supervisor.vital_alive(99.6, 1.0)
     supervisor.records["touch"].state = "backoff"  # a camera fault is not the watchdog's business
     assert Supervisor([TickingService("touch")], FAST).vital_alive(0.0, 1.0)  # nothing vital: the loop is enough
+
+
+async def test_a_failed_vital_part_fails_the_status_and_any_other_failure_degrades_it():
+    """A monitor must tell a grounded blimp (flight failed) from a dropped camera frame (R15b F7)."""
+
+    class Part(TickingService):
+        def __init__(self, name: str, vital: bool = False) -> None:
+            super().__init__(name)
+            self.vital = vital
+            self.condition = "ok"
+
+        def health(self):
+            return {"condition": self.condition, "reason": None if self.condition == "ok" else "no device"}
+
+    flight, camera = Part("flight", vital=True), Part("camera")
+    supervisor = Supervisor([flight, camera], FAST)
+    supervisor.start()
+    await _until(lambda: supervisor.report()["status"] == "ok")
+    camera.condition = "failed"
+    assert supervisor.report()["status"] == "degraded"
+    flight.condition = "failed"
+    report = supervisor.report()
+    assert report["status"] == "failed" and report["services"]["flight"]["state"] == "failed"
+    camera.condition = "ok"
+    assert supervisor.report()["status"] == "failed"  # flight alone grounds the blimp
+    flight.condition = "degraded"
+    assert supervisor.report()["status"] == "degraded"
+    await supervisor.shutdown()

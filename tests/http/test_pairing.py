@@ -12,7 +12,7 @@ import aiohttp
 import pytest
 
 from feelium.http.app import create_app
-from feelium.http.auth import TokenStore, load_or_create_token, write_new_token
+from feelium.http.auth import TokenError, TokenStore, load_or_create_token, write_new_token
 from feelium.http.pairing import PairingCodes
 
 from tests.http.http_support import AUTH, TOKEN
@@ -199,3 +199,10 @@ async def test_a_browser_session_cookie_replaces_the_token_in_urls(client) -> No
     assert (await client.get("/api/v1/state")).status == 200
     ws = await client.ws_connect("/api/v1/events/ws")
     await ws.close()
+
+
+def test_a_token_file_whose_folder_cannot_be_made_names_the_file_and_the_key(tmp_path):
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    with pytest.raises(TokenError, match=r"token\.txt: cannot create the token file \(\[http\] token_file\)"):
+        load_or_create_token("", str(blocker / "sub" / "token.txt"))
