@@ -254,6 +254,28 @@ def _parse_labels(path: Path) -> Labels:
     return Labels(label=label, clip=clip, target=target, contacts=tuple(contacts))
 
 
+def _check_labels_fit(path: Path, labels: Labels, size: tuple[int, int], timestamps: np.ndarray) -> None:
+    """Labels that contradict themselves or their take would be scored as if true: refuse them, naming the field.
+
+    A touch trial (or a ``contact`` clip) needs a contact and a negative has none (the spec: "empty for
+    negatives"); the target lies in the camera frame; every contact overlaps the take's frames. Contacts may
+    overlap each other (two hands at once)."""
+    touch = labels.label == "contact" if labels.clip else labels.label in TOUCH_LABELS
+    if touch and not labels.contacts:
+        raise _fail(path, f"label {labels.label!r} needs at least one entry in contacts")
+    if not touch and labels.contacts:
+        raise _fail(path, f"label {labels.label!r} is a negative: its contacts must be empty, got {len(labels.contacts)}")
+    width, height = size
+    if labels.target is not None and not (0.0 <= labels.target[0] <= width and 0.0 <= labels.target[1] <= height):
+        raise _fail(path, f"target {list(labels.target)} lies outside the {width}x{height} camera frame")
+    if len(timestamps) == 0:
+        return
+    first, last = float(timestamps[0]), float(timestamps[-1])
+    for i, contact in enumerate(labels.contacts):
+        if contact.t_off < first or contact.t_on > last:
+            raise _fail(path, f"contacts[{i}]: {contact.t_on}-{contact.t_off} s lies outside the take's frames ({first:.3f}-{last:.3f} s)")
+
+
 def _parse_path(path: Path, i: int, raw: Any) -> np.ndarray | None:
     """A contact's ``[t, x, y]`` rows as an (K, 3) float array, or ``None`` when absent."""
     if raw is None:
@@ -290,6 +312,8 @@ class Recording:
             )
         labels_path = self.path / "labels.json"
         self.labels: Labels | None = _parse_labels(labels_path) if labels_path.exists() else None
+        if self.labels is not None:
+            _check_labels_fit(labels_path, self.labels, declared, self.timestamps)
 
     @property
     def name(self) -> str:

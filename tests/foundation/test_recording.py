@@ -180,6 +180,35 @@ def test_bad_labels_are_named_not_a_traceback(tmp_path, labels, message):
     assert "labels.json" in str(info.value)
 
 
+@pytest.mark.parametrize(
+    ("labels", "message"),
+    [
+        ({"label": "tap", "target": [5000, -30], "contacts": [{"t_on": 0.1, "t_off": 0.2}]}, "outside the 64x48 camera frame"),
+        ({"label": "tap", "contacts": [{"t_on": 100, "t_off": 101}]}, r"contacts\[0\]: 100.0-101.0 s lies outside the take"),
+        ({"label": "tap", "contacts": []}, "'tap' needs at least one entry in contacts"),
+        ({"label": "hold"}, "'hold' needs at least one entry in contacts"),
+        ({"label": "empty", "contacts": [{"t_on": 0.1, "t_off": 0.2}]}, "'empty' is a negative: its contacts must be empty"),
+        ({"label": "contact", "clip": True}, "'contact' needs at least one entry"),
+        ({"label": "hover", "clip": True, "contacts": [{"t_on": 0.1, "t_off": 0.2}]}, "'hover' is a negative"),
+    ],
+)
+def test_labels_that_contradict_themselves_or_their_take_are_refused(tmp_path, labels, message):
+    """They would otherwise be scored as if true (an 'empty' with a contact counted as a true negative)."""
+    _write(tmp_path / "r")
+    (tmp_path / "r" / "labels.json").write_text(json.dumps(labels))
+    with pytest.raises(RecordingError, match=message) as info:
+        Recording(tmp_path / "r")
+    assert "labels.json" in str(info.value)
+
+
+def test_labels_that_fit_their_take_are_accepted_with_overlapping_contacts(tmp_path):
+    """Two hands at once overlap in time; a target on the frame's edge is in it."""
+    _write(tmp_path / "r")
+    both = [{"t_on": 0.0, "t_off": 0.3, "contact": "finger"}, {"t_on": 0.1, "t_off": 0.5, "contact": "palm"}]
+    (tmp_path / "r" / "labels.json").write_text(json.dumps({"label": "hold", "target": [64, 0], "contacts": both}))
+    assert len(Recording(tmp_path / "r").labels.contacts) == 2
+
+
 def test_the_projector_stream_round_trips_beside_the_camera(tmp_path):
     """What the projector showed is kept losslessly with its own display times (the spec's projector.mkv)."""
     rng = np.random.default_rng(5)
