@@ -157,8 +157,8 @@ class TouchPipeline:
     ) -> FrameResult:
         """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing).
 
-        ``projected_light`` (camera frame size, float): the projector light predicted for the exposure of this
-        frame, relative to the flat grey (1.0); it is compensated through the per-pixel response learned online
+        ``projected_light`` (camera frame size, or already cut to the ROI's size, float): the projector light
+        predicted for the exposure of this frame, relative to the flat grey (1.0); it is compensated through the per-pixel response learned online
         (:mod:`feelium.touch.photometric`). ``projected_spread`` (same size): how far that prediction may be off
         per pixel (:func:`feelium.touch.settle.predicted_exposure`); every shadow is taken at the smallest depth
         the spread allows and uncertain pixels learn nothing (:mod:`feelium.touch.settle`). ``backlight_gain`` is
@@ -362,13 +362,17 @@ class TouchPipeline:
         light; for a spread, as uncertain as light can be), negatives 0, the rest is clipped to the range. Written
         into the buffer ``name`` (valid for this frame)."""
         fw, fh = self.geometry.frame_size
-        if projected_light.shape != (fh, fw):
-            raise ValueError(f"projected_light shape {projected_light.shape} does not match the camera's {fw}x{fh}")
         x, y, w, h = self.geometry.roi
+        if projected_light.shape == (fh, fw):
+            projected_light = projected_light[y : y + h, x : x + w]
+        elif projected_light.shape != (h, w):
+            raise ValueError(
+                f"projected_light shape {projected_light.shape} is neither the camera's {fw}x{fh} nor the ROI's {w}x{h}"
+            )
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
         g = self.geometry
         out = self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype)
-        light = g.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False), out=out)
+        light = g.cut_roi(projected_light.astype(np.float32, copy=False), out=out)
         if not cv2.checkRange(light)[0]:  # one pass, and almost always all finite: nan_to_num takes four
             np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
         np.clip(light, 0.0, LIGHT_MAX, out=light)
