@@ -28,10 +28,10 @@ import numpy as np
 from feelium.projector.avatar import BACKGROUND_BGR
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import canvas_map
+from feelium.skin.blurwindow import blur_window
 from feelium.skin.face import FaceModel
 from feelium.skin.projector_map import ProjectorMap, sample
 
-SIMD_PX = 16  # float pixels per SIMD block of OpenCV's row filters (AVX-512: 16; AVX2: 8; NEON: 4), or a multiple
 _OFF = -10.0  # a map position no bilinear tap reaches: the remap's border value (the projector's border light)
 
 
@@ -118,19 +118,14 @@ class CanvasLightPredictor:
         blurred = cv2.GaussianBlur(weight, (0, 0), self.diffusion_px) if self.diffusion_px > 0 else weight
         self._lit_blur = np.maximum(blurred, 1e-3)
         # Everything above is per frame pixel; the light is computed only over the box and, when it is blurred,
-        # the blur's reach around it: inside the box the blur then reads exactly what it read over the whole frame.
+        # the blur's reach around it (:mod:`feelium.skin.blurwindow`): inside the box, the whole frame's bits.
         bx, by, bw, bh = box if box is not None else (0, 0, fw, fh)
         if bw <= 0 or bh <= 0 or bx < 0 or by < 0 or bx + bw > fw or by + bh > fh:
             raise ValueError(f"box {box} does not fit the {fw}x{fh} frame")
         self.box = (int(bx), int(by), int(bw), int(bh))
-        reach = gaussian_radius(self.diffusion_px) if self.diffusion_px > 0 else 0
-        # OpenCV's blur runs along rows in SIMD blocks from a row's start with a scalar tail: a window starting on
-        # a block boundary and whole blocks wide (or reaching the frame's edge) sums every pixel of the box in the
-        # very order the whole frame's blur does, so the light is the same to the bit, not only to a rounding.
-        x0, y0 = (max(0, bx - reach) // SIMD_PX) * SIMD_PX, max(0, by - reach)
-        x1, y1 = min(fw, x0 + -(-(bx + bw + reach - x0) // SIMD_PX) * SIMD_PX), min(fh, by + bh + reach)
-        window = (slice(y0, y1), slice(x0, x1))
         inside = (slice(by, by + bh), slice(bx, bx + bw))
+        window = blur_window((fw, fh), self.box, self.diffusion_px) if self.diffusion_px > 0 else inside
+        y0, x0 = window[0].start, window[1].start
         self._inner = (slice(by - y0, by - y0 + bh), slice(bx - x0, bx - x0 + bw))  # the box within the window
         self._map1, self._map2 = self._map1[window].copy(), self._map2[window].copy()
         self._dark = self._dark[window].copy()
@@ -140,8 +135,8 @@ class CanvasLightPredictor:
         rw, rh = self._reduced_size
         self._lut_out = np.empty((self.canvas_size[1], self.canvas_size[0]), np.float32)
         self._reduced = np.empty((rh, rw), np.float32)
-        self._seen = np.empty((y1 - y0, x1 - x0), np.float32)
-        self._blurred = np.empty((y1 - y0, x1 - x0), np.float32)
+        self._seen = np.empty(self._map2.shape, np.float32)
+        self._blurred = np.empty(self._map2.shape, np.float32)
 
     def gain(self, canvas_grey: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """(h, w) float32 gain over the box (the whole frame by default) for a grey (uint8) skin canvas.
@@ -174,12 +169,6 @@ class CanvasLightPredictor:
             np.divide(blurred[self._inner], self._lit_blur, out=out)
         out[self._uncovered] = 1.0
         return out
-
-
-def gaussian_radius(sigma: float) -> int:
-    """How far (pixels) ``cv2.GaussianBlur(..., (0, 0), sigma)`` reads around a float image's pixel: OpenCV sizes the
-    kernel ``round(8 * sigma + 1) | 1`` for float images. Beyond it a window's border handling changes nothing."""
-    return (int(np.floor(8.0 * sigma + 1.5)) | 1) // 2
 
 
 def _renderer_camera_points(

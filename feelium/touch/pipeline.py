@@ -27,7 +27,7 @@ from feelium.touch.geometry import WorkingGeometry
 from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
-from feelium.touch.settle import depth_uncertainty
+from feelium.touch.settle import depth_uncertainty, spread_window
 from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
 from feelium.skin.coords import inside_roi, skin_uv
@@ -221,13 +221,20 @@ class TouchPipeline:
         floor = _noise_floor_map(smooth, cfg.noise_sigmas, cfg.noise_floor, buf)
         self.noise = float(floor.max()) if floor.size else 0.0
         uncertain = None
-        if spread is not None and self.response.slope is not None:
-            expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("uncertainty.expected", ref.image))
-            np.maximum(expected, np.float32(cfg.dark_reference_level), out=expected)
-            bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma, buf)
-            smooth -= bound  # the smallest depth the prediction allows: its error cannot make a shadow
-            uncertain = bound >= cfg.noise_floor
-            self.uncertain_frames += bool(uncertain.any())
+        # The bound is zero where the spread is (inside a scene: most frames, most pixels), so it is computed only
+        # in the window around the nonzero spread (:func:`feelium.touch.settle.spread_window`); bit for bit the same.
+        window = None if spread is None or self.response.slope is None else spread_window(spread, self._sigma, buf)
+        if window is not None:
+            expected = buf.like("uncertainty.expected", ref.image)
+            gain = ref.expected_gain()  # one gain, or one per row (rows, 1)
+            gain = gain[window[0]] if isinstance(gain, np.ndarray) else gain
+            part = np.multiply(ref.image[window], gain, out=expected[window])
+            np.maximum(part, np.float32(cfg.dark_reference_level), out=part)
+            bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma, buf, window)
+            smooth[window] -= bound  # the smallest depth the prediction allows: its error cannot make a shadow
+            uncertain = np.zeros(smooth.shape, bool)
+            np.greater_equal(bound, cfg.noise_floor, out=uncertain[window])
+            self.uncertain_frames += bool(uncertain[window].any())
         np.maximum(smooth, 0.0, out=smooth)
         shadow = np.greater(smooth, floor, out=buf.like("shadow.raw", smooth, bool))
         # Opening drops isolated specks of noise and keeps the area of real shadows.
