@@ -54,6 +54,7 @@ STAGES = {  # (owner, attribute) timed with --profile, charged to the name
     "cut light/spread": ("pipeline", "_cut_light"),
     "prepare": ("pipeline", "_prepare"),
     "depth_uncertainty": ("module", "depth_uncertainty"),
+    "spread_window": ("module", "spread_window"),
     "relative_depth": ("module", "relative_depth"),
     "find_candidates": ("module", "find_candidates"),
     "noise floor": ("module", "_noise_floor_map"),
@@ -77,6 +78,8 @@ def _instrument(pipeline: TouchPipeline, sink: dict[str, float]) -> None:
     owners = {"response": pipeline.response, "pipeline": pipeline, "reference": pipeline.reference,
               "tracker": pipeline.tracker}  # fmt: skip
     for name, (owner, attr) in STAGES.items():
+        if owner == "module" and not hasattr(pipeline_module, attr):
+            continue  # a stage an older tree does not have
         if owner == "module":
             setattr(pipeline_module, attr, _timed(getattr(pipeline_module, attr), name, sink))
         else:
@@ -103,7 +106,10 @@ def main() -> int:
     video = FaceVideo(renderer, source, FaceScript(), 0.0)
     loops = max(2, args.loops)
     canvases = [video.shown(k)[1] for k in range(len(frames) * loops + 2)]  # rendered outside the timing
-    predictor = CanvasLightPredictor(config.projector, calibration, size)
+    # As the daemon builds it: over the pipeline's ROI (older trees predict the whole frame).
+    boxed = "box" in inspect.signature(CanvasLightPredictor).parameters
+    box = {"box": roi} if boxed else {}
+    predictor = CanvasLightPredictor(config.projector, calibration, size, **box)
     cpu: dict[str, float] = defaultdict(float)
 
     recycles = "out" in inspect.signature(predictor.gain).parameters  # older trees: predict(canvas) only

@@ -44,7 +44,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 ServiceBuilder = Callable[[Config, Hub], "Service | None"]
-ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray, np.ndarray | None], np.ndarray]]
+ProjectedFactory = Callable[
+    [tuple[int, int], tuple[int, int, int, int] | None], Callable[[np.ndarray, np.ndarray | None], np.ndarray]
+]
 
 
 # --- sensing: cameras and the thermal camera feed the bus -------------------------------------------------------
@@ -316,8 +318,11 @@ def load_projected_light(config: Config, backend: str, path: Path | None = None)
         return None
     log.info("touch: compensating the projected light in rear frames (calibration %s)", path)
 
-    def for_frame_size(size: tuple[int, int]) -> Callable[[np.ndarray], np.ndarray]:
-        """Each projector frame's light from its grey skin canvas (``hub.projector_canvas``)."""
-        return CanvasLightPredictor(config.projector, calibration, size, face).gain
+    def for_frame_size(
+        size: tuple[int, int], box: tuple[int, int, int, int] | None = None
+    ) -> Callable[[np.ndarray], np.ndarray]:
+        """Each projector frame's light from its grey skin canvas (``hub.projector_canvas``), over ``box`` (the
+        touch pipeline's ROI, which is all it reads; default the whole frame)."""
+        return CanvasLightPredictor(config.projector, calibration, size, face, box).gain
 
     return for_frame_size

@@ -28,6 +28,7 @@ import numpy as np
 from feelium.projector.avatar import BACKGROUND_BGR
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import canvas_map
+from feelium.skin.blurwindow import blur_window
 from feelium.skin.face import FaceModel
 from feelium.skin.projector_map import ProjectorMap, sample
 
@@ -62,9 +63,13 @@ class CanvasLightPredictor:
         calibration: ProjectorMap,
         frame_size: tuple[int, int] | None = None,
         face: FaceModel | None = None,
+        box: tuple[int, int, int, int] | None = None,
     ) -> None:
         """``frame_size``: (width, height) of the touch pipeline's frames (default the calibration's camera size);
-        ``face``: the face model the projector's renderer was given (its canvas then spans the face's u, v)."""
+        ``face``: the face model the projector's renderer was given (its canvas then spans the face's u, v);
+        ``box``: [x, y, w, h] of the frame the light is wanted for (the touch pipeline's ROI; default the whole
+        frame). The light is then predicted only there, plus the diffusion blur's reach around it, and equals the
+        whole frame's light cut to the box: the pipeline reads nothing else, and the ROI is ~64 % of the frame."""
         cw, ch = calibration.camera_size
         fw, fh = frame_size if frame_size is not None else (cw, ch)
         self.canvas_size = (config.canvas_width, config.canvas_height)
@@ -112,17 +117,31 @@ class CanvasLightPredictor:
         weight = lit.astype(np.float32)
         blurred = cv2.GaussianBlur(weight, (0, 0), self.diffusion_px) if self.diffusion_px > 0 else weight
         self._lit_blur = np.maximum(blurred, 1e-3)
+        # Everything above is per frame pixel; the light is computed only over the box and, when it is blurred,
+        # the blur's reach around it (:mod:`feelium.skin.blurwindow`): inside the box, the whole frame's bits.
+        bx, by, bw, bh = box if box is not None else (0, 0, fw, fh)
+        if bw <= 0 or bh <= 0 or bx < 0 or by < 0 or bx + bw > fw or by + bh > fh:
+            raise ValueError(f"box {box} does not fit the {fw}x{fh} frame")
+        self.box = (int(bx), int(by), int(bw), int(bh))
+        inside = (slice(by, by + bh), slice(bx, bx + bw))
+        window = blur_window((fw, fh), self.box, self.diffusion_px) if self.diffusion_px > 0 else inside
+        y0, x0 = window[0].start, window[1].start
+        self._inner = (slice(by - y0, by - y0 + bh), slice(bx - x0, bx - x0 + bw))  # the box within the window
+        self._map1, self._map2 = self._map1[window].copy(), self._map2[window].copy()
+        self._dark = self._dark[window].copy()
+        self._lit_blur = self._lit_blur[inside].copy()
+        self._uncovered = self._uncovered[inside].copy()
         # The per-frame intermediates of :meth:`gain`, allocated once (sizes are fixed at construction).
         rw, rh = self._reduced_size
         self._lut_out = np.empty((self.canvas_size[1], self.canvas_size[0]), np.float32)
         self._reduced = np.empty((rh, rw), np.float32)
-        self._seen = np.empty((fh, fw), np.float32)
-        self._blurred = np.empty((fh, fw), np.float32)
+        self._seen = np.empty(self._map2.shape, np.float32)
+        self._blurred = np.empty(self._map2.shape, np.float32)
 
     def gain(self, canvas_grey: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """(H, W) float32 gain at the touch pipeline's frame size for a grey (uint8) skin canvas.
+        """(h, w) float32 gain over the box (the whole frame by default) for a grey (uint8) skin canvas.
 
-        ``out`` (frame size, float32): write the gain there (the caller recycles the arrays of frames it no longer
+        ``out`` (box size, float32): write the gain there (the caller recycles the arrays of frames it no longer
         needs). Every intermediate is one of the predictor's own buffers: the daemon maps allocations from 128 KB
         (``[daemon] malloc_mmap_threshold_kb``), so a fresh 0.8 MB light table and three 0.3 MB images per frame
         cost page faults that tripled the prediction's CPU time (docs/performance.md).
@@ -130,9 +149,9 @@ class CanvasLightPredictor:
         cw, ch = self.canvas_size
         if canvas_grey.shape != (ch, cw) or canvas_grey.dtype != np.uint8:
             raise ValueError(f"canvas must be {cw}x{ch} grey uint8, got {canvas_grey.shape} {canvas_grey.dtype}")
-        fw, fh = self.frame_size
-        if out is None or out.shape != (fh, fw) or out.dtype != np.float32:
-            out = np.empty((fh, fw), np.float32)
+        bw, bh = self.box[2], self.box[3]
+        if out is None or out.shape != (bh, bw) or out.dtype != np.float32:
+            out = np.empty((bh, bw), np.float32)
         light = cv2.LUT(canvas_grey, self._lut, dst=self._lut_out)
         if self._undrawn is not None:
             light.ravel()[self._undrawn] = self._border
@@ -147,7 +166,7 @@ class CanvasLightPredictor:
             # Blur over the lit pixels only (normalised): nothing is known of the light beyond the band.
             seen[self._dark] = 0.0
             blurred = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px, dst=self._blurred)
-            np.divide(blurred, self._lit_blur, out=out)
+            np.divide(blurred[self._inner], self._lit_blur, out=out)
         out[self._uncovered] = 1.0
         return out
 

@@ -27,7 +27,7 @@ from feelium.touch.geometry import WorkingGeometry
 from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
-from feelium.touch.settle import depth_uncertainty
+from feelium.touch.settle import depth_uncertainty, spread_window
 from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
 from feelium.skin.coords import inside_roi, skin_uv
@@ -157,8 +157,8 @@ class TouchPipeline:
     ) -> FrameResult:
         """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing).
 
-        ``projected_light`` (camera frame size, float): the projector light predicted for the exposure of this
-        frame, relative to the flat grey (1.0); it is compensated through the per-pixel response learned online
+        ``projected_light`` (camera frame size, or already cut to the ROI's size, float): the projector light
+        predicted for the exposure of this frame, relative to the flat grey (1.0); it is compensated through the per-pixel response learned online
         (:mod:`feelium.touch.photometric`). ``projected_spread`` (same size): how far that prediction may be off
         per pixel (:func:`feelium.touch.settle.predicted_exposure`); every shadow is taken at the smallest depth
         the spread allows and uncertain pixels learn nothing (:mod:`feelium.touch.settle`). ``backlight_gain`` is
@@ -221,13 +221,20 @@ class TouchPipeline:
         floor = _noise_floor_map(smooth, cfg.noise_sigmas, cfg.noise_floor, buf)
         self.noise = float(floor.max()) if floor.size else 0.0
         uncertain = None
-        if spread is not None and self.response.slope is not None:
-            expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("uncertainty.expected", ref.image))
-            np.maximum(expected, np.float32(cfg.dark_reference_level), out=expected)
-            bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma, buf)
-            smooth -= bound  # the smallest depth the prediction allows: its error cannot make a shadow
-            uncertain = bound >= cfg.noise_floor
-            self.uncertain_frames += bool(uncertain.any())
+        # The bound is zero where the spread is (inside a scene: most frames, most pixels), so it is computed only
+        # in the window around the nonzero spread (:func:`feelium.touch.settle.spread_window`); bit for bit the same.
+        window = None if spread is None or self.response.slope is None else spread_window(spread, self._sigma, buf)
+        if window is not None:
+            expected = buf.like("uncertainty.expected", ref.image)
+            gain = ref.expected_gain()  # one gain, or one per row (rows, 1)
+            gain = gain[window[0]] if isinstance(gain, np.ndarray) else gain
+            part = np.multiply(ref.image[window], gain, out=expected[window])
+            np.maximum(part, np.float32(cfg.dark_reference_level), out=part)
+            bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma, buf, window)
+            smooth[window] -= bound  # the smallest depth the prediction allows: its error cannot make a shadow
+            uncertain = np.zeros(smooth.shape, bool)
+            np.greater_equal(bound, cfg.noise_floor, out=uncertain[window])
+            self.uncertain_frames += bool(uncertain[window].any())
         np.maximum(smooth, 0.0, out=smooth)
         shadow = np.greater(smooth, floor, out=buf.like("shadow.raw", smooth, bool))
         # Opening drops isolated specks of noise and keeps the area of real shadows.
@@ -362,13 +369,17 @@ class TouchPipeline:
         light; for a spread, as uncertain as light can be), negatives 0, the rest is clipped to the range. Written
         into the buffer ``name`` (valid for this frame)."""
         fw, fh = self.geometry.frame_size
-        if projected_light.shape != (fh, fw):
-            raise ValueError(f"projected_light shape {projected_light.shape} does not match the camera's {fw}x{fh}")
         x, y, w, h = self.geometry.roi
+        if projected_light.shape == (fh, fw):
+            projected_light = projected_light[y : y + h, x : x + w]
+        elif projected_light.shape != (h, w):
+            raise ValueError(
+                f"projected_light shape {projected_light.shape} is neither the camera's {fw}x{fh} nor the ROI's {w}x{h}"
+            )
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
         g = self.geometry
         out = self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype)
-        light = g.cut_roi(projected_light[y : y + h, x : x + w].astype(np.float32, copy=False), out=out)
+        light = g.cut_roi(projected_light.astype(np.float32, copy=False), out=out)
         if not cv2.checkRange(light)[0]:  # one pass, and almost always all finite: nan_to_num takes four
             np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
         np.clip(light, 0.0, LIGHT_MAX, out=light)

@@ -38,9 +38,12 @@ from feelium.touch.sensing import SensingMonitor, SensingSample
 log = logging.getLogger(__name__)
 
 PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, int] | None"], Any]
-# Per camera frame size (width, height): a projector frame to the light it puts on the membrane, camera frame size
-# (``predict(canvas, out)``: ``out`` a recycled array to write into, or None; see ExposureLight).
-ProjectedFactory = Callable[[tuple[int, int]], Callable[[np.ndarray, np.ndarray | None], np.ndarray]]
+# Per camera frame size (width, height) and box [x, y, w, h] (the pipeline's ROI, or None for the whole frame): a
+# projector frame to the light it puts on the membrane over that box (``predict(canvas, out)``: ``out`` a recycled
+# array to write into, or None; see ExposureLight).
+ProjectedFactory = Callable[
+    [tuple[int, int], "tuple[int, int, int, int] | None"], Callable[[np.ndarray, np.ndarray | None], np.ndarray]
+]
 Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
 
 
@@ -299,8 +302,10 @@ class TouchService:
             self._pipeline = self.pipeline_factory(self.touch_config, size, frame.roi)
             self._pipeline_key = key
             self._frame_size = size
+            # Predicted only over the ROI the pipeline cuts (it takes light of the ROI's size or of the frame's).
+            box = getattr(self._pipeline, "roi", None)
             self._exposure_light = (
-                ExposureLight(self.projected(size), self.touch_config) if self.projected is not None else None
+                ExposureLight(self.projected(size, box), self.touch_config) if self.projected is not None else None
             )
             self._last_debug = None
         return self._pipeline, flushed

@@ -35,6 +35,7 @@ from collections.abc import Callable, Hashable, Sequence
 import cv2
 import numpy as np
 
+from feelium.skin.blurwindow import Window, blur_window
 from feelium.touch.buffers import Scratch
 
 
@@ -113,7 +114,12 @@ def predicted_exposure(
 
 
 def depth_uncertainty(
-    spread: np.ndarray, slope: np.ndarray, expected: np.ndarray, sigma: float, scratch: Scratch | None = None
+    spread: np.ndarray,
+    slope: np.ndarray,
+    expected: np.ndarray,
+    sigma: float,
+    scratch: Scratch | None = None,
+    window: Window | None = None,
 ) -> np.ndarray:
     """Per working pixel, the largest smoothed depth a prediction error within ``spread`` can fake.
 
@@ -121,18 +127,39 @@ def depth_uncertainty(
     projected light), so its depth by ``slope * e / expected`` (``expected``: the reference times the exposure
     gain, floored by the caller). The depth map is smoothed by a Gaussian of ``sigma`` before any decision, and
     ``|G * x| <= G * |x|``, so the same smoothing of the bound bounds the smoothed error. With ``scratch`` the
-    result is one of its buffers (valid until its next use).
+    result is one of its buffers (valid until its next use). ``window`` (:func:`spread_window`): compute only there
+    (``expected`` need be valid only there) and return the bound over it; outside it the bound is zero.
     """
     buf = Scratch() if scratch is None else scratch
+    window = window if window is not None else (slice(None), slice(None))
     dtype = np.result_type(spread, slope, expected)
+    # Views of whole-size buffers: the window moves every frame, and a buffer per shape would be a new allocation.
+    full = buf.get("uncertainty.bound", spread.shape, dtype)
+    bound = full[window]
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        bound = np.multiply(spread, slope, out=buf.get("uncertainty.bound", spread.shape, dtype))
-        np.divide(bound, expected, out=bound)
+        np.multiply(spread[window], slope[window], out=bound)
+        np.divide(bound, expected[window], out=bound)
     if not cv2.checkRange(bound)[0]:  # one pass; finite inputs (the pipeline cleans them) give a finite bound
         np.nan_to_num(bound, copy=False, nan=0.0, posinf=1.0, neginf=0.0)
     np.clip(bound, 0.0, 1.0, out=bound)
     if sigma > 0.2:
-        bound = cv2.GaussianBlur(
-            bound, (0, 0), sigma, dst=buf.like("uncertainty.smooth", bound), borderType=cv2.BORDER_REPLICATE
-        )
+        smooth = buf.like("uncertainty.smooth", full)[window]
+        bound = cv2.GaussianBlur(bound, (0, 0), sigma, dst=smooth, borderType=cv2.BORDER_REPLICATE)
     return bound
+
+
+def spread_window(spread: np.ndarray, sigma: float, scratch: Scratch | None = None) -> Window | None:
+    """The window of a working image where :func:`depth_uncertainty` (blurred by ``sigma``) can be nonzero, or None
+    when the spread is zero everywhere (every frame inside a scene: the bound is then zero).
+
+    Zero spread gives an exactly zero bound (``0 * slope / expected``, NaN and inf cleaned to 0), and the blur of
+    zeros is zero, so outside the window the bound is 0 to the bit; inside it the window's blur gives the whole
+    image's bits (:mod:`feelium.skin.blurwindow`).
+    """
+    buf = Scratch() if scratch is None else scratch
+    nonzero = np.not_equal(spread, 0.0, out=buf.like("uncertainty.nonzero", spread, bool))  # NaN counts
+    x, y, w, h = cv2.boundingRect(nonzero.view(np.uint8))
+    if w == 0 or h == 0:
+        return None
+    rows, cols = spread.shape
+    return blur_window((cols, rows), (x, y, w, h), sigma if sigma > 0.2 else 0.0)

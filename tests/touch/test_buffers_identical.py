@@ -48,7 +48,10 @@ def _frames() -> tuple[list[np.ndarray], tuple[int, int, int, int]]:
     return out, roi
 
 
-def _digest(projected: bool) -> str:
+def _digest(projected: bool, cut: bool = False, patchy: bool = False) -> str:
+    """``cut``: hand the pipeline the light and spread already cut to its ROI (as the daemon's predictor makes
+    them) instead of the whole frame's; ``patchy``: spreads zero but for a patch (at the ROI's edge, inside it) or
+    everywhere, as at and between a projector's scene cuts."""
     config = Config()
     touch = dataclasses.replace(config.touch, width=SIZE[0], height=SIZE[1])
     frames, roi = _frames()
@@ -58,6 +61,15 @@ def _digest(projected: bool) -> str:
     lights = [np.clip(1.0 + 0.3 * rng.standard_normal((h, w)), 0.0, 3.0).astype(np.float32) for _ in range(3)]
     lights[1][5:9, 5:9] = np.nan
     spreads = [np.abs(0.03 * rng.standard_normal((h, w))).astype(np.float32) for _ in range(3)]
+    if patchy:
+        spreads[0][:] = 0.0
+        spreads[1][: h // 3, w // 2 :] = 0.0
+        spreads[1][h // 2 :, :] = 0.0
+        spreads[2][:, : w // 2 + 3] = 0.0
+    if cut:
+        x, y, rw, rh = roi
+        lights = [a[y : y + rh, x : x + rw].copy() for a in lights]
+        spreads = [a[y : y + rh, x : x + rw].copy() for a in spreads]
     sha = hashlib.sha256()
     for i, frame in enumerate(frames):
         extra = {}
@@ -91,3 +103,18 @@ def _rounded(value: object) -> object:
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:
     assert _digest(projected) == expected
+
+
+def test_light_cut_to_the_roi_gives_the_whole_frames_results() -> None:
+    """The daemon predicts the projected light only over the ROI (it is all the pipeline reads): same digest."""
+    assert _digest(True, cut=True) == "be0861732e5f3d55b6d237e07ff25bb192e656204ac2cc6b0e11907ea6cd3e44"
+
+
+def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(monkeypatch) -> None:
+    """The uncertainty bound computed only in the window around the nonzero spread (none when it is all zero)
+    changes nothing against computing it over the whole working image, whatever lies where."""
+    import feelium.touch.pipeline as pipeline_module
+
+    windowed = _digest(True, patchy=True)
+    monkeypatch.setattr(pipeline_module, "spread_window", lambda spread, sigma, scratch=None: (slice(None), slice(None)))
+    assert windowed == _digest(True, patchy=True)

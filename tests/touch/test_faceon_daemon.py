@@ -70,7 +70,7 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
     origin.append(shared.origin)
     touch = TouchService(
         CameraSource("sim", lambda: SimRearCamera(shared, fps=15.0), shared), hub, TouchConfig(),
-        debug_video_fps=0.0, projected=lambda size: CanvasLightPredictor(projector_cfg, calibration, size).gain,
+        debug_video_fps=0.0, projected=lambda size, box: CanvasLightPredictor(projector_cfg, calibration, size, box=box).gain,
     )  # fmt: skip
     projector = ProjectorService(
         projector_cfg, dataclasses.replace(InteractionsConfig(), enabled=False), hub, SimDisplay(), calibration

@@ -309,8 +309,8 @@ async def test_the_projected_light_of_each_exposure_goes_with_its_frame_at_the_f
     """Projector frames shown at 0.0 (light 0.5) and 0.2 s (light 1.0); 33 ms latency, 30 ms exposure."""
     sizes = []
 
-    def projected(size):
-        sizes.append(size)
+    def projected(size, box):
+        sizes.append((size, box))
         return lambda canvas, out=None: np.full((size[1], size[0]), float(canvas[0, 0]) / 100.0, np.float32)
 
     hub = Hub()
@@ -328,7 +328,7 @@ async def test_the_projected_light_of_each_exposure_goes_with_its_frame_at_the_f
 
     await asyncio.gather(service.run(), second_frame())
     (pipeline,) = FakePipeline.created
-    assert sizes == [(16, 12)]
+    assert sizes == [((16, 12), pipeline.roi)]  # the light is wanted only over the ROI the pipeline cuts
     assert all(light.shape == (12, 16) and spread.shape == (12, 16) for light, spread in pipeline.lights)
     levels = [round(float(light[0, 0]), 3) for light, _ in pipeline.lights]
     assert levels[-1] == 1.0  # at 0.3 s the exposure (0.252..0.282 on the projector's clock) saw the second frame
@@ -360,7 +360,7 @@ def test_projection_compensation_only_for_frames_that_contain_the_projectors_lig
 
 
 async def test_a_failing_light_prediction_costs_only_the_compensation():
-    def projected(size):
+    def projected(size, box):
         def predict(frame, out=None):
             raise ValueError("canvas must be 512x384 grey uint8")
 
