@@ -28,6 +28,7 @@ import asyncio
 import logging
 import os
 import threading
+from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import suppress
@@ -53,6 +54,8 @@ log = logging.getLogger(__name__)
 STOP_WRITE_TIMEOUT_S = 0.3
 LOOP_STALL_S = 0.5  # no control cycle for this long (25 periods at 50 Hz): health says the loop stalled
 LINK_COUNTERS = ("stalls", "resyncs", "late_replies")  # summed over every client a run opened
+# At most this many link lines in any window this long; the changes beyond are counted into the next line.
+LINK_LOG_BURST, LINK_LOG_WINDOW_S = 4, 10.0
 LINK_REASONS = {
     "stalled": "no reply to the last telemetry requests; probing",
     "resyncing": "discarding a backlog of replies until the line is quiet",
@@ -148,6 +151,8 @@ class FlightService:
         self.client: MspClient | None = None
         self.link_state = "down"
         self._logged_state: str | None = None
+        self._link_logged_at: deque[float] = deque()  # hub times of the link lines of the last LINK_LOG_WINDOW_S
+        self._link_changes_unlogged = 0
         self._past_counts = dict.fromkeys(LINK_COUNTERS, 0)
         self._telemetry_t: float | None = None
         self.stopping = False
@@ -281,17 +286,32 @@ class FlightService:
             self._past_counts[name] += getattr(client, name)
 
     def _set_link_state(self, state: str) -> None:
-        """Record the link state; log the change into a bad state once (a failed reopen is no change), and the recovery."""
+        """Record the link state; log the change into a bad state once (a failed reopen is no change), and the recovery.
+
+        A link that flaps (a slow board resyncing every few ticks) would write several lines a second: at most
+        ``LINK_LOG_BURST`` lines are written in any ``LINK_LOG_WINDOW_S`` (a stall, its resync and the recovery
+        all show), the changes beyond are counted, and the next line written says how many there were. Health
+        shows the state of every tick regardless."""
         self.link_state = state
         if state == "connecting" or state == self._logged_state:
             return
         previous, self._logged_state = self._logged_state, state
+        now = self.hub.clock()
+        logged = self._link_logged_at
+        while logged and now - logged[0] >= LINK_LOG_WINDOW_S:
+            logged.popleft()
+        if len(logged) >= LINK_LOG_BURST:
+            self._link_changes_unlogged += 1
+            return
+        logged.append(now)
+        unlogged, self._link_changes_unlogged = self._link_changes_unlogged, 0
+        flapped = f"; the link changed {unlogged} more times before this, not logged (flapping)" if unlogged else ""
         if state == "up":
-            log.info("flight: motor board link up (was %s)", previous or "not yet open")
+            log.info("flight: motor board link up (was %s)%s", previous or "not yet open", flapped)
         elif state == "down":
-            log.warning("flight: motor board link down: %s", self.last_error)
+            log.warning("flight: motor board link down: %s%s", self.last_error, flapped)
         else:
-            log.warning("flight: motor board link %s (%s)", state, LINK_REASONS[state])
+            log.warning("flight: motor board link %s (%s)%s", state, LINK_REASONS[state], flapped)
 
     # ------------------------------------------------------------ one cycle
     async def _cycle(self, events: Any, due: float) -> None:

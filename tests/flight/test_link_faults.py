@@ -376,3 +376,22 @@ async def test_the_service_logs_each_link_state_change_once_and_reports_the_stal
     finally:
         await service.stop()
         await asyncio.wait_for(task, 2.0)
+
+
+def test_a_flapping_link_writes_a_few_lines_then_counts_the_rest_into_the_next(caplog: pytest.LogCaptureFixture) -> None:
+    """A slow board resyncing every ~120 ms wrote 8 lines in 0.5 s (R15b F3): the log stays readable, nothing is hidden."""
+    hub = Hub()
+    now = [100.0]
+    hub.clock = lambda: now[0]
+    service = FlightService(SERVICE_CONFIG, hub, SimOpener(SERVICE_CONFIG, 1, hub.clock))
+    caplog.set_level(logging.INFO, logger="feelium.flight.service")
+    for i in range(20):  # 20 changes in 2.4 s
+        service._set_link_state("resyncing" if i % 2 else "up")
+        now[0] += 0.12
+    assert service.link_state == "resyncing"  # the state itself follows every change (the 20th)
+    lines = [r.getMessage() for r in caplog.records if r.name == "feelium.flight.service"]
+    assert len(lines) == 4 and "link up" in lines[0] and "link resyncing" in lines[1]
+    now[0] = 100.0 + 10.5  # the window has passed
+    service._set_link_state("stalled")
+    last = [r.getMessage() for r in caplog.records if r.name == "feelium.flight.service"][-1]
+    assert "link stalled" in last and "changed 16 more times before this" in last
