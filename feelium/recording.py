@@ -15,6 +15,7 @@ import math
 import os
 import shutil
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -446,6 +447,9 @@ byte between two frames. Closing then still needs room: FFmpeg's Matroska muxer 
 memory (up to 5 MiB or 5 s) and writes it and the index on release, then come the timestamps and meta.json.
 8 MiB covers that for a camera take of hours (11 bytes of timestamp a frame)."""
 SET_ASIDE_NAME = ".set-aside"
+JOURNAL_META, JOURNAL_TIMES = ".journal.json", ".journal_ts.txt"
+JOURNAL_SYNC_S = 1.0
+"""How often the journal of frame times is fsynced: a power cut loses at most this much of a take's end."""
 
 
 class DiskFull(OSError):
@@ -596,6 +600,12 @@ class RecordingWriter:
             shutil.rmtree(self._tmp, ignore_errors=True)
             raise RuntimeError("OpenCV cannot write FFV1/Matroska here (needs its FFmpeg backend)")
         self._times: list[float] = []
+        # The take's journal (hidden, in the temp dir): who writes it, its meta and each frame's time as it comes,
+        # so a take whose process was killed (SIGKILL, a power cut, the OOM killer) can be recovered later
+        # (:func:`recover_interrupted`). Removed on close, when the real files are written.
+        write_durably(self._tmp / JOURNAL_META, (json.dumps({"pid": os.getpid(), "target": self.path.name, "meta": self._meta}) + "\n").encode())
+        self._journal = (self._tmp / JOURNAL_TIMES).open("w", encoding="ascii")
+        self._journal_synced = time.monotonic()
         self._reserve = reserve_bytes
         self._free = free if free is not None else free_bytes
         self._last_t = -math.inf
@@ -627,6 +637,11 @@ class RecordingWriter:
         self._times.append(t)
         self._last_t = t
         self.frames_written += 1
+        self._journal.write(f"{t:.6f}\n")
+        self._journal.flush()  # in the kernel's hands: a killed process loses nothing
+        if (now := time.monotonic()) - self._journal_synced >= JOURNAL_SYNC_S:  # on the disk: a power cut loses <= this
+            os.fsync(self._journal.fileno())
+            self._journal_synced = now
 
     def set_labels(self, labels: Labels) -> None:
         self._labels = labels
@@ -687,6 +702,7 @@ class RecordingWriter:
         raised: nothing half is left. ``frames_lost`` says how many frames the cut took off.
         """
         self._set_aside.unlink(missing_ok=True)  # first: FFmpeg's release writes its last cluster and index
+        self._journal.close()
         self._video.release()
         if self._projector is not None:
             self._projector.release()
@@ -700,6 +716,8 @@ class RecordingWriter:
             if self._projector is not None:
                 del self._projector_times[frames_held(self._tmp / "projector.mkv", len(self._projector_times)) :]
             self._finish_files()
+            for name in (JOURNAL_META, JOURNAL_TIMES):
+                (self._tmp / name).unlink(missing_ok=True)
             if self.path.exists() and self._overwrite:
                 shutil.rmtree(self.path)
             os.replace(self._tmp, self.path)
@@ -732,6 +750,7 @@ class RecordingWriter:
         fsync_path(self._tmp)
 
     def abort(self) -> None:
+        self._journal.close()
         self._video.release()
         if self._projector is not None:
             self._projector.release()
@@ -745,3 +764,94 @@ class RecordingWriter:
             self.close()
         else:
             self.abort()
+
+
+@dataclass(frozen=True)
+class Recovered:
+    """One interrupted take found beside a target: where it went (``None``: nothing usable, removed) and how much."""
+
+    temp: Path
+    path: Path | None
+    frames: int
+
+
+def recover_interrupted(parent: Path, *, alive: Callable[[int], bool] | None = None) -> list[Recovered]:
+    """Finish the takes under ``parent`` whose writing process died (SIGKILL, a power cut, the OOM killer).
+
+    A take writes into a hidden temp dir with a journal of its meta and frame times (:class:`RecordingWriter`).
+    For each such dir whose writer is gone: the room set aside is given back, the times are cut to the frames
+    the video holds (FFmpeg's last cluster dies with it: up to 5 s), the format's files are written durably and
+    the dir is renamed to its target's name (``NAME-recovered``, ``-recovered-2``, ... when that exists). A take
+    without a decodable frame is removed. Temp dirs without a journal (an older writer's) are left alone."""
+    is_alive = alive if alive is not None else _process_alive
+    found: list[Recovered] = []
+    for temp in sorted(parent.glob(".*")):
+        journal = temp / JOURNAL_META
+        if not temp.is_dir() or not journal.is_file():
+            continue
+        try:
+            header = json.loads(journal.read_text(encoding="utf-8"))
+            pid, target, meta = int(header["pid"]), str(header["target"]), dict(header["meta"])
+        except (OSError, ValueError, KeyError, TypeError):
+            continue  # a journal cut mid-write: its take had no frame yet
+        if is_alive(pid):
+            continue  # still being written
+        (temp / SET_ASIDE_NAME).unlink(missing_ok=True)
+        times = _journal_times(temp / JOURNAL_TIMES)
+        held = frames_held(temp / "camera.mkv", len(times)) if (temp / "camera.mkv").is_file() else 0
+        if held == 0:
+            shutil.rmtree(temp, ignore_errors=True)
+            found.append(Recovered(temp, None, 0))
+            continue
+        meta.pop("projector", None)  # its stream's times were kept only in memory: the camera take stands alone
+        for name in ("projector.mkv", JOURNAL_TIMES, JOURNAL_META):
+            (temp / name).unlink(missing_ok=True)
+        write_durably(temp / "camera_ts.txt", "".join(f"{t:.6f}\n" for t in times[:held]).encode())
+        write_durably(temp / "meta.json", (json.dumps(meta, indent=1) + "\n").encode())
+        destination = _free_name(parent, target)
+        os.replace(temp, destination)
+        fsync_path(parent)
+        found.append(Recovered(temp, destination, held))
+    return found
+
+
+def _journal_times(path: Path) -> list[float]:
+    """The journal's frame times up to its first line that is not a whole number (a line cut by the kill)."""
+    times: list[float] = []
+    try:
+        text = path.read_text(encoding="ascii", errors="replace")
+    except OSError:
+        return times
+    for line in text.split("\n")[:-1]:  # the last piece has no newline: cut mid-write, or empty
+        try:
+            t = float(line)
+        except ValueError:
+            break
+        if not math.isfinite(t) or (times and t <= times[-1]):
+            break
+        times.append(t)
+    return times
+
+
+def _free_name(parent: Path, target: str) -> Path:
+    candidate = parent / f"{target}-recovered"
+    n = 2
+    while candidate.exists():
+        candidate = parent / f"{target}-recovered-{n}"
+        n += 1
+    return candidate
+
+
+def _process_alive(pid: int) -> bool:
+    """Whether ``pid`` runs: a zombie (killed, not yet reaped by its parent) has stopped writing for good."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        pass  # someone else's process
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return True  # no /proc: trust kill(0)
+    return state not in ("Z", "X")

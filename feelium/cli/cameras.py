@@ -74,6 +74,7 @@ def _record(args: argparse.Namespace) -> int:
     from feelium.daemon.backends import for_this_machine
     from feelium.daemon.config import load_config
     from feelium.daemon.journal import setup_logging
+    from feelium.recording import recover_interrupted
 
     setup_logging(logging.INFO)
     config = load_config(args.config)
@@ -88,6 +89,11 @@ def _record(args: argparse.Namespace) -> int:
         print("feelium record: --face-video needs --projector face", file=sys.stderr)
         return 2
     out = Path(args.out)
+    if out.parent.is_dir():  # takes a killed record (SIGKILL, power cut) left beside this one: finish them first
+        for found in recover_interrupted(out.parent):
+            print(f"feelium record: an interrupted take ({found.temp.name}): "
+                  + (f"recovered {found.frames} frames as {found.path}" if found.path else "no frame reached the disk; removed"),
+                  file=sys.stderr)  # fmt: skip
     if out.exists():
         print(f"feelium record: {out} already exists", file=sys.stderr)
         return 1
