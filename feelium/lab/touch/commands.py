@@ -457,7 +457,7 @@ def _zone_rows(zones: dict[str, Any] | None) -> list[tuple[str, str]]:
             )
         )
     if zones["unplaced"]:
-        rows.append(("  off the face", f"{zones['unplaced']} trials"))
+        rows.append(("  unplaced", f"{zones['unplaced']} trials (no labelled point, e.g. hovers, or off the face)"))
     return rows
 
 
