@@ -16,13 +16,14 @@ from feelium.daemon.config import load_config
 from feelium.lab.plot import Series, line_plot
 from feelium.recording import NEGATIVE_LABELS, Recording, RecordingError, find_recordings
 from feelium.lab.touch.skips import Skips
+from feelium.lab.touch.zones import ZONES
 from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
 from feelium.lab.touch.margins import GateSeries, GateThresholds
 from feelium.lab.touch.contact_score import score_contacts
 from feelium.lab.touch.recorded_light import recorded_light
-from feelium.lab.touch.replay import ReplayResult, relative_name, replay_recording
+from feelium.lab.touch.replay import ReplayResult, face_of, relative_name, replay_recording
 from feelium.projector.config import ProjectorConfig
 
 
@@ -201,6 +202,7 @@ def scoring_input(root: Path, result: ReplayResult) -> TrialData | ClipData:
         series=GateSeries(
             result.t, result.anchor, result.core_depth, result.edge, labels.contacts, labels.label in NEGATIVE_LABELS
         ),
+        face=face_of(result.recording),
     )
 
 
@@ -436,6 +438,29 @@ def _contact_rows(c: dict[str, Any] | None) -> list[tuple[str, str]]:
     ]  # fmt: skip
 
 
+def _zone_rows(zones: dict[str, Any] | None) -> list[tuple[str, str]]:
+    """One row per zone of the front face: recall, negatives fired, localisation error (none without a face)."""
+    if zones is None:
+        return []
+    rows = [("by face zone", "recall, negatives fired, error px (median/p95)")]
+    for zone in ZONES:
+        z = zones[zone]
+        if z is None:
+            rows.append((f"  {zone}", "no trials"))
+            continue
+        err = z["localisation"]["error_px"]
+        rows.append(
+            (
+                f"  {zone}",
+                f"{_fmt(z['recall'])} ({z['tp']} of {z['tp'] + z['fn']}), {z['fp']} of {z['fp'] + z['tn']} fired, "
+                + ("n/a" if err is None else f"{err['median']:.2f} / {err['p95']:.2f}"),
+            )
+        )
+    if zones["unplaced"]:
+        rows.append(("  unplaced", f"{zones['unplaced']} trials (no labelled point, e.g. hovers, or off the face)"))
+    return rows
+
+
 def _outcome(report: dict[str, Any]) -> str:
     """Precision / recall, negatives fired and the localisation median of one report, in one cell."""
     t = report["trials"]
@@ -505,6 +530,7 @@ def format_report(report: dict[str, Any]) -> str:
             )
         )
     rows += _margin_rows(report.get("margins"))
+    rows += _zone_rows(report.get("zones"))
     rows += _contact_rows(report.get("contacts"))
     cfg = report.get("touch_config")
     if cfg:

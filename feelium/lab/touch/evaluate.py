@@ -16,7 +16,9 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.lab.touch.margins import GateSeries, GateThresholds, margins
+from feelium.lab.touch.zones import score_zones
 from feelium.recording import NEGATIVE_LABELS, TOUCH_LABELS, Contact, Labels
+from feelium.skin.face import FaceModel
 
 WIDEN_BEFORE_S = 0.2
 WIDEN_AFTER_S = 0.5
@@ -48,6 +50,7 @@ class TrialData:
     activity: bool
     max_area: float
     series: GateSeries | None = None  # per-frame gate scores, for the margins (None: not kept)
+    face: FaceModel | None = None  # the recording's whole-face model (its skin u, v place the trial in a zone)
 
 
 @dataclass(frozen=True)
@@ -369,7 +372,7 @@ def build_report(
     height: int,
     gates: GateThresholds | None = None,
 ) -> dict[str, Any]:
-    """The full version-1 report; with ``gates``, the extra ``margins`` key (else null)."""
+    """The full version-1 report; with ``gates``, the extra ``margins`` key (else null); ``zones`` by face zone."""
     scored = score_trials(trials)
     return {
         "version": 1,
@@ -382,4 +385,5 @@ def build_report(
         "latency_ms": scored["latency_ms"],
         "speed": speed_report(seconds_per_frame, width, height),
         "margins": score_margins(trials, clips, gates) if gates is not None else None,
+        "zones": score_zones(trials, score_trials),
     }

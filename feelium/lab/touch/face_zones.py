@@ -39,6 +39,7 @@ import numpy as np
 from feelium.events import TouchEvent
 from feelium.lab.report import finish_experiment, print_progress
 from feelium.lab.sim import protocol, scripts
+from feelium.lab.touch.zones import ZONE_CUTS, ZONES
 from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_trials
 from feelium.sim.camera import frame_times
 from feelium.sim.scene import SceneRenderer, exposure_samples
@@ -49,9 +50,8 @@ from feelium.touch.pipeline import TouchPipeline
 
 FRAME = (1280, 960)  # the rear camera's frame: with the face filling it, ~2 px/mm at the centre, the protocol's scale
 WORK = (640, 480)  # working resolution: 1 working px per mm at the centre, as 320x240 of the protocol's 640x480
-ZONES = ("centre", "mid", "edge")
 EDGE_MAX = 0.92  # targets stay this far out at most: a fingertip pad (~12 mm) lands wholly on the face
-ZONE_RANGE = {"centre": (0.0, 1.0 / 3.0), "mid": (1.0 / 3.0, 2.0 / 3.0), "edge": (2.0 / 3.0, EDGE_MAX)}
+ZONE_RANGE = {"centre": (0.0, ZONE_CUTS[0]), "mid": ZONE_CUTS, "edge": (ZONE_CUTS[1], EDGE_MAX)}
 LABELS = ("tap", "hold", "swipe", "hover")
 BUILDERS = {"tap": scripts.tap, "hold": scripts.hold, "swipe": scripts.swipe, "hover": scripts.hover}
 AIM_PX = 4.0  # the partner misses the drawn target by this much (sd, px)
