@@ -255,12 +255,21 @@ def _parse_labels(path: Path) -> Labels:
     return Labels(label=label, clip=clip, target=target, contacts=tuple(contacts))
 
 
-def _check_labels_fit(path: Path, labels: Labels, size: tuple[int, int], timestamps: np.ndarray) -> None:
-    """Labels that contradict themselves or their take would be scored as if true: refuse them, naming the field.
+def check_labels_fit(recording: "Recording") -> None:
+    """Refuse labels that contradict themselves or their take, naming the field (:class:`RecordingError`).
 
-    A touch trial (or a ``contact`` clip) needs a contact and a negative has none (the spec: "empty for
-    negatives"); the target lies in the camera frame; every contact overlaps the take's frames. Contacts may
-    overlap each other (two hands at once)."""
+    For whatever scores against the labels (``eval``, ``calibrate touch``): they would be scored as if true.
+    Replaying frames does not need them, so opening a recording does not check this. A touch trial (or a
+    ``contact`` clip) needs a contact and a negative has none (the spec: "empty for negatives"); the target
+    lies in the camera frame; every contact overlaps the take's frames. Contacts may overlap each other (two
+    hands at once)."""
+    if recording.labels is None:
+        return
+    size = (recording.meta.camera.width, recording.meta.camera.height)
+    _check_labels_fit(recording.path / "labels.json", recording.labels, size, recording.timestamps)
+
+
+def _check_labels_fit(path: Path, labels: Labels, size: tuple[int, int], timestamps: np.ndarray) -> None:
     touch = labels.label == "contact" if labels.clip else labels.label in TOUCH_LABELS
     if touch and not labels.contacts:
         raise _fail(path, f"label {labels.label!r} needs at least one entry in contacts")
@@ -313,8 +322,6 @@ class Recording:
             )
         labels_path = self.path / "labels.json"
         self.labels: Labels | None = _parse_labels(labels_path) if labels_path.exists() else None
-        if self.labels is not None:
-            _check_labels_fit(labels_path, self.labels, declared, self.timestamps)
 
     @property
     def name(self) -> str:
@@ -603,8 +610,13 @@ class RecordingWriter:
         # The take's journal (hidden, in the temp dir): who writes it, its meta and each frame's time as it comes,
         # so a take whose process was killed (SIGKILL, a power cut, the OOM killer) can be recovered later
         # (:func:`recover_interrupted`). Removed on close, when the real files are written.
-        write_durably(self._tmp / JOURNAL_META, (json.dumps({"pid": os.getpid(), "target": self.path.name, "meta": self._meta}) + "\n").encode())
-        self._journal = (self._tmp / JOURNAL_TIMES).open("w", encoding="ascii")
+        try:
+            write_durably(self._tmp / JOURNAL_META, (json.dumps({"pid": os.getpid(), "target": self.path.name, "meta": self._meta}) + "\n").encode())
+            self._journal = (self._tmp / JOURNAL_TIMES).open("w", encoding="ascii")
+        except OSError:
+            self._video.release()
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise
         self._journal_synced = time.monotonic()
         self._reserve = reserve_bytes
         self._free = free if free is not None else free_bytes

@@ -41,10 +41,12 @@ async def _run_until(config, condition, *, hub=None, builders=REAR_ONLY, notifie
 
     async def watch():
         deadline = time.monotonic() + timeout
-        while "supervisor" not in holder or not condition(hub, holder["supervisor"]):
-            assert time.monotonic() < deadline, "daemon never reached the condition"
-            await asyncio.sleep(0.01)
-        stop.set()
+        try:
+            while "supervisor" not in holder or not condition(hub, holder["supervisor"]):
+                assert time.monotonic() < deadline, "daemon never reached the condition"
+                await asyncio.sleep(0.01)
+        finally:
+            stop.set()  # a condition never met fails the test (below) instead of running the daemon forever
 
     watcher = asyncio.create_task(watch())
     supervisor = await run_daemon(

@@ -14,6 +14,7 @@ from feelium.recording import (
     RecordingError,
     RecordingWriter,
     ThermalData,
+    check_labels_fit,
     find_recordings,
 )
 
@@ -192,12 +193,14 @@ def test_bad_labels_are_named_not_a_traceback(tmp_path, labels, message):
         ({"label": "hover", "clip": True, "contacts": [{"t_on": 0.1, "t_off": 0.2}]}, "'hover' is a negative"),
     ],
 )
-def test_labels_that_contradict_themselves_or_their_take_are_refused(tmp_path, labels, message):
-    """They would otherwise be scored as if true (an 'empty' with a contact counted as a true negative)."""
+def test_labels_that_contradict_themselves_or_their_take_are_refused_for_scoring(tmp_path, labels, message):
+    """They would otherwise be scored as if true (an 'empty' with a contact counted as a true negative); the
+    frames still replay (opening does not check what only scoring needs)."""
     _write(tmp_path / "r")
     (tmp_path / "r" / "labels.json").write_text(json.dumps(labels))
+    recording = Recording(tmp_path / "r")
     with pytest.raises(RecordingError, match=message) as info:
-        Recording(tmp_path / "r")
+        check_labels_fit(recording)
     assert "labels.json" in str(info.value)
 
 
@@ -206,7 +209,9 @@ def test_labels_that_fit_their_take_are_accepted_with_overlapping_contacts(tmp_p
     _write(tmp_path / "r")
     both = [{"t_on": 0.0, "t_off": 0.3, "contact": "finger"}, {"t_on": 0.1, "t_off": 0.5, "contact": "palm"}]
     (tmp_path / "r" / "labels.json").write_text(json.dumps({"label": "hold", "target": [64, 0], "contacts": both}))
-    assert len(Recording(tmp_path / "r").labels.contacts) == 2
+    recording = Recording(tmp_path / "r")
+    check_labels_fit(recording)
+    assert len(recording.labels.contacts) == 2
 
 
 def test_the_projector_stream_round_trips_beside_the_camera(tmp_path):

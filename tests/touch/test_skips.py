@@ -101,3 +101,16 @@ def test_a_dataset_of_only_bad_recordings_exits_1_nothing_usable(tmp_path, capsy
     _break(tmp_path / "b-time", "repeated time")
     assert main(["replay", str(tmp_path)]) == 1
     assert _skip_lines(capsys.readouterr().err)[-1].startswith("feelium replay: skipped 1 of 1 recordings: ")
+
+
+def test_labels_that_contradict_their_take_are_skipped_by_eval_but_replay_plays_the_frames(tmp_path, capsys):
+    """An 'empty' trial with a contact would count as a true negative (R15b F2); its frames are still frames."""
+    _good(tmp_path / "a-good")
+    _good(tmp_path / "b-odd")
+    (tmp_path / "b-odd" / "labels.json").write_text(json.dumps({"label": "empty", "contacts": [{"t_on": 0.1, "t_off": 0.2}]}))
+    assert main(["eval", str(tmp_path), "--figure", str(tmp_path / "f.png")]) == 3
+    out, err = capsys.readouterr()
+    (line, summary) = _skip_lines(err)
+    assert line.startswith(f"feelium eval: skipped {tmp_path / 'b-odd' / 'labels.json'}: label 'empty' is a negative")
+    assert "1  (tp 0, fp 0, fn 0, tn 1)" in out
+    assert main(["replay", str(tmp_path)]) == 0

@@ -161,7 +161,7 @@ def fit_on_clips(
 def run_calibrate(args: argparse.Namespace) -> int:
     whole = load_config(args.config)
     config = whole.touch
-    skips = Skips("calibrate touch")
+    skips = Skips("calibrate touch", scores_labels=True)
     root = Path(args.dataset)
     try:
         fit = fit_on_clips(list(skips.recordings(root)), config, skips, root=root, projector=whole.projector,
@@ -247,7 +247,7 @@ def evaluate_dataset(
     the report, and each condition's, gains ``"paper_gates"``: the same report for that detector, so what the
     project's additions buy (or cost) is read per condition on the same frames.
     """
-    skips = skips if skips is not None else Skips("eval")
+    skips = skips if skips is not None else Skips("eval", scores_labels=True)
     ours = _Groups()
     paper = _Groups()
     paper_cfg = paper_config(config)
@@ -328,7 +328,7 @@ def run_eval(args: argparse.Namespace) -> int:
     if args.fit_on_clips:
         try:
             # quiet: the scoring pass below meets the same bad recordings and reports them once
-            fitting = Skips("eval", err=io.StringIO())
+            fitting = Skips("eval", err=io.StringIO(), scores_labels=True)
             fit = fit_on_clips(list(fitting.recordings(root)), config, fitting, root=root, projector=whole.projector,
                                calibration=_calibration(args))  # fmt: skip
         except ValueError as exc:
@@ -339,7 +339,7 @@ def run_eval(args: argparse.Namespace) -> int:
         fit_warnings = fit.warnings
         for warning in fit_warnings:
             print(f"feelium eval: --fit-on-clips: warning: {warning}", file=sys.stderr)
-    skips = Skips("eval")
+    skips = Skips("eval", scores_labels=True)
     report, clips = evaluate_dataset(
         root, config, dataset_name=args.dataset, skips=skips, by_condition=args.by_condition,
         paper_gates=args.paper_gates, projector=whole.projector, calibration=_calibration(args),

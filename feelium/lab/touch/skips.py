@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TextIO, TypeVar
 
-from feelium.recording import Recording, RecordingError, find_recordings
+from feelium.recording import Recording, RecordingError, check_labels_fit, find_recordings
 
 SKIPPED_EXIT = 3
 NOTHING_USABLE_EXIT = 1
@@ -24,8 +24,11 @@ T = TypeVar("T")
 class Skips:
     """The recordings one command left out, reported to ``err`` as they happen and summed up at the end."""
 
-    def __init__(self, command: str, err: TextIO | None = None) -> None:
+    def __init__(self, command: str, err: TextIO | None = None, *, scores_labels: bool = False) -> None:
+        """``scores_labels``: the command scores against the labels, so labels that contradict themselves or
+        their take (:func:`feelium.recording.check_labels_fit`) make a recording bad too."""
         self.command = command
+        self.scores_labels = scores_labels
         self.err = err if err is not None else sys.stderr
         self.problems: list[RecordingError] = []
         self.seen = 0
@@ -35,9 +38,13 @@ class Skips:
         for path in find_recordings(root):
             self.seen += 1
             try:
-                yield Recording(path)
+                recording = Recording(path)
+                if self.scores_labels:
+                    check_labels_fit(recording)
             except RecordingError as exc:
                 self.skip(exc)
+                continue
+            yield recording
 
     def attempt(self, work: Callable[[], T]) -> T | None:
         """``work()``, or ``None`` after reporting it when a recording turns out bad half-way (e.g. its video ends early)."""
