@@ -53,12 +53,6 @@ SMOOTH_S = {"heave": 0.2, "surge": 0.12, "yaw": 0.07}
 RANGE_LATENCY_RANGE_S = (0.0, 0.04)
 FLOW_LATENCY_S = 0.005
 NEAR_LIMIT_M = 0.12  # samples this close to the floor/ceiling limits are dropped (contact, ground effect)
-# A yaw step runs one horizontal motor alone: it pushes the body forward while it turns, and the turn swings
-# that forward speed into sway and back (du/dt gains v r), a force the surge model does not have and the flow
-# sensor's forward reading cannot show. Surge leaves out those steps and this long after each (the hold has
-# stopped the turn by then); yaw, which has no such coupling, keeps them.
-TURN_TAIL_S = 8.0
-ONE_MOTOR_MIN = 0.25  # a yaw step's smallest command; the hold never sends one motor exactly neutral
 
 
 @dataclass(frozen=True)
@@ -219,17 +213,6 @@ def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: f
     return Signals(dt, commands, rate, accel, trusted, sigma, measured, clear)
 
 
-def one_motor_turns(commands: np.ndarray, dt: float, sigma_samples: float) -> np.ndarray:
-    """Per period: inside a one-motor yaw step (one horizontal motor at least ``ONE_MOTOR_MIN``, the other exactly
-    neutral), within the smoothing kernel's reach before it, or within ``TURN_TAIL_S`` after it."""
-    left, right = commands[:, 0], commands[:, 1]
-    alone = ((left == 0.0) & (np.abs(right) >= ONE_MOTOR_MIN)) | ((right == 0.0) & (np.abs(left) >= ONE_MOTOR_MIN))
-    before, after = int(math.ceil(3.0 * sigma_samples)), int(math.ceil(TURN_TAIL_S / dt))
-    count = np.concatenate(([0], np.cumsum(alone)))  # count[k]: steps' periods before k
-    k = np.arange(alone.size - 1)
-    return count[np.minimum(k + before + 1, alone.size)] > count[np.maximum(k - after, 0)]
-
-
 # ---------------------------------------------------------------- least squares
 def least_squares(columns: dict[str, np.ndarray], target: np.ndarray, mask: np.ndarray, sigma_samples: float) -> AxisFit:
     """Ordinary least squares on the trusted samples, with standard errors for a smoothed (correlated) residual.
@@ -282,7 +265,7 @@ def surge_fit(sig: Signals, lag_s: float, deadband: float) -> AxisFit:
     u = sig.rate["surge"]
     columns = {"thrust_per_mass": f1 + f2, "reverse_thrust_per_mass": -(r1 + r2),
                "linear_drag_per_mass": -u, "quadratic_drag_per_mass": -u * np.abs(u)}
-    return least_squares(columns, sig.accel["surge"], sig.trusted["surge"] & ~one_motor_turns(sig.commands, sig.dt, sig.sigma["surge"]), sig.sigma["surge"])
+    return least_squares(columns, sig.accel["surge"], sig.trusted["surge"], sig.sigma["surge"])
 
 
 def yaw_fit(sig: Signals, lag_s: float, deadband: float) -> AxisFit:

@@ -61,13 +61,13 @@ def default_script() -> list[Step]:
     steps: list[Step] = []
     for level in (0.25, 0.45, 0.65):
         steps += [Step("surge", level, 3.0), Step("surge", -level, 3.0)]
+    for level in (0.3, 0.5, 0.75):
+        steps += [Step("yaw", sign * level, 2.5, motor=motor) for sign in (1.0, -1.0) for motor in (0, 1)]
     for delta, seconds in ((0.12, 2.5), (0.25, 2.0), (0.06, 4.0)):
         steps += [Step("heave", delta, seconds, start_z=1.9), Step("heave", -delta, seconds, start_z=1.0)]
     for level, seconds in ((0.0, 1.2), (0.15, 1.2), (0.3, 1.5), (-0.3, 0.8), (-0.6, 0.6), (-0.9, 0.5)):
         steps.append(Step("heave", level, seconds, start_z=0.9, absolute=True))
     steps.append(Step("heave", 0.95, 1.5, start_z=2.0, absolute=True))
-    for level in (0.3, 0.5, 0.65):
-        steps += [Step("yaw", sign * level, 2.5, motor=motor) for sign in (1.0, -1.0) for motor in (0, 1)]
     return steps
 
 
