@@ -263,19 +263,16 @@ def check_labels_fit(recording: "Recording") -> None:
     ``contact`` clip) needs a contact and a negative has none (the spec: "empty for negatives"); the target
     lies in the camera frame; every contact overlaps the take's frames. Contacts may overlap each other (two
     hands at once)."""
-    if recording.labels is None:
+    labels, timestamps = recording.labels, recording.timestamps
+    if labels is None:
         return
-    size = (recording.meta.camera.width, recording.meta.camera.height)
-    _check_labels_fit(recording.path / "labels.json", recording.labels, size, recording.timestamps)
-
-
-def _check_labels_fit(path: Path, labels: Labels, size: tuple[int, int], timestamps: np.ndarray) -> None:
+    path = recording.path / "labels.json"
+    width, height = recording.meta.camera.width, recording.meta.camera.height
     touch = labels.label == "contact" if labels.clip else labels.label in TOUCH_LABELS
     if touch and not labels.contacts:
         raise _fail(path, f"label {labels.label!r} needs at least one entry in contacts")
     if not touch and labels.contacts:
         raise _fail(path, f"label {labels.label!r} is a negative: its contacts must be empty, got {len(labels.contacts)}")
-    width, height = size
     if labels.target is not None and not (0.0 <= labels.target[0] <= width and 0.0 <= labels.target[1] <= height):
         raise _fail(path, f"target {list(labels.target)} lies outside the {width}x{height} camera frame")
     if len(timestamps) == 0:
