@@ -17,9 +17,9 @@ import pytest
 from feelium.cli import main
 from feelium.daemon.config import Config
 from feelium.lab.projector.calibrate import run_calibration, truth_error
-from feelium.lab.projector.from_recording import PURPOSE, RecordingCapture, calibrate_recording
+from feelium.lab.projector.from_recording import PURPOSE, RecordingCapture, Shown, calibrate_recording, flat_frames_response
 from feelium.recording import Recording, RecordingError, RecordingWriter
-from feelium.sim.projection import FisheyeWarp, ProjectedLight, SimPatternCapture
+from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics, SimPatternCapture
 from feelium.sim.scene import HEIGHT, WIDTH, Session
 from feelium.skin.projector_map import load_calibration
 
@@ -28,6 +28,7 @@ CONFIG = Config()
 FAST = replace(CONFIG.projector.calibration, settle_frames=0, frames_per_pattern=1)  # the simulator needs no settling
 SIZE = (CONFIG.projector.width, CONFIG.projector.height)
 LATENCY = CONFIG.touch.projector_latency_s
+OPTICS = ProjectorOptics()
 
 
 def _sim(seed: int = 1) -> tuple[SimPatternCapture, tuple[np.ndarray, np.ndarray]]:
@@ -57,12 +58,16 @@ def test_the_projects_own_sequence_refits_offline_to_the_live_map(own_run):
 
 
 def _opencv_gray_code_recording(path: Path) -> tuple[Path, tuple[np.ndarray, np.ndarray]]:
-    """OpenCV contrib's full-resolution Gray code (each pattern then its inverse), nothing of this project's."""
+    """OpenCV contrib's full-resolution Gray code (each pattern then its inverse), then its shadow-mask white
+    and black and two flat greys: nothing of this project's."""
     capture, truth = _sim(2)
-    ok, patterns = cv2.structured_light.GrayCodePattern.create(width=SIZE[0], height=SIZE[1]).generate()
+    gray_code = cv2.structured_light.GrayCodePattern.create(width=SIZE[0], height=SIZE[1])
+    ok, patterns = gray_code.generate()
     assert ok
+    white, black = gray_code.getImagesForShadowMasks(np.zeros(SIZE[::-1], np.uint8), np.zeros(SIZE[::-1], np.uint8))
+    greys = [np.full(SIZE[::-1], v, np.uint8) for v in (100, 180)]
     recorder = RecordingCapture(capture, path, SIZE, 15.0, source="synthetic")
-    for pattern in patterns:
+    for pattern in [*patterns, white, black, *greys]:
         recorder.show(pattern)
         recorder.capture()
     return recorder.close(), truth
@@ -81,6 +86,26 @@ def test_any_binary_sequence_with_inverses_is_decoded_from_the_recorded_frames(t
     # the finest stripes blur through the fisheye; the code ends where they do (measured: 0.11 / 0.32 px)
     assert error["median"] < 0.5 and error["p95"] < 1.0 and summary["coverage"] > 0.9
     assert load_calibration(out).coverage() == pytest.approx(summary["coverage"], abs=1e-4)
+    # the photometric response from the flat frames, against the simulated projector's (gamma 2.2, black 0.035)
+    assert summary["gamma"] == pytest.approx(OPTICS.gamma, abs=0.05)
+    assert summary["black_level"] == pytest.approx(OPTICS.black, abs=0.01)
+    assert load_calibration(out).gamma == pytest.approx(summary["gamma"], abs=1e-3)
+
+
+def _shown(level_images: dict[int, float]) -> list[Shown]:
+    """Flat projector frames seen as flat camera images of the given brightness."""
+    return [Shown(np.full((4, 6), v, np.uint8), np.full((8, 8), seen, np.float32), 1) for v, seen in level_images.items()]
+
+
+def test_the_flat_frames_give_what_they_can_and_no_more():
+    valid = np.ones((8, 8), bool)
+    model = {v: 10.0 + 200.0 * (0.05 + 0.95 * (v / 255) ** 2.0) for v in (0, 64, 128, 255)}  # room light 10, gamma 2
+    black_level, gamma = flat_frames_response(_shown(model), valid)
+    assert black_level == pytest.approx(model[0] / model[255]) and gamma == pytest.approx(2.0, abs=0.02)
+    # white and black only (OpenCV's shadow masks): the black level, and no gamma made up from nothing
+    assert flat_frames_response(_shown({0: model[0], 255: model[255]}), valid) == (pytest.approx(model[0] / model[255]), None)
+    assert flat_frames_response(_shown({0: model[0], 128: model[128], 200: 150.0}), valid) == (None, None)  # no white
+    assert flat_frames_response(_shown({0: 50.0, 255: 50.0}), valid) == (None, None)  # nothing lit: no figure
 
 
 def test_a_recording_without_inverse_pairs_or_without_a_projector_stream_is_one_clear_line(tmp_path, capsys):

@@ -101,8 +101,6 @@ def calibrate(
     )
 
     summary = summarise_map(calibration, decoded.proj_x, decoded.proj_y, patterns=len(make_patterns(plan)))
-    summary["black_level"] = None if black_level is None else round(black_level, 4)
-    summary["gamma"] = None if gamma is None else round(gamma, 3)
     return CalibrationResult(calibration, summary)
 
 
@@ -120,8 +118,8 @@ def summarise_map(calibration: ProjectorMap, raw_x: np.ndarray, raw_y: np.ndarra
         "patterns": patterns,
         "coverage": round(calibration.coverage(), 4),
         "fit_residual_px": _stats(residual),
-        "black_level": None,
-        "gamma": None,
+        "black_level": None if calibration.black_level is None else round(calibration.black_level, 4),
+        "gamma": None if calibration.gamma is None else round(calibration.gamma, 3),
     }
     if covered.sum() >= 50:
         inv_x, inv_y = calibration.projector_to_camera()

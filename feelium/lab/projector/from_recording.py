@@ -14,6 +14,9 @@ frames themselves, whatever the sequence was:
   someone's own) is decoded generically: a camera pixel's bits, coarsest pattern first, as far as they are
   seen with contrast, name the projector region that lit it, and the region's centroid is its position.
   Finer stripes than the optics resolve simply end the code early, so the map is as fine as they allowed.
+  The photometric response comes from the sequence's flat frames, whatever their order: a flat black and
+  a flat white give the black level, two or more flat greys between them the gamma (OpenCV's shadow-mask
+  images are a flat white and black; without them neither is measured, and the summary says so).
 
 Both end in the same smoothing and summary as a live calibration (:func:`calibrate.summarise_map`).
 """
@@ -26,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from feelium.lab.projector.calibrate import CalibrationResult, PatternCapture, calibrate, summarise_map
-from feelium.lab.projector.graycode import PatternPlan, make_patterns, smooth_map
+from feelium.lab.projector.graycode import PatternPlan, flat_response, make_patterns, smooth_map
 from feelium.projector.config import CalibrationConfig
 from feelium.recording import Recording, RecordingError, RecordingWriter
 from feelium.skin.projector_map import ProjectorMap
@@ -165,6 +168,21 @@ def decode_generic(shown: list[Shown], min_contrast: float) -> tuple[np.ndarray,
     return out_x, out_y, valid, len(pairs)
 
 
+def flat_frames_response(shown: list[Shown], valid: np.ndarray) -> tuple[float | None, float | None]:
+    """Black level and gamma from the flat projector frames among ``shown`` (``None`` for what they cannot give).
+
+    A flat frame is one value everywhere; a flat black (0) and a flat white (255) are needed for any figure
+    (the model's two ends), and the greys between them for gamma (:func:`graycode.flat_response`).
+    """
+    flats = {int(s.pattern.flat[0]): s.image for s in shown if s.pattern.min() == s.pattern.max()}
+    if 0 not in flats or 255 not in flats:
+        return None, None
+    try:
+        return flat_response(flats[255], flats[0], flats, valid)
+    except ValueError:  # too few lit pixels: the figures would be noise
+        return None, None
+
+
 def calibrate_recording(recording: Recording, config: CalibrationConfig, latency_s: float) -> CalibrationResult:
     """The map and its summary from one calibration recording (either decoder, see the module's docstring)."""
     shown = shown_patterns(recording, latency_s, config.settle_frames)
@@ -195,7 +213,8 @@ def calibrate_recording(recording: Recording, config: CalibrationConfig, latency
         proj_x = smooth_map(raw_x, valid, config.smooth_sigma_px)
         proj_y = smooth_map(raw_y, valid, config.smooth_sigma_px)
     ph, pw = shown[0].pattern.shape
-    calibration = ProjectorMap(camera_size, (pw, ph), roi, proj_x, proj_y, source=source)
+    black_level, gamma = flat_frames_response(shown, valid)
+    calibration = ProjectorMap(camera_size, (pw, ph), roi, proj_x, proj_y, source=source, black_level=black_level, gamma=gamma)
     summary = summarise_map(calibration, raw_x, raw_y, patterns=len(shown))
     return CalibrationResult(calibration, {**summary, "decoder": "generic binary pairs", "pairs_used": used, "patterns_seen": len(shown)})
 

@@ -180,28 +180,44 @@ def smooth_map(values: np.ndarray, valid: np.ndarray, sigma: float) -> np.ndarra
 
 
 def photometric(captures: dict[str, np.ndarray], valid: np.ndarray) -> tuple[float, float]:
-    """Projector black level (relative to white) and gamma, from the flat captures over valid pixels.
+    """Projector black level (relative to white) and gamma, from this sequence's flat captures over valid pixels."""
+    greys = {v: captures[f"level_{v}"] for v in GREY_LEVELS}
+    black_level, gamma = flat_response(captures["white"], captures["black"], greys, valid)
+    if gamma is None:
+        raise ValueError("grey-level captures are not brighter than black; cannot fit gamma")
+    return black_level, gamma
+
+
+def flat_response(
+    white: np.ndarray, black: np.ndarray, greys: dict[int, np.ndarray], valid: np.ndarray
+) -> tuple[float, float | None]:
+    """Black level (relative to white) and gamma from camera images of flat projector frames.
 
     The camera sees ``k * (black + (1 - black) * (v / 255) ^ gamma)`` for grey ``v``;
     the dark frame includes the room light, so the black level measured here
     is an upper bound, which is what the back-light prediction needs anyway
-    (the room light does not change with the projected content).
+    (the room light does not change with the projected content). Gamma needs
+    at least two greys strictly between black and white (``None`` otherwise):
+    one grey fits any curve through the origin of the log-log line exactly, so
+    it would be a guess with no residual to judge it by.
     """
-    white = captures["white"][valid].astype(np.float64)
-    black = captures["black"][valid].astype(np.float64)
-    ok = white > black + 1.0
-    white, black = white[ok], black[ok]
-    if white.size < 10:
+    white_v = white[valid].astype(np.float64)
+    black_v = black[valid].astype(np.float64)
+    ok = white_v > black_v + 1.0
+    white_v, black_v = white_v[ok], black_v[ok]
+    if white_v.size < 10:
         raise ValueError("too few lit pixels to measure the projector's black level and gamma")
-    black_level = float(np.median(black / white))
+    black_level = float(np.median(black_v / white_v))
     xs, ys = [], []
-    for v in GREY_LEVELS:
-        grey = captures[f"level_{v}"][valid].astype(np.float64)[ok]
-        rel = float(np.median((grey - black) / (white - black)))
+    for v, image in sorted(greys.items()):
+        if not 0 < v < 255:
+            continue
+        grey = image[valid].astype(np.float64)[ok]
+        rel = float(np.median((grey - black_v) / (white_v - black_v)))
         if rel > 0:
             xs.append(math.log(v / 255.0))
             ys.append(math.log(rel))
     if len(xs) < 2:
-        raise ValueError("grey-level captures are not brighter than black; cannot fit gamma")
+        return black_level, None
     gamma = float(np.dot(xs, ys) / np.dot(xs, xs))  # a line through the origin: log rel = gamma * log level
     return black_level, gamma
