@@ -61,4 +61,4 @@ async def test_each_frame_wakes_the_event_loop_at_most_once_and_stop_ends_the_ru
     await service.stop()
     await asyncio.wait_for(task, 2.0)
     health = service.health()
-    assert 1 <= health["loop_wakeups"] <= health["frames"] and camera.closed
+    assert health["frames"] >= health["loop_wakeups"] >= 1 and camera.closed

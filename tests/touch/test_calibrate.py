@@ -90,7 +90,7 @@ def test_a_hover_a_little_closer_than_the_fitted_clips_does_not_fire(seed):
     for gate, series in ((fit.anchor_threshold, "anchor"), (fit.instant_depth, "core_depth")):
         hardest = _fit_part_max(hover, series)
         # Held out: the hardest hover's approach 10 % deeper must stay below the gate ...
-        assert 1.10 * hardest < gate
+        assert hardest * 1.10 < gate
         # ... while every press of the held-out 40 % still passes it.
         contact = clips[0]
         held = ~split_clip(contact.t) & contact.contact
@@ -150,7 +150,7 @@ def test_the_edge_gate_keeps_the_margin_rule_too(seed):
     # The hardest press is the sharpest edge a press holds for two frames (down_frames), its weakest press's.
     assert fit.threshold == pytest.approx(margin_threshold(n, fit.hardest_positive, fit.sigma))
     # Held out: a hover edge 10 % sharper than the fitted clips' hardest does not land ...
-    assert 1.10 * n < fit.threshold
+    assert n * 1.10 < fit.threshold
     # ... while every held-out press still holds a contact edge for two frames.
     held = ~split_clip(contact.t) & contact.contact
     starts = np.flatnonzero(np.diff(np.concatenate([[0], held.astype(int)])) == 1)
