@@ -4,7 +4,8 @@ A touch pipeline must not stall because a headset on bad Wi-Fi reads slowly,
 so :meth:`EventBus.publish` is synchronous and O(subscribers): each
 subscriber has its own bounded queue, and when it is full the oldest item is
 dropped and counted. All methods must be called on the event loop's thread
-(services that compute in worker threads publish after awaiting the result).
+(services that compute in worker threads publish after awaiting the result),
+except :meth:`Subscription.take`, made for a consumer that lives on a thread.
 """
 
 from __future__ import annotations
@@ -63,6 +64,25 @@ class Subscription(Generic[T]):
         items = list(self._items)
         self._items.clear()
         self._ready.clear()
+        self.delivered += len(items)
+        return items
+
+    def take(self) -> list[T]:
+        """Everything waiting, oldest first, taken on any thread: for a consumer that never awaits :meth:`get`.
+
+        Flight's control step runs on its serial thread and reads its events there, at the step,
+        so an event published while the thread waited for the tick still counts in that tick.
+        ``deque.append`` and ``popleft`` are atomic, so an item the loop publishes meanwhile is
+        either taken now or left for the next call; the ready event (which only wakes ``get``) is
+        left alone, since clearing it from another thread would race with the loop setting it.
+        """
+        items: list[T] = []
+        pop = self._items.popleft
+        while self._items:
+            try:
+                items.append(pop())
+            except IndexError:  # the deque emptied between the check and the pop: nothing is lost
+                break
         self.delivered += len(items)
         return items
 

@@ -9,6 +9,7 @@ hold time, without any code having to notice the failure. Time is an input
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from typing import Literal, get_args
 
@@ -31,11 +32,17 @@ class MotionCommand:
 
 
 class DeadManCommands:
-    """Holds the newest motion command and lets it lapse when not refreshed."""
+    """Holds the newest motion command and lets it lapse when not refreshed.
+
+    Commands are set on the event loop and read by flight's control step on its serial thread: a
+    lock makes a lapse and a refresh exclusive, so a lapse seen on one thread never clears the
+    command another thread has just refreshed (uncontended, it costs a fraction of a microsecond).
+    """
 
     def __init__(self, max_hold_s: float = MAX_HOLD_S) -> None:
         self.max_hold_s = max_hold_s
         self._current: MotionCommand | None = None
+        self._lock = threading.Lock()
         self.accepted = 0
         self.expired = 0
 
@@ -46,17 +53,20 @@ class DeadManCommands:
         if not (math.isfinite(hold_s) and 0.0 < hold_s <= self.max_hold_s):
             raise ValueError(f"hold must be in (0, {self.max_hold_s}] seconds, got {hold_s}")
         cmd = MotionCommand(name=name, issued_at=now, expires_at=now + hold_s, source=source)
-        self._current = None if name in NEUTRAL_NAMES else cmd
-        self.accepted += 1
+        with self._lock:
+            self._current = None if name in NEUTRAL_NAMES else cmd
+            self.accepted += 1
         return cmd
 
     def active(self, now: float) -> MotionCommand | None:
         """The command in force at ``now``, or ``None`` (hold position)."""
         cmd = self._current
-        if cmd is None:
-            return None
-        if now >= cmd.expires_at:
-            self._current = None
-            self.expired += 1
-            return None
-        return cmd
+        if cmd is None or now < cmd.expires_at:
+            return cmd
+        with self._lock:
+            current = self._current
+            if current is cmd:  # not refreshed meanwhile (on another thread): it lapses, once
+                self._current = None
+                self.expired += 1
+                return None
+        return current if current is not None and now < current.expires_at else None

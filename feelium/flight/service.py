@@ -1,12 +1,12 @@
 """The flight service: motor board link, control loop, failsafes, state on the hub.
 
-A thin shell around :class:`FlightController`. Every period it polls the
-board (on the service's one serial thread, so the loop never blocks on the port and the
-port is never used from two threads at once; that thread also waits out the period
-before the poll, so a tick wakes the loop once),
-steps the controller with the wearer's dead-man command and the soften
-flag, commands the motors at once, and publishes altitude, heading, battery
-and link state. When the port disappears it keeps stepping the controller
+A thin shell around :class:`FlightController`. Every period one job of the
+service's serial thread waits out the period, polls the board, steps the
+controller with the wearer's dead-man command and the soften flag (from the
+touch and interaction events taken at the step), and commands the motors at
+once; the loop then publishes altitude, heading, battery and link state. So
+the loop never blocks on the port, the port is never used from two threads at
+once, and a tick costs one hand-off to the thread and one wake-up of the loop. When the port disappears it keeps stepping the controller
 without telemetry (which goes to its failsafe; the board's own watchdog
 stops the motors) and reopens the port with a doubling backoff, capped
 (``reconnect_max_s``, under 1 s) so a returning board is flown again within
@@ -32,8 +32,9 @@ from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import suppress
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
+from feelium.bus import Subscription
 from feelium.cameras.reader import RateMeter
 from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.client import MspClient
@@ -60,6 +61,16 @@ LINK_REASONS = {
     "stalled": "no reply to the last telemetry requests; probing",
     "resyncing": "discarding a backlog of replies until the line is quiet",
 }
+
+
+class _Tick(NamedTuple):
+    """One control tick as the serial thread hands it to the loop: the step's time and output, and what failed."""
+
+    t: float  # when the controller stepped (hub time)
+    out: ControlOutput
+    poll_started: float | None = None  # None: no poll (no link, or released while the tick waited)
+    poll_error: Exception | None = None
+    send_error: Exception | None = None
 
 
 def _close_quietly(link: ByteLink) -> None:
@@ -169,13 +180,11 @@ class FlightService:
         self._next_open_t = float("-inf")
         self._backoff_s = min(config.reconnect_min_s, config.reconnect_max_s)
         self._serial: ThreadPoolExecutor | None = None
-        self._sending: tuple[MspClient, Future[None]] | None = None  # the last motor command queued, not yet checked
         self._wake = threading.Event()  # set when the link is released: a poll waiting for its tick is not made
-        # How late each tick runs against its due time: the poll's start (on the serial thread) and the controller's
-        # step (on the loop, after the telemetry is back): what the event loop's load can delay (docs/daemon.md).
+        # How late each tick runs against its due time: the poll's start and the controller's step, both on the
+        # serial thread since the step moved there; what the event loop's load can delay is the start (docs/daemon.md).
         self.start_late = LatenessHistogram()
         self.step_late = LatenessHistogram()
-        self._poll_started: float | None = None  # set on the serial thread, read on the loop after the poll returns
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
         """Run a port operation on this run's serial thread (jobs run one at a time, in order)."""
@@ -199,7 +208,6 @@ class FlightService:
         finally:
             events.close()
             self._release()  # a crash or a cancel must not leave the last command on the motors
-            self._sending = None  # its outcome is the released client's, not the next run's
             serial.shutdown(wait=False)  # queued jobs (the neutral) still run; the thread then ends
             self._serial = None
 
@@ -314,34 +322,75 @@ class FlightService:
             log.warning("flight: motor board link %s (%s)%s", state, LINK_REASONS[state], flapped)
 
     # ------------------------------------------------------------ one cycle
-    async def _cycle(self, events: Any, due: float) -> None:
-        """One control cycle at ``due``: poll, step, command, publish.
+    async def _cycle(self, events: Subscription[Any], due: float) -> None:
+        """One control cycle at ``due``: poll, step, command (one serial-thread job), then publish on the loop.
 
-        With a link, the serial thread waits for ``due`` before it polls (:meth:`_poll_when_due`), so a tick
-        wakes the loop once, for the telemetry, instead of once more for a timer. Without one, the loop sleeps.
+        With a link, the whole tick is one job of the serial thread (:meth:`_tick`): it waits for ``due``,
+        polls, steps the controller and writes the motor command, so a tick costs one hand-off to the thread
+        and one wake-up of the loop, for the publication. Without one, the loop sleeps and steps the controller
+        itself (no telemetry: it goes to its failsafe), never while a job of the thread runs.
         """
         if self.client is None or self.stopping:
             await asyncio.sleep(max(0.0, due - self.hub.clock()))
         now = self.hub.clock()
         if self.client is None and now >= self._next_open_t and not self.stopping:
             await self._open(now)
-        telemetry = None
         client = self.client
-        self._poll_started = None
-        if client is not None:
-            try:
-                battery = self.cycles % self.config.battery_every == 0
-                telemetry = await self._on_serial_thread(self._poll_when_due, client, due, battery)
-            except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
-                await self._lost(now, exc)
+        if client is None:
+            now = self.hub.clock()
+            tick = _Tick(now, self._step(events, now, None))
+        else:
+            battery = self.cycles % self.config.battery_every == 0
+            tick = await self._on_serial_thread(self._tick, client, events, due, battery)
+            if tick.poll_error is not None:  # serial.SerialException is an OSError
+                await self._lost(now, tick.poll_error)
+            elif tick.send_error is not None and client is self.client:  # one stop() released is no longer ours
+                await self._lost(now, tick.send_error)
             else:
                 self._observe_link(client)
+        self.start_late.record((tick.t if tick.poll_started is None else tick.poll_started) - due)
+        self.step_late.record(tick.t - due)
+        self.last = tick.out
+        self.cycles += 1
+        self.heartbeat_at = tick.t
+        if self.link_state == "up":
+            self._rate.tick(tick.t)
+        self._publish(tick.out)
+
+    def _tick(self, client: MspClient, events: Subscription[Any], due: float, with_battery: bool) -> _Tick:
+        """Serial-thread job, one control tick: wait for ``due``, poll, step, command the motors at once.
+
+        A released link (stop(), the end of run()) wakes the wait and is not polled: the step then has no
+        telemetry and nothing is written, so the neutral queued behind this job is the next thing on the port.
+        Nothing is written once ``stopping`` is set either; should stop() come between that check and the
+        write, its neutral still follows the write, on this same thread. Errors are returned, not raised:
+        the controller steps in every tick, and the loop takes up a lost link (:meth:`_cycle`).
+        """
+        delay = due - self.hub.clock()
+        telemetry, started, poll_error = None, None, None
+        if not (delay > 0.0 and self._wake.wait(delay)):
+            started = self.hub.clock()
+            try:
+                telemetry = client.poll(with_battery)
+            except (OSError, ValueError) as exc:
+                poll_error = exc
         now = self.hub.clock()
-        started = self._poll_started
-        self.start_late.record((now if started is None else started) - due)
-        self.step_late.record(now - due)
-        await self._sent(now)  # the last cycle's motor command went out before this poll: settled by now
-        for event in events.drain():  # after the poll: events that came while it waited count this cycle
+        out = self._step(events, now, telemetry)
+        send_error = None
+        if poll_error is None and client is self.client and not self.stopping:
+            try:
+                client.send_motors(out.motors_us)
+            except (OSError, ValueError) as exc:
+                send_error = exc
+        return _Tick(now, out, started, poll_error, send_error)
+
+    def _step(self, events: Subscription[Any], now: float, telemetry: Telemetry | None) -> ControlOutput:
+        """The controller's step at ``now`` with the events so far, the softening and the dead-man command.
+
+        Runs on the serial thread with a link and on the loop without one, never on both at once (the loop
+        awaits the thread's tick): the soften tracker and the controller are only ever used by one of them.
+        """
+        for event in events.take():  # taken at the step: events that came while the tick waited count in it
             try:
                 self.soften.observe(event, now)
             except (AttributeError, TypeError, ValueError):
@@ -349,47 +398,7 @@ class FlightService:
         soft = self.soften.active(now)
         command = self.hub.motion.active(now)
         setpoint = setpoint_for_motion(command.name if command else None, self.config, soften=soft)
-        out = self.controller.step(now, telemetry, setpoint)
-        self.last = out
-        self.cycles += 1
-        self.heartbeat_at = now
-        if self.link_state == "up":
-            self._rate.tick(now)
-        if self.client is not None and not self.stopping:
-            # Queued, not awaited: nothing in this cycle needs its outcome, and the next poll runs after it on the
-            # same thread anyway. Waiting cost the loop a wake-up and a future per tick; a failed write is taken
-            # up in the next cycle, once that poll is back (_sent), and loses the link as a failed poll does.
-            self._sending = (self.client, self._serial_job(self.client.send_motors, out.motors_us))
-        self._publish(out)
-
-    def _poll_when_due(self, client: MspClient, due: float, with_battery: bool) -> Telemetry | None:
-        """Serial-thread job: wait for the tick on this thread, then poll; nothing if the link was released meanwhile."""
-        delay = due - self.hub.clock()
-        if delay > 0.0 and self._wake.wait(delay):
-            return None
-        self._poll_started = self.hub.clock()
-        return client.poll(with_battery)
-
-    def _serial_job(self, call: Callable[..., Any], *args: Any) -> Future[Any]:
-        """Queue a port operation on this run's serial thread without waiting for it."""
-        assert self._serial is not None, "serial I/O outside run()"
-        return self._serial.submit(call, *args)
-
-    async def _sent(self, now: float) -> None:
-        """The outcome of the last cycle's motor command: a write that failed loses the link, as a failed poll does.
-
-        Only for the client that wrote it: one that stop() or a loss has released since is no longer ours."""
-        sending, self._sending = self._sending, None
-        if sending is None:
-            return
-        client, job = sending
-        try:
-            if not job.done():  # rare: the write is still queued behind a slow exchange
-                await asyncio.wrap_future(job)
-            job.result()
-        except (OSError, ValueError) as exc:
-            if client is self.client:
-                await self._lost(now, exc)
+        return self.controller.step(now, telemetry, setpoint)
 
     def _observe_link(self, client: MspClient) -> None:
         """After a poll: the client's view of the line becomes the link state, its newest telemetry the age.
