@@ -50,7 +50,7 @@ from feelium.flight.msp import MspFrame, MspParser, encode_v2
 from feelium.flight.replies import Burst, Outstanding, is_ack, take_reply, wire_size
 from feelium.flight.telemetry import Telemetry
 from feelium.flight.telemetry_decode import decode_telemetry
-from feelium.flight.transport import ByteLink
+from feelium.flight.transport import ByteLink, read_some_of
 
 
 class MspTimeout(TimeoutError):
@@ -85,6 +85,7 @@ class MspClient:
         stale_bursts: int = STALE_BURSTS,
     ) -> None:
         self.link = link
+        self._read_some = read_some_of(link)
         self.timeout_s = timeout_s
         self.clock = clock
         self.max_outstanding = max_outstanding
@@ -214,7 +215,7 @@ class MspClient:
     def _collect(self, burst: Burst) -> None:
         deadline = burst.t + self.timeout_s
         while any(r.burst == burst.number for r in self._outstanding):
-            data = self.link.read(max(1, self.link.in_waiting))
+            data = self._read_some()
             burst.heard |= bool(data)
             for frame in self._frames(data):
                 self._receive(frame, burst, newest=burst.number)
@@ -406,7 +407,7 @@ class MspClient:
 
         Returns (anything heard, anything besides motor acks).
         """
-        data = self.link.read(max(1, self.link.in_waiting)) if block else self._read_waiting()
+        data = self._read_some() if block else self._read_waiting()
         if not data:
             return False, False
         self.stale_bytes += len(data)

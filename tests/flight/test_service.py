@@ -7,6 +7,7 @@ second or two each); conditions are awaited with a generous deadline, nothing is
 from __future__ import annotations
 
 import asyncio
+import threading
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -102,6 +103,26 @@ async def test_a_firm_touch_softens_and_its_release_ends_it() -> None:
         await wait_for(lambda: service.last is not None and service.last.mode == "flying", timeout_s=3.0)
         hub.bus.publish(InteractionEvent("hug", "start", hub.clock()))
         await wait_for(lambda: service.last is not None and service.last.mode == "soft")
+    finally:
+        await stopped(service, task)
+
+
+async def test_with_a_link_the_controller_steps_on_the_serial_thread() -> None:
+    """One serial-thread job a tick (poll, step, command): the loop only publishes what it stepped."""
+    hub, service, opener, task = await started()
+    threads: list[str] = []
+    step = service.controller.step
+
+    def recording_step(*args: object) -> object:
+        threads.append(threading.current_thread().name)
+        return step(*args)  # type: ignore[arg-type]
+
+    try:
+        service.controller.step = recording_step  # type: ignore[method-assign]
+        cycles = service.cycles
+        await wait_for(lambda: service.cycles > cycles + 10)
+        assert len(threads) >= 10 and all(name.startswith("flight-serial") for name in threads)
+        assert service.last is not None and hub.state.snapshot()["flight"]["motors_us"] == list(service.last.motors_us)
     finally:
         await stopped(service, task)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import threading
 
 import pytest
 from hypothesis import given
@@ -29,6 +30,29 @@ async def test_slow_subscriber_drops_oldest_and_counts():
     assert slow.dropped == 7
     assert len(fast.drain()) == 10 and fast.dropped == 0
     assert bus.health()["dropped"] == 7
+
+
+def test_take_on_another_thread_loses_nothing_and_keeps_the_order():
+    """Flight takes its events on the serial thread while the loop publishes: every item once, in order."""
+    bus = EventBus()
+    n = 20000
+    sub = bus.subscribe(maxsize=n)
+    taken: list[int] = []
+    done = threading.Event()
+
+    def consumer() -> None:
+        while not done.is_set():
+            taken.extend(e.id for e in sub.take())
+        taken.extend(e.id for e in sub.take())
+
+    thread = threading.Thread(target=consumer)
+    thread.start()
+    for i in range(n):
+        bus.publish(_touch(i))
+    done.set()
+    thread.join()
+    assert taken == list(range(n))
+    assert sub.delivered == n and sub.dropped == 0 and sub.take() == []
 
 
 async def test_typed_subscription_and_wakeup():
@@ -86,6 +110,30 @@ def test_dead_man_lapses_and_stop_clears():
     dm.command("up", now=11.0)
     dm.command("stop", now=11.1)
     assert dm.active(11.2) is None
+
+
+def test_a_lapse_never_clears_a_command_refreshed_meanwhile():
+    """The refresh lands between the lapse's read of the old command and its lock (another thread's step)."""
+    dm = DeadManCommands()
+    dm.command("forward", now=10.0, hold_s=0.5)
+    real = dm._lock
+
+    class RefreshFirst:
+        fired = False
+
+        def __enter__(self) -> None:
+            if not RefreshFirst.fired:
+                RefreshFirst.fired = True
+                dm.command("up", now=10.55, hold_s=0.5)
+            real.acquire()
+
+        def __exit__(self, *exc: object) -> None:
+            real.release()
+
+    dm._lock = RefreshFirst()  # type: ignore[assignment]
+    assert dm.active(10.6).name == "up"  # the old one lapsed, the refresh stands
+    assert dm.expired == 0 and dm.active(10.7).name == "up"
+    assert dm.active(11.05) is None and dm.expired == 1
 
 
 @pytest.mark.parametrize("hold", [0.0, -1.0, 10.0, math.nan, math.inf])
