@@ -12,7 +12,7 @@ import math
 import pytest
 
 from feelium.daemon.config import Config
-from feelium.lab.daemon.attribution import LOOP_OTHER, OTHER_THREADS, Ledger, charge, service_of_module
+from feelium.lab.daemon.attribution import LOOP_OTHER, OTHER_THREADS, SIM_DEVICES, Ledger, charge, charged_apart, service_of_module
 from feelium.lab.daemon.board import bench_board, format_table
 
 
@@ -85,6 +85,26 @@ async def test_a_worker_threads_batch_is_counted_for_the_service_that_publishes_
 
 
 @pytest.mark.slow
+class _Device:
+    def transaction(self, inner: bool = False) -> int:
+        total = sum(range(20000))
+        return total + (self.transaction() if inner else 0)
+
+
+def test_a_simulated_devices_work_moves_out_of_the_service_that_calls_it():
+    ledger = Ledger()
+    ledger.counting = True
+    real = _Device.transaction
+    with charged_apart(_Device, "transaction", "thermal", ledger):
+        for _ in range(20):
+            _Device().transaction(inner=True)  # a nested call is inside the outer one: counted once
+    assert _Device.transaction is real
+    moved = ledger.seconds[SIM_DEVICES, "loop"]
+    assert moved > 0 and ledger.seconds["thermal", "loop"] == -moved  # the charged total is unchanged
+    charged = charge({"MainThread": 0.0}, {"MainThread": 1.0}, ledger)
+    assert charged[LOOP_OTHER]["loop"] == pytest.approx(1.0)
+
+
 def test_bench_board_runs_every_service_and_writes_finite_json():
     result = bench_board(Config(), 2.0 / 60.0, warmup_s=1.0, numeric_split_s=2.0)
     text = json.dumps(result, allow_nan=False)  # raises on NaN or infinity
@@ -101,3 +121,5 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
     shares = result["numeric_split"]["shares"]  # a second, profiled run: each part's numpy/OpenCV share
     assert 0 < shares["touch"]["thread"] <= 1 and 0 < shares["projector"]["pool"] <= 1
     assert result["pi_cores_at_6x"] <= result["pi_cores"] <= result["pi_cores_at_10x"]
+    device = result["services"][SIM_DEVICES]  # the MLX90640 simulation, out of thermal
+    assert device["cpu_ms_per_s"] > 0 and device["pi_ms_per_s"] == 0.0

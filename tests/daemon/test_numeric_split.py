@@ -10,6 +10,7 @@ import pytest
 
 from feelium.lab.daemon.attribution import JOB_SERVICE, OTHER_THREADS
 from feelium.lab.daemon.numeric import NumericProfiler, is_numeric, numeric_shares
+from feelium.lab.daemon.attribution import SIM_DEVICES
 from feelium.lab.daemon.projection import PI_FACTOR, PI_FACTOR_NUMERIC, part_factor, project
 
 
@@ -90,3 +91,20 @@ def test_each_part_is_projected_by_its_measured_share_and_the_rest_at_ten():
     assert split["pi_cores"] == pytest.approx((touch + other + flight + unaccounted) / 1000.0, abs=0.01)
     assert split["pi_cores_at_6x"] <= split["pi_cores"] < split["pi_cores_at_10x"]
     assert part_factor(0.0) == PI_FACTOR and part_factor(1.0) == PI_FACTOR_NUMERIC and part_factor(7.0) == PI_FACTOR_NUMERIC
+
+
+def test_the_simulated_devices_are_measured_but_not_projected():
+    """The MLX90640 simulation's work is the sensor's on the blimp: out of the Pi's cores and its loop thread."""
+    services = {
+        "thermal": {"rate_hz": 8.0, "target_hz": 8.0, "miss_pct": 0.0, "cpu_ms_per_s": 5.0, "cpu_ms_per_s_by_kind": {"pool": 5.0}},
+        SIM_DEVICES: {"rate_hz": None, "target_hz": None, "miss_pct": None, "cpu_ms_per_s": 40.0,
+                      "cpu_ms_per_s_by_kind": {"pool": 30.0, "loop": 10.0}},
+    }  # fmt: skip
+    result = {"process_cpu_ms_per_s": 100.0, "loop_thread_ms_per_s": 110.0, "rss_mb": 100.0, "rss_peak_mb": 110.0,
+              "loop_lag_p99_ms": 1.0, "services": services}
+    plain = project({**result, "services": {k: dict(v) for k, v in services.items()}})
+    assert plain["pi_cores"] == plain["pi_cores_at_10x"] == pytest.approx(0.6)  # (100 - 40) ms/s at 10x
+    assert plain["pi_loop_thread_cores"] == pytest.approx(1.0) and not plain["budget"]["event loop thread < 1 core"]
+    split = project(result, {"thermal": {"pool": 0.0}})
+    assert services[SIM_DEVICES]["pi_ms_per_s"] == 0.0
+    assert split["pi_cores"] == pytest.approx((5.0 + 55.0) * PI_FACTOR / 1000.0)  # thermal, and the rest unaccounted

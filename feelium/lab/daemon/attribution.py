@@ -10,6 +10,11 @@ Three kinds of thread run a service's work, and each is charged differently:
 - the event loop's thread by the coroutine a callback resumes, timed around
   each ``asyncio`` handle (:func:`charge_loop_callbacks`).
 
+A simulated device's own work inside a service's call (the MLX90640 simulation
+writing its RAM, where the blimp's sensor costs the Pi one I2C read) is taken
+out of that service and charged to :data:`SIM_DEVICES` (:func:`charged_apart`),
+which the projection leaves out.
+
 Thread CPU time, not wall time: other processes on the machine delay a thread
 but do not add to its CPU time, so a loaded machine inflates these figures far
 less than it inflates latencies. Timing each callback costs the loop thread
@@ -21,6 +26,7 @@ callback so the report can state the total.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import functools
 import os
 import threading
@@ -45,6 +51,7 @@ POOL_PREFIX = "bench-pool"
 LOOP_OTHER = "event loop (other)"
 JOB_SERVICE = threading.local()  # ``.name``: the service whose job a pool thread runs now (for the numeric split)
 OTHER_THREADS = "other threads"
+SIM_DEVICES = "simulated devices (not on the Pi)"
 
 
 def service_of_module(module: str | None) -> str | None:
@@ -226,6 +233,44 @@ def thread_service(name: str) -> str:
     if name == "MainThread":
         return "MainThread"
     return POOL_PREFIX if name.startswith(POOL_PREFIX) else OTHER_THREADS
+
+
+def _kind_here() -> str:
+    """How the current thread's time is charged: ``loop`` (the event loop's), ``pool`` or ``thread``."""
+    name = threading.current_thread().name
+    return "loop" if name == "MainThread" else "pool" if name.startswith(POOL_PREFIX) else "thread"
+
+
+@contextlib.contextmanager
+def charged_apart(owner: type, method: str, service: str, ledger: Ledger) -> Iterator[None]:
+    """While open, the thread CPU of every outermost call of ``owner.method`` moves from ``service`` to :data:`SIM_DEVICES`.
+
+    For a simulated device a service calls into: the call is timed with the calling thread's CPU clock and
+    that time is taken from the service's part of the same kind (loop, pool or thread), so the service's
+    own work and the total charged are unchanged; only the device's share moves.
+    """
+    real = getattr(owner, method)
+    inside = threading.local()
+
+    @functools.wraps(real)
+    def timed(self: Any, *args: Any, **kwargs: Any) -> Any:
+        if getattr(inside, "depth", 0):
+            return real(self, *args, **kwargs)
+        inside.depth = 1
+        started = time.thread_time()
+        try:
+            return real(self, *args, **kwargs)
+        finally:
+            inside.depth = 0
+            spent, kind = time.thread_time() - started, _kind_here()
+            ledger.add(service, kind, -spent)
+            ledger.add(SIM_DEVICES, kind, spent)
+
+    setattr(owner, method, timed)
+    try:
+        yield
+    finally:
+        setattr(owner, method, real)
 
 
 def charge(threads_before: dict[str, float], threads_after: dict[str, float], ledger: Ledger) -> dict[str, dict[str, float]]:
