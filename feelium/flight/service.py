@@ -6,9 +6,10 @@ controller with the wearer's dead-man command and the soften flag (from the
 touch and interaction events taken at the step), and commands the motors at
 once; the loop then publishes altitude, heading, battery and link state. So
 the loop never blocks on the port, the port is never used from two threads at
-once, and a tick costs one hand-off to the thread and one wake-up of the loop. When the port disappears it keeps stepping the controller
-without telemetry (which goes to its failsafe; the board's own watchdog
-stops the motors) and reopens the port with a doubling backoff, capped
+once, and a tick costs one hand-off to the thread and one wake-up of the loop.
+When the port disappears it keeps stepping the controller without telemetry
+(which goes to its failsafe; the board's own watchdog stops the motors) and
+reopens the port with a doubling backoff, capped
 (``reconnect_max_s``, under 1 s) so a returning board is flown again within
 a second. The link state in ``health()`` is ``up``, ``stalled`` (the board
 went silent), ``resyncing`` (the client discards a backlog and waits for a
@@ -388,7 +389,9 @@ class FlightService:
         """The controller's step at ``now`` with the events so far, the softening and the dead-man command.
 
         Runs on the serial thread with a link and on the loop without one, never on both at once (the loop
-        awaits the thread's tick): the soften tracker and the controller are only ever used by one of them.
+        awaits the thread's tick): the soften tracker and the controller are only ever stepped by one of them.
+        ``health()`` reads the controller's counters and estimates from the loop meanwhile: plain numbers,
+        each whole, though one may be a tick newer than another.
         """
         for event in events.take():  # taken at the step: events that came while the tick waited count in it
             try:
