@@ -83,7 +83,7 @@ def _instrument(pipeline: TouchPipeline, sink: dict[str, float]) -> None:
             continue  # a stage an older tree does not have
         if owner == "module":
             setattr(pipeline_module, attr, _timed(getattr(pipeline_module, attr), name, sink))
-        else:
+        elif hasattr(owners[owner], attr):  # an older tree may not have it (the fine window)
             target = owners[owner]
             setattr(target, attr, _timed(getattr(target, attr), name, sink))
 

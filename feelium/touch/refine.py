@@ -47,11 +47,14 @@ def fine_window(
     return slice(fy0, fy1), slice(fx0, fx1)
 
 
-def upsample_window(coarse_image: np.ndarray, fine_size: tuple[int, int], window: Window) -> np.ndarray:
+def upsample_window(
+    coarse_image: np.ndarray, fine_size: tuple[int, int], window: Window, out: np.ndarray | None = None
+) -> np.ndarray:
     """``coarse_image`` bilinearly resampled onto the fine grid (``fine_size`` = width, height), only in ``window``.
 
     Pixel centres map as :meth:`WorkingGeometry.to_camera` maps them (both grids span the same ROI), so the
-    window equals the same window of ``cv2.resize(coarse_image, fine_size, INTER_LINEAR)`` up to rounding."""
+    window equals the same window of ``cv2.resize(coarse_image, fine_size, INTER_LINEAR)`` up to rounding. Written
+    into ``out`` when given (the window's shape, the image's dtype)."""
     ch, cw = coarse_image.shape[:2]
     sx, sy = cw / fine_size[0], ch / fine_size[1]
     rows, cols = window
@@ -60,8 +63,9 @@ def upsample_window(coarse_image: np.ndarray, fine_size: tuple[int, int], window
     )
     size = (cols.stop - cols.start, rows.stop - rows.start)
     return cv2.warpAffine(
-        coarse_image, matrix, size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE
-    )
+        coarse_image, matrix, size, dst=out, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_REPLICATE,
+    )  # fmt: skip
 
 
 DETAIL_LIMITS = (0.5, 2.0)  # a fine pixel's ratio to its upsampled coarse reference beyond which it is not pattern
@@ -75,34 +79,35 @@ class FineDetail:
     projector's grain) that an area average at the coarse scale cannot hold: measured on the paper protocol's
     sessions, 3.4 % rms (1st-99th percentile 0.91-1.14) between the working-resolution reference and the coarse one
     upsampled. Left out, it is read as depth (a waving hand's fringe measured 0.29 deep where the full-resolution
-    path measured 0.20) and as steep edges. The pattern is static, so it is learned slowly and only on some frames
-    (``every``), where the coarse pass saw no shadow; the coarse reference carries everything that changes.
+    path measured 0.20) and as steep edges. The pattern is static, so it is learned slowly and only on one frame
+    per ``interval_s``, where the coarse pass saw no shadow; the coarse reference carries everything that changes.
     """
 
-    def __init__(self, *, tau_s: float, every: int) -> None:
+    def __init__(self, *, tau_s: float, interval_s: float) -> None:
         self.tau_s = tau_s
-        self.every = every
+        self.interval_s = interval_s
+        self._scratch = Scratch()  # a lesson's temporaries (fine size: allocated anew they would be mmaps each time)
         self.ratio: np.ndarray | None = None
         self._lessons = np.zeros(0, np.float32)  # per fine pixel, how many frames taught it
         self._last_t: float | None = None
-        self._frames = 0
 
     def reset(self) -> None:
         self.ratio = None
         self._lessons = np.zeros(0, np.float32)
         self._last_t = None
-        self._frames = 0
 
-    def due(self) -> bool:
-        """Whether this frame teaches the pattern (the first frame, then one in ``every``); counts the frame."""
-        self._frames += 1
-        return self.ratio is None or self._frames % self.every == 0
+    def due(self, t: float) -> bool:
+        """Whether the frame at ``t`` teaches the pattern: until a first lesson, then ``interval_s`` after the last
+        (a microsecond early counts: frame times are sums of float periods)."""
+        return self.ratio is None or self._last_t is None or t - self._last_t >= self.interval_s - 1e-6
 
     def learn(self, t: float, flat: np.ndarray, expected: np.ndarray, usable: np.ndarray) -> None:
         """Blend ``flat / expected`` (fine size: the frame as the flat membrane lit it, the coarse reference times its
         gain upsampled) into the ratio where ``usable`` (no shadow, not saturated, not dark), by the time since the
         last lesson over ``tau_s``."""
-        ratio = np.divide(flat, np.maximum(expected, np.float32(1e-3)), dtype=np.float32)
+        buf = self._scratch
+        ratio = np.maximum(expected, np.float32(1e-3), out=buf.get("detail.lesson", flat.shape, np.float32))
+        np.divide(flat, ratio, out=ratio)
         np.clip(ratio, *DETAIL_LIMITS, out=ratio)
         if self.ratio is None or self.ratio.shape != ratio.shape:
             self.ratio = np.ones(ratio.shape, np.float32)
@@ -112,7 +117,8 @@ class FineDetail:
         # The mean of every lesson a pixel had until it has had 1/decay of them, then the exponential average: one
         # frame's noise is not baked into the pattern for a whole time constant.
         self._lessons += usable
-        rate = np.reciprocal(np.maximum(self._lessons, np.float32(1.0)))
+        rate = np.maximum(self._lessons, np.float32(1.0), out=buf.like("detail.rate", ratio))
+        np.reciprocal(rate, out=rate)
         np.maximum(rate, decay, out=rate)
         step = np.subtract(ratio, self.ratio, out=ratio)
         step *= rate
@@ -140,19 +146,20 @@ def fine_flat(inputs: FineInputs, window: Window, *, saturation_level: float, sc
     if inputs.light is None or inputs.slope is None:
         return work
     h, w = inputs.work.shape
-    slope = upsample_window(inputs.slope, (w, h), window)
+    slope = upsample_window(inputs.slope, (w, h), window, scratch.like("fine.slope", work))
     part = np.subtract(np.float32(1.0), inputs.light[window], out=scratch.like("fine.part", work))
     part *= slope
     compensated = np.add(work, part, out=part)
-    np.copyto(compensated, np.float32(saturation_level), where=work >= saturation_level)
+    saturated = np.greater_equal(work, saturation_level, out=scratch.like("fine.saturated", work, bool))
+    np.copyto(compensated, np.float32(saturation_level), where=saturated)
     return compensated
 
 
-def fine_expected(inputs: FineInputs, window: Window) -> np.ndarray:
+def fine_expected(inputs: FineInputs, window: Window, scratch: Scratch) -> np.ndarray:
     """What the flat membrane gives each fine pixel of ``window`` this frame: the coarse reference upsampled, times
     the fine pattern once one is learned."""
     h, w = inputs.work.shape
-    expected = upsample_window(inputs.expected, (w, h), window)
+    expected = upsample_window(inputs.expected, (w, h), window, scratch.like("fine.expected_up", inputs.work[window]))
     if inputs.detail is not None:
         expected *= inputs.detail[window]
     return expected
@@ -172,7 +179,7 @@ def fine_depth(
     h, w = inputs.work.shape
     size = (w, h)
     work = fine_flat(inputs, window, saturation_level=saturation_level, scratch=scratch)
-    expected = fine_expected(inputs, window)
+    expected = fine_expected(inputs, window, scratch)
     depth = relative_depth(
         work, expected, 1.0, dark_level=dark_level, saturation_level=saturation_level, signed=True, scratch=scratch
     )
@@ -182,7 +189,7 @@ def fine_depth(
     if sigma > 0.2:
         smooth = cv2.GaussianBlur(depth, (0, 0), sigma, dst=scratch.like("fine.smooth", depth), borderType=cv2.BORDER_REPLICATE)
     if inputs.bound is not None:
-        smooth -= upsample_window(inputs.bound, size, window)
+        smooth -= upsample_window(inputs.bound, size, window, scratch.like("fine.bound", smooth))
     np.maximum(smooth, 0.0, out=smooth)
     return smooth
 

@@ -126,8 +126,8 @@ def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(m
 @pytest.mark.parametrize(
     ("projected", "expected"),
     [
-        (False, "fdf7df9e9015bff62406d9539c14649450d8ef896b37ad052181712ab876f204"),
-        (True, "486511227a470e1048fdfe3afff66aa41928fa94e593605751791f5c6a9a2ccf"),
+        (False, "1ea96f7ab7ab9192214602083a314b97e152851e0aa17cea7ebf3df993630966"),
+        (True, "092d47f7b9e5c2205b776d6c05af2a0021364ab773c37e73f4a5df8073dcd4e9"),
     ],
 )
 def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: str) -> None:

@@ -52,7 +52,7 @@ def test_the_fine_pattern_is_learned_where_usable_and_its_first_frames_are_avera
     expected = np.full((40, 50), 100.0, np.float32)
     usable = np.ones((40, 50), bool)
     usable[:, :10] = False  # always under a shadow
-    detail = FineDetail(tau_s=4.0, every=1)
+    detail = FineDetail(tau_s=4.0, interval_s=0.0)
     for k in range(16):
         noisy = expected * pattern * (1.0 + 0.04 * rng.standard_normal(pattern.shape)).astype(np.float32)
         detail.learn(k / 15.0, noisy, expected, usable)
@@ -63,13 +63,13 @@ def test_the_fine_pattern_is_learned_where_usable_and_its_first_frames_are_avera
     assert float(np.std(error)) < 0.015
 
 
-def test_due_until_a_first_lesson_then_one_frame_in_every():
-    detail = FineDetail(tau_s=4.0, every=4)
-    assert detail.due() and detail.due()  # nothing learned yet
+def test_due_until_a_first_lesson_then_once_per_interval():
+    detail = FineDetail(tau_s=4.0, interval_s=0.25)
+    assert detail.due(0.0) and detail.due(1 / 15)  # nothing learned yet
     ones = np.ones((4, 4), np.float32)
-    detail.learn(0.0, ones, ones, ones.astype(bool))
-    due = [detail.due() for _ in range(8)]  # frames 3 to 10
-    assert due == [False, True, False, False, False, True, False, False]
+    detail.learn(1 / 15, ones, ones, ones.astype(bool))
+    due = [detail.due(k / 15) for k in range(2, 8)]
+    assert due == [False, False, False, True, True, True]  # 0.267 s after the lesson at 1/15 s, then until the next
 
 
 def _run(config, frames):
@@ -121,7 +121,7 @@ def test_without_the_fine_pattern_a_textured_flat_membrane_reads_as_depth():
     flat = (backlight(128, 96) * (1.0 + 0.04 * grain / grain.std())).astype(np.float32)
     coarse = cv2.resize(flat, (64, 48), interpolation=cv2.INTER_AREA)  # what the coarse reference holds
     whole = (slice(0, 96), slice(0, 128))
-    detail = FineDetail(tau_s=4.0, every=1)
+    detail = FineDetail(tau_s=4.0, interval_s=0.0)
     for k in range(8):
         frame = flat + rng.normal(0.0, 2.0, flat.shape).astype(np.float32)
         detail.learn(k / 15.0, frame, upsample_window(coarse, (128, 96), whole), np.ones(flat.shape, bool))
