@@ -11,8 +11,10 @@ the candidates' shadows plus the blur's and the edge's reach, and the very same 
 The fine depth needs the frame at the working resolution (cut from the camera frame as the full-resolution path
 cuts it) and everything the coarse pass learned, brought up to it: the reference times its gain, the projected
 light's response (slope) and the spread's depth bound are all smooth at the coarse pixel's scale (the back-light,
-the projector's diffused light, a blurred bound), so a bilinear upsampling of the window loses nothing the gates
-can see; what carries the detail, the frame and the predicted light, is taken at the working resolution.
+the projector's diffused light, a blurred bound), so a bilinear upsampling of the window loses little the gates
+can see, except the membrane's fixed fine texture, which is learned apart (:class:`FineDetail`); what carries the
+detail, the frame and the predicted light, is taken at the working resolution. What is left between this and the
+full-resolution path is the coarse reference's own adaptation (docs/touch.md, *Detection at half resolution*).
 """
 
 from __future__ import annotations
