@@ -369,7 +369,8 @@ class TouchPipeline:
         compensated: bool,
         bound: np.ndarray | None,
     ) -> FineInputs:
-        """This frame at the working resolution and the coarse pass's state it is read against (feelium.touch.refine)."""
+        """This frame at the working resolution and the coarse pass's state it is read against
+        (feelium.touch.refine)."""
         fine = self.fine
         assert fine is not None and self.reference.image is not None
         work, _ = self._prepare(frame, backlight_gain, fine, "fine.work")

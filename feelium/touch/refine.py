@@ -189,7 +189,9 @@ def fine_depth(
         depth[inputs.off_face[window]] = 0.0
     smooth = depth
     if sigma > 0.2:
-        smooth = cv2.GaussianBlur(depth, (0, 0), sigma, dst=scratch.like("fine.smooth", depth), borderType=cv2.BORDER_REPLICATE)
+        smooth = cv2.GaussianBlur(
+            depth, (0, 0), sigma, dst=scratch.like("fine.smooth", depth), borderType=cv2.BORDER_REPLICATE
+        )
     if inputs.bound is not None:
         smooth -= upsample_window(inputs.bound, size, window, scratch.like("fine.bound", smooth))
     np.maximum(smooth, 0.0, out=smooth)
