@@ -3,7 +3,7 @@ the rear frames the bench plays (320x240), the bench's projector calibration, a 
 face-on experiment's wearer video through the daemon's renderer, 30 fps), each camera frame's light and spread
 mixed by :class:`feelium.touch.projected.ExposureLight` and the pipeline fed with them.
 
-    PYTHONPATH=$PWD python3 benchmarks/touch_compensated_cost.py [--loops 3] [--profile] [--json FILE]
+    PYTHONPATH=$PWD python3 benchmarks/touch_compensated_cost.py [--loops 3] [--profile] [--detect-scale S] [--json FILE]
 
 One OpenCV thread (the daemon's touch thread competes with the projector's pool: its own figure is the one that
 counts). Reports ms per camera frame: ``predict`` (each new projector canvas to its light), ``mix`` (the exposure
@@ -56,6 +56,7 @@ STAGES = {  # (owner, attribute) timed with --profile, charged to the name
     "depth_uncertainty": ("module", "depth_uncertainty"),
     "spread_window": ("module", "spread_window"),
     "relative_depth": ("module", "relative_depth"),
+    "refine (fine window)": ("pipeline", "_refine"),
     "find_candidates": ("module", "find_candidates"),
     "noise floor": ("module", "_noise_floor_map"),
     "reference update": ("reference", "update"),
@@ -82,7 +83,7 @@ def _instrument(pipeline: TouchPipeline, sink: dict[str, float]) -> None:
             continue  # a stage an older tree does not have
         if owner == "module":
             setattr(pipeline_module, attr, _timed(getattr(pipeline_module, attr), name, sink))
-        else:
+        elif hasattr(owners[owner], attr):  # an older tree may not have it (the fine window)
             target = owners[owner]
             setattr(target, attr, _timed(getattr(target, attr), name, sink))
 
@@ -92,9 +93,12 @@ def main() -> int:
     parser.add_argument("--loops", type=int, default=3, help="passes over the 6 s of frames (the first warms up)")
     parser.add_argument("--profile", action="store_true", help="split the pipeline's time by stage")
     parser.add_argument("--json", help="write the figures here")
+    parser.add_argument("--detect-scale", type=float, help="[touch] detect_scale (default: the config's)")
     args = parser.parse_args()
     cv2.setNumThreads(1)
     config = Config()
+    if args.detect_scale is not None:  # the frames stay at the working size: only the detection pass is scaled
+        config = replace(config, touch=replace(config.touch, detect_scale=args.detect_scale))
     tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)
     size = (config.touch.width, config.touch.height)
     frames, roi = rear_frames(config.sim, size, FPS, 6.0)

@@ -25,6 +25,14 @@ class TouchConfig:
         max=4096,
     )
     height: int = setting(240, "Working resolution height for the whole camera frame.", min=24, max=4096)
+    detect_scale: float = setting(
+        1.0,
+        "Fraction of the working resolution the per-pixel work (reference, depth, compensation, candidates) runs at; "
+        "below 1 each frame with a candidate finds its fingertips again at the working resolution in a window around "
+        "the shadows (0.5: 4x fewer pixels; docs/touch.md, *Detection at half resolution*).",
+        min=0.25,
+        max=1.0,
+    )
 
     # Reference and exposure.
     reference_tau_s: float = setting(

@@ -64,6 +64,12 @@ class WorkingGeometry:
         x, y, _, _ = self.roi
         return x + (wx + 0.5) / sx - 0.5, y + (wy + 0.5) / sy - 0.5
 
+    def from_camera(self, cx: float, cy: float) -> tuple[float, float]:
+        """Camera pixels to working-image coordinates (the inverse of :meth:`to_camera`)."""
+        sx, sy = self.scale
+        x, y, _, _ = self.roi
+        return (cx - x + 0.5) * sx - 0.5, (cy - y + 0.5) * sy - 0.5
+
     def cov_to_camera(self, cov: tuple[float, float, float]) -> tuple[float, float, float]:
         """A covariance (var x, var y, cov xy) in working px^2 in camera px^2."""
         sx, sy = self.scale

@@ -20,13 +20,14 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.touch.buffers import Scratch
-from feelium.touch.candidates import find_candidates
+from feelium.touch.candidates import Candidate, find_candidates
 from feelium.touch.config import TouchConfig
 from feelium.touch.depth import MaskCounts, relative_depth
 from feelium.touch.geometry import WorkingGeometry
 from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
+from feelium.touch.refine import FineDetail, FineInputs, fine_depth, fine_flat, fine_window, shifted, upsample_window
 from feelium.touch.settle import depth_uncertainty, spread_window
 from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
@@ -82,13 +83,22 @@ class TouchPipeline:
             roi = face.roi() if roi is None else roi
         self.face = face
         self.plain = plain
+        self.fine: WorkingGeometry | None = None  # the working resolution, when detection runs coarser
         if plain:
             self.geometry = WorkingGeometry.build(frame_size, None, frame_size, np.float64)
             self._roi = WorkingGeometry.build(frame_size, roi, frame_size, np.float64).roi
         else:
-            self.geometry = WorkingGeometry.build(frame_size, roi, (config.width, config.height), np.float32)
+            # With detect_scale < 1 the per-pixel work runs at that fraction of the working resolution and the
+            # candidates are found again at the working resolution around the shadows (feelium.touch.refine).
+            scale = config.detect_scale
+            self.geometry = WorkingGeometry.build(
+                frame_size, roi, (config.width * scale, config.height * scale), np.float32
+            )
             self._roi = self.geometry.roi
-        self._off_face = None if face is None else self._cut_off_face(face)
+            if scale < 1.0:
+                self.fine = WorkingGeometry.build(frame_size, roi, (config.width, config.height), np.float32)
+        self._off_face = None if face is None else self._cut_off_face(face, self.geometry)
+        self._fine_off_face = None if face is None or self.fine is None else self._cut_off_face(face, self.fine)
         self.reference = AdaptiveReference(
             tau_s=config.reference_tau_s,
             bright_tau_s=config.reference_bright_tau_s,
@@ -117,9 +127,17 @@ class TouchPipeline:
         g = self.geometry
         self._sigma = g.px(config.blur_sigma_px)
         self._edge_radius = g.px(config.contact_edge_radius_px)
-        self._per_camera_px = g.px(1.0)  # a gradient per working px times this is per camera px
         self._min_area = max(1, int(math.ceil(config.candidate_min_area_px / g.area_scale)))
         self._activity_area = config.activity_min_area_px
+        self._fine_scratch = Scratch()
+        self.detail = FineDetail(tau_s=config.reference_tau_s, interval_s=DETAIL_INTERVAL_S)
+        if self.fine is not None:
+            f = self.fine
+            self._fine_sigma = f.px(config.blur_sigma_px)
+            self._fine_edge_radius = f.px(config.contact_edge_radius_px)
+            self._fine_min_area = max(1, int(math.ceil(config.candidate_min_area_px / f.area_scale)))
+            # The window reaches past the coarse shadows by the blur's support and the edge's radius.
+            self._fine_margin = int(math.ceil(3.0 * self._fine_sigma + self._fine_edge_radius)) + 2
         margin = int(math.ceil(g.px(config.reference_margin_px)))
         self._margin_kernel = (
             cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin + 1, 2 * margin + 1)) if margin > 0 else None
@@ -134,6 +152,7 @@ class TouchPipeline:
         self.reference.reset()
         self.tracker.reset()
         self.response.reset()
+        self.detail.reset()
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -221,6 +240,7 @@ class TouchPipeline:
         floor = _noise_floor_map(smooth, cfg.noise_sigmas, cfg.noise_floor, buf)
         self.noise = float(floor.max()) if floor.size else 0.0
         uncertain = None
+        bound_full = None
         # The bound is zero where the spread is (inside a scene: most frames, most pixels), so it is computed only
         # in the window around the nonzero spread (:func:`feelium.touch.settle.spread_window`); bit for bit the same.
         window = None if spread is None or self.response.slope is None else spread_window(spread, self._sigma, buf)
@@ -232,6 +252,9 @@ class TouchPipeline:
             np.maximum(part, np.float32(cfg.dark_reference_level), out=part)
             bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma, buf, window)
             smooth[window] -= bound  # the smallest depth the prediction allows: its error cannot make a shadow
+            if self.fine is not None:
+                bound_full = np.zeros(smooth.shape, smooth.dtype)
+                bound_full[window] = bound
             uncertain = np.zeros(smooth.shape, bool)
             np.greater_equal(bound, cfg.noise_floor, out=uncertain[window])
             self.uncertain_frames += bool(uncertain[window].any())
@@ -252,10 +275,18 @@ class TouchPipeline:
             scratch=buf,
             split_fraction=cfg.contact_split_fraction,
         )
+        geometry = self.geometry
+        fine_inputs = None
+        learn_detail = self.fine is not None and self.settled and self.detail.due(t)
+        if self.fine is not None and (candidates or learn_detail):
+            fine_inputs = self._fine_inputs(frame, backlight_gain, projected_light, light is not None, bound_full)
+        if candidates and fine_inputs is not None:
+            # The fine depth decides, as the full-resolution path would: a coarse shadow it finds nothing in is none.
+            candidates, geometry = self._refine(fine_inputs, candidates), self.fine
         observations = []
         kept = []
         for cand in candidates:
-            cx, cy = self.geometry.to_camera(cand.x, cand.y)
+            cx, cy = geometry.to_camera(cand.x, cand.y)
             if self.face is not None:
                 fu, fv = self.face.to_uv(cx, cy)
                 u, v = float(fu), float(fv)
@@ -265,21 +296,24 @@ class TouchPipeline:
                 continue
             else:
                 u, v = skin_uv(self._roi, cx, cy)
-            area_px = int(round(cand.area * self.geometry.area_scale))
-            edge = cand.edge * self._per_camera_px
-            cov = self.geometry.cov_to_camera(cand.footprint_cov)
-            shape = contact_shape(cfg, cand.footprint_area * self.geometry.area_scale, cov)
+            area_px = int(round(cand.area * geometry.area_scale))
+            edge = cand.edge * geometry.px(1.0)  # a gradient per working px in per camera px
+            cov = geometry.cov_to_camera(cand.footprint_cov)
+            shape = contact_shape(cfg, cand.footprint_area * geometry.area_scale, cov)
             reach = 0.5 * axes_from_moments(*cov)[0]
             observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge, shape, reach))
-            kept.append(cand)
+            # Where the anchoring seed lies in the detection image (the coarse candidate's own point at scale 1).
+            kept.append((cand.x, cand.y) if geometry is self.geometry else self.geometry.from_camera(cx, cy))
         step = self.tracker.step(t, observations, settled=self.settled)
         if self._margin_kernel is not None and darkened:
             shadow = cv2.dilate(shadow.view(np.uint8), self._margin_kernel).view(bool)
-        seeds = [(c.x, c.y) for c, p in zip(kept, step.protected) if p]
+        seeds = [point for point, p in zip(kept, step.protected) if p]
         anchored = _regions_containing(shadow, seeds) if seeds else None
         frozen = shadow if unusable is None else (shadow | unusable)
         if uncertain is not None:
             frozen = frozen | uncertain
+        if learn_detail and fine_inputs is not None:
+            self._learn_detail(t, fine_inputs, frozen)
         if self.settled:
             ref.update(t, work, frozen, anchored)
         else:
@@ -327,27 +361,95 @@ class TouchPipeline:
         ref.image = np.maximum(image, image.dtype.type(REFERENCE_FLOOR))
         return True
 
-    def _prepare(self, frame: np.ndarray, backlight_gain: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-        """Validate the frame; return the gray working image (back-light divided out) and unusable pixels."""
-        fw, fh = self.geometry.frame_size
+    def _fine_inputs(
+        self,
+        frame: np.ndarray,
+        backlight_gain: np.ndarray | None,
+        projected_light: np.ndarray | None,
+        compensated: bool,
+        bound: np.ndarray | None,
+    ) -> FineInputs:
+        """This frame at the working resolution and the coarse pass's state it is read against
+        (feelium.touch.refine)."""
+        fine = self.fine
+        assert fine is not None and self.reference.image is not None
+        work, _ = self._prepare(frame, backlight_gain, fine, "fine.work")
+        slope = self.response.slope if compensated else None
+        light = None
+        if slope is not None and projected_light is not None:
+            light = self._cut_light(projected_light, "fine.light", geometry=fine)
+        ref = self.reference
+        expected = np.multiply(ref.image, ref.expected_gain(), out=self._fine_scratch.like("fine.expected", ref.image))
+        return FineInputs(work, expected, light, slope, bound, self._fine_off_face, self.detail.ratio)
+
+    def _refine(self, inputs: FineInputs, candidates: list[Candidate]) -> list[Candidate]:
+        """The candidates found again at the working resolution around the coarse ones' shadows (fine working
+        coordinates)."""
+        fine, cfg = self.fine, self.config
+        assert fine is not None
+        window = fine_window([c.bbox for c in candidates], self.geometry, fine, self._fine_margin)
+        buf = self._fine_scratch
+        smooth = fine_depth(
+            inputs, window, sigma=self._fine_sigma, dark_level=cfg.dark_reference_level,
+            saturation_level=float(cfg.saturation_level), scratch=buf,
+        )  # fmt: skip
+        found, _ = find_candidates(
+            smooth,
+            threshold=cfg.candidate_depth,
+            min_area=self._fine_min_area,
+            core_fraction=cfg.core_fraction,
+            max_candidates=cfg.max_candidates,
+            edge_radius=self._fine_edge_radius,
+            scratch=buf,
+            split_fraction=cfg.contact_split_fraction,
+        )
+        return [shifted(c, window) for c in found]
+
+    def _learn_detail(self, t: float, inputs: FineInputs, frozen: np.ndarray) -> None:
+        """Teach the fine pattern of the flat membrane from this frame where the coarse pass froze nothing."""
+        cfg, buf = self.config, self._fine_scratch
+        h, w = inputs.work.shape
+        whole = (slice(0, h), slice(0, w))
+        sat = float(cfg.saturation_level)
+        flat = fine_flat(inputs, whole, saturation_level=sat, scratch=buf)
+        expected = upsample_window(inputs.expected, (w, h), whole, buf.like("detail.expected", inputs.work))
+        shadowed = cv2.resize(
+            frozen.view(np.uint8), (w, h), dst=buf.like("detail.frozen", inputs.work, np.uint8),
+            interpolation=cv2.INTER_NEAREST,
+        )  # fmt: skip
+        usable = np.less(inputs.work, sat, out=buf.like("detail.usable", inputs.work, bool))
+        usable &= shadowed == 0
+        usable &= expected >= cfg.dark_reference_level
+        self.detail.learn(t, flat, expected, usable)
+
+    def _prepare(
+        self,
+        frame: np.ndarray,
+        backlight_gain: np.ndarray | None,
+        geometry: WorkingGeometry | None = None,
+        name: str = "work",
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Validate the frame; return the gray working image (back-light divided out) and unusable pixels, at
+        ``geometry``'s resolution (default the pipeline's), in the buffer ``name``."""
+        g = self.geometry if geometry is None else geometry
+        fw, fh = g.frame_size
         if not isinstance(frame, np.ndarray):
             raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
         if frame.dtype != np.uint8:
             raise ValueError(f"frame must be uint8, got {frame.dtype}")
         if frame.shape[:2] != (fh, fw) or frame.ndim not in (2, 3) or (frame.ndim == 3 and frame.shape[2] not in (1, 3)):
             raise ValueError(f"frame shape {frame.shape} does not match the camera's {fw}x{fh} (gray or BGR)")
-        x, y, w, h = self.geometry.roi
+        x, y, w, h = g.roi
         part = frame[y : y + h, x : x + w]
         if part.ndim == 3:
             part = part[:, :, 0] if part.shape[2] == 1 else cv2.cvtColor(part, cv2.COLOR_BGR2GRAY)
-        g = self.geometry
-        work = g.cut_roi(part, out=self._scratch.get("work", (g.work_size[1], g.work_size[0]), g.dtype))
+        work = g.cut_roi(part, out=self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype))
         if backlight_gain is None:
             return work, None
         if backlight_gain.shape != (fh, fw):
             raise ValueError(f"backlight_gain shape {backlight_gain.shape} does not match the camera's {fw}x{fh}")
         light = np.nan_to_num(
-            self.geometry.cut_roi(backlight_gain[y : y + h, x : x + w].astype(np.float32, copy=False)),
+            g.cut_roi(backlight_gain[y : y + h, x : x + w].astype(np.float32, copy=False)),
             nan=0.0,
             posinf=0.0,
             neginf=0.0,
@@ -358,18 +460,22 @@ class TouchPipeline:
         work[unusable] = float(self.config.saturation_level)
         return work, unusable
 
-    def _cut_off_face(self, face: FaceModel) -> np.ndarray:
-        """Working pixels of the ROI that lie mostly off the face (bool, working size)."""
-        x, y, w, h = self.geometry.roi
+    @staticmethod
+    def _cut_off_face(face: FaceModel, geometry: WorkingGeometry) -> np.ndarray:
+        """Pixels of the ROI at ``geometry``'s resolution that lie mostly off the face (bool)."""
+        x, y, w, h = geometry.roi
         on = face.mask()[y : y + h, x : x + w].astype(np.float32)
-        return self.geometry.cut_roi(on) < 0.5
+        return geometry.cut_roi(on) < 0.5
 
-    def _cut_light(self, projected_light: np.ndarray, name: str, *, unknown: float = 0.0) -> np.ndarray:
+    def _cut_light(
+        self, projected_light: np.ndarray, name: str, *, unknown: float = 0.0, geometry: WorkingGeometry | None = None
+    ) -> np.ndarray:
         """The predicted light (or its spread) over the ROI at working resolution; NaN and inf become ``unknown`` (no
         light; for a spread, as uncertain as light can be), negatives 0, the rest is clipped to the range. Written
-        into the buffer ``name`` (valid for this frame)."""
-        fw, fh = self.geometry.frame_size
-        x, y, w, h = self.geometry.roi
+        into the buffer ``name`` (valid for this frame), at ``geometry``'s resolution (default the pipeline's)."""
+        g = self.geometry if geometry is None else geometry
+        fw, fh = g.frame_size
+        x, y, w, h = g.roi
         if projected_light.shape == (fh, fw):
             projected_light = projected_light[y : y + h, x : x + w]
         elif projected_light.shape != (h, w):
@@ -377,7 +483,6 @@ class TouchPipeline:
                 f"projected_light shape {projected_light.shape} is neither the camera's {fw}x{fh} nor the ROI's {w}x{h}"
             )
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
-        g = self.geometry
         out = self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype)
         light = g.cut_roi(projected_light.astype(np.float32, copy=False), out=out)
         if not cv2.checkRange(light)[0]:  # one pass, and almost always all finite: nan_to_num takes four
@@ -387,6 +492,11 @@ class TouchPipeline:
 
 
 SHARE_REBASE = 0.05  # change of the learned projector share that re-bases the reference
+# Seconds between two lessons of the fine pattern (feelium.touch.refine.FineDetail): it is static. Measured on the
+# paper protocol at 15 fps, one lesson in 4 frames (0.27 s) and one in 2 kept a close hover's edge within 0.0005 of
+# each other (0.0445), one in 8 let it rise to 0.0459 (full scale: 0.0430; this interval: 0.0438); a lesson costs
+# ~0.6 ms of fine-resolution passes at 256x192.
+DETAIL_INTERVAL_S = 0.25
 NOISE_TILES = (8, 6)
 _SPECK_KERNEL = np.ones((3, 3), np.uint8)
 

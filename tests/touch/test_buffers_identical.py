@@ -48,12 +48,12 @@ def _frames() -> tuple[list[np.ndarray], tuple[int, int, int, int]]:
     return out, roi
 
 
-def _digest(projected: bool, cut: bool = False, patchy: bool = False) -> str:
+def _digest(projected: bool, cut: bool = False, patchy: bool = False, detect_scale: float = 1.0) -> str:
     """``cut``: hand the pipeline the light and spread already cut to its ROI (as the daemon's predictor makes
     them) instead of the whole frame's; ``patchy``: spreads zero but for a patch (at the ROI's edge, inside it) or
     everywhere, as at and between a projector's scene cuts."""
     config = Config()
-    touch = dataclasses.replace(config.touch, width=SIZE[0], height=SIZE[1])
+    touch = dataclasses.replace(config.touch, width=SIZE[0], height=SIZE[1], detect_scale=detect_scale)
     frames, roi = _frames()
     pipeline = TouchPipeline(touch, SIZE, roi)
     rng = np.random.default_rng(7)
@@ -79,7 +79,10 @@ def _digest(projected: bool, cut: bool = False, patchy: bool = False) -> str:
         ref = pipeline.reference
         state = (ref.gain, pipeline.noise, pipeline.masked, pipeline.settled, pipeline.light_changes)
         sha.update(repr(_rounded((dataclasses.astuple(result), state))).encode())
-        for array in (ref.image, ref.rows, pipeline._shadow, pipeline._deep, pipeline.response.slope):
+        arrays = (ref.image, ref.rows, pipeline._shadow, pipeline._deep, pipeline.response.slope)
+        if detect_scale < 1.0:
+            arrays += (pipeline.detail.ratio,)
+        for array in arrays:
             sha.update(b"-" if array is None else np.ascontiguousarray(array).tobytes())
     return sha.hexdigest()
 
@@ -118,3 +121,16 @@ def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(m
     windowed = _digest(True, patchy=True)
     monkeypatch.setattr(pipeline_module, "spread_window", lambda spread, sigma, scratch=None: (slice(None), slice(None)))
     assert windowed == _digest(True, patchy=True)
+
+
+@pytest.mark.parametrize(
+    ("projected", "expected"),
+    [
+        (False, "1ea96f7ab7ab9192214602083a314b97e152851e0aa17cea7ebf3df993630966"),
+        (True, "092d47f7b9e5c2205b776d6c05af2a0021364ab773c37e73f4a5df8073dcd4e9"),
+    ],
+)
+def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: str) -> None:
+    """``[touch] detect_scale = 0.5`` (feelium.touch.refine) is its own algorithm: pinned apart from the full-scale
+    digests above, which it must never move (pinned on branch i16half, 2026-11-27)."""
+    assert _digest(projected, detect_scale=0.5) == expected
