@@ -27,6 +27,7 @@ from feelium.touch.geometry import WorkingGeometry
 from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
+from feelium.touch.roomshare import ProjectorShare, projected_depth
 from feelium.touch.settle import depth_uncertainty, spread_window
 from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
@@ -49,6 +50,9 @@ class FrameResult:
     contacts: tuple[Contact, ...]  # contacts currently down
     core_depth: float = 0.0  # deepest candidate core this frame (what the instant gate sees)
     edge: float = 0.0  # that candidate's contact edge (steepest depth gradient, per camera px)
+    # The largest share of the projector's own light any candidate took away (:mod:`feelium.touch.roomshare`);
+    # None while the projector's share of the light is unknown.
+    projected_depth: float | None = None
 
 
 class TouchPipeline:
@@ -102,6 +106,7 @@ class TouchPipeline:
         )
         self.tracker = Tracker(config)
         self.response = ProjectorResponse(tau_s=config.projected_response_tau_s, prior_var=config.projected_prior_var)
+        self.projector_share = ProjectorShare(tau_s=config.projector_share_tau_s)
         self.settled = True  # False while the projected light's response is not learned: nothing new is raised
         self.uncertain_frames = 0  # frames in which the prediction's spread could fake a darkened pixel
         self._reference_share = self.response.share
@@ -134,6 +139,7 @@ class TouchPipeline:
         self.reference.reset()
         self.tracker.reset()
         self.response.reset()
+        self.projector_share.reset()
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -154,6 +160,7 @@ class TouchPipeline:
         *,
         projected_light: np.ndarray | None = None,
         projected_spread: np.ndarray | None = None,
+        probe_light: np.ndarray | None = None,
     ) -> FrameResult:
         """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing).
 
@@ -163,6 +170,12 @@ class TouchPipeline:
         per pixel (:func:`feelium.touch.settle.predicted_exposure`); every shadow is taken at the smallest depth
         the spread allows and uncertain pixels learn nothing (:mod:`feelium.touch.settle`). ``backlight_gain`` is
         the older multiplicative model (divide it out).
+
+        ``probe_light`` (same sizes as ``projected_light``): on a skin whose content is not passed as
+        ``projected_light``, the light of the projector's faint probe pattern relative to flat grey; it teaches the
+        projector's share of the light per place (:mod:`feelium.touch.roomshare`) and is compensated with it.
+        Wherever that share is known (from the probe or from ``projected_light``), a candidate that takes less than
+        ``contact_projected_depth`` of the projector's own light away is a hand above the membrane, not a contact.
         """
         t = float(t)
         if not math.isfinite(t):
@@ -176,12 +189,15 @@ class TouchPipeline:
         spread = None
         if light is not None and projected_spread is not None:
             spread = self._cut_light(projected_spread, "spread", unknown=LIGHT_MAX)
+        probe = None if probe_light is None else self._cut_light(probe_light, "probe")
         raw = work
         if light is not None:
             # Until the response is learned nothing is settled: the compensation is only a guess.
             self.settled = self.response.share is not None
             work = self.response.compensate(raw, light)
             np.copyto(work, np.float32(self.config.saturation_level), where=raw >= self.config.saturation_level)
+        elif probe is not None:
+            work = self._compensate_probe(raw, probe)
         self._last_t = t
         self.frames += 1
         ref = self.reference
@@ -254,7 +270,16 @@ class TouchPipeline:
         )
         observations = []
         kept = []
+        share_map = self.projector_share.share_map() if cfg.contact_projected_depth > 0.0 else None
+        most_projected: float | None = None
         for cand in candidates:
+            if share_map is not None:
+                iy = min(max(int(round(cand.y)), 0), share_map.shape[0] - 1)
+                ix = min(max(int(round(cand.x)), 0), share_map.shape[1] - 1)
+                taken = projected_depth(cand.peak, float(share_map[iy, ix]))
+                most_projected = taken if most_projected is None else max(most_projected, taken)
+                if taken < cfg.contact_projected_depth:
+                    continue  # all of its depth is light from outside: a hand above the membrane
             cx, cy = self.geometry.to_camera(cand.x, cand.y)
             if self.face is not None:
                 fu, fv = self.face.to_uv(cx, cy)
@@ -280,6 +305,13 @@ class TouchPipeline:
         frozen = shadow if unusable is None else (shadow | unusable)
         if uncertain is not None:
             frozen = frozen | uncertain
+        sensed = light if light is not None else probe
+        # Learned on hand-free frames only: a shadow's slow change under a tile, while the probe happens to rise or
+        # fall, reads as light following the projector (a hover's own tiles came out 0.06 too projector-lit).
+        if sensed is not None and self.settled and not candidates and area < self._activity_area:
+            expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("share.expected", ref.image))
+            usable = ~frozen & (raw < cfg.saturation_level) & (expected >= cfg.dark_reference_level)
+            self.projector_share.learn(t, raw, expected, sensed, usable)
         if self.settled:
             ref.update(t, work, frozen, anchored)
         else:
@@ -305,6 +337,7 @@ class TouchPipeline:
             contacts=tuple(self.tracker.contacts()),
             core_depth=deepest.depth if deepest else 0.0,
             edge=deepest.edge if deepest else 0.0,
+            projected_depth=most_projected,
         )
 
     def _follow_light(self, work: np.ndarray, stepped: bool) -> bool:
@@ -323,9 +356,28 @@ class TouchPipeline:
         if change is None:
             return False
         self.light_changes += 1
+        e, added = change
+        old = ref.image * np.float32(e)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            self.projector_share.rescale(old / np.maximum(old + added, np.float32(REFERENCE_FLOOR)))
         image = reseed(ref.image, work * np.float32(1.0 / ref.gain), change, self._shadow)
         ref.image = np.maximum(image, image.dtype.type(REFERENCE_FLOOR))
         return True
+
+    def _compensate_probe(self, raw: np.ndarray, probe: np.ndarray) -> np.ndarray:
+        """``raw + p * (1 - probe) * expected``: the frame as the flat grey would have lit it, with the projector's
+        share ``p`` learned so far (the frame itself while it is unknown or before the reference exists)."""
+        share, ref = self.projector_share.share_map(), self.reference
+        if share is None or ref.image is None:
+            return raw
+        out = self._scratch.like("probe.compensated", raw)
+        np.subtract(np.float32(1.0), probe, out=out)
+        out *= share
+        out *= ref.image
+        out *= ref.expected_gain()
+        out += raw
+        np.copyto(out, np.float32(self.config.saturation_level), where=raw >= self.config.saturation_level)
+        return out
 
     def _prepare(self, frame: np.ndarray, backlight_gain: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
         """Validate the frame; return the gray working image (back-light divided out) and unusable pixels."""
