@@ -27,7 +27,7 @@ from feelium.touch.geometry import WorkingGeometry
 from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
-from feelium.touch.roomshare import ProjectorShare, projected_depth
+from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
 from feelium.touch.settle import depth_uncertainty, spread_window
 from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
@@ -113,6 +113,9 @@ class TouchPipeline:
         self.masked = MaskCounts()
         self.frames = 0
         self.light_changes = 0  # frames on which a membrane-wide change of light re-seeded the reference
+        # Share of the membrane where the room outshines the projector too much for the projected-light gate
+        # (:func:`feelium.touch.roomshare.room_dominated`); None while the projector's share is not known.
+        self.room_dominated: float | None = None
         self.noise = 0.0
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
@@ -140,6 +143,7 @@ class TouchPipeline:
         self.tracker.reset()
         self.response.reset()
         self.projector_share.reset()
+        self.room_dominated = None
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -271,6 +275,10 @@ class TouchPipeline:
         observations = []
         kept = []
         share_map = self.projector_share.share_map() if cfg.contact_projected_depth > 0.0 else None
+        if share_map is not None:
+            noise = np.multiply(floor, np.float32(1.0 / max(cfg.noise_sigmas, 1.0)), out=buf.like("share.noise", floor))
+            considered = np.ones(share_map.shape, bool) if unusable is None else ~unusable
+            self.room_dominated = room_dominated(share_map, noise, cfg.contact_projected_depth, considered)
         most_projected: float | None = None
         for cand in candidates:
             if share_map is not None:

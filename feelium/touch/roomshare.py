@@ -147,7 +147,8 @@ class ProjectorShare:
     def share_map(self) -> np.ndarray | None:
         """The projector's share at every working pixel (float32), or None until some tile saw its light change.
 
-        Tiles that saw too little take the share of the informative tiles near them, weighted by what they saw."""
+        Tiles that saw too little take the share of the informative tiles near them, weighted by what they saw;
+        the others keep their own (the back-light's fall-off makes the share vary from tile to tile)."""
         if self._map is not None:
             return self._map
         fitted = self.tiles()
@@ -159,7 +160,8 @@ class ProjectorShare:
         num = cv2.GaussianBlur(p * info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
         den = cv2.GaussianBlur(info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
         fallback = float(np.sum(p * info) / np.sum(info))
-        spread = np.where(den > 1e-3 * float(info.max()), num / np.maximum(den, 1e-12), fallback).astype(np.float32)
+        filled = np.where(den > 1e-3 * float(info.max()), num / np.maximum(den, 1e-12), fallback)
+        spread = np.where(info > 0.0, p, filled).astype(np.float32)
         h, w = self._shape
         self._map = cv2.resize(spread, (w, h), interpolation=cv2.INTER_LINEAR)
         return self._map
@@ -175,3 +177,23 @@ def projected_depth(depth: float, share: float) -> float:
     if share <= 0.0:
         return float("-inf")
     return 1.0 - (1.0 - depth) / share
+
+
+# How far the learned share is off per place: the median absolute error against the simulator's truth over the
+# lit room's trials (docs/touch.md, "The projector's share, per place"), rounded up.
+SHARE_ERROR = 0.02
+
+
+def room_dominated(share: np.ndarray, noise: np.ndarray, gate: float, considered: np.ndarray) -> float:
+    """The fraction of the ``considered`` pixels where the room outshines the projector too much for the gate.
+
+    A hand above the membrane takes no projector light, but the share's error (:data:`SHARE_ERROR`) and the depth's
+    noise (``noise``, one standard deviation of the smoothed depth per pixel) make it look as if it took
+    ``(error + noise) / share`` of it; where that reaches ``gate`` (``contact_projected_depth``) a close hover and
+    a contact are one decision apart, and the pipeline, which drops candidates under the gate, may drop contacts
+    there as well. 0 when nothing is considered."""
+    total = int(np.count_nonzero(considered))
+    if total == 0:
+        return 0.0
+    dominated = share * np.float32(gate) < noise + np.float32(SHARE_ERROR)
+    return float(np.count_nonzero(dominated & considered)) / total

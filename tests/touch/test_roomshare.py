@@ -1,0 +1,93 @@
+"""The projector's share of the light per place, learned from the probe: the fit, a switch, and the gate's arithmetic."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.projector.probe import PERIOD_S, probe_light, probe_pattern
+from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
+
+H, W = 120, 160  # working size: 10 x 7 coarse tiles
+FPS = 15.0
+
+
+def membrane(room: float) -> tuple[np.ndarray, np.ndarray]:
+    """The projector's direct light ``a`` (a 5:1 fall-off to the corners) and the room's ``c`` (a gentle gradient)."""
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    r2 = ((xx - W / 2) / (W / 2)) ** 2 + ((yy - H / 2) / (H / 2)) ** 2
+    a = 150.0 / (1.0 + 2.0 * r2)
+    c = room * float(a.mean()) * (1.0 + 0.15 * (xx - W / 2) / (W / 2))
+    return a.astype(np.float32), c.astype(np.float32)
+
+
+def learn(share: ProjectorShare, a: np.ndarray, c: np.ndarray, seconds: float, rng: np.random.Generator, t0: float = 0.0,
+          gain: float = 1.0) -> float:  # fmt: skip
+    pattern = probe_pattern(W, H, cell_px=32)
+    usable = np.ones((H, W), bool)
+    t = t0
+    for t in np.arange(t0, t0 + seconds, 1.0 / FPS):
+        light = probe_light(float(t), pattern)
+        jitter = 1.0 + 0.01 * rng.standard_normal()  # the camera's gain flickers frame to frame
+        frame = (gain * jitter * (a * light + c) + rng.normal(0.0, 2.0, (H, W))).astype(np.float32)
+        measured = float(np.median(frame / (a + c)))  # the pipeline's exposure gain: what the reference expects
+        share.learn(float(t), frame, measured * (a + c), light, usable)
+    return float(t)
+
+
+@settings(max_examples=8, deadline=None)
+@given(room=st.floats(0.0, 3.0), gain=st.floats(0.3, 2.0), seed=st.integers(0, 2**16))
+def test_the_share_is_learned_per_place_whatever_the_room_and_the_exposure(room: float, gain: float, seed: int) -> None:
+    a, c = membrane(room)
+    share = ProjectorShare(tau_s=5.0)
+    learn(share, a, c, 2 * PERIOD_S, np.random.default_rng(seed), gain=gain)
+    got = share.share_map()
+    assert got is not None
+    truth = a / (a + c)
+    inner = (slice(8, -8), slice(8, -8))  # the border tiles' fall-off is steep within the tile
+    assert float(np.median(np.abs(got - truth)[inner])) <= 0.02
+    assert float(np.abs(got - truth)[inner].max()) <= 0.08
+
+
+def test_nothing_is_known_before_the_light_has_changed() -> None:
+    a, c = membrane(1.0)
+    share = ProjectorShare(tau_s=5.0)
+    share.learn(0.0, a + c, a + c, np.ones((H, W), np.float32), np.ones((H, W), bool))
+    assert share.share_map() is None
+
+
+def test_a_lamp_switched_on_rescales_the_share_at_once() -> None:
+    rng = np.random.default_rng(3)
+    a, c = membrane(0.0)
+    share = ProjectorShare(tau_s=5.0)
+    learn(share, a, c, 2 * PERIOD_S, rng)
+    _, lamp = membrane(1.0)
+    e = 0.5  # the auto-exposure halves the exposure as the lamp doubles the membrane's light
+    old = a + c
+    added = e * lamp  # frame / gain = e * reference + added, in the reference's units (gain 1)
+    share.rescale(e * old / (e * old + added))
+    got = share.share_map()
+    assert got is not None
+    truth = a / (a + lamp)
+    inner = (slice(8, -8), slice(8, -8))
+    assert float(np.median(np.abs(got - truth)[inner])) <= 0.02
+
+
+@given(share=st.floats(0.05, 1.0), blocked=st.floats(0.0, 1.0), frustrated=st.floats(0.0, 1.0))
+def test_a_hand_above_takes_no_projector_light_and_a_contact_its_frustrated_reflection(
+    share: float, blocked: float, frustrated: float
+) -> None:
+    hover = blocked * (1.0 - share)  # any part of the light from outside
+    assert projected_depth(hover, share) <= 1e-9
+    contact = 1.0 - share * (1.0 - frustrated)  # all light from outside, and that share of the projector's
+    assert abs(projected_depth(contact, share) - frustrated) <= 1e-9
+
+
+def test_room_dominated_counts_where_the_gate_is_within_the_error() -> None:
+    share = np.array([[0.05, 0.1, 0.3, 0.6]], np.float32)
+    noise = np.full(share.shape, 0.02, np.float32)
+    considered = np.array([[True, True, True, False]])
+    # gate 0.2: share * 0.2 < 0.02 + 0.02 where share < 0.2: the first two of the three considered
+    assert room_dominated(share, noise, 0.2, considered) == 2 / 3
+    assert room_dominated(share, noise, 0.2, np.zeros(share.shape, bool)) == 0.0
