@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from feelium.projector.probe import PERIOD_S, probe_light, probe_pattern
+from feelium.touch.config import TouchConfig
+from feelium.touch.pipeline import TouchPipeline
 from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
 
 H, W = 120, 160  # working size: 10 x 7 coarse tiles
@@ -91,3 +94,45 @@ def test_room_dominated_counts_where_the_gate_is_within_the_error() -> None:
     # gate 0.2: share * 0.2 < 0.02 + 0.02 where share < 0.2: the first two of the three considered
     assert room_dominated(share, noise, 0.2, considered) == 2 / 3
     assert room_dominated(share, noise, 0.2, np.zeros(share.shape, bool)) == 0.0
+
+
+def _disc(shape: tuple[int, int], x: float, y: float, radius: float) -> np.ndarray:
+    """A disc of 1 with an edge blurred by 1 px: skin on the membrane, or a lamp's sharp shadow of a close hover."""
+    ys, xs = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float32)
+    inside = ((xs - x) ** 2 + (ys - y) ** 2 <= radius**2).astype(np.float32)
+    return cv2.GaussianBlur(inside, (0, 0), 1.0)
+
+
+def _lit_room_events(probe: bool) -> list[tuple[str, float]]:
+    """A lit room whose lamp outshines the back-light's dim corner: a close hover there (its lamp shadow as sharp
+    and as deep as a contact's) and then a finger pressed at the same place. The down/up events and their times."""
+    from tests.touch.synth import H as SH, ROI as SROI, W as SW, backlight
+
+    a = backlight(SW, SH, ratio=4.0) * 0.5  # the projector's direct light
+    c = np.full(a.shape, 1.2 * float(a.mean()), np.float32) + 0.35 * a  # the lamp, and what the room returns
+    pattern = probe_pattern(SW, SH, cell_px=32)
+    rng = np.random.default_rng(5)
+    pipe = TouchPipeline(TouchConfig(width=SW, height=SH), (SW, SH), SROI)
+    x, y = 40.0, 35.0  # near a corner of the ROI, where the back-light is dim
+    shadow = _disc(a.shape, x, y, 6.0)
+    plan = [None] * 45 + ["hover"] * 20 + [None] * 10 + ["contact"] * 20 + [None] * 10  # 15 fps: 3 s hand-free first
+    events, t = [], 0.0
+    for what in plan:
+        light = probe_light(t, pattern) if probe else np.ones(a.shape, np.float32)
+        room = c * (1.0 - shadow) if what else c  # a hand close above or on the skin blocks the lamp there
+        direct = a * light * (1.0 - 0.45 * shadow) if what == "contact" else a * light  # the frustrated reflection
+        frame = np.clip(np.rint(direct + room + rng.normal(0.0, 2.0, a.shape)), 0, 255).astype(np.uint8)
+        result = pipe.process(t, frame, probe_light=light if probe else None)
+        events += [(e.phase, t) for e in result.events if e.phase in ("down", "up")]
+        t += 1.0 / FPS
+    return events
+
+
+def test_in_a_lit_corner_the_hover_is_dropped_and_the_contact_kept_once_the_probe_taught_the_share() -> None:
+    contact_from = (45 + 20 + 10) / FPS
+    with_probe = _lit_room_events(probe=True)
+    assert [phase for phase, _ in with_probe] == ["down", "up"]
+    assert with_probe[0][1] >= contact_from
+    # The same scene on a static skin: nothing tells the two apart and the hover fires (the paper's gates alone).
+    static = _lit_room_events(probe=False)
+    assert static and static[0][0] == "down" and static[0][1] < contact_from
