@@ -8,11 +8,15 @@ with ``s`` a checkerboard of +-1 cells: half the skin brightens while the other
 half dims, so the skin's mean (what the room returns, what an auto-exposure
 meters) does not move, and every cell's own light varies by a known amount.
 
-Stated parameters (not fitted to detector scores): 3 % amplitude, a 2 s
-period (a slow breathing, far below flicker rates; whether 3 % is invisible
-to a viewer is not measured here), cells of 64 camera pixels (32 mm on the
-paper's camera scale: a few coarse tiles of the touch pipeline each, so most
-tiles lie inside one cell).
+Stated parameters (not fitted to detector scores): 3 % amplitude, a 0.5 s
+period, cells of 64 camera pixels (32 mm on the paper's camera scale: a few
+coarse tiles of the touch pipeline each, so most tiles lie inside one cell).
+The period is short against a hand's approach (a shadow growing under a tile
+over a second, while a slow probe happened to rise, read as light following
+the projector: with a 2 s period the share came out 0.1 low under one tap and
+it was lost) and long against the camera's frame and the projector's latency
+(7.5 camera frames per period at 15 fps). Whether a 3 % modulation at 2 Hz is
+invisible to a viewer is not measured here.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import math
 import numpy as np
 
 AMPLITUDE = 0.03
-PERIOD_S = 2.0
+PERIOD_S = 0.5
 CELL_PX = 64
 
 
