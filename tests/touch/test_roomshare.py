@@ -12,7 +12,7 @@ from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
 from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
 
-H, W = 120, 160  # working size: 10 x 7 coarse tiles
+H, W = 240, 320  # the default working size: 20 x 15 coarse tiles
 FPS = 15.0
 
 
@@ -39,16 +39,16 @@ def learn(share: ProjectorShare, a: np.ndarray, c: np.ndarray, seconds: float, r
     return float(t)
 
 
-@settings(max_examples=8, deadline=None)
+@settings(max_examples=5, deadline=None)
 @given(room=st.floats(0.0, 3.0), gain=st.floats(0.3, 2.0), seed=st.integers(0, 2**16))
 def test_the_share_is_learned_per_place_whatever_the_room_and_the_exposure(room: float, gain: float, seed: int) -> None:
     a, c = membrane(room)
     share = ProjectorShare(tau_s=5.0)
-    learn(share, a, c, 2 * PERIOD_S, np.random.default_rng(seed), gain=gain)
+    learn(share, a, c, 6 * PERIOD_S, np.random.default_rng(seed), gain=gain)
     got = share.share_map()
     assert got is not None
     truth = a / (a + c)
-    inner = (slice(8, -8), slice(8, -8))  # the border tiles' fall-off is steep within the tile
+    inner = (slice(16, -16), slice(16, -16))  # the border tiles: the fall-off is steepest there
     assert float(np.median(np.abs(got - truth)[inner])) <= 0.02
     assert float(np.abs(got - truth)[inner].max()) <= 0.08
 
@@ -64,7 +64,7 @@ def test_a_lamp_switched_on_rescales_the_share_at_once() -> None:
     rng = np.random.default_rng(3)
     a, c = membrane(0.0)
     share = ProjectorShare(tau_s=5.0)
-    learn(share, a, c, 2 * PERIOD_S, rng)
+    learn(share, a, c, 6 * PERIOD_S, rng)
     _, lamp = membrane(1.0)
     e = 0.5  # the auto-exposure halves the exposure as the lamp doubles the membrane's light
     old = a + c
@@ -73,7 +73,7 @@ def test_a_lamp_switched_on_rescales_the_share_at_once() -> None:
     got = share.share_map()
     assert got is not None
     truth = a / (a + lamp)
-    inner = (slice(8, -8), slice(8, -8))
+    inner = (slice(16, -16), slice(16, -16))
     assert float(np.median(np.abs(got - truth)[inner])) <= 0.02
 
 
