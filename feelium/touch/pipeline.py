@@ -281,13 +281,13 @@ class TouchPipeline:
             self.room_dominated = room_dominated(share_map, noise, cfg.contact_projected_depth, considered)
         most_projected: float | None = None
         for cand in candidates:
+            projected = True  # took the projector's own light away (unknown: assumed, as before the share)
             if share_map is not None:
                 iy = min(max(int(round(cand.y)), 0), share_map.shape[0] - 1)
                 ix = min(max(int(round(cand.x)), 0), share_map.shape[1] - 1)
                 taken = projected_depth(cand.peak, float(share_map[iy, ix]))
                 most_projected = taken if most_projected is None else max(most_projected, taken)
-                if taken < cfg.contact_projected_depth:
-                    continue  # all of its depth is light from outside: a hand above the membrane
+                projected = taken >= cfg.contact_projected_depth  # else all its depth is light from outside
             cx, cy = self.geometry.to_camera(cand.x, cand.y)
             if self.face is not None:
                 fu, fv = self.face.to_uv(cx, cy)
@@ -303,7 +303,7 @@ class TouchPipeline:
             cov = self.geometry.cov_to_camera(cand.footprint_cov)
             shape = contact_shape(cfg, cand.footprint_area * self.geometry.area_scale, cov)
             reach = 0.5 * axes_from_moments(*cov)[0]
-            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge, shape, reach))
+            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge, shape, reach, projected))
             kept.append(cand)
         step = self.tracker.step(t, observations, settled=self.settled)
         if self._margin_kernel is not None and darkened:
