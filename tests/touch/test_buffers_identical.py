@@ -19,7 +19,7 @@ finite paths, the light predicted into recycled arrays) kept both digests; the s
 
 Both digests were re-pinned on branch i17room (2026-11-27), deliberately: the frame result has a new field
 (``projected_depth``), and the projected frames teach the projector's share per place, so the projected-light gate
-(``contact_projected_depth``) now decides on their candidates. Checked before re-pinning: with the new field left
+(``contact_projected_depth``) now decides which of their shadows may land. Checked before re-pinning: with the new field left
 out of the digest the static one is the old pin to the bit, and so is the projected one with the gate off.
 """
 
@@ -103,7 +103,7 @@ def _rounded(value: object) -> object:
     ("projected", "expected"),
     [
         (False, "c3f38af89a05e742a6eed0e447f57693c3d4ca72b258d15575c94ffbda5f3fbb"),
-        (True, "173d63ef1fb77c9e649a80eb6be1ef946e6102b8bdbaf314b64cd67145993c46"),
+        (True, "0bcbb95ae754243e9a13b1de1ea0468a22c3cd7a84182ff9d2279aeaec06b239"),
     ],
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:
@@ -112,7 +112,7 @@ def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expecte
 
 def test_light_cut_to_the_roi_gives_the_whole_frames_results() -> None:
     """The daemon predicts the projected light only over the ROI (it is all the pipeline reads): same digest."""
-    assert _digest(True, cut=True) == "173d63ef1fb77c9e649a80eb6be1ef946e6102b8bdbaf314b64cd67145993c46"
+    assert _digest(True, cut=True) == "0bcbb95ae754243e9a13b1de1ea0468a22c3cd7a84182ff9d2279aeaec06b239"
 
 
 def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(monkeypatch) -> None:
