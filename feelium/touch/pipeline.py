@@ -275,10 +275,15 @@ class TouchPipeline:
         observations = []
         kept = []
         share_map = self.projector_share.share_map() if cfg.contact_projected_depth > 0.0 else None
-        if share_map is not None:
-            noise = np.multiply(floor, np.float32(1.0 / max(cfg.noise_sigmas, 1.0)), out=buf.like("share.noise", floor))
-            considered = np.ones(share_map.shape, bool) if unusable is None else ~unusable
-            self.room_dominated = room_dominated(share_map, noise, cfg.contact_projected_depth, considered)
+        coarse = self.projector_share.coarse() if share_map is not None else None
+        if coarse is not None:
+            grid = (coarse.shape[1], coarse.shape[0])
+            noise = cv2.resize(floor, grid, interpolation=cv2.INTER_AREA) * np.float32(1.0 / max(cfg.noise_sigmas, 1.0))
+            if unusable is None:
+                considered = np.ones(coarse.shape, bool)
+            else:
+                considered = cv2.resize((~unusable).astype(np.float32), grid, interpolation=cv2.INTER_AREA) >= 0.5
+            self.room_dominated = room_dominated(coarse, noise, cfg.contact_projected_depth, considered)
         most_projected: float | None = None
         for cand in candidates:
             projected = True  # took the projector's own light away (unknown: assumed, as before the share)

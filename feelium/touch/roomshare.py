@@ -83,6 +83,7 @@ class ProjectorShare:
         self._sums: list[np.ndarray] | None = None  # weight, x, u, x^2, x*u per tile (x = light - 1, u = z - 1)
         self._last_t: float | None = None
         self._map: np.ndarray | None = None  # working-size share, cached until the sums change
+        self._coarse: np.ndarray | None = None  # the same per tile
         self._shape: tuple[int, int] | None = None
         self.updates = 0
 
@@ -164,8 +165,14 @@ class ProjectorShare:
         fallback = float(np.sum(p * info) / np.sum(info))
         spread = np.where(den > 1e-3 * float(info.max()), num / np.maximum(den, 1e-12), fallback).astype(np.float32)
         h, w = self._shape
+        self._coarse = spread
         self._map = cv2.resize(spread, (w, h), interpolation=cv2.INTER_LINEAR)
         return self._map
+
+    def coarse(self) -> np.ndarray | None:
+        """:meth:`share_map` per tile (what health needs: judging the membrane at the share's own resolution costs a
+        few hundred values a frame, not a working image)."""
+        return self._coarse if self.share_map() is not None else None
 
 
 def projected_depth(depth: float, share: float) -> float:
