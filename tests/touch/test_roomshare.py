@@ -11,6 +11,7 @@ from feelium.projector.probe import PERIOD_S, probe_light, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
 from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
+from tests.touch.synth import H as SH, ROI as SROI, W as SW, backlight
 
 H, W = 240, 320  # the default working size: 20 x 15 coarse tiles
 FPS = 15.0
@@ -106,8 +107,6 @@ def _disc(shape: tuple[int, int], x: float, y: float, radius: float) -> np.ndarr
 def _lit_room_events(probe: bool) -> list[tuple[str, float]]:
     """A lit room whose lamp outshines the back-light's dim corner: a close hover there (its lamp shadow as sharp
     and as deep as a contact's) and then a finger pressed at the same place. The down/up events and their times."""
-    from tests.touch.synth import H as SH, ROI as SROI, W as SW, backlight
-
     a = backlight(SW, SH, ratio=4.0) * 0.5  # the projector's direct light
     c = np.full(a.shape, 1.2 * float(a.mean()), np.float32) + 0.35 * a  # the lamp, and what the room returns
     pattern = probe_pattern(SW, SH, cell_px=32)
