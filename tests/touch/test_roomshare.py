@@ -127,7 +127,7 @@ def _lit_room_events(probe: bool) -> list[tuple[str, float]]:
     return events
 
 
-def test_in_a_lit_corner_the_hover_is_dropped_and_the_contact_kept_once_the_probe_taught_the_share() -> None:
+def test_in_a_lit_corner_the_hover_cannot_land_and_the_contact_does_once_the_probe_taught_the_share() -> None:
     contact_from = (45 + 20 + 10) / FPS
     with_probe = _lit_room_events(probe=True)
     assert [phase for phase, _ in with_probe] == ["down", "up"]
