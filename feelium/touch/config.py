@@ -220,6 +220,21 @@ class TouchConfig:
         min=1e-6,
         max=10.0,
     )
+    contact_projected_depth: float = setting(
+        0.2,
+        "Where the projector's share of the light is known (learned from projected content or the probe, "
+        "feelium/touch/roomshare.py), a contact must take at least this fraction of the projector's own light away "
+        "at its deepest point: a hand above the membrane only blocks light from outside (room and returned light), "
+        "skin on it also frustrates the projector's reflection (0.4-0.5 of it). Half the weakest; 0 turns it off.",
+        min=0.0,
+        max=1.0,
+    )
+    projector_share_tau_s: float = setting(
+        5.0,
+        "Time constant (s) over which the projector's share of the light is learned per coarse tile.",
+        min=0.1,
+        max=3600.0,
+    )
     projector_latency_s: float = setting(
         0.033,
         "Projector frame clock to light on the membrane (s): which projector frames a camera exposure integrated.",

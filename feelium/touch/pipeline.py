@@ -28,6 +28,7 @@ from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
 from feelium.touch.refine import FineDetail, FineInputs, fine_depth, fine_flat, fine_window, shifted, upsample_window
+from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
 from feelium.touch.settle import depth_uncertainty, spread_window
 from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
@@ -50,6 +51,9 @@ class FrameResult:
     contacts: tuple[Contact, ...]  # contacts currently down
     core_depth: float = 0.0  # deepest candidate core this frame (what the instant gate sees)
     edge: float = 0.0  # that candidate's contact edge (steepest depth gradient, per camera px)
+    # The largest share of the projector's own light any candidate took away (:mod:`feelium.touch.roomshare`);
+    # None while the projector's share of the light is unknown.
+    projected_depth: float | None = None
 
 
 class TouchPipeline:
@@ -112,12 +116,16 @@ class TouchPipeline:
         )
         self.tracker = Tracker(config)
         self.response = ProjectorResponse(tau_s=config.projected_response_tau_s, prior_var=config.projected_prior_var)
+        self.projector_share = ProjectorShare(tau_s=config.projector_share_tau_s)
         self.settled = True  # False while the projected light's response is not learned: nothing new is raised
         self.uncertain_frames = 0  # frames in which the prediction's spread could fake a darkened pixel
         self._reference_share = self.response.share
         self.masked = MaskCounts()
         self.frames = 0
         self.light_changes = 0  # frames on which a membrane-wide change of light re-seeded the reference
+        # Share of the membrane where the room outshines the projector too much for the projected-light gate
+        # (:func:`feelium.touch.roomshare.room_dominated`); None while the projector's share is not known.
+        self.room_dominated: float | None = None
         self.noise = 0.0
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
@@ -153,6 +161,8 @@ class TouchPipeline:
         self.tracker.reset()
         self.response.reset()
         self.detail.reset()
+        self.projector_share.reset()
+        self.room_dominated = None
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -173,6 +183,7 @@ class TouchPipeline:
         *,
         projected_light: np.ndarray | None = None,
         projected_spread: np.ndarray | None = None,
+        probe_light: np.ndarray | None = None,
     ) -> FrameResult:
         """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing).
 
@@ -182,6 +193,12 @@ class TouchPipeline:
         per pixel (:func:`feelium.touch.settle.predicted_exposure`); every shadow is taken at the smallest depth
         the spread allows and uncertain pixels learn nothing (:mod:`feelium.touch.settle`). ``backlight_gain`` is
         the older multiplicative model (divide it out).
+
+        ``probe_light`` (same sizes as ``projected_light``): on a skin whose content is not passed as
+        ``projected_light``, the light of the projector's faint probe pattern relative to flat grey; it teaches the
+        projector's share of the light per place (:mod:`feelium.touch.roomshare`) and is compensated with it.
+        Wherever that share is known (from the probe or from ``projected_light``), a candidate that takes less than
+        ``contact_projected_depth`` of the projector's own light away is a hand above the membrane, not a contact.
         """
         t = float(t)
         if not math.isfinite(t):
@@ -195,12 +212,15 @@ class TouchPipeline:
         spread = None
         if light is not None and projected_spread is not None:
             spread = self._cut_light(projected_spread, "spread", unknown=LIGHT_MAX)
+        probe = None if probe_light is None else self._cut_light(probe_light, "probe")
         raw = work
         if light is not None:
             # Until the response is learned nothing is settled: the compensation is only a guess.
             self.settled = self.response.share is not None
             work = self.response.compensate(raw, light)
             np.copyto(work, np.float32(self.config.saturation_level), where=raw >= self.config.saturation_level)
+        elif probe is not None:
+            work = self._compensate_probe(raw, probe)
         self._last_t = t
         self.frames += 1
         ref = self.reference
@@ -285,8 +305,28 @@ class TouchPipeline:
             candidates, geometry = self._refine(fine_inputs, candidates), self.fine
         observations = []
         kept = []
+        share_map = self.projector_share.share_map() if cfg.contact_projected_depth > 0.0 else None
+        coarse = self.projector_share.coarse() if share_map is not None else None
+        if coarse is not None:
+            grid = (coarse.shape[1], coarse.shape[0])
+            noise = cv2.resize(floor, grid, interpolation=cv2.INTER_AREA) * np.float32(1.0 / max(cfg.noise_sigmas, 1.0))
+            if unusable is None:
+                considered = np.ones(coarse.shape, bool)
+            else:
+                considered = cv2.resize((~unusable).astype(np.float32), grid, interpolation=cv2.INTER_AREA) >= 0.5
+            self.room_dominated = room_dominated(coarse, noise, cfg.contact_projected_depth, considered)
+        most_projected: float | None = None
         for cand in candidates:
             cx, cy = geometry.to_camera(cand.x, cand.y)
+            # Where the candidate lies in the detection image (the coarse candidate's own point at scale 1).
+            point = (cand.x, cand.y) if geometry is self.geometry else self.geometry.from_camera(cx, cy)
+            projected = True  # took the projector's own light away (unknown: assumed, as before the share)
+            if share_map is not None:
+                iy = min(max(int(round(point[1])), 0), share_map.shape[0] - 1)
+                ix = min(max(int(round(point[0])), 0), share_map.shape[1] - 1)
+                taken = projected_depth(cand.peak, float(share_map[iy, ix]))
+                most_projected = taken if most_projected is None else max(most_projected, taken)
+                projected = taken >= cfg.contact_projected_depth  # else all its depth is light from outside
             if self.face is not None:
                 fu, fv = self.face.to_uv(cx, cy)
                 u, v = float(fu), float(fv)
@@ -301,9 +341,8 @@ class TouchPipeline:
             cov = geometry.cov_to_camera(cand.footprint_cov)
             shape = contact_shape(cfg, cand.footprint_area * geometry.area_scale, cov)
             reach = 0.5 * axes_from_moments(*cov)[0]
-            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge, shape, reach))
-            # Where the anchoring seed lies in the detection image (the coarse candidate's own point at scale 1).
-            kept.append((cand.x, cand.y) if geometry is self.geometry else self.geometry.from_camera(cx, cy))
+            observations.append(Observation(cx, cy, u, v, cand.core_depth, area_px, edge, shape, reach, projected))
+            kept.append(point)
         step = self.tracker.step(t, observations, settled=self.settled)
         if self._margin_kernel is not None and darkened:
             shadow = cv2.dilate(shadow.view(np.uint8), self._margin_kernel).view(bool)
@@ -314,6 +353,13 @@ class TouchPipeline:
             frozen = frozen | uncertain
         if learn_detail and fine_inputs is not None:
             self._learn_detail(t, fine_inputs, frozen)
+        sensed = light if light is not None else probe
+        # Learned on hand-free frames only: a shadow's slow change under a tile, while the probe happens to rise or
+        # fall, reads as light following the projector (a hover's own tiles came out 0.06 too projector-lit).
+        if sensed is not None and self.settled and not candidates and area < self._activity_area:
+            expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("share.expected", ref.image))
+            usable = ~frozen & (raw < cfg.saturation_level) & (expected >= cfg.dark_reference_level)
+            self.projector_share.learn(t, raw, expected, sensed, usable)
         if self.settled:
             ref.update(t, work, frozen, anchored)
         else:
@@ -339,6 +385,7 @@ class TouchPipeline:
             contacts=tuple(self.tracker.contacts()),
             core_depth=deepest.depth if deepest else 0.0,
             edge=deepest.edge if deepest else 0.0,
+            projected_depth=most_projected,
         )
 
     def _follow_light(self, work: np.ndarray, stepped: bool) -> bool:
@@ -357,6 +404,10 @@ class TouchPipeline:
         if change is None:
             return False
         self.light_changes += 1
+        e, added = change
+        old = ref.image * np.float32(e)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            self.projector_share.rescale(old / np.maximum(old + added, np.float32(REFERENCE_FLOOR)))
         image = reseed(ref.image, work * np.float32(1.0 / ref.gain), change, self._shadow)
         ref.image = np.maximum(image, image.dtype.type(REFERENCE_FLOOR))
         return True
@@ -421,6 +472,21 @@ class TouchPipeline:
         usable &= shadowed == 0
         usable &= expected >= cfg.dark_reference_level
         self.detail.learn(t, flat, expected, usable)
+
+    def _compensate_probe(self, raw: np.ndarray, probe: np.ndarray) -> np.ndarray:
+        """``raw + p * (1 - probe) * expected``: the frame as the flat grey would have lit it, with the projector's
+        share ``p`` learned so far (the frame itself while it is unknown or before the reference exists)."""
+        share, ref = self.projector_share.share_map(), self.reference
+        if share is None or ref.image is None:
+            return raw
+        out = self._scratch.like("probe.compensated", raw)
+        np.subtract(np.float32(1.0), probe, out=out)
+        out *= share
+        out *= ref.image
+        out *= ref.expected_gain()
+        out += raw
+        np.copyto(out, np.float32(self.config.saturation_level), where=raw >= self.config.saturation_level)
+        return out
 
     def _prepare(
         self,

@@ -18,6 +18,15 @@ from what the pipeline already computes:
   that share, while a hovering hand's shadow of the room light deepens with
   the room; below ``MIN_PROJECTOR_SHARE`` the two cannot be told apart
   reliably and touch says so instead of firing or going quiet unannounced.
+- **Room light that outshines the projector in places**: the membrane's mean
+  share can hide a corner lit two to one by the room (a dim corner of the
+  back-light near the lamp). Where the projector's share of the light is
+  known per place (:mod:`feelium.touch.roomshare`), the pipeline counts the
+  membrane where that share is too small for a contact's loss of projected
+  light to stand out of the share's error and the noise
+  (:func:`feelium.touch.roomshare.room_dominated`); over
+  ``ROOM_DOMINATED_SHARE`` of the membrane, touches there would be dropped as
+  hovers, and touch says so.
 
 A condition must hold for ``HOLD_S`` before it is reported (a fade to black or
 a lamp's warm-up is not a fault) and clears as soon as the light is back.
@@ -33,6 +42,8 @@ HOLD_S = 2.0  # a condition reported only once it has lasted this long
 # Room light at most twice the projector's (share 1/3): the brightest lit room measured with no false touch
 # (docs/touch.md, "Too bright to see": room level 2 fired nothing, level 3 fired a hover; 13 trials per level).
 MIN_PROJECTOR_SHARE = 1.0 / 3.0
+# A quarter of the membrane where a contact cannot be told from a hover: one touch in four would be lost unannounced.
+ROOM_DOMINATED_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -44,6 +55,7 @@ class SensingSample:
     dark: int
     saturated: int
     projector_share: float | None  # None until projected content has taught it
+    room_dominated: float | None = None  # share of the membrane the room outshines locally; None: share not known
 
 
 class SensingMonitor:
@@ -69,6 +81,7 @@ class SensingMonitor:
             "saturated": s.pixels > 0 and s.saturated > BLIND_SHARE * s.pixels,
             "dark": s.pixels > 0 and s.dark > BLIND_SHARE * s.pixels,
             "room_light": share is not None and share < MIN_PROJECTOR_SHARE,
+            "room_local": s.room_dominated is not None and s.room_dominated > ROOM_DOMINATED_SHARE,
         }
 
     def reasons(self) -> list[str]:
@@ -87,15 +100,21 @@ class SensingMonitor:
                 f"room light outshines the projector ({100 * s.projector_share:.0f} % of the membrane's light is "
                 f"projected, under {100 * MIN_PROJECTOR_SHARE:.0f} %): contacts and close hovers look alike"
             )
+        if "room_local" in lasting and s.room_dominated is not None:
+            out.append(
+                f"room light outshines the projector on {100 * s.room_dominated:.0f} % of the membrane (over "
+                f"{100 * ROOM_DOMINATED_SHARE:.0f} %): contacts there cannot be told from close hovers and are not reported"
+            )
         return out
 
     def figures(self) -> dict[str, float | None]:
         """The last frame's light, in percent, for health (always shown, also when fine)."""
         s = self.last
         if s is None or s.pixels <= 0:
-            return {"saturated_pct": None, "unlit_pct": None, "projector_share": None}
+            return {"saturated_pct": None, "unlit_pct": None, "projector_share": None, "room_dominated_pct": None}
         return {
             "saturated_pct": round(100.0 * s.saturated / s.pixels, 1),
             "unlit_pct": round(100.0 * s.dark / s.pixels, 1),
             "projector_share": None if s.projector_share is None else round(s.projector_share, 3),
+            "room_dominated_pct": None if s.room_dominated is None else round(100.0 * s.room_dominated, 1),
         }

@@ -321,6 +321,7 @@ class TouchService:
         return SensingSample(
             t=t, pixels=int(width * height), dark=masked.dark, saturated=masked.saturated,
             projector_share=None if response is None else response.share,
+            room_dominated=getattr(pipeline, "room_dominated", None),
         )  # fmt: skip
 
     def _flush(self) -> Released:

@@ -47,6 +47,10 @@ class Observation:
     edge: float  # steepest depth gradient near the fingertip, per camera px (contact edge)
     shape: ContactShape | None = None  # the footprint: what touched
     reach: float = 0.0  # half the footprint's longest axis, camera px
+    # False when the shadow took none of the projector's own light where its share is known (a hand above the
+    # membrane, :mod:`feelium.touch.roomshare`): it cannot land, so no gate raises it; a contact already held keeps
+    # its release hysteresis (a tap's lifting frame still confirms it).
+    projected: bool = True
 
 
 @dataclass
@@ -215,7 +219,7 @@ class Tracker:
         The rolling minimum restarts at each landing, so the score measures how
         the shadow held since it reached the membrane, not the approach before.
         """
-        if not (track.seen and has_contact_edge(self.config, track.obs.edge)):
+        if not (track.seen and track.obs.projected and has_contact_edge(self.config, track.obs.edge)):
             track.landed_t, track.landed_depths, track.anchor = None, None, 0.0
             return None
         if track.landed_t is None or track.landed_depths is None:

@@ -16,6 +16,11 @@ The compensated digest was re-pinned on branch i16t (2026-11-26), deliberately: 
 solved every 0.2 s instead of every frame once its share is known (``FIT_INTERVAL_S``), and its sums decay in one
 ``cv2.scaleAdd`` pass (a last-bit rounding difference). Every other change of that branch (buffers, the fast
 finite paths, the light predicted into recycled arrays) kept both digests; the static one did not move.
+
+Both digests were re-pinned on branch i17room (2026-11-27), deliberately: the frame result has a new field
+(``projected_depth``), and the projected frames teach the projector's share per place, so the projected-light gate
+(``contact_projected_depth``) now decides which of their shadows may land. Checked before re-pinning: with the new field left
+out of the digest the static one is the old pin to the bit, and so is the projected one with the gate off.
 """
 
 from __future__ import annotations
@@ -100,8 +105,8 @@ def _rounded(value: object) -> object:
 @pytest.mark.parametrize(
     ("projected", "expected"),
     [
-        (False, "55e1393eb6860ec6b4240dacf0334d3e721f9a3c49d44dbbde7d82025f9e36b9"),
-        (True, "be0861732e5f3d55b6d237e07ff25bb192e656204ac2cc6b0e11907ea6cd3e44"),
+        (False, "c3f38af89a05e742a6eed0e447f57693c3d4ca72b258d15575c94ffbda5f3fbb"),
+        (True, "0bcbb95ae754243e9a13b1de1ea0468a22c3cd7a84182ff9d2279aeaec06b239"),
     ],
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:
@@ -110,7 +115,7 @@ def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expecte
 
 def test_light_cut_to_the_roi_gives_the_whole_frames_results() -> None:
     """The daemon predicts the projected light only over the ROI (it is all the pipeline reads): same digest."""
-    assert _digest(True, cut=True) == "be0861732e5f3d55b6d237e07ff25bb192e656204ac2cc6b0e11907ea6cd3e44"
+    assert _digest(True, cut=True) == "0bcbb95ae754243e9a13b1de1ea0468a22c3cd7a84182ff9d2279aeaec06b239"
 
 
 def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(monkeypatch) -> None:
@@ -126,11 +131,13 @@ def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(m
 @pytest.mark.parametrize(
     ("projected", "expected"),
     [
-        (False, "1ea96f7ab7ab9192214602083a314b97e152851e0aa17cea7ebf3df993630966"),
-        (True, "092d47f7b9e5c2205b776d6c05af2a0021364ab773c37e73f4a5df8073dcd4e9"),
+        (False, "7d2f2dc7bb8576510c404449701eb6da2713eee854a0d14f9d07130816316c23"),
+        (True, "457fe827ece21ee09d1af512368d364d3053738e3e54f742d227766fa64eb7b1"),
     ],
 )
 def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: str) -> None:
     """``[touch] detect_scale = 0.5`` (feelium.touch.refine) is its own algorithm: pinned apart from the full-scale
-    digests above, which it must never move (pinned on branch i16half, 2026-11-27)."""
+    digests above, which it must never move (pinned on branch i16half, 2026-11-27; re-pinned at the merge with
+    i17room the same day for the new ``projected_depth`` field and the projected-light gate: with the field left
+    out of the digest and the gate off, both are i16half's pins to the bit)."""
     assert _digest(projected, detect_scale=0.5) == expected

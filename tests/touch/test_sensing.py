@@ -9,7 +9,7 @@ from feelium.cameras.base import Frame
 from feelium.cameras.select import CameraSource
 from feelium.hub import Hub
 from feelium.touch.config import TouchConfig
-from feelium.touch.sensing import HOLD_S, MIN_PROJECTOR_SHARE, SensingMonitor, SensingSample
+from feelium.touch.sensing import HOLD_S, MIN_PROJECTOR_SHARE, ROOM_DOMINATED_SHARE, SensingMonitor, SensingSample
 from feelium.touch.service import TouchService
 
 
@@ -27,7 +27,7 @@ def test_a_condition_is_reported_only_once_it_has_lasted_and_clears_at_once() ->
     assert monitor.reasons() == ["too bright to see shadows: 70 % of the membrane is saturated"]
     monitor.update(sample(3.1 + HOLD_S, saturated=100))
     assert monitor.reasons() == []
-    assert monitor.figures() == {"saturated_pct": 10.0, "unlit_pct": 0.0, "projector_share": None}
+    assert monitor.figures() == {"saturated_pct": 10.0, "unlit_pct": 0.0, "projector_share": None, "room_dominated_pct": None}
 
 
 def test_a_brief_fade_to_black_is_not_a_fault_but_a_long_one_is() -> None:
@@ -50,6 +50,23 @@ def test_room_light_is_judged_only_once_the_projectors_share_is_known(share: flo
     assert bool(reasons) is blind
     if blind:
         assert reasons[0].startswith("room light outshines the projector (30 % of the membrane's light is projected, under 33 %)")
+
+
+@pytest.mark.parametrize(
+    "dominated, blind", [(None, False), (ROOM_DOMINATED_SHARE, False), (ROOM_DOMINATED_SHARE + 0.01, True)]
+)
+def test_a_membrane_room_lit_in_places_is_reported_whatever_the_mean_share(dominated: float | None, blind: bool) -> None:
+    monitor = SensingMonitor()
+    for t in (0.0, HOLD_S):  # the mean share is fine: only the local rule can see it
+        monitor.update(SensingSample(t=t, pixels=1000, dark=0, saturated=0, projector_share=0.5, room_dominated=dominated))
+    reasons = monitor.reasons()
+    assert bool(reasons) is blind
+    if blind:
+        assert reasons == [
+            "room light outshines the projector on 26 % of the membrane (over 25 %): contacts there cannot be told "
+            "from close hovers and are not reported"
+        ]
+        assert monitor.figures()["room_dominated_pct"] == 26.0
 
 
 def test_half_the_membrane_masked_is_the_limit() -> None:

@@ -58,6 +58,7 @@ from feelium.projector.config import ProjectorConfig
 from feelium.projector.renderer import Renderer
 from feelium.sim.camera import frame_times
 from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics, timed_hook
+from feelium.sim.room import RoomLight
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, Session, exposure_samples
 from feelium.sim.sessions import session_presets
 from feelium.touch.config import TouchConfig
@@ -69,6 +70,9 @@ TRUE_LATENCY_S = 0.040  # projector: frame clock to light on the membrane (the s
 # The daemon assumes [touch] projector_latency_s (33 ms, one projector frame: 7 ms off on purpose) within
 # projector_latency_sigma_s, and mixes over [touch] camera_exposure_s (30 ms, the simulated sensor's).
 WARMUP_S = 5.0  # hand-free face seen before each trial
+# The room's own light (:mod:`feelium.sim.room`): None is the paper's dim room; a RoomLight puts the face in a lit
+# room (the lamp does not follow the face; the camera's auto-exposure follows the lamp).
+ROOM: RoomLight | None = None
 
 
 @dataclass(frozen=True)
@@ -230,7 +234,9 @@ class _Experiment:
     def _render(self, script: Any, session: Session, item: protocol.Item, hook: Any) -> list[tuple[float, np.ndarray]]:
         """Warm-up (hand-free) frames before 0, then the trial's frames, as the camera captures them."""
         rng = protocol.recording_rng(self.setup.seed, item.name, 1)
-        scene = SceneRenderer(session, rng, width=WIDTH, height=HEIGHT, roi=ROI, projected=hook, projected_share_only=True)
+        scene = SceneRenderer(
+            session, rng, width=WIDTH, height=HEIGHT, roi=ROI, projected=hook, projected_share_only=True, room_light=ROOM
+        )
         warmup = np.arange(-WARMUP_S, -0.25, 1.0 / session.sensor.fps)
         out = [(float(t), scene.frame(float(t), SceneState())) for t in warmup]
         for t in frame_times(session.sensor, script.duration, rng):

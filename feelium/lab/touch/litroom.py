@@ -42,7 +42,12 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.lab.sim import protocol
-from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_trials
+from feelium.lab.touch.evaluate import (
+    WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_margins, score_trials,
+)  # fmt: skip
+from feelium.lab.touch.margins import GateSeries, GateThresholds, gate_margin
+from feelium.recording import NEGATIVE_LABELS
+from feelium.projector.probe import probe_light, probe_pattern
 from feelium.sim.camera import frame_times
 from feelium.sim.room import Passer, RoomLight
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, exposure_samples
@@ -59,6 +64,9 @@ OFF_RAMP_S = 0.05
 SWITCH_BEFORE_S = (0.5, 1.5)  # a touch trial's switch comes this long before its first contact
 DRIFT_LEVEL, DRIFT_AMP, DRIFT_PERIOD_S = 0.6, 0.5, 20.0
 RECOVERY_PERCENTILE = 99.0
+# The projector lays its faint probe over the static skin (feelium.projector.probe) and the pipeline is told its
+# light, so it learns the projector's share per place (feelium.touch.roomshare). False: the static back-light.
+PROBE = True
 
 
 def room_for(condition: str, item: protocol.Item, seed: int, duration: float, first_contact: float | None) -> RoomLight | None:
@@ -92,6 +100,7 @@ class Run:
     data: TrialData
     false_touches: int
     recovery_s: float | None  # switch conditions only
+    projected: np.ndarray | None = None  # per frame from 0 s: the largest projected depth of a candidate (NaN: unknown)
 
 
 def _false_touches(events: list[TouchEvent], data: TrialData) -> int:
@@ -104,7 +113,12 @@ def render(
 ) -> list[tuple[float, np.ndarray]]:
     """Warm-up (hand-free) frames before 0, then the trial's frames; the same noise stream for every condition."""
     rng = protocol.recording_rng(seed, item.name, 1)
-    scene = SceneRenderer(session, rng, width=WIDTH, height=HEIGHT, roi=ROI, room_light=room)
+    pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
+    # The probe's cells change the projector's direct light only: the room returns the skin's mean, which it keeps.
+    scene = SceneRenderer(
+        session, rng, width=WIDTH, height=HEIGHT, roi=ROI, room_light=room,
+        projected=None if pattern is None else (lambda t: probe_light(t, pattern)), projected_share_only=True,
+    )  # fmt: skip
     warmup = np.arange(-WARMUP_S, -0.25, 1.0 / session.sensor.fps)
     out = [(float(t), scene.frame(float(t), SceneState())) for t in warmup]
     empty = SceneState()
@@ -135,10 +149,11 @@ def depth_error(pipeline: TouchPipeline, frame: np.ndarray) -> float | None:
 def recovery(frames: list[tuple[float, np.ndarray]], config: TouchConfig, switch_at: float) -> float:
     """Seconds from ``switch_at`` until the hand-free twin's depth error stays within ``candidate_depth`` (inf: never)."""
     pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
+    pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
     last_bad: float | None = None
     for t, frame in frames:
         err = depth_error(pipeline, frame)
-        pipeline.process(t, frame)
+        pipeline.process(t, frame, probe_light=_probe(t, pattern))
         if t >= switch_at and err is not None and err > config.candidate_depth:
             last_bad = t
     if last_bad is None:
@@ -149,19 +164,31 @@ def recovery(frames: list[tuple[float, np.ndarray]], config: TouchConfig, switch
     return after[0] - switch_at
 
 
-def replay(frames: list[tuple[float, np.ndarray]], config: TouchConfig) -> tuple[list[TouchEvent], bool, float]:
+def _probe(t: float, pattern: np.ndarray | None) -> np.ndarray | None:
+    return None if pattern is None else probe_light(t, pattern)
+
+
+def replay(
+    frames: list[tuple[float, np.ndarray]], config: TouchConfig
+) -> tuple[list[TouchEvent], bool, float, dict[str, np.ndarray]]:
+    """Events, activity, largest area and the per-frame gate scores (from 0 s) of one trial."""
     pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
+    pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
     events: list[TouchEvent] = []
     activity, max_area = False, 0.0
+    series: dict[str, list[float]] = {"t": [], "anchor": [], "core_depth": [], "edge": [], "projected": []}
     for t, frame in frames:
-        result = pipeline.process(t, frame)
+        result = pipeline.process(t, frame, probe_light=_probe(t, pattern))
         if t < 0.0:
             continue
         events.extend(result.events)
         activity |= result.activity
         max_area = max(max_area, float(result.area))
+        for key, value in (("t", t), ("anchor", result.anchor), ("core_depth", result.core_depth), ("edge", result.edge)):
+            series[key].append(value)
+        series["projected"].append(np.nan if result.projected_depth is None else result.projected_depth)
     events.extend(pipeline.finish())
-    return events, activity, max_area
+    return events, activity, max_area, {k: np.asarray(v, np.float64) for k, v in series.items()}
 
 
 @dataclass(frozen=True)
@@ -181,13 +208,14 @@ def trial(setup: _Setup, item: protocol.Item) -> dict[str, Run]:
     for condition in setup.conditions:
         room = room_for(condition, item, setup.seed, script.duration, first)
         frames = render(script, session, item, setup.seed, room)
-        events, activity, max_area = replay(frames, setup.touch)
-        data = TrialData(item.name, labels, events, activity, max_area)
+        events, activity, max_area, s = replay(frames, setup.touch)
+        series = GateSeries(s["t"], s["anchor"], s["core_depth"], s["edge"], labels.contacts, item.label in NEGATIVE_LABELS)
+        data = TrialData(item.name, labels, events, activity, max_area, series)
         rec = None
         if condition in SWITCHES and room is not None:
             twin = render(script, session, item, setup.seed, room, hands=False)
             rec = recovery(twin, setup.touch, room.steps[0][0])
-        runs[condition] = Run(data, _false_touches(events, data), rec)
+        runs[condition] = Run(data, _false_touches(events, data), rec, s["projected"])
     return runs
 
 
@@ -205,8 +233,31 @@ def _worker_trial(item: protocol.Item) -> dict[str, Run]:
     return trial(_SETUP, item)
 
 
-def summarise(runs: list[Run]) -> dict[str, Any]:
+def projected_margin(runs: list[Run], threshold: float) -> dict[str, Any]:
+    """The projector-light gate's margins: per negative trial its largest projected depth, per touch trial its
+    largest inside its widened contacts (frames where the share was unknown do not count)."""
+    neg, pos = [], []
+    for r in runs:
+        series = r.data.series
+        if r.projected is None or series is None or not np.isfinite(r.projected).any():
+            continue
+        if series.negative:
+            neg.append(float(np.nanmax(r.projected)))
+            continue
+        inside = np.zeros(series.t.size, bool)
+        for c in series.contacts:
+            inside |= (series.t >= c.t_on - WIDEN_BEFORE_S) & (series.t <= c.t_off + WIDEN_AFTER_S)
+        values = r.projected[inside]
+        if np.isfinite(values).any():
+            pos.append(float(np.nanmax(values)))
+    return gate_margin(neg, pos, threshold)
+
+
+def summarise(runs: list[Run], touch: TouchConfig = TouchConfig()) -> dict[str, Any]:
     scored = score_trials([r.data for r in runs])
+    gates = GateThresholds(touch.contact_edge, touch.instant_depth, touch.anchor_threshold, touch.anchor_min_age_s)
+    margins = score_margins([r.data for r in runs], [], gates)["trials"] or {}
+    margins["projected"] = projected_margin(runs, touch.contact_projected_depth)
     trials = scored["trials"]
     recoveries = [r.recovery_s for r in runs if r.recovery_s is not None]
     return {
@@ -221,6 +272,9 @@ def summarise(runs: list[Run]) -> dict[str, Any]:
         if not recoveries
         else {"median": float(np.median(recoveries)), "max": float(max(recoveries)), "n": len(recoveries)},
         "by_label": trials["by_label"],
+        "margins": {
+            gate: {"negative": m["negative_margin"], "positive": m["positive_margin"]} for gate, m in margins.items()
+        },
     }
 
 
@@ -261,14 +315,15 @@ def run_experiment(
         "trials": len(items),
         "warmup_s": WARMUP_S,
         "lit_level": LIT,
-        "conditions": {name: summarise(runs) for name, runs in per.items()},
+        "conditions": {name: summarise(runs, touch) for name, runs in per.items()},
     }
 
 
 def format_table(report: dict[str, Any]) -> str:
     lines = [
         f"lit room: {report['trials']} trials (scale {report['scale']}, seed {report['seed']})",
-        f"{'condition':<12}{'recall':>8}{'neg fired':>11}{'false touches':>15}{'loc med px':>12}{'recovery s med/max':>20}",
+        f"{'condition':<12}{'recall':>8}{'neg fired':>11}{'false touches':>15}{'loc med px':>12}{'recovery s med/max':>20}"
+        "  margins -/+ edge, instant, sustained, projected",
     ]
 
     def num(v: float | None, fmt: str = ".3f") -> str:
@@ -280,6 +335,7 @@ def format_table(report: dict[str, Any]) -> str:
         recs = "-" if rec is None else f"{rec['median']:.2f} / {rec['max']:.2f}"
         lines.append(
             f"{name:<12}{num(c['recall']):>8}{c['negatives_fired']:>6} / {c['negatives']:<3}{c['false_touches']:>15}"
-            f"{num(loc['median'] if loc else None, '.2f'):>12}{recs:>20}"
+            f"{num(loc['median'] if loc else None, '.2f'):>12}{recs:>20}  "
+            + ", ".join(f"{num(m['negative'], '+.3f')} / {num(m['positive'], '+.3f')}" for m in c["margins"].values())
         )
     return "\n".join(lines)

@@ -1,0 +1,207 @@
+"""The projector's share of the membrane's light, per place, measured in steady light from the projector's own light.
+
+A lit room's light comes through the membrane and a hand above it blocks that
+light: a close hover under a lamp casts a shadow as deep and as sharp as a
+contact's, so depth and edge cannot tell them apart where the room's light is
+a large share of the membrane's. What a hover cannot do is take the
+*projector's* light away: that light comes from inside, and only skin pressed
+on the membrane removes part of it (the frustrated reflection in the film).
+So a shadow is a contact only if it is deeper than all the light a hand above
+the membrane could block, which needs, per place, the share of the light that
+does *not* come straight from the projector: the room's lamps and the
+projector's own light returned by the room (that one follows the projector's
+mean, not its pattern).
+
+The daemon knows what it projects. Whatever it shows (the face, or a faint
+slow pattern of its own, the *probe*, on a static skin), the camera's value
+per pixel is ``G * (a * light + c)``: ``light`` the predicted projector light
+relative to flat grey, ``a`` the projector's direct part, ``c`` everything
+that does not follow the pattern, ``G`` the exposure. Divided by what the
+reference expects for the flat membrane (``G * (a + c)``, the exposure gain
+times the reference), the frame is
+
+    z = 1 + p * (light - 1),        p = a / (a + c)
+
+per pixel: the projector's share ``p`` is the slope of ``z`` against
+``light - 1``, whatever the exposure and the room's level, as long as the
+reference follows them. It is fitted per coarse tile (room light is smooth; a
+tile of 16 x 16 working pixels averages the pixel noise down 16 times) over
+exponentially weighted sums of hand-free frames, with an intercept (a global
+error of the exposure gain moves every tile alike and is not light), and
+spread to the tiles that saw too little change of light (a tile straddling
+the probe's pattern) by a normalised convolution, weighted by how much each
+tile saw.
+
+When the room's light changes (a lamp, an exposure step: the pipeline re-seeds
+its reference, :mod:`feelium.touch.illumination`) the share changes at once:
+the change ``frame = e * reference + added`` measured per tile scales the
+projector's part by ``e`` and the whole by ``e + added / reference``, so the
+sums are rescaled by their ratio and the share follows the switch in the same
+frame instead of relearning for seconds.
+
+Pure arrays in, arrays out; no clock.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from feelium.touch.illumination import TILE_PX
+
+MIN_TILE_WEIGHT = 0.5  # share of a tile's pixels that must be usable for it to learn on this frame
+# A tile's share is believed once it has seen this variance of ``light - 1`` (a 3 % probe's sinusoid gives
+# 0.00045 per frame: its weighted sums pass this after a few frames).
+MIN_LIGHT_VAR = 1e-4
+SPREAD_SIGMA_TILES = 1.0  # tiles take the share of the informative tiles about this near
+SHARE_LIMITS = (0.0, 1.0)
+
+
+def tile_grid(shape: tuple[int, int]) -> tuple[int, int]:
+    """(columns, rows) of coarse tiles for a working image of ``shape`` (rows, columns)."""
+    h, w = shape
+    return max(1, w // TILE_PX), max(1, h // TILE_PX)
+
+
+def tile_mean(image: np.ndarray, weight: np.ndarray, grid: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Per tile: the mean of ``image`` over pixels weighted by ``weight`` (0..1), and the tile's mean weight."""
+    num = cv2.resize((image * weight).astype(np.float32), grid, interpolation=cv2.INTER_AREA)
+    share = cv2.resize(weight.astype(np.float32), grid, interpolation=cv2.INTER_AREA)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(share > 0.0, num / np.maximum(share, 1e-6), 0.0).astype(np.float32)
+    return mean, share
+
+
+class ProjectorShare:
+    """Per coarse tile, the projector's direct share of the membrane's light, learned from projected light."""
+
+    def __init__(self, tau_s: float) -> None:
+        """``tau_s``: time constant of the weighted sums (how long a share is remembered in steady light)."""
+        self.tau_s = tau_s
+        self._sums: list[np.ndarray] | None = None  # weight, x, u, x^2, x*u per tile (x = light - 1, u = z - 1)
+        self._last_t: float | None = None
+        self._map: np.ndarray | None = None  # working-size share, cached until the sums change
+        self._coarse: np.ndarray | None = None  # the same per tile
+        self._shape: tuple[int, int] | None = None
+        self.updates = 0
+
+    def reset(self) -> None:
+        self._sums = None
+        self._last_t = None
+        self._map = None
+        self.updates = 0
+
+    def learn(self, t: float, frame: np.ndarray, expected: np.ndarray, light: np.ndarray, usable: np.ndarray) -> None:
+        """Add one frame: ``frame`` (working size, raw: the projected light not compensated), ``expected`` what the
+        reference expects for the flat membrane (exposure gain times reference), ``light`` the predicted projector
+        light relative to flat grey, ``usable`` the pixels free of shadows, saturation and darkness."""
+        self._shape = frame.shape
+        grid = tile_grid(frame.shape)
+        weight = usable.astype(np.float32)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = np.where(usable, frame / np.maximum(expected, np.float32(1e-3)), np.float32(1.0)).astype(np.float32)
+        mz, share = tile_mean(z, weight, grid)
+        mx, _ = tile_mean(light, weight, grid)
+        good = (share >= MIN_TILE_WEIGHT) & np.isfinite(mz) & np.isfinite(mx)
+        w = good.astype(np.float64)
+        x = np.where(good, mx - 1.0, 0.0).astype(np.float64)
+        u = np.where(good, mz - 1.0, 0.0).astype(np.float64)
+        fresh = [w, x * w, u * w, x * x * w, x * u * w]
+        dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
+        self._last_t = t
+        if self._sums is None or self._sums[0].shape != w.shape:
+            self._sums = fresh
+        else:
+            keep = math.exp(-dt / self.tau_s)
+            self._sums = [s * keep + f for s, f in zip(self._sums, fresh)]
+        self._map = None
+        self.updates += 1
+
+    def rescale(self, factor: np.ndarray) -> None:
+        """The room's light changed: every tile's projector share is now ``factor`` (working size) times what it
+        was (``e * reference / (e * reference + added)``, see the module docstring)."""
+        if self._sums is None:
+            return
+        f = cv2.resize(factor.astype(np.float32), (self._sums[0].shape[1], self._sums[0].shape[0]), interpolation=cv2.INTER_AREA)
+        f = np.clip(np.nan_to_num(f, nan=1.0, posinf=1.0, neginf=1.0), 0.0, 4.0).astype(np.float64)
+        self._sums[2] = self._sums[2] * f  # u = p * x: scaling p scales u (and its intercept, a gain error)
+        self._sums[4] = self._sums[4] * f
+        self._map = None
+
+    def tiles(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Per tile: the fitted share and how much change of light it saw (its weighted variance of ``light - 1``
+        times its weight: the fit's information); None before anything was learned."""
+        if self._sums is None:
+            return None
+        n, sx, su, sxx, sxu = self._sums
+        safe = np.maximum(n, 1e-9)
+        mx, mu = sx / safe, su / safe
+        var = np.maximum(sxx / safe - mx * mx, 0.0)
+        cov = sxu / safe - mx * mu
+        with np.errstate(invalid="ignore", divide="ignore"):
+            p = np.where(var > 0.0, cov / np.maximum(var, 1e-12), 0.0)
+        info = np.where(var >= MIN_LIGHT_VAR, var * n, 0.0)
+        return np.clip(p, *SHARE_LIMITS).astype(np.float32), info.astype(np.float32)
+
+    def share_map(self) -> np.ndarray | None:
+        """The projector's share at every working pixel (float32), or None until some tile saw its light change.
+
+        Every tile takes the share of the informative tiles around it (itself included), weighted by what they saw:
+        a tile that straddles two of the probe's cells saw little change of light and its own fit is noisy (kept
+        alone, such tiles put the share 0.1-0.2 off in places, and one lost a tap), at the price of a bias where the
+        back-light's fall-off makes the share vary fast from tile to tile."""
+        if self._map is not None:
+            return self._map
+        fitted = self.tiles()
+        if fitted is None or self._shape is None:
+            return None
+        p, info = fitted
+        if not (info > 0.0).any():
+            return None
+        num = cv2.GaussianBlur(p * info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
+        den = cv2.GaussianBlur(info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
+        fallback = float(np.sum(p * info) / np.sum(info))
+        spread = np.where(den > 1e-3 * float(info.max()), num / np.maximum(den, 1e-12), fallback).astype(np.float32)
+        h, w = self._shape
+        self._coarse = spread
+        self._map = cv2.resize(spread, (w, h), interpolation=cv2.INTER_LINEAR)
+        return self._map
+
+    def coarse(self) -> np.ndarray | None:
+        """:meth:`share_map` per tile (what health needs: judging the membrane at the share's own resolution costs a
+        few hundred values a frame, not a working image)."""
+        return self._coarse if self.share_map() is not None else None
+
+
+def projected_depth(depth: float, share: float) -> float:
+    """The share of the projector's own light a shadow of relative ``depth`` took away where the projector gives
+    ``share`` of the flat membrane's light: ``1 - (1 - depth) / share``.
+
+    All the light that is not the projector's (``1 - share``) can be blocked by a hand above the membrane; only
+    what a shadow takes beyond it is projector light, which only skin on the membrane takes. At most 0 for a hand
+    above it; for a contact the frustrated reflection's share. -inf where the projector gives nothing."""
+    if share <= 0.0:
+        return float("-inf")
+    return 1.0 - (1.0 - depth) / share
+
+
+# How far the learned share is off per place: the median absolute error against the simulator's truth over the
+# lit room's trials (docs/touch.md, "The projector's share, per place"), rounded up.
+SHARE_ERROR = 0.02
+
+
+def room_dominated(share: np.ndarray, noise: np.ndarray, gate: float, considered: np.ndarray) -> float:
+    """The fraction of the ``considered`` pixels where the room outshines the projector too much for the gate.
+
+    A hand above the membrane takes no projector light, but the share's error (:data:`SHARE_ERROR`) and the depth's
+    noise (``noise``, one standard deviation of the smoothed depth per pixel) make it look as if it took
+    ``(error + noise) / share`` of it; where that reaches ``gate`` (``contact_projected_depth``) a close hover and
+    a contact are one decision apart, and the pipeline, which drops candidates under the gate, may drop contacts
+    there as well. 0 when nothing is considered."""
+    total = int(np.count_nonzero(considered))
+    if total == 0:
+        return 0.0
+    dominated = share * np.float32(gate) < noise + np.float32(SHARE_ERROR)
+    return float(np.count_nonzero(dominated & considered)) / total

@@ -1,0 +1,137 @@
+"""The projector's share of the light per place, learned from the probe: the fit, a switch, and the gate's arithmetic."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from feelium.projector.probe import PERIOD_S, probe_light, probe_pattern
+from feelium.touch.config import TouchConfig
+from feelium.touch.pipeline import TouchPipeline
+from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
+from tests.touch.synth import H as SH, ROI as SROI, W as SW, backlight
+
+H, W = 240, 320  # the default working size: 20 x 15 coarse tiles
+FPS = 15.0
+
+
+def membrane(room: float) -> tuple[np.ndarray, np.ndarray]:
+    """The projector's direct light ``a`` (a 5:1 fall-off to the corners) and the room's ``c`` (a gentle gradient)."""
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    r2 = ((xx - W / 2) / (W / 2)) ** 2 + ((yy - H / 2) / (H / 2)) ** 2
+    a = 150.0 / (1.0 + 2.0 * r2)
+    c = room * float(a.mean()) * (1.0 + 0.15 * (xx - W / 2) / (W / 2))
+    return a.astype(np.float32), c.astype(np.float32)
+
+
+def learn(share: ProjectorShare, a: np.ndarray, c: np.ndarray, seconds: float, rng: np.random.Generator, t0: float = 0.0,
+          gain: float = 1.0) -> float:  # fmt: skip
+    pattern = probe_pattern(W, H, cell_px=32)
+    usable = np.ones((H, W), bool)
+    t = t0
+    for t in np.arange(t0, t0 + seconds, 1.0 / FPS):
+        light = probe_light(float(t), pattern)
+        jitter = 1.0 + 0.01 * rng.standard_normal()  # the camera's gain flickers frame to frame
+        frame = (gain * jitter * (a * light + c) + rng.normal(0.0, 2.0, (H, W))).astype(np.float32)
+        measured = float(np.median(frame / (a + c)))  # the pipeline's exposure gain: what the reference expects
+        share.learn(float(t), frame, measured * (a + c), light, usable)
+    return float(t)
+
+
+@settings(max_examples=5, deadline=None)
+@given(room=st.floats(0.0, 3.0), gain=st.floats(0.3, 2.0), seed=st.integers(0, 2**16))
+def test_the_share_is_learned_per_place_whatever_the_room_and_the_exposure(room: float, gain: float, seed: int) -> None:
+    a, c = membrane(room)
+    share = ProjectorShare(tau_s=5.0)
+    learn(share, a, c, 6 * PERIOD_S, np.random.default_rng(seed), gain=gain)
+    got = share.share_map()
+    assert got is not None
+    truth = a / (a + c)
+    inner = (slice(16, -16), slice(16, -16))  # the border tiles: the fall-off is steepest there
+    assert float(np.median(np.abs(got - truth)[inner])) <= 0.02
+    assert float(np.abs(got - truth)[inner].max()) <= 0.08
+
+
+def test_nothing_is_known_before_the_light_has_changed() -> None:
+    a, c = membrane(1.0)
+    share = ProjectorShare(tau_s=5.0)
+    share.learn(0.0, a + c, a + c, np.ones((H, W), np.float32), np.ones((H, W), bool))
+    assert share.share_map() is None
+
+
+def test_a_lamp_switched_on_rescales_the_share_at_once() -> None:
+    rng = np.random.default_rng(3)
+    a, c = membrane(0.0)
+    share = ProjectorShare(tau_s=5.0)
+    learn(share, a, c, 6 * PERIOD_S, rng)
+    _, lamp = membrane(1.0)
+    e = 0.5  # the auto-exposure halves the exposure as the lamp doubles the membrane's light
+    old = a + c
+    added = e * lamp  # frame / gain = e * reference + added, in the reference's units (gain 1)
+    share.rescale(e * old / (e * old + added))
+    got = share.share_map()
+    assert got is not None
+    truth = a / (a + lamp)
+    inner = (slice(16, -16), slice(16, -16))
+    assert float(np.median(np.abs(got - truth)[inner])) <= 0.02
+
+
+@given(share=st.floats(0.05, 1.0), blocked=st.floats(0.0, 1.0), frustrated=st.floats(0.0, 1.0))
+def test_a_hand_above_takes_no_projector_light_and_a_contact_its_frustrated_reflection(
+    share: float, blocked: float, frustrated: float
+) -> None:
+    hover = blocked * (1.0 - share)  # any part of the light from outside
+    assert projected_depth(hover, share) <= 1e-9
+    contact = 1.0 - share * (1.0 - frustrated)  # all light from outside, and that share of the projector's
+    assert abs(projected_depth(contact, share) - frustrated) <= 1e-9
+
+
+def test_room_dominated_counts_where_the_gate_is_within_the_error() -> None:
+    share = np.array([[0.05, 0.1, 0.3, 0.6]], np.float32)
+    noise = np.full(share.shape, 0.02, np.float32)
+    considered = np.array([[True, True, True, False]])
+    # gate 0.2: share * 0.2 < 0.02 + 0.02 where share < 0.2: the first two of the three considered
+    assert room_dominated(share, noise, 0.2, considered) == 2 / 3
+    assert room_dominated(share, noise, 0.2, np.zeros(share.shape, bool)) == 0.0
+
+
+def _disc(shape: tuple[int, int], x: float, y: float, radius: float) -> np.ndarray:
+    """A disc of 1 with an edge blurred by 1 px: skin on the membrane, or a lamp's sharp shadow of a close hover."""
+    ys, xs = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float32)
+    inside = ((xs - x) ** 2 + (ys - y) ** 2 <= radius**2).astype(np.float32)
+    return cv2.GaussianBlur(inside, (0, 0), 1.0)
+
+
+def _lit_room_events(probe: bool) -> list[tuple[str, float]]:
+    """A lit room whose lamp outshines the back-light's dim corner: a close hover there (its lamp shadow as sharp
+    and as deep as a contact's) and then a finger pressed at the same place. The down/up events and their times."""
+    a = backlight(SW, SH, ratio=4.0) * 0.5  # the projector's direct light
+    c = np.full(a.shape, 1.2 * float(a.mean()), np.float32) + 0.35 * a  # the lamp, and what the room returns
+    pattern = probe_pattern(SW, SH, cell_px=32)
+    rng = np.random.default_rng(5)
+    pipe = TouchPipeline(TouchConfig(width=SW, height=SH), (SW, SH), SROI)
+    x, y = 40.0, 35.0  # near a corner of the ROI, where the back-light is dim
+    shadow = _disc(a.shape, x, y, 6.0)
+    plan = [None] * 45 + ["hover"] * 20 + [None] * 10 + ["contact"] * 20 + [None] * 10  # 15 fps: 3 s hand-free first
+    events, t = [], 0.0
+    for what in plan:
+        light = probe_light(t, pattern) if probe else np.ones(a.shape, np.float32)
+        room = c * (1.0 - shadow) if what else c  # a hand close above or on the skin blocks the lamp there
+        direct = a * light * (1.0 - 0.45 * shadow) if what == "contact" else a * light  # the frustrated reflection
+        frame = np.clip(np.rint(direct + room + rng.normal(0.0, 2.0, a.shape)), 0, 255).astype(np.uint8)
+        result = pipe.process(t, frame, probe_light=light if probe else None)
+        events += [(e.phase, t) for e in result.events if e.phase in ("down", "up")]
+        t += 1.0 / FPS
+    return events
+
+
+def test_in_a_lit_corner_the_hover_cannot_land_and_the_contact_does_once_the_probe_taught_the_share() -> None:
+    contact_from = (45 + 20 + 10) / FPS
+    with_probe = _lit_room_events(probe=True)
+    assert [phase for phase, _ in with_probe] == ["down", "up"]
+    assert with_probe[0][1] >= contact_from
+    # The same scene on a static skin: nothing tells the two apart and the hover fires (the paper's gates alone).
+    static = _lit_room_events(probe=False)
+    assert static and static[0][0] == "down" and static[0][1] < contact_from
