@@ -5,7 +5,7 @@ docs/calibrate-flight.md, and the measurements behind its session-11 findings.
 
 Flies the calibration on plants of ``plant_set(20)`` (16 corners, then random ones; mild drafts unless
 ``--no-drafts``; the sensors' noise unless ``--exact-sensors``), one after another, and prints a JSON line per
-plant (every parameter's relative error) then the table: plants within 10 %, median and worst error.
+plant (the flight's length and every parameter's relative error) then the table: plants within 10 %, median and worst error.
 ``--yaw-tied`` adds, per plant, the yaw torque per inertia's error as fitted and with the yaw's reverse torque
 tied to surge's reverse ratio (the yaw steps alone cannot split them). 17-25 s of CPU a plant.
 """
@@ -65,7 +65,7 @@ def main() -> None:
     for index in indices:
         plant = plants[index]
         calibration = calibrate_sim(config, plant.blimp, drafts=not args.no_drafts, sensors=EXACT if args.exact_sensors else None)
-        row = {"plant": plant.name, "errors": {k: round(v, 4) for k, v in recovery_errors(calibration.fit, plant.blimp).items()}}
+        row = {"plant": plant.name, "flight_s": round(float(calibration.record.t[-1] - calibration.record.t[0]), 1), "errors": {k: round(v, 4) for k, v in recovery_errors(calibration.fit, plant.blimp).items()}}
         if args.yaw_tied:
             row["yaw_torque_per_inertia"] = yaw_tied_error(*calibration.details, plant.blimp)
         print(json.dumps(row), flush=True)

@@ -68,6 +68,7 @@ class FlightRecord:
     range_m: np.ndarray
     yaw_rate_dps: np.ndarray
     flow_x_rad_s: np.ndarray
+    flow_y_rad_s: np.ndarray  # sideways (right): the sway the surge model's turn term needs
 
 
 @dataclass(frozen=True)
@@ -176,6 +177,7 @@ class Signals:
     sigma: dict[str, float]  # smoothing in samples, applied to the regressors as well
     measured: dict[str, np.ndarray]  # the raw readings at the ticks t_k, length N: altitude m, forward speed m/s, yaw rate rad/s
     inside_heave: np.ndarray  # per tick: the altitude is clear of the floor and ceiling limits
+    sway_turn: np.ndarray  # sway speed x yaw rate (m/s^2) at the mid-points, smoothed like surge: the body frame's turn term
 
 
 def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: float = math.inf,
@@ -209,8 +211,15 @@ def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: f
         rate[axis] = 0.5 * (value[1:] + value[:-1])
         accel[axis] = np.diff(value) / dt
         trusted[axis] = ok[1:] & ok[:-1] & np.isfinite(rate[axis])
+    # In a turning body frame the forward speed changes by v r with no force at all: a one-motor yaw step pushes
+    # the body forward, the turn swings that speed into sway and back. The product of the raw readings, then
+    # smoothed like the surge rate (the sensors' noises are independent, so the product's noise has no mean).
+    flow_v = _on_grid(record, np.asarray(record.flow_y_rad_s, float), FLOW_LATENCY_S, grid) * height
+    turn, ok = smooth(flow_v * gyro, sigma["surge"])
+    sway_turn = 0.5 * (turn[1:] + turn[:-1])
+    trusted["surge"] &= ok[1:] & ok[:-1] & np.isfinite(sway_turn)
     measured = {"heave": z_raw, "surge": flow_u, "yaw": gyro}
-    return Signals(dt, commands, rate, accel, trusted, sigma, measured, clear)
+    return Signals(dt, commands, rate, accel, trusted, sigma, measured, clear, sway_turn)
 
 
 # ---------------------------------------------------------------- least squares
@@ -260,11 +269,15 @@ def heave_fit(sig: Signals, lag_s: float, deadband: float) -> AxisFit:
 
 
 def surge_fit(sig: Signals, lag_s: float, deadband: float) -> AxisFit:
-    """Forward acceleration = Th/m (pushes) - Th rh/m (reverse pushes) - c1/m u - c2/m u|u|."""
+    """Forward acceleration = Th/m (pushes) - Th rh/m (reverse pushes) - c1/m u - c2/m u|u| + k v r.
+
+    ``k v r`` is the turning body frame's centripetal term: a rigid body's forward speed gains its sway speed
+    times its yaw rate (k = 1); with added mass it is the sway mass over the surge mass (m_v/m_u v r), fitted.
+    """
     (f1, r1), (f2, r2) = _pair_columns(sig, (0, 1), lag_s, deadband, "surge")
     u = sig.rate["surge"]
     columns = {"thrust_per_mass": f1 + f2, "reverse_thrust_per_mass": -(r1 + r2),
-               "linear_drag_per_mass": -u, "quadratic_drag_per_mass": -u * np.abs(u)}
+               "linear_drag_per_mass": -u, "quadratic_drag_per_mass": -u * np.abs(u), "sway_coupling": sig.sway_turn}
     return least_squares(columns, sig.accel["surge"], sig.trusted["surge"], sig.sigma["surge"])
 
 
@@ -418,6 +431,7 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     # mass (poorly determined: the heave drag), these do not.
     values["surge_thrust_per_mass"] = thrust_per_mass
     values["yaw_torque_per_inertia"] = torque_per_inertia
+    values["sway_coupling"] = surge.estimate("sway_coupling")  # sway over surge mass; 1 for a rigid body
     values["heave_thrust_per_mass"] = heave.estimate("thrust_per_mass")
     values["motor_lag_s"] = Estimate(fits.lag_s, _curvature_stderr(sig, fits, "motor_lag_s"))
     values["range_latency_s"] = Estimate(latency, math.nan)
@@ -480,7 +494,8 @@ def predict_rates(sig: Signals, fits: AxisFits, axis: str, start: int, stop: int
                  - c["surge_per_heave_mass"] * float(surge_drag(np.asarray(v))))
         elif axis == "surge":
             a = (c["thrust_per_mass"] * (f_a[k] + f_b[k]) - c["reverse_thrust_per_mass"] * (r_a[k] + r_b[k])
-                 - c["linear_drag_per_mass"] * v - c["quadratic_drag_per_mass"] * v * abs(v))
+                 - c["linear_drag_per_mass"] * v - c["quadratic_drag_per_mass"] * v * abs(v)
+                 + c["sway_coupling"] * float(np.nan_to_num(sig.sway_turn[k])))  # the measured sway and turn
         else:
             a = (c["torque_per_inertia"] * (f_a[k] - f_b[k]) - c["reverse_torque_per_inertia"] * (r_a[k] - r_b[k])
                  - c["linear_drag_per_inertia"] * v - c["quadratic_drag_per_inertia"] * v * abs(v))

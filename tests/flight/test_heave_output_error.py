@@ -52,7 +52,7 @@ def _heave_signals(theta: np.ndarray, lag_s: float, seed: int) -> Signals:
     z = z + rng.normal(scale=0.005, size=z.size)
     n = z.size
     rate = {"heave": np.gradient(z, dt)[:-1]}
-    return Signals(dt, commands, rate, {}, {}, {}, {"heave": z}, np.ones(n, bool))
+    return Signals(dt, commands, rate, {}, {}, {}, {"heave": z}, np.ones(n, bool), np.zeros(n - 1))
 
 
 WINDOWS = 12

@@ -42,11 +42,13 @@ class FlightLogRecorder:
         def value(x: float | None) -> float:
             return math.nan if x is None else float(x)
 
-        self.rows.append((t, *commands, value(tel and tel.range_m), value(tel and tel.yaw_rate_dps), value(tel and tel.flow_x_rad_s)))
+        self.rows.append((t, *commands, value(tel and tel.range_m), value(tel and tel.yaw_rate_dps), value(tel and tel.flow_x_rad_s),
+                          value(tel and tel.flow_y_rad_s)))
 
     def record(self) -> FlightRecord:
         a = np.asarray(self.rows, float)
-        return FlightRecord(t=a[:, 0], commands=a[:, 1:5], range_m=a[:, 5], yaw_rate_dps=a[:, 6], flow_x_rad_s=a[:, 7])
+        return FlightRecord(t=a[:, 0], commands=a[:, 1:5], range_m=a[:, 5], yaw_rate_dps=a[:, 6], flow_x_rad_s=a[:, 7],
+                            flow_y_rad_s=a[:, 8])
 
 
 def hover_guess(config: FlightConfig) -> float:
