@@ -29,7 +29,7 @@ from feelium.flight.transport import ByteLink
 from feelium.lab.flight.calibration_pilot import CalibrationPilot
 from feelium.lab.flight.simulation import ManualClock
 
-MAX_FLIGHT_S = 360.0  # the script is about 290 s on the paper's blimp (250-305 s on the corners); a flight that runs past this is stopped
+MAX_FLIGHT_S = 360.0  # the script is about 290 s on the paper's blimp (238-305 s on the 16 corners); a flight that runs past this is stopped
 
 
 @dataclass
