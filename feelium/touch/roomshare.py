@@ -65,10 +65,12 @@ def tile_grid(shape: tuple[int, int]) -> tuple[int, int]:
     return max(1, w // TILE_PX), max(1, h // TILE_PX)
 
 
-def tile_mean(image: np.ndarray, weight: np.ndarray, grid: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Per tile: the mean of ``image`` over pixels weighted by ``weight`` (0..1), and the tile's mean weight."""
-    num = cv2.resize((image * weight).astype(np.float32), grid, interpolation=cv2.INTER_AREA)
-    share = cv2.resize(weight.astype(np.float32), grid, interpolation=cv2.INTER_AREA)
+def tile_mean(image: np.ndarray, weight: np.ndarray, grid: tuple[int, int], share: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per tile: the mean of ``image`` over pixels weighted by ``weight`` (0..1), and the tile's mean weight
+    (``share``: that mean weight when the caller already has it, for several images under one weight)."""
+    num = cv2.resize(np.multiply(image, weight, dtype=np.float32), grid, interpolation=cv2.INTER_AREA)
+    if share is None:
+        share = cv2.resize(weight.astype(np.float32, copy=False), grid, interpolation=cv2.INTER_AREA)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(share > 0.0, num / np.maximum(share, 1e-6), 0.0).astype(np.float32)
     return mean, share
@@ -100,10 +102,13 @@ class ProjectorShare:
         self._shape = frame.shape
         grid = tile_grid(frame.shape)
         weight = usable.astype(np.float32)
+        # z = frame / expected where usable, 1 elsewhere (the weight is 0 there, so only its finiteness matters)
+        z = np.maximum(expected, np.float32(1e-3), dtype=np.float32)
         with np.errstate(invalid="ignore", divide="ignore"):
-            z = np.where(usable, frame / np.maximum(expected, np.float32(1e-3)), np.float32(1.0)).astype(np.float32)
+            np.divide(frame, z, out=z)
+        np.copyto(z, np.float32(1.0), where=~usable)
         mz, share = tile_mean(z, weight, grid)
-        mx, _ = tile_mean(light, weight, grid)
+        mx, _ = tile_mean(light, weight, grid, share)
         good = (share >= MIN_TILE_WEIGHT) & np.isfinite(mz) & np.isfinite(mx)
         w = good.astype(np.float64)
         x = np.where(good, mx - 1.0, 0.0).astype(np.float64)
