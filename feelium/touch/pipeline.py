@@ -20,7 +20,7 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.touch.buffers import Scratch
-from feelium.touch.candidates import Candidate, find_candidates
+from feelium.touch.candidates import Candidate, Segmentation, find_candidates
 from feelium.touch.config import TouchConfig
 from feelium.touch.depth import MaskCounts, relative_depth
 from feelium.touch.geometry import WorkingGeometry
@@ -285,16 +285,7 @@ class TouchPipeline:
         darkened = int(np.count_nonzero(shadow))
         area = int(round(darkened * self.geometry.area_scale))
         depth_max = float(smooth.max()) if smooth.size else 0.0
-        candidates, segmentation = find_candidates(
-            smooth,
-            threshold=cfg.candidate_depth,
-            min_area=self._min_area,
-            core_fraction=cfg.core_fraction,
-            max_candidates=cfg.max_candidates,
-            edge_radius=self._edge_radius,
-            scratch=buf,
-            split_fraction=cfg.contact_split_fraction,
-        )
+        candidates, segmentation = self._find(smooth, self._min_area, self._edge_radius, buf)
         geometry = self.geometry
         fine_inputs = None
         learn_detail = self.fine is not None and self.settled and self.detail.due(t)
@@ -444,17 +435,24 @@ class TouchPipeline:
             inputs, window, sigma=self._fine_sigma, dark_level=cfg.dark_reference_level,
             saturation_level=float(cfg.saturation_level), scratch=buf,
         )  # fmt: skip
-        found, _ = find_candidates(
+        found, _ = self._find(smooth, self._fine_min_area, self._fine_edge_radius, buf)
+        return [shifted(c, window) for c in found]
+
+    def _find(
+        self, smooth: np.ndarray, min_area: int, edge_radius: float, scratch: Scratch
+    ) -> tuple[list[Candidate], Segmentation | None]:
+        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes."""
+        cfg = self.config
+        return find_candidates(
             smooth,
             threshold=cfg.candidate_depth,
-            min_area=self._fine_min_area,
+            min_area=min_area,
             core_fraction=cfg.core_fraction,
             max_candidates=cfg.max_candidates,
-            edge_radius=self._fine_edge_radius,
-            scratch=buf,
+            edge_radius=edge_radius,
+            scratch=scratch,
             split_fraction=cfg.contact_split_fraction,
         )
-        return [shifted(c, window) for c in found]
 
     def _learn_detail(self, t: float, inputs: FineInputs, frozen: np.ndarray) -> None:
         """Teach the fine pattern of the flat membrane from this frame where the coarse pass froze nothing."""
