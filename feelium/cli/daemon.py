@@ -49,6 +49,11 @@ def register(registry: CommandRegistry) -> None:
         "--projected-light", choices=("on", "off"), default="on",
         help="touch compensates the projector's light with a simulated calibration, as on the blimp (default on)",
     )
+    board.add_argument(
+        "--event-loop", choices=("auto", "uvloop", "asyncio"),
+        help="the daemon's event loop (default: [daemon] event_loop); asyncio's lets the bench charge each loop "
+        "callback to its service",
+    )
     soak = registry.subcommand(
         "bench", "soak", "The board bench run long (30 min): RSS, growth after warm-up, rates held (docs/daemon.md).",
         _bench_soak,

@@ -27,6 +27,7 @@ from typing import Any, get_args, get_type_hints
 from feelium.daemon.config import PI_BACKGROUND_NICE, Config
 from feelium.daemon.assembly import SERVICES, ServiceBuilder, build_services
 from feelium.daemon.backends import backend_names, on_raspberry_pi, resolve_auto, simulated_parts
+from feelium.daemon.eventloop import loop_kind, new_event_loop
 from feelium.daemon.memory import FreeMemoryReturner, tune_malloc
 from feelium.daemon.sdnotify import Notifier
 from feelium.daemon.supervisor import Supervisor
@@ -102,6 +103,7 @@ async def run_daemon(
     built = build_services(config, hub, builders)
     rebuilders = {part: _builder_for(build, config, hub) for part, build in builders if part in built.failures}
     simulated = simulated_parts(config)
+    loop_in_use = loop_kind(asyncio.get_running_loop())
     supervisor = Supervisor(
         built.services,
         config.daemon,
@@ -109,7 +111,11 @@ async def run_daemon(
         build_failures=built.failures,
         rebuilders=rebuilders,
         simulated=simulated,
-        extra_health=lambda: {"bus": hub.bus.health(), "systemd": {"notify": notifier.enabled, "sent": notifier.sent}},
+        extra_health=lambda: {
+            "bus": hub.bus.health(),
+            "systemd": {"notify": notifier.enabled, "sent": notifier.sent},
+            "event_loop": loop_in_use,
+        },
     )
     hub.health = supervisor.report
     supervisor.start()
@@ -194,7 +200,8 @@ def run_process(config: Config) -> int:
     """The whole process lifetime; exits within ``shutdown_budget_s`` (+ a little) of SIGTERM/SIGINT."""
     applied = tune_malloc(config.daemon.malloc_arenas, config.daemon.malloc_mmap_threshold_kb)  # before any thread starts
     log.debug("malloc tuning: %s", applied or "glibc defaults")
-    loop = asyncio.new_event_loop()
+    loop, kind = new_event_loop(config.daemon.event_loop)
+    log.info("event loop: %s", kind)
     set_background_nice(background_nice_here(config.daemon.background_nice, on_raspberry_pi()))  # before the bulk-work threads start
     log.debug("pixel threads run %d nice steps below the flight loop", background_nice())
     executor = ThreadPoolExecutor(max_workers=WORKER_THREADS, thread_name_prefix="feelium-worker", initializer=lower_current_thread)

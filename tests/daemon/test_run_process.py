@@ -49,12 +49,16 @@ def _wait_for_line(proc, fragment, timeout=30.0):
 
 
 @pytest.mark.slow
-def test_sigint_stops_the_daemon_within_two_seconds(tmp_path):
+@pytest.mark.parametrize("event_loop", ["uvloop", "asyncio"])
+def test_sigint_stops_the_daemon_within_two_seconds(tmp_path, event_loop):
+    if event_loop == "uvloop":
+        pytest.importorskip("uvloop")
     recording = write_press_recording(tmp_path / "press", seconds=1.0)
     config = tmp_path / "feelium.toml"
-    config.write_text("[http]\nport = 0\n[daemon]\nstatus_interval_s = 0.5\n")
+    config.write_text(f'[http]\nport = 0\n[daemon]\nstatus_interval_s = 0.5\nevent_loop = "{event_loop}"\n')
     proc = _start(["--config", str(config), "--replay", str(recording)], tmp_path)
     try:
+        _wait_for_line(proc, f"event loop: {event_loop}")
         _wait_for_line(proc, "feelium running")
         _wait_for_line(proc, "touch 1")  # a status line with the touch pipeline at 1x fps: frames flow
         sent = time.monotonic()

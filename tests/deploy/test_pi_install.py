@@ -68,4 +68,4 @@ def test_pi_install_takes_the_pinned_opencv(pi_report: dict[str, str]) -> None:
 
 
 def test_pi_install_brings_feelium_and_its_dependencies(pi_report: dict[str, str]) -> None:
-    assert {"feelium", "aiohttp", "pyserial", "smbus2"} <= pi_report.keys()
+    assert {"feelium", "aiohttp", "pyserial", "smbus2", "uvloop"} <= pi_report.keys()  # uvloop: an aarch64 wheel

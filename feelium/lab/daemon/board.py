@@ -30,15 +30,16 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Coroutine, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from feelium.daemon.assembly import SERVICES, load_projected_light, load_projector_annotation
 from feelium.daemon.config import Config, load_config
+from feelium.daemon.eventloop import loop_kind, new_event_loop
 from feelium.daemon.memory import tune_malloc
 from feelium.daemon.runner import WORKER_THREADS, background_nice_here, run_daemon, with_overrides
 from feelium.daemon.sdnotify import Notifier
@@ -66,6 +67,7 @@ from feelium.thermal.sim_device import SimMlx90640
 from feelium.service import Service
 
 TOKEN = "bench-board-token"
+T = TypeVar("T")
 WARMUP_S = 3.0  # devices open, caches warm, the headset clients connect
 FIRST_TOUCH_FRAME_S = 30.0  # the longest the window waits for the touch pipeline's first frame
 LAG_PROBE_S = 0.01
@@ -226,6 +228,7 @@ async def _measure(
                 callbacks=ledger.callbacks,
                 callbacks_by=dict(ledger.callbacks_by),
                 callback_overhead_s=overhead_s,
+                event_loop=loop_kind(loop),
                 loop_thread_s=threads_after.get("MainThread", 0.0) - threads_before.get("MainThread", 0.0),
                 headset=json.loads((await asyncio.to_thread(headset.communicate, None, 30.0))[0].strip().splitlines()[-1]),
             )
@@ -331,6 +334,12 @@ def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, fro
     return rows
 
 
+def run_on_daemon_loop(config: Config, main: Coroutine[Any, Any, T]) -> T:
+    """Run ``main`` on the event loop ``feelium run`` would choose (``[daemon] event_loop``), as the daemon runs."""
+    with asyncio.Runner(loop_factory=lambda: new_event_loop(config.daemon.event_loop)[0]) as runner:
+        return runner.run(main)
+
+
 @contextlib.contextmanager
 def _board_process() -> Iterator[str]:
     """The emulated motor board in a process of its own; yields its serial port (it serves one connection)."""
@@ -374,13 +383,13 @@ def bench_board(
             set_background_nice(background_nice_here(config.daemon.background_nice, on_pi=True))  # as `feelium run` does on the Pi
             cameras = prepare(config, front_fps)
             load_before = os.getloadavg()[0]
-            measured = asyncio.run(_measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
+            measured = run_on_daemon_loop(config, _measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
             load_after = os.getloadavg()[0]
         if numeric_split_s > 0:
             with _board_process() as port:
                 profiler = NumericProfiler()
                 profiled = dataclasses.replace(config, flight=dataclasses.replace(config.flight, port=port))
-                run = asyncio.run(_measure(profiled, cameras, numeric_split_s, warmup_s, None, motion_transport, profiler))
+                run = run_on_daemon_loop(profiled, _measure(profiled, cameras, numeric_split_s, warmup_s, None, motion_transport, profiler))
                 split = {"seconds": round(run["wall"], 2), "shares": numeric_shares(profiler.seconds, run["charged"])}
     finally:
         scratch.cleanup()
@@ -413,6 +422,7 @@ def bench_board(
         "cpu_quota": measured.get("cpu_quota"),
         "projected_light_compensation": projected_light,
         "motion_transport": motion_transport,
+        "event_loop": measured["event_loop"],
         "services": rows,
         "headset": measured["headset"],
     }
@@ -438,13 +448,28 @@ def _growth_mb(window: list[float]) -> float | None:
     return round(statistics.median(window[-fifth:]) - statistics.median(window[fifth : 2 * fifth]), 1)
 
 
+def _callbacks_line(result: dict[str, Any]) -> str:
+    if result["event_loop"] != "asyncio":  # uvloop's callbacks run in C: the bench cannot time them one by one
+        return (
+            f"  on {result['event_loop']} the loop's callbacks run in C and are not charged one by one: all of the "
+            f"loop thread's {result['loop_thread_ms_per_s']} ms/s shows as event loop (other) (--event-loop asyncio "
+            "charges each service its callbacks)"
+        )
+    return (
+        f"  the bench's own timing of {result['loop_callbacks_per_s']} loop callbacks/s costs ~"
+        f"{result['bench_overhead_ms_per_s']} ms/s of that (charged to the services, not subtracted); by origin: "
+        + ", ".join(f"{name} {rate}" for name, rate in result["loop_callbacks_per_s_by_origin"].items())
+    )
+
+
 def format_table(result: dict[str, Any]) -> str:
     quota = result["cpu_quota"]
     lines = [
         f"feelium bench board: {result['seconds']} s on {result['cpus']} CPUs (1 min load before / after "
         f"{result['load_average_1min_before_after']}); rear {result['rear']}, front {result['front']}"
         + (f"; CPU quota {quota['quota_period_us']} us in {quota['cgroup']}" if quota else "")
-        + f"; projected light compensated: {result['projected_light_compensation']}; motion over {result['motion_transport']}",
+        + f"; projected light compensated: {result['projected_light_compensation']}; motion over {result['motion_transport']}"
+        + f"; event loop {result['event_loop']}",
         f"  {'service':<20} {'rate/target Hz':>16} {'miss %':>7} {'CPU ms/s':>9} {'Pi ms/s':>8}",
     ]
     for name, row in result["services"].items():
@@ -454,9 +479,7 @@ def format_table(result: dict[str, Any]) -> str:
     lines += [
         f"  process CPU ms/s {result['process_cpu_ms_per_s']}; loop lag p50 / p99 / max "
         f"{result['loop_lag_p50_ms']} / {result['loop_lag_p99_ms']} / {result['loop_lag_max_ms']} ms",
-        f"  the bench's own timing of {result['loop_callbacks_per_s']} loop callbacks/s costs ~"
-        f"{result['bench_overhead_ms_per_s']} ms/s of that (charged to the services, not subtracted); by origin: "
-        + ", ".join(f"{name} {rate}" for name, rate in result["loop_callbacks_per_s_by_origin"].items()),
+        _callbacks_line(result),
         "  flight tick late p50 / p99 (bin upper bounds): poll start {} / {} ms, controller step {} / {} ms; "
         "touch loop wake-ups per frame {}".format(*(result["services"]["flight"].get(k) for k in (
             "tick_start_late_ms_p50", "tick_start_late_ms_p99", "tick_step_late_ms_p50", "tick_step_late_ms_p99")),
@@ -488,7 +511,10 @@ def bench_board_command(args: argparse.Namespace) -> int:
     if args.numeric_split_seconds < 0:
         print("feelium bench board: --numeric-split-seconds must not be negative", file=sys.stderr)
         return 2
-    result = bench_board(load_config(args.config), args.minutes, front_fps=args.front_fps, cgroup=cgroup,
+    config = load_config(args.config)
+    if args.event_loop is not None:
+        config = dataclasses.replace(config, daemon=dataclasses.replace(config.daemon, event_loop=args.event_loop))
+    result = bench_board(config, args.minutes, front_fps=args.front_fps, cgroup=cgroup,
                          motion_transport=args.motion_transport, projected_light=args.projected_light == "on",
                          numeric_split_s=args.numeric_split_seconds)
     emit_report(format_table(result), result, args.json)
