@@ -220,6 +220,8 @@ class Supervisor:
         This is what feeds the systemd watchdog: the daemon is restarted for a
         stuck flight loop (or a stuck event loop, which stops this check from
         running at all), never for a camera, thermal, audio or projector fault.
+        A loop that has just started and not finished its first cycle is given the same ``max_age_s`` from
+        its start: which of the two tasks runs first after a start is the event loop's choice, not a stall.
         """
         for record in self.records.values():
             if not getattr(record.service, "vital", False):
@@ -227,7 +229,9 @@ class Supervisor:
             if record.state != "running":
                 return False
             beat = _safe_health(record.service).get("heartbeat_at")
-            if not isinstance(beat, (int, float)) or now - beat > max_age_s:
+            if not isinstance(beat, (int, float)):
+                beat = record.started_at  # no cycle yet: as old as the start
+            if beat is None or now - beat > max_age_s:
                 return False
         return True
 

@@ -216,7 +216,10 @@ def test_vital_alive_follows_the_flight_loop_heartbeat():
     flight = Flight()
     supervisor = Supervisor([flight, TickingService("touch")], FAST, clock=lambda: 100.0)
     supervisor.records["flight"].state = "running"
-    assert not supervisor.vital_alive(100.0, 1.0)  # no cycle yet
+    assert not supervisor.vital_alive(100.0, 1.0)  # no cycle yet, and no start recorded
+    supervisor.records["flight"].started_at = 99.5  # started, first cycle not finished: as old as its start
+    assert supervisor.vital_alive(100.0, 1.0)
+    assert not supervisor.vital_alive(100.6, 1.0)  # ...and stalled once that is older than the heartbeat allows
     flight.beat = 99.5
     assert supervisor.vital_alive(100.0, 1.0)
     assert not supervisor.vital_alive(100.6, 1.0)
