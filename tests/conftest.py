@@ -1,14 +1,24 @@
 """Shared test settings.
 
-Hypothesis is deterministic so CI never flakes on a new example. The suite runs on every core (pytest-xdist,
+Hypothesis is deterministic so CI never flakes on a new example. The async tests run on asyncio's own loop;
+``FEELIUM_TEST_EVENT_LOOP=uvloop`` runs every one of them on uvloop, the loop the daemon runs on
+(docs/daemon.md), to find code that leans on one loop's order of callbacks. The suite runs on every core (pytest-xdist,
 one whole module per worker so a module's expensive fixtures are built once); the modules that take longest
 are handed out first, so the workers finish together instead of one waiting for the last long module.
 """
 
 from __future__ import annotations
 
+import asyncio
+import os
+
 import pytest
 from hypothesis import settings
+
+if os.environ.get("FEELIUM_TEST_EVENT_LOOP") == "uvloop":
+    import uvloop
+
+    asyncio.set_event_loop_policy(uvloop.EventLoopPolicy())
 
 settings.register_profile("feelium", derandomize=True, deadline=None, max_examples=60)
 settings.load_profile("feelium")

@@ -26,18 +26,21 @@ EventLoopChoice = Literal["auto", "uvloop", "asyncio"]
 def new_event_loop(choice: EventLoopChoice) -> tuple[asyncio.AbstractEventLoop, str]:
     """A fresh event loop of the chosen kind and the kind it is (``"uvloop"`` or ``"asyncio"``).
 
+    ``"asyncio"`` is asyncio's own selector loop whatever event loop policy is set, so the setting means the same
+    in a process that installed another policy (as the tests can, ``FEELIUM_TEST_EVENT_LOOP``).
+
     ``uvloop`` chosen explicitly and not importable is a config error naming the key: a setting that asks for
     something must not be quietly ignored. ``auto`` falls back to asyncio and logs why once.
     """
     if choice == "asyncio":
-        return asyncio.new_event_loop(), "asyncio"
+        return asyncio.SelectorEventLoop(), "asyncio"
     try:
         uvloop = importlib.import_module("uvloop")
     except ImportError as exc:
         if choice == "uvloop":
             raise ConfigError("config", "daemon.event_loop", f"uvloop cannot be imported ({exc}); install it or choose 'asyncio'") from exc
         log.warning("uvloop cannot be imported (%s): the daemon runs on asyncio's own event loop", exc)
-        return asyncio.new_event_loop(), "asyncio"
+        return asyncio.SelectorEventLoop(), "asyncio"
     return uvloop.new_event_loop(), "uvloop"
 
 

@@ -12,6 +12,7 @@ import math
 import pytest
 
 from feelium.daemon.config import Config
+from feelium.daemon.eventloop import loop_kind
 from feelium.lab.daemon.attribution import LOOP_OTHER, OTHER_THREADS, SIM_DEVICES, Ledger, charge, charged_apart, service_of_module
 from feelium.lab.daemon.board import bench_board, format_table
 
@@ -35,6 +36,8 @@ def test_modules_and_threads_are_charged_to_their_service():
 
 async def test_loop_callbacks_are_counted_by_the_service_they_wake() -> None:
     """A sleep's timer and a worker's result are asyncio's own callbacks, counted for the task they wake."""
+    if loop_kind(asyncio.get_running_loop()) != "asyncio":
+        pytest.skip("the bench times asyncio's own callbacks; uvloop's run in C (FEELIUM_TEST_EVENT_LOOP=uvloop)")
     from concurrent.futures import ThreadPoolExecutor
 
     from feelium.flight import service as flight_service  # any module under a service package
@@ -63,6 +66,8 @@ async def test_loop_callbacks_are_counted_by_the_service_they_wake() -> None:
 
 
 async def test_a_worker_threads_batch_is_counted_for_the_service_that_publishes_it() -> None:
+    if loop_kind(asyncio.get_running_loop()) != "asyncio":
+        pytest.skip("the bench times asyncio's own callbacks; uvloop's run in C (FEELIUM_TEST_EVENT_LOOP=uvloop)")
     from feelium.cameras.handoff import LoopInbox
     from feelium.cameras.select import CameraSource
     from feelium.hub import Hub
