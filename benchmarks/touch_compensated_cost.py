@@ -125,11 +125,13 @@ def main() -> int:
         predictor = CanvasLightPredictor(config.projector, calibration, size, **box)
     else:
         (coarse_size, coarse_box), fine_grid = grids.coarse, grids.fine
+        finer = None
+        if fine_grid is not None:  # as the daemon builds them (feelium.touch.service)
+            finer = CanvasLightPredictor(config.projector, calibration, fine_grid[0], box=fine_grid[1])
+            window = finer.window
         predictor = CanvasLightPredictor(
-            config.projector, calibration, coarse_size, box=coarse_box, average_of=grids.average_of
+            config.projector, calibration, coarse_size, box=coarse_box, average_of=grids.average_of, finer=finer
         )
-        if fine_grid is not None:
-            window = CanvasLightPredictor(config.projector, calibration, fine_grid[0], box=fine_grid[1]).window
     cpu: dict[str, float] = defaultdict(float)
 
     recycles = "out" in inspect.signature(predictor.gain).parameters  # older trees: predict(canvas) only

@@ -82,6 +82,7 @@ class CanvasLightPredictor:
         box: tuple[int, int, int, int] | None = None,
         *,
         average_of: int = 1,
+        finer: CanvasLightPredictor | None = None,
     ) -> None:
         """``frame_size``: (width, height) of the touch pipeline's frames (default the calibration's camera size);
         ``face``: the face model the projector's renderer was given (its canvas then spans the face's u, v);
@@ -89,7 +90,10 @@ class CanvasLightPredictor:
         frame). The light is then predicted only there, plus the diffusion blur's reach around it, and equals the
         whole frame's light cut to the box: the pipeline reads nothing else, and the ROI is ~64 % of the frame.
         ``average_of``: each value stands for the mean of ``average_of`` x ``average_of`` values of a finer grid
-        (the touch pipeline's working grid, when it detects on a coarser one): :func:`area_sigma`."""
+        (the touch pipeline's working grid, when it detects on a coarser one): :func:`area_sigma`. ``finer``: the
+        predictor of that finer grid (the same config, calibration and face), whose :meth:`window` then reads the
+        canvas light this one reduced on the way (see :meth:`_canvas_light`)."""
+        self._finer = finer
         cw, ch = calibration.camera_size
         fw, fh = frame_size if frame_size is not None else (cw, ch)
         self.canvas_size = (config.canvas_width, config.canvas_height)
@@ -223,20 +227,31 @@ class CanvasLightPredictor:
     def _window_light(self, canvas_grey: np.ndarray) -> np.ndarray:
         """:meth:`_canvas_light` of a canvas, kept for the next windows of the same canvas: a projector frame lights
         one to three camera exposures, each of which may ask for windows (its candidates', the pattern's lesson),
-        and a canvas is never rewritten once published (:mod:`feelium.touch.projected`)."""
+        and a canvas is never rewritten once published (:mod:`feelium.touch.projected`). The oldest kept light's
+        array is written over (a new 0.2 MB array per canvas would be an mmap in the daemon)."""
         for canvas, light in self._recent:
             if canvas is canvas_grey:
                 return light
-        light = self._canvas_light(canvas_grey).copy()
-        self._recent = [(canvas_grey, light), *self._recent[: RECENT_CANVASES - 1]]
-        return light
+        light = self._canvas_light(canvas_grey)
+        spare = self._recent.pop()[1] if len(self._recent) >= RECENT_CANVASES else np.empty_like(light)
+        np.copyto(spare, light)
+        self._recent.insert(0, (canvas_grey, spare))
+        return spare
 
     def _canvas_light(self, canvas_grey: np.ndarray) -> np.ndarray:
         """The canvas's light (linear, relative to the flat grey), reduced to about one canvas pixel per frame pixel
-        (one of the predictor's buffers, valid until the next call)."""
+        (one of the predictor's buffers, valid until the next call). With a ``finer`` predictor reducing by half as
+        much, its reduction (kept for its windows) is halved: the same values as reducing here (the mean of means
+        of equal blocks, in the same steps), and the canvas is looked up and reduced once for both grids."""
         cw, ch = self.canvas_size
         if canvas_grey.shape != (ch, cw) or canvas_grey.dtype != np.uint8:
             raise ValueError(f"canvas must be {cw}x{ch} grey uint8, got {canvas_grey.shape} {canvas_grey.dtype}")
+        finer = self._finer
+        if finer is not None and finer.reduce * 2 == self.reduce and self.reduce in (4, 8):
+            half = finer._window_light(canvas_grey)
+            rw, rh = self._reduced_size
+            if half.shape == (rh * 2, rw * 2):
+                return cv2.resize(half, (rw, rh), dst=self._reduced, interpolation=cv2.INTER_AREA)
         light = cv2.LUT(canvas_grey, self._lut, dst=self._lut_out)
         if self._undrawn is not None:
             light.ravel()[self._undrawn] = self._border

@@ -40,8 +40,9 @@ log = logging.getLogger(__name__)
 PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, int] | None"], Any]
 # Per camera frame size (width, height) and box [x, y, w, h] (the pipeline's ROI, or None for the whole frame): a
 # projector frame to the light it puts on the membrane over that box (``predict(canvas, out)``: ``out`` a recycled
-# array to write into, or None; see ExposureLight). A pipeline that detects coarser asks with a third argument,
-# ``average_of`` (LightGrids), and uses the predictor's ``window(canvas, rows, cols)`` when it has one.
+# array to write into, or None; see ExposureLight). A pipeline that detects coarser asks for its detection grid with
+# two more arguments, ``average_of`` (LightGrids) and the working grid's predictor (asked for first), and uses that
+# one's ``window(canvas, rows, cols)`` when it has one.
 ProjectedFactory = Callable[..., Callable[[np.ndarray, np.ndarray | None], np.ndarray]]
 Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
 
@@ -314,9 +315,10 @@ class TouchService:
         grids = getattr(self._pipeline, "light_grids", None)
         if grids is None:
             return ExposureLight(self.projected(size, box), self.touch_config)
-        window = None if grids.fine is None else getattr(self.projected(*grids.fine), "window", None)
+        fine = None if grids.fine is None else self.projected(*grids.fine)
+        coarse = self.projected(*grids.coarse, grids.average_of, fine)  # the fine one shares its canvas light
         self._windowed = True
-        return ExposureLight(self.projected(*grids.coarse, grids.average_of), self.touch_config, window)
+        return ExposureLight(coarse, self.touch_config, getattr(fine, "window", None))
 
     def _pipeline_for(self, frame: Frame) -> tuple[Any, Released | None]:
         """The pipeline for this frame's segment, size and ROI, and the contacts the one it replaces released."""

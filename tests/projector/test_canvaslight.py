@@ -185,3 +185,16 @@ def test_on_the_detection_grid_the_light_is_the_working_lights_mean():
     assert float(with_spread.mean()) < 0.0013 and float(np.percentile(with_spread, 99)) < 0.017
     assert float(with_spread.mean()) < 0.8 * float(without.mean())
     assert float(np.percentile(with_spread, 99)) < 0.8 * float(np.percentile(without, 99))
+
+
+def test_the_detection_grid_reading_the_finer_grids_canvas_light_gives_the_same_bits():
+    """With the working grid's predictor as ``finer`` the canvas is looked up and reduced once for both grids: the
+    coarse light is the one it predicts alone, and the finer one's windows still the finer box's light."""
+    alone, finer = _bench_predictor(2, coarse=True), _bench_predictor()
+    shared = CanvasLightPredictor(CONFIG, _calibration(), (160, 120), box=(16, 12, 128, 96), average_of=2, finer=finer)
+    rng = np.random.default_rng(11)
+    canvases = [rng.integers(0, 256, (CONFIG.canvas_height, CONFIG.canvas_width), np.uint8) for _ in range(5)]
+    for canvas in canvases + canvases[::-1]:  # new canvases, then ones the finer predictor has kept or dropped
+        np.testing.assert_array_equal(shared.gain(canvas), alone.gain(canvas))
+        window = finer.window(canvas, slice(40, 90), slice(7, 200))
+        np.testing.assert_array_equal(window, finer.gain(canvas)[40:90, 7:200])
