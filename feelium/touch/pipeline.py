@@ -231,8 +231,9 @@ class TouchPipeline:
 
         With ``detect_scale`` < 1, ``projected_light`` and ``projected_spread`` may also come at the detection size
         (predicted on :attr:`light_grids`' coarse grid), and ``fine_light(rows, cols)`` gives the same exposure's
-        light at the working resolution over a window of the fine image (predicted there only; without it the fine
-        pass upsamples the coarse light).
+        light at the working resolution over a window of the fine image (predicted there only; the pipeline may
+        write into the array it returns; when it returns None or is not given, the fine pass upsamples the coarse
+        light).
         """
         t = float(t)
         if not math.isfinite(t):
