@@ -6,7 +6,8 @@ mixed by :class:`feelium.touch.projected.ExposureLight` and the pipeline fed wit
     PYTHONPATH=$PWD python3 benchmarks/touch_compensated_cost.py [--loops 3] [--profile] [--detect-scale S] [--json FILE]
 
 One OpenCV thread (the daemon's touch thread competes with the projector's pool: its own figure is the one that
-counts). Reports ms per camera frame: ``predict`` (each new projector canvas to its light), ``mix`` (the exposure
+counts). Reports ms per camera frame: ``predict`` (each new projector canvas to its light; with ``detect_scale``
+< 1 at the detection size, and ``predict (fine windows)`` the fine pass's windows, inside ``pipeline``), ``mix`` (the exposure
 mixes and spread), ``pipeline`` (``TouchPipeline.process``) and ``total``; ``--profile`` also splits the
 pipeline's time by stage (timing wrappers: they add a few microseconds a call). The bench's frames hold no
 projection, so this measures cost, not accuracy (the face-on experiment measures that). The first loop warms
@@ -61,6 +62,9 @@ STAGES = {  # (owner, attribute) timed with --profile, charged to the name
     "noise floor": ("module", "_noise_floor_map"),
     "reference update": ("reference", "update"),
     "tracker": ("tracker", "step"),
+    "share learn": ("share", "learn"),
+    "fine inputs": ("pipeline", "_fine_inputs"),
+    "detail lesson": ("pipeline", "_learn_detail"),
 }
 
 
@@ -77,7 +81,7 @@ def _timed(fn: Callable[..., Any], name: str, sink: dict[str, float]) -> Callabl
 
 def _instrument(pipeline: TouchPipeline, sink: dict[str, float]) -> None:
     owners = {"response": pipeline.response, "pipeline": pipeline, "reference": pipeline.reference,
-              "tracker": pipeline.tracker}  # fmt: skip
+              "tracker": pipeline.tracker, "share": pipeline.projector_share}  # fmt: skip
     for name, (owner, attr) in STAGES.items():
         if owner == "module" and not hasattr(pipeline_module, attr):
             continue  # a stage an older tree does not have
@@ -113,7 +117,21 @@ def main() -> int:
     # As the daemon builds it: over the pipeline's ROI (older trees predict the whole frame).
     boxed = "box" in inspect.signature(CanvasLightPredictor).parameters
     box = {"box": roi} if boxed else {}
-    predictor = CanvasLightPredictor(config.projector, calibration, size, **box)
+    pipeline = TouchPipeline(config.touch, size, roi)
+    # With detect_scale < 1 (trees that have it): on the detection grid, the fine pass's windows at the working size.
+    grids = getattr(pipeline, "light_grids", None)
+    window = None
+    if grids is None:
+        predictor = CanvasLightPredictor(config.projector, calibration, size, **box)
+    else:
+        (coarse_size, coarse_box), fine_grid = grids.coarse, grids.fine
+        finer = None
+        if fine_grid is not None:  # as the daemon builds them (feelium.touch.service)
+            finer = CanvasLightPredictor(config.projector, calibration, fine_grid[0], box=fine_grid[1])
+            window = finer.window
+        predictor = CanvasLightPredictor(
+            config.projector, calibration, coarse_size, box=coarse_box, average_of=grids.average_of, finer=finer
+        )
     cpu: dict[str, float] = defaultdict(float)
 
     recycles = "out" in inspect.signature(predictor.gain).parameters  # older trees: predict(canvas) only
@@ -125,10 +143,22 @@ def main() -> int:
         finally:
             cpu["predict"] += time.thread_time() - start
 
-    pipeline = TouchPipeline(config.touch, size, roi)
+    def predict_window(canvas: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+        start = time.thread_time()
+        try:
+            assert window is not None
+            return window(canvas, rows, cols)
+        finally:
+            cpu["predict (fine windows)"] += time.thread_time() - start
+
     if args.profile:
         _instrument(pipeline, cpu)
-    exposure = ExposureLight(predict, config.touch)
+    if grids is None:
+        exposure = ExposureLight(predict, config.touch)
+        fine = {}
+    else:
+        exposure = ExposureLight(predict, config.touch, predict_window if window is not None else None)
+        fine = {"fine_light": exposure.window}
     history = ProjectorHistory(history_window_s(config.touch))
     per_loop: list[dict[str, float]] = []
     shown = 0
@@ -145,7 +175,7 @@ def main() -> int:
             if mixed is None:
                 pipeline.process(t, frame)
             else:
-                pipeline.process(t, frame, projected_light=mixed[0], projected_spread=mixed[1])
+                pipeline.process(t, frame, projected_light=mixed[0], projected_spread=mixed[1], **fine)
             end = time.thread_time()
             cpu["exposure light"] += middle - start
             cpu["pipeline"] += end - middle

@@ -44,9 +44,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 ServiceBuilder = Callable[[Config, Hub], "Service | None"]
-ProjectedFactory = Callable[
-    [tuple[int, int], tuple[int, int, int, int] | None], Callable[[np.ndarray, np.ndarray | None], np.ndarray]
-]
+ProjectedFactory = Callable[..., Callable[[np.ndarray, np.ndarray | None], np.ndarray]]  # feelium.touch.service
 
 
 # --- sensing: cameras and the thermal camera feed the bus -------------------------------------------------------
@@ -319,10 +317,16 @@ def load_projected_light(config: Config, backend: str, path: Path | None = None)
     log.info("touch: compensating the projected light in rear frames (calibration %s)", path)
 
     def for_frame_size(
-        size: tuple[int, int], box: tuple[int, int, int, int] | None = None
+        size: tuple[int, int],
+        box: tuple[int, int, int, int] | None = None,
+        average_of: int = 1,
+        finer: CanvasLightPredictor | None = None,
     ) -> Callable[[np.ndarray], np.ndarray]:
         """Each projector frame's light from its grey skin canvas (``hub.projector_canvas``), over ``box`` (the
-        touch pipeline's ROI, which is all it reads; default the whole frame)."""
-        return CanvasLightPredictor(config.projector, calibration, size, face, box).gain
+        touch pipeline's ROI, which is all it reads; default the whole frame); ``average_of`` and ``finer`` (the
+        working grid's predictor, which predicts the fine pass's windows): see :class:`CanvasLightPredictor`."""
+        return CanvasLightPredictor(
+            config.projector, calibration, size, face, box, average_of=average_of, finer=finer
+        )
 
     return for_frame_size

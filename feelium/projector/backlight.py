@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from feelium.skin.projector_map import ProjectorMap
-from feelium.projector.canvaslight import light_table
+from feelium.projector.canvaslight import area_sigma, light_table
 from feelium.projector.config import ProjectorConfig
 
 
@@ -31,8 +31,16 @@ _REDUCE = 2
 class BacklightPredictor:
     """Projector frame in, per-camera-pixel back-light gain (float32, ~1.0 = flat) out."""
 
-    def __init__(self, config: ProjectorConfig, calibration: ProjectorMap, frame_size: tuple[int, int] | None = None) -> None:
-        """``frame_size``: (width, height) of the frames the touch pipeline gets; default the calibration's camera size."""
+    def __init__(
+        self,
+        config: ProjectorConfig,
+        calibration: ProjectorMap,
+        frame_size: tuple[int, int] | None = None,
+        *,
+        average_of: int = 1,
+    ) -> None:
+        """``frame_size``: (width, height) of the frames the touch pipeline gets; default the calibration's camera size.
+        ``average_of``: as :class:`feelium.projector.canvaslight.CanvasLightPredictor`'s (a coarser grid's light)."""
         self.config = config
         cw, ch = calibration.camera_size
         fw, fh = frame_size if frame_size is not None else (cw, ch)
@@ -48,6 +56,8 @@ class BacklightPredictor:
         self._map1, self._map2 = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
         self.frame_size = (fw, fh)
         self.diffusion_px = config.diffusion_px * fw / cw
+        if average_of > 1:
+            self.diffusion_px = float(np.hypot(self.diffusion_px, area_sigma(average_of)))
         covered = (~self._uncovered).astype(np.float32)
         self._coverage_blur = np.maximum(
             cv2.GaussianBlur(covered, (0, 0), self.diffusion_px) if self.diffusion_px > 0 else covered, 1e-3

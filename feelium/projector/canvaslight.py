@@ -32,6 +32,7 @@ from feelium.skin.blurwindow import blur_window
 from feelium.skin.face import FaceModel
 from feelium.skin.projector_map import ProjectorMap, sample
 
+RECENT_CANVASES = 3  # canvases whose light window() keeps: the frames one camera exposure mixes, and the next
 _OFF = -10.0  # a map position no bilinear tap reaches: the remap's border value (the projector's border light)
 
 
@@ -46,6 +47,21 @@ def light_table(config: ProjectorConfig, calibration: ProjectorMap) -> np.ndarra
     light = black + (1.0 - black) * levels**gamma
     flat = black + (1.0 - black) * config.flat_level**gamma
     return (light / flat).astype(np.float32)
+
+
+def area_sigma(average_of: int) -> float:
+    """The blur (sigma, in pixels of the coarse grid) that stands in for averaging ``average_of`` x ``average_of``
+    point samples of a finer grid into each coarse pixel; 0 for 1.
+
+    Why: the touch pipeline's detection at ``detect_scale`` 0.5 used to read the working resolution's light
+    area-averaged down, and its accuracy was measured so; predicted on the coarse grid directly, each value is a
+    point sample, sharper than that mean at a face's edges. The mean of ``n`` samples spaced ``1/n`` apart along an
+    axis spreads the light by a variance of ``(1 - 1/n**2) / 12`` coarse pixels squared (n = 2: sigma 0.25). Measured
+    on a talking face (tests/projector/test_canvaslight.py), against the working light area-averaged: mean absolute
+    difference 0.0015 -> 0.0010, 99th percentile 0.021 -> 0.013 with it; a hand-tuned 0.3 did a little better,
+    0.35 worse."""
+    n = max(int(average_of), 1)
+    return float(np.sqrt((1.0 - 1.0 / (n * n)) / 12.0))
 
 
 def border_grey() -> int:
@@ -64,12 +80,20 @@ class CanvasLightPredictor:
         frame_size: tuple[int, int] | None = None,
         face: FaceModel | None = None,
         box: tuple[int, int, int, int] | None = None,
+        *,
+        average_of: int = 1,
+        finer: CanvasLightPredictor | None = None,
     ) -> None:
         """``frame_size``: (width, height) of the touch pipeline's frames (default the calibration's camera size);
         ``face``: the face model the projector's renderer was given (its canvas then spans the face's u, v);
         ``box``: [x, y, w, h] of the frame the light is wanted for (the touch pipeline's ROI; default the whole
         frame). The light is then predicted only there, plus the diffusion blur's reach around it, and equals the
-        whole frame's light cut to the box: the pipeline reads nothing else, and the ROI is ~64 % of the frame."""
+        whole frame's light cut to the box: the pipeline reads nothing else, and the ROI is ~64 % of the frame.
+        ``average_of``: each value stands for the mean of ``average_of`` x ``average_of`` values of a finer grid
+        (the touch pipeline's working grid, when it detects on a coarser one): :func:`area_sigma`. ``finer``: the
+        predictor of that finer grid (the same config, calibration and face), whose :meth:`window` then reads the
+        canvas light this one reduced on the way (see :meth:`_canvas_light`)."""
+        self._finer = finer
         cw, ch = calibration.camera_size
         fw, fh = frame_size if frame_size is not None else (cw, ch)
         self.canvas_size = (config.canvas_width, config.canvas_height)
@@ -104,7 +128,9 @@ class CanvasLightPredictor:
         # pixels squared. The canvas has no such grid, so that blur is added to the membrane's diffusion: the
         # prediction stays the old one's (docs/touch.md: against the simulator's light it is then as close).
         grid_px = 1.0 / _scale(proj_x, proj_y, self._uncovered)  # one projector pixel, in frame pixels
-        self.diffusion_px = float(np.hypot(config.diffusion_px * fw / cw, grid_px * np.sqrt(13.0 / 12.0)))
+        self.diffusion_px = float(
+            np.hypot(np.hypot(config.diffusion_px * fw / cw, grid_px * np.sqrt(13.0 / 12.0)), area_sigma(average_of))
+        )
         # The projector's light beyond the patch is its border (or nothing), not the flat grey: a camera pixel at the
         # patch's edge sees some of it through the diffusion, so a band around the patch is lit with the border's
         # light and blurred with it; only what the calibration does not cover gets 1.0, after the blur.
@@ -137,6 +163,7 @@ class CanvasLightPredictor:
         self._reduced = np.empty((rh, rw), np.float32)
         self._seen = np.empty(self._map2.shape, np.float32)
         self._blurred = np.empty(self._map2.shape, np.float32)
+        self._recent: list[tuple[np.ndarray, np.ndarray]] = []  # (canvas, its light) of the last windows' canvases
 
     def gain(self, canvas_grey: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """(h, w) float32 gain over the box (the whole frame by default) for a grey (uint8) skin canvas.
@@ -146,17 +173,10 @@ class CanvasLightPredictor:
         (``[daemon] malloc_mmap_threshold_kb``), so a fresh 0.8 MB light table and three 0.3 MB images per frame
         cost page faults that tripled the prediction's CPU time (docs/performance.md).
         """
-        cw, ch = self.canvas_size
-        if canvas_grey.shape != (ch, cw) or canvas_grey.dtype != np.uint8:
-            raise ValueError(f"canvas must be {cw}x{ch} grey uint8, got {canvas_grey.shape} {canvas_grey.dtype}")
         bw, bh = self.box[2], self.box[3]
         if out is None or out.shape != (bh, bw) or out.dtype != np.float32:
             out = np.empty((bh, bw), np.float32)
-        light = cv2.LUT(canvas_grey, self._lut, dst=self._lut_out)
-        if self._undrawn is not None:
-            light.ravel()[self._undrawn] = self._border
-        if self.reduce > 1:
-            light = _area_reduce(light, self.reduce, self._reduced_size, self._border, self._reduced)
+        light = self._canvas_light(canvas_grey)
         if self.diffusion_px <= 0:
             cv2.remap(light, self._map1, self._map2, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_CONSTANT,
                       borderValue=self._border)
@@ -169,6 +189,80 @@ class CanvasLightPredictor:
             np.divide(blurred[self._inner], self._lit_blur, out=out)
         out[self._uncovered] = 1.0
         return out
+
+    __call__ = gain  # the touch service's ``predict(canvas, out)``
+
+    def window(self, canvas_grey: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+        """(rows, cols) of :meth:`gain`'s result (box pixels), computed there only (a new float32 array).
+
+        Why: with ``[touch] detect_scale`` < 1 the touch pipeline reads the light at the coarse size everywhere and
+        at this predictor's size only in the window around a candidate's shadows. The remap and the blur then run
+        over the window and the blur's reach (:func:`feelium.skin.blurwindow.blur_window`, inside the box's own
+        window), so the values are the whole prediction's: the same maps, the same kernel over the same pixels."""
+        bh, bw = self._lit_blur.shape
+        r0, r1, _ = rows.indices(bh)
+        c0, c1, _ = cols.indices(bw)
+        if r1 <= r0 or c1 <= c0:
+            raise ValueError(f"window {rows}, {cols} is empty or outside the {bw}x{bh} box")
+        light = self._window_light(canvas_grey)
+        iy, ix = self._inner[0].start, self._inner[1].start
+        if self.diffusion_px <= 0:
+            part = (slice(iy + r0, iy + r1), slice(ix + c0, ix + c1))
+            out = cv2.remap(light, self._map1[part], self._map2[part], cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
+        else:
+            mh, mw = self._map2.shape
+            part = blur_window((mw, mh), (ix + c0, iy + r0, c1 - c0, r1 - r0), self.diffusion_px)
+            # Into the front of whole-window buffers: contiguous, and no 0.2 MB allocation (an mmap) per call.
+            shape = (part[0].stop - part[0].start, part[1].stop - part[1].start)
+            seen = cv2.remap(light, self._map1[part], self._map2[part], cv2.INTER_LINEAR,
+                             dst=_front(self._seen, shape), borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
+            seen[self._dark[part]] = 0.0
+            blurred = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px, dst=_front(self._blurred, shape))
+            y0, x0 = iy + r0 - part[0].start, ix + c0 - part[1].start
+            out = blurred[y0 : y0 + r1 - r0, x0 : x0 + c1 - c0] / self._lit_blur[r0:r1, c0:c1]
+        out[self._uncovered[r0:r1, c0:c1]] = 1.0
+        return out
+
+    def _window_light(self, canvas_grey: np.ndarray) -> np.ndarray:
+        """:meth:`_canvas_light` of a canvas, kept for the next windows of the same canvas: a projector frame lights
+        one to three camera exposures, each of which may ask for windows (its candidates', the pattern's lesson),
+        and a canvas is never rewritten once published (:mod:`feelium.touch.projected`). The oldest kept light's
+        array is written over (a new 0.2 MB array per canvas would be an mmap in the daemon)."""
+        for canvas, light in self._recent:
+            if canvas is canvas_grey:
+                return light
+        light = self._canvas_light(canvas_grey)
+        spare = self._recent.pop()[1] if len(self._recent) >= RECENT_CANVASES else np.empty_like(light)
+        np.copyto(spare, light)
+        self._recent.insert(0, (canvas_grey, spare))
+        return spare
+
+    def _canvas_light(self, canvas_grey: np.ndarray) -> np.ndarray:
+        """The canvas's light (linear, relative to the flat grey), reduced to about one canvas pixel per frame pixel
+        (one of the predictor's buffers, valid until the next call). With a ``finer`` predictor reducing by half as
+        much, its reduction (kept for its windows) is halved: the same values as reducing here (the mean of means
+        of equal blocks, in the same steps), and the canvas is looked up and reduced once for both grids."""
+        cw, ch = self.canvas_size
+        if canvas_grey.shape != (ch, cw) or canvas_grey.dtype != np.uint8:
+            raise ValueError(f"canvas must be {cw}x{ch} grey uint8, got {canvas_grey.shape} {canvas_grey.dtype}")
+        finer = self._finer
+        if finer is not None and finer.reduce * 2 == self.reduce and self.reduce in (4, 8):
+            half = finer._window_light(canvas_grey)
+            rw, rh = self._reduced_size
+            if half.shape == (rh * 2, rw * 2):
+                return cv2.resize(half, (rw, rh), dst=self._reduced, interpolation=cv2.INTER_AREA)
+        light = cv2.LUT(canvas_grey, self._lut, dst=self._lut_out)
+        if self._undrawn is not None:
+            light.ravel()[self._undrawn] = self._border
+        if self.reduce > 1:
+            light = _area_reduce(light, self.reduce, self._reduced_size, self._border, self._reduced)
+        return light
+
+
+def _front(buffer: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """A C-contiguous ``shape`` array over the front of ``buffer``'s memory (as large or larger)."""
+    return buffer.reshape(-1)[: shape[0] * shape[1]].reshape(shape)
 
 
 def _renderer_camera_points(
@@ -226,9 +320,14 @@ def _reduction(map_x: np.ndarray, map_y: np.ndarray, off: np.ndarray) -> int:
 
 def _area_reduce(light: np.ndarray, factor: int, size: tuple[int, int], pad: float, dst: np.ndarray) -> np.ndarray:
     """Average ``factor`` x ``factor`` blocks into ``dst``; a canvas not a multiple of ``factor`` is padded with
-    ``pad``."""
+    ``pad``. A factor of 4 or 8 is taken as halvings (the mean of means of equal blocks is the mean): OpenCV's area
+    resize has a fast path for 2 only, and its general one took 0.18 ms a 512x384 canvas where two halvings take
+    ~0.06 (the coarse touch pass predicts its light with 4)."""
     rw, rh = size
     h, w = light.shape
     if (rw * factor, rh * factor) != (w, h):
         light = cv2.copyMakeBorder(light, 0, rh * factor - h, 0, rw * factor - w, cv2.BORDER_CONSTANT, value=pad)
+    while factor in (4, 8):
+        light = cv2.resize(light, (light.shape[1] // 2, light.shape[0] // 2), interpolation=cv2.INTER_AREA)
+        factor //= 2
     return cv2.resize(light, (rw, rh), dst=dst, interpolation=cv2.INTER_AREA)

@@ -13,6 +13,21 @@ import cv2
 import numpy as np
 
 
+# (frame size, box [x, y, w, h]) a projected-light predictor is built for (WorkingGeometry.light_grid).
+LightGrid = tuple[tuple[int, int], tuple[int, int, int, int]]
+
+
+@dataclass(frozen=True)
+class LightGrids:
+    """Where a pipeline that detects coarser wants its projected light predicted (``TouchPipeline.light_grids``)."""
+
+    coarse: LightGrid  # the detection grid: the whole exposure's light, every frame
+    fine: LightGrid | None  # the working resolution's grid: windows of it, for the fine pass (None: upsampled)
+    # Working pixels per detection pixel along each axis: the coarse light stands for their mean, as the working
+    # resolution's light area-averaged did (see feelium.projector.canvaslight.area_sigma).
+    average_of: int
+
+
 @dataclass(frozen=True)
 class WorkingGeometry:
     """The mapping between camera pixels and the working image of the ROI."""
@@ -74,6 +89,20 @@ class WorkingGeometry:
         """A covariance (var x, var y, cov xy) in working px^2 in camera px^2."""
         sx, sy = self.scale
         return cov[0] / (sx * sx), cov[1] / (sy * sy), cov[2] / (sx * sy)
+
+    def light_grid(self) -> LightGrid | None:
+        """(frame size, box): the camera frame scaled by the working scale and the ROI in it, so that a light predictor
+        built for that frame size over that box yields one value per working pixel, centred where :meth:`to_camera`
+        puts it; None when the scaled frame or ROI is not whole pixels (the light is then predicted at the camera's
+        size and area-averaged by :meth:`cut_roi`)."""
+        sx, sy = self.scale
+        fw, fh = self.frame_size
+        x, y, _, _ = self.roi
+        scaled = (fw * sx, fh * sy, x * sx, y * sy)
+        if any(abs(v - round(v)) > 1e-6 for v in scaled):
+            return None
+        sw, sh, bx, by = (int(round(v)) for v in scaled)
+        return (sw, sh), (bx, by, self.work_size[0], self.work_size[1])
 
     def cut_roi(self, part: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """An ROI-size image at the working resolution, in the working dtype: a new array, or ``out`` (working size

@@ -13,6 +13,7 @@ shape) -> gates + tracker (events).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -23,11 +24,20 @@ from feelium.touch.buffers import Scratch
 from feelium.touch.candidates import Candidate, Segmentation, find_candidates
 from feelium.touch.config import TouchConfig
 from feelium.touch.depth import MaskCounts, relative_depth
-from feelium.touch.geometry import WorkingGeometry
+from feelium.touch.geometry import LightGrids, WorkingGeometry
 from feelium.touch.illumination import illumination_change, reseed
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
-from feelium.touch.refine import FineDetail, FineInputs, fine_depth, fine_flat, fine_window, shifted, upsample_window
+from feelium.touch.refine import (
+    FineDetail,
+    FineInputs,
+    Window,
+    fine_depth,
+    fine_flat,
+    fine_window,
+    shifted,
+    upsample_window,
+)
 from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
 from feelium.touch.settle import depth_uncertainty, spread_window
 from feelium.touch.shape import axes_from_moments, contact_shape
@@ -155,6 +165,24 @@ class TouchPipeline:
     def roi(self) -> tuple[int, int, int, int]:
         return self._roi
 
+    @property
+    def light_grids(self) -> LightGrids | None:
+        """Where to predict the projected light when detection runs coarser (``detect_scale`` < 1): the detection
+        grid and the working resolution's, each a (frame size, box) whose box pixels are the working images' own
+        (:meth:`WorkingGeometry.light_grid`); the fine one may be None (the fine pass then upsamples the coarse
+        light). None at scale 1, or when the coarse grid is not whole pixels or not a whole fraction of the working
+        one: the light is then passed at the camera's size or the ROI's, as always. Why: predicting at the
+        detection size costs a quarter of the pixels at 0.5, and averaging a full-size prediction down cost the
+        prediction, the mix and the area resize in full."""
+        if self.fine is None:
+            return None
+        coarse = self.geometry.light_grid()
+        (cw, ch), (fw, fh) = self.geometry.work_size, self.fine.work_size
+        ratio = fw // cw
+        if coarse is None or (fw, fh) != (ratio * cw, ratio * ch):
+            return None
+        return LightGrids(coarse, self.fine.light_grid(), ratio)
+
     def reset(self) -> None:
         """Forget the reference, tracks and time (a new recording or a camera restart)."""
         self.reference.reset()
@@ -184,6 +212,7 @@ class TouchPipeline:
         projected_light: np.ndarray | None = None,
         projected_spread: np.ndarray | None = None,
         probe_light: np.ndarray | None = None,
+        fine_light: Callable[[slice, slice], np.ndarray | None] | None = None,
     ) -> FrameResult:
         """One camera frame (gray uint8 (H, W) or BGR (H, W, 3)) at camera time ``t`` (strictly increasing).
 
@@ -199,6 +228,12 @@ class TouchPipeline:
         projector's share of the light per place (:mod:`feelium.touch.roomshare`) and is compensated with it.
         Wherever that share is known (from the probe or from ``projected_light``), a candidate that takes less than
         ``contact_projected_depth`` of the projector's own light away is a hand above the membrane, not a contact.
+
+        With ``detect_scale`` < 1, ``projected_light`` and ``projected_spread`` may also come at the detection size
+        (predicted on :attr:`light_grids`' coarse grid), and ``fine_light(rows, cols)`` gives the same exposure's
+        light at the working resolution over a window of the fine image (predicted there only; the pipeline may
+        write into the array it returns; when it returns None or is not given, the fine pass upsamples the coarse
+        light).
         """
         t = float(t)
         if not math.isfinite(t):
@@ -290,7 +325,8 @@ class TouchPipeline:
         fine_inputs = None
         learn_detail = self.fine is not None and self.settled and self.detail.due(t)
         if self.fine is not None and (candidates or learn_detail):
-            fine_inputs = self._fine_inputs(frame, backlight_gain, projected_light, light is not None, bound_full)
+            lights = None if light is None else (projected_light, light, fine_light)
+            fine_inputs = self._fine_inputs(frame, backlight_gain, lights, bound_full)
         if candidates and fine_inputs is not None:
             # The fine depth decides, as the full-resolution path would: a coarse shadow it finds nothing in is none.
             candidates, geometry = self._refine(fine_inputs, candidates), self.fine
@@ -407,22 +443,50 @@ class TouchPipeline:
         self,
         frame: np.ndarray,
         backlight_gain: np.ndarray | None,
-        projected_light: np.ndarray | None,
-        compensated: bool,
+        lights: tuple[np.ndarray, np.ndarray, Callable[[slice, slice], np.ndarray | None] | None] | None,
         bound: np.ndarray | None,
     ) -> FineInputs:
         """This frame at the working resolution and the coarse pass's state it is read against
-        (feelium.touch.refine)."""
+        (feelium.touch.refine); ``lights``: (projected light as passed, its cut, ``fine_light``), None when this
+        frame is not compensated."""
         fine = self.fine
         assert fine is not None and self.reference.image is not None
         work, _ = self._prepare(frame, backlight_gain, fine, "fine.work")
-        slope = self.response.slope if compensated else None
-        light = None
-        if slope is not None and projected_light is not None:
-            light = self._cut_light(projected_light, "fine.light", geometry=fine)
+        slope = self.response.slope if lights is not None else None
+        light = None if slope is None or lights is None else self._fine_light(*lights)
         ref = self.reference
         expected = np.multiply(ref.image, ref.expected_gain(), out=self._fine_scratch.like("fine.expected", ref.image))
         return FineInputs(work, expected, light, slope, bound, self._fine_off_face, self.detail.ratio)
+
+    def _fine_light(
+        self,
+        projected_light: np.ndarray,
+        coarse_light: np.ndarray,
+        fine_light: Callable[[slice, slice], np.ndarray | None] | None,
+    ) -> Callable[[Window], np.ndarray]:
+        """The projected light at the working resolution over a window of the fine image: predicted there
+        (``fine_light``), else cut from a light passed at the camera's or the ROI's size, else (a light passed at
+        the detection size only) ``coarse_light``, this frame's cut light, upsampled."""
+        fine = self.fine
+        assert fine is not None
+        buf = self._fine_scratch
+
+        def upsampled(window: Window) -> np.ndarray:
+            rows, cols = window
+            out = buf.get("fine.light_up", (rows.stop - rows.start, cols.stop - cols.start), fine.dtype)
+            return upsample_window(coarse_light, fine.work_size, window, out)
+
+        if fine_light is not None:
+
+            def predicted(window: Window) -> np.ndarray:
+                light = fine_light(*window)
+                return upsampled(window) if light is None else _clean_light(light.astype(fine.dtype, copy=False), 0.0)
+
+            return predicted
+        if _light_is(projected_light, fine):
+            whole = self._cut_light(projected_light, "fine.light", geometry=fine)
+            return lambda window: whole[window]
+        return upsampled
 
     def _refine(self, inputs: FineInputs, candidates: list[Candidate]) -> list[Candidate]:
         """The candidates found again at the working resolution around the coarse ones' shadows (fine working
@@ -540,19 +604,33 @@ class TouchPipeline:
         g = self.geometry if geometry is None else geometry
         fw, fh = g.frame_size
         x, y, w, h = g.roi
+        out = self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype)
         if projected_light.shape == (fh, fw):
             projected_light = projected_light[y : y + h, x : x + w]
         elif projected_light.shape != (h, w):
-            raise ValueError(
-                f"projected_light shape {projected_light.shape} is neither the camera's {fw}x{fh} nor the ROI's {w}x{h}"
-            )
+            if projected_light.shape != out.shape:
+                raise ValueError(
+                    f"projected_light shape {projected_light.shape} is neither the camera's {fw}x{fh}, the ROI's "
+                    f"{w}x{h} nor the working image's {g.work_size[0]}x{g.work_size[1]}"
+                )
+            np.copyto(out, projected_light)  # predicted on the working grid (light_grids): nothing to resize
+            return _clean_light(out, unknown)
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
-        out = self._scratch.get(name, (g.work_size[1], g.work_size[0]), g.dtype)
-        light = g.cut_roi(projected_light.astype(np.float32, copy=False), out=out)
-        if not cv2.checkRange(light)[0]:  # one pass, and almost always all finite: nan_to_num takes four
-            np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
-        np.clip(light, 0.0, LIGHT_MAX, out=light)
-        return light
+        return _clean_light(g.cut_roi(projected_light.astype(np.float32, copy=False), out=out), unknown)
+
+
+def _clean_light(light: np.ndarray, unknown: float) -> np.ndarray:
+    """``light`` in place: NaN and inf become ``unknown``, negatives 0, the rest clipped to the light's range."""
+    if not cv2.checkRange(light)[0]:  # one pass, and almost always all finite: nan_to_num takes four
+        np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
+    np.clip(light, 0.0, LIGHT_MAX, out=light)
+    return light
+
+
+def _light_is(light: np.ndarray, geometry: WorkingGeometry) -> bool:
+    """Whether ``light`` is of the camera frame's size or the ROI's (what :meth:`TouchPipeline._cut_light` cuts)."""
+    fw, fh = geometry.frame_size
+    return light.shape in ((fh, fw), (geometry.roi[3], geometry.roi[2]))
 
 
 SHARE_REBASE = 0.05  # change of the learned projector share that re-bases the reference

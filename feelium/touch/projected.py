@@ -17,13 +17,16 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable
 
+import cv2
 import numpy as np
 
 from feelium.touch.buffers import Scratch
 from feelium.touch.config import TouchConfig
-from feelium.touch.settle import predicted_exposure
+from feelium.touch.settle import exposure_shares, predicted_exposure
 
 LATE_S = 0.1  # how long after its exposure a camera frame may still be processed: three frames at 30 fps
+# A projector frame's grey canvas to its light over (rows, cols) of the finer box (see ExposureLight.window).
+WindowPredictor = Callable[[np.ndarray, slice, slice], np.ndarray]
 HISTORY_MAX = 16  # a bound whatever the projector's rate (0.2 MB canvases: 3.1 MB at most; 60 fps needs 11)
 
 
@@ -67,12 +70,23 @@ class ProjectorHistory:
 class ExposureLight:
     """Per camera frame size: (light, spread) a camera exposure saw, from the recent projector frames."""
 
-    def __init__(self, predict: Callable[[np.ndarray, np.ndarray | None], np.ndarray], config: TouchConfig) -> None:
+    def __init__(
+        self,
+        predict: Callable[[np.ndarray, np.ndarray | None], np.ndarray],
+        config: TouchConfig,
+        window: WindowPredictor | None = None,
+    ) -> None:
         """``predict(canvas, out)``: a projector frame's grey canvas to its light at the camera frame size (relative
         to the flat grey), written into ``out`` when it is an array of that size (float32) or a new array when it is
         None or not. ``out`` is the light of a frame that left the window: recycling it keeps the daemon from
-        mapping and faulting in a new 0.3 MB image per projector frame (allocations from 128 KB are mmapped)."""
+        mapping and faulting in a new 0.3 MB image per projector frame (allocations from 128 KB are mmapped).
+
+        ``window(canvas, rows, cols)``: the light at a finer size than ``predict``'s, over a window only; with it,
+        :meth:`window` gives the last exposure's light there (the touch pipeline's fine pass, ``detect_scale`` < 1).
+        """
         self._predict = predict
+        self._window = window
+        self._last: tuple[list[tuple[float, int, np.ndarray]], float] | None = None
         self._latency = config.projector_latency_s
         self._sigma = config.projector_latency_sigma_s
         self._exposure = config.camera_exposure_s
@@ -89,7 +103,9 @@ class ExposureLight:
 
         The two arrays are reused by the next call: use them before asking for another exposure."""
         if not frames:
+            self._last = None
             return None
+        self._last = (frames, t)
         by_seq = {seq: frame for _, seq, frame in frames}
 
         def light_of(seq: object) -> np.ndarray:
@@ -123,3 +139,25 @@ class ExposureLight:
                 self._free.append(light)
         del self._free[2:]  # one or two new frames per camera frame
         return result
+
+    def window(self, rows: slice, cols: slice) -> np.ndarray | None:
+        """The last exposure's light (at the assumed latency, as :meth:`__call__` mixed it) at the window
+        predictor's size over ``rows``, ``cols`` only (a new float32 array); None without a window predictor or
+        before any projector frame.
+
+        Why: the coarse detection pass reads the light at its own size, but the fine pass decides a candidate on the
+        working resolution's detail, and the projected light carries as sharp edges as the frame (a face's features
+        blurred by ~0.5 camera px): upsampling the coarse light would leave them in the depth. Each frame is predicted
+        again in the window (not cached: the window moves with the hand), mixed with the same weights."""
+        if self._window is None or self._last is None:
+            return None
+        frames, t = self._last
+        shown = [f[0] for f in frames]
+        out: np.ndarray | None = None
+        for i, w in exposure_shares(shown, t, self._exposure, self._latency):
+            light = self._window(frames[i][2], rows, cols).astype(np.float32, copy=False)
+            if out is None:
+                out = np.multiply(light, np.float32(w))
+            else:
+                cv2.scaleAdd(light, float(w), out, dst=out)
+        return out

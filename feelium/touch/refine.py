@@ -13,7 +13,8 @@ cuts it) and everything the coarse pass learned, brought up to it: the reference
 light's response (slope) and the spread's depth bound are all smooth at the coarse pixel's scale (the back-light,
 the projector's diffused light, a blurred bound), so a bilinear upsampling of the window loses little the gates
 can see, except the membrane's fixed fine texture, which is learned apart (:class:`FineDetail`); what carries the
-detail, the frame and the predicted light, is taken at the working resolution. What is left between this and the
+detail, the frame and the predicted light, is taken at the working resolution (the light predicted in the window
+only, :meth:`feelium.touch.projected.ExposureLight.window`). What is left between this and the
 full-resolution path is the coarse reference's own adaptation (docs/touch.md, *Detection at half resolution*).
 """
 
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -134,7 +136,9 @@ class FineInputs:
 
     work: np.ndarray  # the frame at the fine working resolution (back-light divided out), fine size
     expected: np.ndarray  # reference times its gain (rows included): what the flat membrane gives this frame
-    light: np.ndarray | None = None  # predicted projected light, fine size (None: nothing projected)
+    # The predicted projected light at the fine size over a window (None: nothing projected): the fine pass reads it
+    # in its window only, so the daemon predicts it there only (feelium.touch.projected.ExposureLight.window).
+    light: Callable[[Window], np.ndarray] | None = None
     slope: np.ndarray | None = None  # the learned response's slope (with ``light``)
     bound: np.ndarray | None = None  # the spread's depth bound, zero where none was computed
     off_face: np.ndarray | None = None  # fine pixels off the face (no signal), fine size
@@ -149,7 +153,7 @@ def fine_flat(inputs: FineInputs, window: Window, *, saturation_level: float, sc
         return work
     h, w = inputs.work.shape
     slope = upsample_window(inputs.slope, (w, h), window, scratch.like("fine.slope", work))
-    part = np.subtract(np.float32(1.0), inputs.light[window], out=scratch.like("fine.part", work))
+    part = np.subtract(np.float32(1.0), inputs.light(window), out=scratch.like("fine.part", work))
     part *= slope
     compensated = np.add(work, part, out=part)
     saturated = np.greater_equal(work, saturation_level, out=scratch.like("fine.saturated", work, bool))

@@ -40,10 +40,10 @@ log = logging.getLogger(__name__)
 PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, int] | None"], Any]
 # Per camera frame size (width, height) and box [x, y, w, h] (the pipeline's ROI, or None for the whole frame): a
 # projector frame to the light it puts on the membrane over that box (``predict(canvas, out)``: ``out`` a recycled
-# array to write into, or None; see ExposureLight).
-ProjectedFactory = Callable[
-    [tuple[int, int], "tuple[int, int, int, int] | None"], Callable[[np.ndarray, np.ndarray | None], np.ndarray]
-]
+# array to write into, or None; see ExposureLight). A pipeline that detects coarser asks for its detection grid with
+# two more arguments, ``average_of`` (LightGrids) and the working grid's predictor (asked for first), and uses that
+# one's ``window(canvas, rows, cols)`` when it has one.
+ProjectedFactory = Callable[..., Callable[[np.ndarray, np.ndarray | None], np.ndarray]]
 Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
 
 
@@ -148,6 +148,7 @@ class TouchService:
         self.stale_after_s = stale_after_s
         self.projector_history = ProjectorHistory(history_window_s(touch_config))
         self._exposure_light: ExposureLight | None = None
+        self._windowed = False  # the pipeline takes the fine pass's light from self._window_light
         self.projected_errors = 0
         self.last_projected_error: str | None = None
         self._frame_size: tuple[int, int] | None = None
@@ -271,7 +272,8 @@ class TouchService:
             result = pipeline.process(frame.t, frame.image)
         else:
             light, spread = projected
-            result = pipeline.process(frame.t, frame.image, projected_light=light, projected_spread=spread)
+            fine = {} if not self._windowed else {"fine_light": self._window_light}
+            result = pipeline.process(frame.t, frame.image, projected_light=light, projected_spread=spread, **fine)
         debug = None
         if want_debug:
             try:
@@ -292,6 +294,32 @@ class TouchService:
             self.last_projected_error = f"{type(exc).__name__}: {exc}"
             return None
 
+    def _window_light(self, rows: slice, cols: slice) -> np.ndarray | None:
+        """The last exposure's light at the pipeline's working resolution over a window of its fine pass, or None
+        (the pipeline then upsamples its coarse light); a failing prediction costs only that window's detail."""
+        assert self._exposure_light is not None
+        try:
+            return self._exposure_light.window(rows, cols)
+        except Exception as exc:
+            self.projected_errors += 1
+            self.last_projected_error = f"{type(exc).__name__}: {exc}"
+            return None
+
+    def _exposure_light_for(self, size: tuple[int, int], box: tuple[int, int, int, int] | None) -> ExposureLight | None:
+        """How each exposure's light is predicted for the new pipeline: over its ROI at the frame's size, or, when it
+        detects at a coarser size (``light_grids``), on that grid, with the working resolution's light predicted in
+        the fine pass's windows only (by the predictor's ``window``, when it has one)."""
+        self._windowed = False
+        if self.projected is None:
+            return None
+        grids = getattr(self._pipeline, "light_grids", None)
+        if grids is None:
+            return ExposureLight(self.projected(size, box), self.touch_config)
+        fine = None if grids.fine is None else self.projected(*grids.fine)
+        coarse = self.projected(*grids.coarse, grids.average_of, fine)  # the fine one shares its canvas light
+        self._windowed = True
+        return ExposureLight(coarse, self.touch_config, getattr(fine, "window", None))
+
     def _pipeline_for(self, frame: Frame) -> tuple[Any, Released | None]:
         """The pipeline for this frame's segment, size and ROI, and the contacts the one it replaces released."""
         size = (int(frame.image.shape[1]), int(frame.image.shape[0]))
@@ -304,9 +332,7 @@ class TouchService:
             self._frame_size = size
             # Predicted only over the ROI the pipeline cuts (it takes light of the ROI's size or of the frame's).
             box = getattr(self._pipeline, "roi", None)
-            self._exposure_light = (
-                ExposureLight(self.projected(size, box), self.touch_config) if self.projected is not None else None
-            )
+            self._exposure_light = self._exposure_light_for(size, box)
             self._last_debug = None
         return self._pipeline, flushed
 

@@ -53,10 +53,14 @@ def _frames() -> tuple[list[np.ndarray], tuple[int, int, int, int]]:
     return out, roi
 
 
-def _digest(projected: bool, cut: bool = False, patchy: bool = False, detect_scale: float = 1.0) -> str:
+def _digest(
+    projected: bool, cut: bool = False, patchy: bool = False, detect_scale: float = 1.0, grids: bool = False
+) -> str:
     """``cut``: hand the pipeline the light and spread already cut to its ROI (as the daemon's predictor makes
     them) instead of the whole frame's; ``patchy``: spreads zero but for a patch (at the ROI's edge, inside it) or
-    everywhere, as at and between a projector's scene cuts."""
+    everywhere, as at and between a projector's scene cuts; ``grids`` (with ``detect_scale`` < 1): the light and
+    spread at the detection size (the ROI's area-averaged) and the working resolution's light by windows
+    (``fine_light``), as the daemon hands them over ``TouchPipeline.light_grids``."""
     config = Config()
     touch = dataclasses.replace(config.touch, width=SIZE[0], height=SIZE[1], detect_scale=detect_scale)
     frames, roi = _frames()
@@ -75,11 +79,26 @@ def _digest(projected: bool, cut: bool = False, patchy: bool = False, detect_sca
         x, y, rw, rh = roi
         lights = [a[y : y + rh, x : x + rw].copy() for a in lights]
         spreads = [a[y : y + rh, x : x + rw].copy() for a in spreads]
+    windows: list[tuple[int, int, int]] = []
+    if grids:
+        x, y, rw, rh = roi
+        assert pipeline.light_grids is not None and pipeline.fine is not None
+        fine = [a[y : y + rh, x : x + rw] for a in lights]
+        lights = [pipeline.geometry.cut_roi(a) for a in fine]
+        spreads = [pipeline.geometry.cut_roi(a[y : y + rh, x : x + rw]) for a in spreads]
     sha = hashlib.sha256()
     for i, frame in enumerate(frames):
         extra = {}
         if projected:
             extra = {"projected_light": lights[(i // 7) % 3], "projected_spread": spreads[(i // 5) % 3]}
+        if grids:
+            whole = fine[(i // 7) % 3]
+
+            def fine_light(rows: slice, cols: slice, whole: np.ndarray = whole) -> np.ndarray:
+                windows.append((i, rows.stop - rows.start, cols.stop - cols.start))
+                return whole[rows, cols].copy()
+
+            extra["fine_light"] = fine_light
         result = pipeline.process(i / FPS, frame, **extra)
         ref = pipeline.reference
         state = (ref.gain, pipeline.noise, pipeline.masked, pipeline.settled, pipeline.light_changes)
@@ -89,6 +108,9 @@ def _digest(projected: bool, cut: bool = False, patchy: bool = False, detect_sca
             arrays += (pipeline.detail.ratio,)
         for array in arrays:
             sha.update(b"-" if array is None else np.ascontiguousarray(array).tobytes())
+    if grids:  # the fine pass asked for windows, smaller than its whole image but for the pattern's lessons
+        fw, fh = pipeline.fine.work_size
+        assert any(h * w < fw * fh for _, h, w in windows) and len({i for i, _, _ in windows}) > 10
     return sha.hexdigest()
 
 
@@ -141,3 +163,11 @@ def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: st
     i17room the same day for the new ``projected_depth`` field and the projected-light gate: with the field left
     out of the digest and the gate off, both are i16half's pins to the bit)."""
     assert _digest(projected, detect_scale=0.5) == expected
+
+
+def test_half_scale_light_on_the_detection_grid_with_fine_windows_gives_the_same_results() -> None:
+    """The daemon's way at ``detect_scale = 0.5``: light and spread at the detection size, the working resolution's
+    light only in the fine pass's windows (``fine_light``). Handed the same values (the working light area-averaged,
+    and its windows), the pipeline computes what it computes from the whole frame's light: the pinned digest."""
+    expected = "457fe827ece21ee09d1af512368d364d3053738e3e54f742d227766fa64eb7b1"
+    assert _digest(True, detect_scale=0.5, grids=True) == expected

@@ -134,3 +134,20 @@ def test_without_the_fine_pattern_a_textured_flat_membrane_reads_as_depth():
     without, learned = float(depth_of(None).max()), float(depth_of(detail.ratio).max())
     assert without > 0.02  # the texture alone, an eighth of the candidate threshold deep
     assert learned < 0.6 * without  # what is left is mostly the test frame's own sensor noise
+
+
+def test_the_light_grids_put_one_predicted_pixel_on_each_working_pixel():
+    """At 0.5 the light is predicted on a frame scaled to the detection size, over the ROI scaled: its pixel centres
+    are the detection image's (to_camera); an ROI at odd pixels has no such grid, and scale 1 asks for none."""
+    pipe = TouchPipeline(HALF, (W, H), ROI)
+    grids = pipe.light_grids
+    assert grids is not None and grids.average_of == 2
+    assert grids.coarse == ((80, 60), (8, 6, 64, 48)) and grids.fine == ((W, H), ROI)
+    (sw, _), (bx, by, _, _) = grids.coarse
+    for wx, wy in ((0, 0), (63, 47), (10.5, 3.25)):
+        # A pixel of the scaled frame maps to the camera as a working pixel does: same scale, offset by the box.
+        scale = W / sw
+        camera = ((bx + wx + 0.5) * scale - 0.5, (by + wy + 0.5) * scale - 0.5)
+        assert pipe.geometry.to_camera(wx, wy) == pytest.approx(camera)
+    assert TouchPipeline(HALF, (W, H), (17, 12, 128, 96)).light_grids is None
+    assert TouchPipeline(CFG, (W, H), ROI).light_grids is None

@@ -15,6 +15,7 @@ from feelium.cameras.select import CameraSource
 from feelium.events import TouchEvent
 from feelium.hub import Hub
 from feelium.touch.config import TouchConfig
+from feelium.touch.geometry import LightGrids
 from feelium.touch.service import TouchService
 
 
@@ -379,3 +380,57 @@ async def test_a_failing_light_prediction_costs_only_the_compensation():
     assert pipeline.lights == [(None, None)] * 3 and [e.phase for e in sub.drain()] == ["down", "up"]
     health = service.health()
     assert health["projected_errors"] == 3 and "512x384" in health["last_projected_error"]
+
+
+class CoarsePipeline(FakePipeline):
+    """Detects on a half-size grid (``light_grids``) and asks for the working resolution's light in a window."""
+
+    light_grids = LightGrids(((8, 6), (1, 1, 6, 4)), ((16, 12), (2, 2, 12, 8)), 2)
+
+    def process(self, t, frame, projected_light=None, projected_spread=None, fine_light=None):
+        window = None if fine_light is None else fine_light(slice(1, 3), slice(4, 7))
+        self.lights = getattr(self, "lights", []) + [(projected_light, window)]
+        return super().process(t, frame)
+
+
+async def test_a_coarse_pipeline_gets_its_light_on_its_grid_and_the_fine_light_by_windows():
+    """The working grid's predictor is asked for first and handed to the detection grid's (they share the canvas's
+    light); each frame's light comes at the detection size and the fine pass's window from the working grid's
+    ``window``; a window that fails costs only that window (None: the pipeline upsamples)."""
+    calls = []
+
+    class Predictor:
+        def __init__(self, size, box, *rest):
+            calls.append((size, box, *rest))
+            self.box = box
+
+        def __call__(self, canvas, out=None):
+            return np.full((self.box[3], self.box[2]), float(canvas[0, 0]) / 100.0, np.float32)
+
+        def window(self, canvas, rows, cols):
+            if canvas[0, 0] == 13:
+                raise ValueError("no window")
+            return np.full((rows.stop - rows.start, cols.stop - cols.start), float(canvas[0, 0]) / 10.0, np.float32)
+
+    hub = Hub()
+    hub.projector_canvas.publish(0.0, np.full((4, 4), 5, np.uint8))
+    camera = ScriptedCamera([_frame(0.1 * i, size=(16, 12)) for i in range(1, 4)], delay=0.02)
+    service = TouchService(
+        CameraSource("scripted", lambda: camera), hub, TouchConfig(),
+        pipeline_factory=CoarsePipeline, overlay=_overlay, projected=Predictor,
+    )
+
+    async def failing_canvas():
+        while service.health().get("projector_frames", 0) < 1:
+            await asyncio.sleep(0.001)
+        hub.projector_canvas.publish(0.15, np.full((4, 4), 13, np.uint8))
+
+    await asyncio.gather(service.run(), failing_canvas())
+    fine, coarse = calls
+    assert fine == ((16, 12), (2, 2, 12, 8)) and coarse[:3] == ((8, 6), (1, 1, 6, 4), 2)
+    assert isinstance(coarse[3], Predictor) and coarse[3].box == (2, 2, 12, 8)
+    (pipeline,) = FakePipeline.created
+    first_light, first_window = pipeline.lights[0]
+    assert first_light.shape == (4, 6) and first_window.shape == (2, 3) and float(first_window[0, 0]) == 0.5
+    assert pipeline.lights[-1][1] is None  # the last exposure saw the canvas whose window fails
+    assert service.health()["projected_errors"] >= 1

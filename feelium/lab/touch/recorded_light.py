@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import functools
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +28,7 @@ from feelium.projector.config import CalibrationConfig, ProjectorConfig
 from feelium.recording import Recording, RecordingError
 from feelium.skin.projector_map import CalibrationError, ProjectorMap, load_calibration
 from feelium.touch.config import TouchConfig
+from feelium.touch.geometry import LightGrids
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
 
 CALIBRATION_FILE = "projector-calibration.npz"  # a map saved by ProjectorMap.save, found beside the trials
@@ -40,13 +41,40 @@ class RecordedLight:
     """Per camera frame time: the pipeline's ``projected_light``/``projected_spread`` keyword arguments."""
 
     def __init__(
-        self, frames: Iterator[tuple[float, np.ndarray]], predictor: BacklightPredictor, config: TouchConfig
+        self,
+        frames: Iterator[tuple[float, np.ndarray]],
+        predictor: BacklightPredictor,
+        config: TouchConfig,
+        predictor_for: Callable[[tuple[int, int], int], BacklightPredictor] | None = None,
     ) -> None:
+        """``predictor_for(frame size, average_of)``: the same predictor at another size, for :meth:`use_grids`."""
         self._frames = frames
         self._next: tuple[float, np.ndarray] | None = next(frames, None)
         self._seq = 0
+        self._config = config
+        self._predictor_for = predictor_for
         self._history = ProjectorHistory(history_window_s(config))
         self._light = ExposureLight(lambda frame, _out: predictor.gain(frame), config)  # allocates: lab replay
+        self._fine: dict[str, object] = {}
+
+    def use_grids(self, grids: LightGrids | None) -> None:
+        """Predict as the daemon does for a pipeline that detects coarser (:attr:`TouchPipeline.light_grids`): on
+        the detection grid, and at the working resolution in the fine pass's windows (``fine_light``). The frame
+        predictor has no window of its own: the lab predicts the whole box and cuts the window (the same values)."""
+        if grids is None or self._predictor_for is None:
+            return
+        size, (x, y, w, h) = grids.coarse
+        coarse = self._predictor_for(size, grids.average_of)
+        window = None
+        if grids.fine is not None:
+            fine_size, (fx, fy, fw, fh) = grids.fine
+            full = self._predictor_for(fine_size, 1)
+
+            def window(frame: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+                return full.gain(frame)[fy : fy + fh, fx : fx + fw][rows, cols]
+
+        self._light = ExposureLight(lambda frame, _out: coarse.gain(frame)[y : y + h, x : x + w], self._config, window)
+        self._fine = {"fine_light": self._light.window}
 
     def __call__(self, t: float) -> dict[str, np.ndarray]:
         """What the daemon would know at camera time ``t``: every projector frame shown up to ``t``."""
@@ -58,7 +86,7 @@ class RecordedLight:
         if mixed is None:
             return {}
         light, spread = mixed  # reused by the next call: the pipeline reads them within this frame
-        return {"projected_light": light, "projected_spread": spread}
+        return {"projected_light": light, "projected_spread": spread, **self._fine}
 
 
 def find_calibration(recording: Path, root: Path) -> Path | None:
@@ -127,4 +155,6 @@ def recorded_light(
             raise RecordingError(path, str(exc)) from exc
     camera = recording.meta.camera
     predictor = BacklightPredictor(projector, cal, (camera.width, camera.height))
-    return RecordedLight(recording.projector_frames(), predictor, touch)
+    return RecordedLight(
+        recording.projector_frames(), predictor, touch, lambda size, n: BacklightPredictor(projector, cal, size, average_of=n)
+    )

@@ -77,6 +77,9 @@ def replay_recording(
     meta = recording.meta
     size = (meta.camera.width, meta.camera.height)
     pipeline = TouchPipeline(config, size, meta.roi, plain=plain, face=face_of(recording))
+    use_grids = getattr(light, "use_grids", None)
+    if use_grids is not None:  # a recording's light, predicted where the pipeline reads it (the daemon's way)
+        use_grids(pipeline.light_grids)
     out = ReplayResult(recording=recording)
     ts, act, anc, area, dmax, core, edge, spf, cpu = [], [], [], [], [], [], [], [], []
     for t, frame in frames if frames is not None else recording.frames(gray=True):
