@@ -184,7 +184,10 @@ def prepare(record: FlightRecord, floor_limit_m: float = 0.0, ceiling_limit_m: f
     t = np.asarray(record.t, float)
     dt = float(np.median(np.diff(t)))
     grid = t[0] + dt * np.arange(t.size)
-    held = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, t.size - 1)
+    # The command held at each grid point is the nearest tick's: the grid and the logged ticks are the same
+    # instants up to rounding (``t`` accumulates a float period), and a grid point a hair before its tick must
+    # not take the previous tick's command (that delayed every command one period in the last minutes of a flight).
+    held = np.clip(np.searchsorted(t, grid + 0.5 * dt, side="right") - 1, 0, t.size - 1)
     commands = np.asarray(record.commands, float)[held]
     rate: dict[str, np.ndarray] = {}
     accel: dict[str, np.ndarray] = {}

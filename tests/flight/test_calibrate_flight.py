@@ -20,7 +20,7 @@ from feelium.flight import messages as m
 from feelium.flight.sim_board import BoardParams, SensorParams
 from feelium.flight.config import FlightConfig
 from feelium.flight.estimators import SurgeEstimate
-from feelium.flight.sysid import Estimate, PlantFit, lagged_mean, least_squares, motor_shape, smooth
+from feelium.flight.sysid import Estimate, FlightRecord, PlantFit, lagged_mean, least_squares, motor_shape, prepare, smooth
 from feelium.flight.blimp_model import BlimpParams
 from feelium.lab.flight.calibrate import MAX_FLIGHT_S, axis_uncertainties, calibrate_sim, fly, hover_guess, recovery_errors, sim_run, tight_goals
 from feelium.lab.flight.plants import describe, plant_set
@@ -39,6 +39,24 @@ def test_lagged_mean_is_the_exact_period_mean_of_a_first_order_lag(lag: float, l
     for k in (5, 6, 10, 30):
         tt = (np.arange(fine) + 0.5) / fine * dt + (k - 5) * dt
         assert means[k] == pytest.approx(level * np.mean(1.0 - np.exp(-tt / lag)), abs=1e-6)
+
+
+@settings(max_examples=20, deadline=None)
+@given(start=st.floats(0.0, 1000.0), period=st.sampled_from([0.02, 0.01, 0.025]))
+def test_each_tick_keeps_its_own_command_on_the_fit_grid_however_the_ticks_round(start: float, period: float) -> None:
+    """The flight's ticks accumulate a float period (``tick += period``, as ``fly`` does), so the fit's uniform
+    grid drifts a hair before or after them; each grid point must still hold its own tick's command. Taking
+    the previous one there delayed every command by a period from about 208 s of a flight on (session 14)."""
+    n = 15000
+    t = np.empty(n)
+    tick = start
+    for k in range(n):
+        t[k] = tick
+        tick += period
+    commands = np.random.default_rng(1).uniform(-1.0, 1.0, (n, 4))
+    readings = np.ones(n)
+    record = FlightRecord(t, commands, readings, readings, readings)
+    np.testing.assert_array_equal(prepare(record).commands, commands)
 
 
 def test_motor_shape_is_zero_in_the_deadband_and_quadratic_beyond_it() -> None:
