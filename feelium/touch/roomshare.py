@@ -49,12 +49,14 @@ import math
 import cv2
 import numpy as np
 
+from feelium.skin import probe
 from feelium.touch.illumination import TILE_PX
 
 MIN_TILE_WEIGHT = 0.5  # share of a tile's pixels that must be usable for it to learn on this frame
-# A tile's share is believed once it has seen this variance of ``light - 1`` (a 3 % probe's sinusoid gives
-# 0.00045 per frame: its weighted sums pass this after a few frames).
-MIN_LIGHT_VAR = 1e-4
+# A tile's share is believed once it has seen this variance of ``light - 1``: the probe's sinusoid gives
+# ``amplitude^2 / 2`` inside a cell (0.00045 at 3 %), and a tile passes at 1 / 4.5 of it (1e-4 at 3 %, session 13's
+# value): after a few frames inside a cell, never on a tile that straddles two cells about equally.
+MIN_LIGHT_VAR = probe.AMPLITUDE**2 / 2.0 / 4.5
 SPREAD_SIGMA_TILES = 1.0  # tiles take the share of the informative tiles about this near
 SHARE_LIMITS = (0.0, 1.0)
 

@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from feelium.projector.probe import PERIOD_S, probe_light, probe_pattern
+from feelium.skin.probe import PERIOD_S, probe_light, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
 from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
