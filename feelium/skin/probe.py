@@ -19,11 +19,12 @@ lie inside one cell). The period is short against a hand's approach (a shadow
 growing under a tile over a second, while a slow probe happened to rise, read
 as light following the projector: with a 2 s period the share came out 0.1
 low under one tap and it was lost) and long against the camera's frame and the
-projector's latency (7.5 camera frames per period at 15 fps). The amplitude is
-chosen for the people in the room (docs/projector.md, *The probe*): 3 % was
-the lab's first choice, about three times the threshold contrast of a
-counterphase pattern flickering at 2 Hz at these sizes, so visible to anyone
-looking; :data:`AMPLITUDE` is the default, ``[projector] probe_amplitude`` sets it.
+projector's latency (7.5 camera frames per period at 15 fps). The amplitude,
+3 %, is 1.5-3 times the threshold contrast of a counterphase pattern at 2 Hz of
+these sizes in a dim room (the room's light dilutes it where the probe is
+needed); 1 % would be at threshold but made the share's fit too noisy and lost
+taps (docs/projector.md, *The probe*). The learning's variance threshold
+(:data:`feelium.touch.roomshare.MIN_LIGHT_VAR`) follows :data:`AMPLITUDE`.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from collections import deque
 
 import numpy as np
 
-AMPLITUDE = 0.01
+AMPLITUDE = 0.03
 PERIOD_S = 0.5
 CELL_PX = 64  # at REFERENCE_WIDTH: a cell is the same part of the skin whatever the camera's resolution
 REFERENCE_WIDTH = 640
