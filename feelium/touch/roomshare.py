@@ -202,8 +202,8 @@ class ProjectorShare:
 
     def room_scale(self) -> float:
         """``k``: how much the room's light moved lately, everywhere alike, judged by the short fit (1.0 while either
-        fit knows too little). Solved by bisection: the long fit's shares moved by ``k``, pooled with the short fit's
-        weights (its change of light per tile), equal the short fit's pooled share."""
+        fit knows too little). Solved by Newton's method from 1: the long fit's shares moved by ``k``, pooled with the
+        short fit's weights (its change of light per tile), equal the short fit's pooled share."""
         fitted = self.tiles()
         if fitted is None or self._fast is None or self._fast[0].shape != fitted[0].shape:
             return 1.0
@@ -216,19 +216,19 @@ class ProjectorShare:
             return 1.0
         pk, vk = p[known].astype(np.float64), var[known]
         target = float(np.sum((sxu - sx * su / safe)[known]))
-
-        def pooled(k: float) -> float:
-            return float(np.sum(vk * pk / np.maximum(pk + k * (1.0 - pk), 1e-9)))
-
-        lo, hi = math.log(ROOM_SCALE_LIMITS[0]), math.log(ROOM_SCALE_LIMITS[1])
-        if target >= pooled(math.exp(lo)):
-            return ROOM_SCALE_LIMITS[0]
-        if target <= pooled(math.exp(hi)):
-            return ROOM_SCALE_LIMITS[1]
-        for _ in range(24):  # pooled(k) falls as k grows
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if pooled(math.exp(mid)) > target else (lo, mid)
-        return math.exp(0.5 * (lo + hi))
+        qk = 1.0 - pk
+        k = 1.0
+        for _ in range(8):  # Newton's method from "unchanged": the pooled share falls smoothly as k grows
+            den = np.maximum(pk + k * qk, 1e-9)
+            f = float(np.sum(vk * pk / den)) - target
+            slope = -float(np.sum(vk * pk * qk / (den * den)))
+            if slope >= -1e-12:
+                break
+            step = f / slope
+            k = min(max(k - step, ROOM_SCALE_LIMITS[0]), ROOM_SCALE_LIMITS[1])
+            if abs(step) < 1e-4:
+                break
+        return k
 
     def tiles(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Per tile: the fitted share and how much change of light it saw (its weighted variance of ``light - 1``
