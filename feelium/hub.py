@@ -99,6 +99,8 @@ class Hub:
     projector_video: Latest[Any] = field(default_factory=Latest)  # what the projector shows
     # the grey skin canvas of each frame shown, stamped as projector_video: the touch side's back-light prediction
     projector_canvas: Latest[Any] = field(default_factory=Latest)
+    # the probe's level (feelium.skin.probe) in each frame shown, stamped as projector_video; None: no probe
+    projector_probe: Latest[Any] = field(default_factory=Latest)
     face: Latest[Any] = field(default_factory=Latest)  # the wearer's face or avatar from the headset
     motion: DeadManCommands = field(default_factory=DeadManCommands)
     state: StateBoard = field(default_factory=StateBoard)

@@ -42,6 +42,13 @@ class SharedScene:
         """The scene's (camera) time now."""
         return self._clock() - self.origin
 
+    def project_probe(self, levels: Any, latency_s: float) -> None:
+        """Light the scene with the projector's probe (``levels``: a :class:`feelium.skin.probe.ProbeLevels` fed
+        on the daemon's clock), when the scene can show it."""
+        if hasattr(self.scene, "project_probe"):
+            with self._lock:
+                self.scene.project_probe(levels, self.origin, latency_s)
+
     def press(self, x: float, y: float, t: float, *, hover: bool = False) -> None:
         """Put or move a fingertip at camera pixel (x, y); ``t`` is a ``hub.clock()`` time."""
         with self._lock:

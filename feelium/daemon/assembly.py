@@ -24,7 +24,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -63,6 +63,8 @@ def build_touch(config: Config, hub: Hub) -> Service | None:
     if source is None:
         return None
     hub.rear_scene = source.scene  # the simulated scene, for the partner page's presses; None on hardware
+    if source.scene is not None:
+        light_scene_with_probe(source.scene, hub, config.touch.projector_latency_s)
     return TouchService(
         source,
         hub,
@@ -72,6 +74,17 @@ def build_touch(config: Config, hub: Hub) -> Service | None:
         projected=load_projected_light(config, source.backend),
         stale_after_s=config.rear_camera.stale_after_s,
     )
+
+
+def light_scene_with_probe(scene: Any, hub: Hub, latency_s: float) -> None:
+    """The simulated rear scene sees the probe the projector service lays (``hub.projector_probe``), ``latency_s``
+    after each frame was shown (the latency touch assumes: the simulated projector has no other), so ``feelium
+    run`` in sim exercises the probe from the projector's frames to the touch pipeline's share."""
+    from feelium.skin.probe import ProbeLevels
+
+    levels = ProbeLevels()
+    hub.projector_probe.listen(lambda item: levels.record(item.t, item.value))
+    scene.project_probe(levels, latency_s)
 
 
 def build_front_camera(config: Config, hub: Hub) -> Service | None:

@@ -92,4 +92,10 @@ class ProjectorConfig:
     diffusion_px: float = setting(
         0.7, "Membrane diffusion of projected light, in camera px, for the back-light prediction.", min=0.0, max=30.0
     )
+    probe: Literal["auto", "on", "off"] = setting(
+        "auto",
+        "The touch probe, a faint checkerboard pulsing at 2 Hz that teaches touch the projector's share of the "
+        "membrane's light in a lit room (docs/projector.md, The probe): auto lays it while the skin shows no moving "
+        "wearer video (the avatar, a still face: nothing touch could learn from), on always, off never.",
+    )
     calibration: CalibrationConfig = section(CalibrationConfig)

@@ -8,7 +8,9 @@ newest face JPEG if one arrived, renders the frame in a worker thread and
 shows it; the newest frame also goes to ``hub.projector_video``, stamped with
 the time the display got it, for the HTTP preview, and its grey skin canvas to
 ``hub.projector_canvas``, stamped the same, for the touch service, which
-compensates the light each camera exposure integrated. Bad input (an undecodable JPEG, an out-of-range event) is counted
+compensates the light each camera exposure integrated. On a static skin it lays
+the touch probe over the frame (``[projector] probe``, :mod:`feelium.projector.probe`) and publishes its level,
+stamped the same, on ``hub.projector_probe`` (None on frames without it). Bad input (an undecodable JPEG, an out-of-range event) is counted
 and skipped.
 """
 
@@ -30,12 +32,18 @@ from feelium.jpeginfo import JpegHeaderError, jpeg_size, reduction_for
 from feelium.interactions.engine import InteractionEngine, MotionReply
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.display import Display
+from feelium.projector.probe import ProbeOverlay
 from feelium.projector.renderer import Renderer
 from feelium.skin.face import FaceModel
+from feelium.skin.probe import AMPLITUDE, probe_level
 from feelium.skin.projector_map import ProjectorMap
 from feelium.skin.regions import Regions
 
 log = logging.getLogger(__name__)
+
+# A wearer's face that has not changed for this long is a still picture: the probe goes back on (auto). A video
+# sends 10-30 frames a second; its own motion teaches touch the projector's share.
+FACE_STILL_S = 1.0
 
 _REDUCED_FLAGS = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4, 8: cv2.IMREAD_REDUCED_COLOR_8}
 
@@ -76,10 +84,13 @@ class ProjectorService:
         self.engine = InteractionEngine(interactions, Regions.from_config(interactions)) if interactions.enabled else None
         self._face: np.ndarray | None = None
         self._face_seq = 0
+        self._face_at = -np.inf  # when the last new face frame arrived (the daemon's clock)
+        self._overlay: ProbeOverlay | None = None  # built on the first frame that carries the probe (0.15 s: a map fit)
         self._stopping = False
         self.counters: dict[str, Any] = {
             "frames": 0, "touch_events": 0, "actions": 0, "interaction_events": 0, "motions_sent": 0,
             "motions_skipped": 0, "faces": 0, "bad_faces": 0, "bad_events": 0, "render_ms": 0.0, "late_frames": 0, "last_error": None,
+            "probe_frames": 0,
         }
 
     def step_engine(self, subscription: Any, now: float) -> None:
@@ -130,6 +141,7 @@ class ProjectorService:
         if item is None or item.seq == self._face_seq:
             return
         self._face_seq = item.seq
+        self._face_at = self.hub.clock()
         if item.value is None:  # the wearer cleared the face: back to the default avatar
             self._face = None
             return
@@ -140,15 +152,29 @@ class ProjectorService:
             self._face = face  # shown until the wearer replaces or clears it, however long that is
             self.counters["faces"] += 1
 
-    def _render_and_show(self, now: float, face: np.ndarray | None, answers: tuple) -> tuple[np.ndarray, np.ndarray, float]:
-        """The frame, its grey canvas and the daemon-clock time the display got it (what the touch service's
-        latency counts from)."""
+    def probing(self, now: float) -> bool:
+        """Whether this frame carries the probe: ``on``, or ``auto`` while no wearer video plays (the avatar or a
+        face unchanged for :data:`FACE_STILL_S`)."""
+        if self.config.probe == "off":
+            return False
+        return self.config.probe == "on" or self._face is None or now - self._face_at >= FACE_STILL_S
+
+    def _render_and_show(
+        self, now: float, face: np.ndarray | None, answers: tuple, probing: bool
+    ) -> tuple[np.ndarray, np.ndarray, float, float | None]:
+        """The frame, its grey canvas, the daemon-clock time the display got it (what the touch service's
+        latency counts from) and the probe's level realised in it (None: no probe)."""
         start = time.perf_counter()
         frame, canvas = self.renderer.render_with_canvas(now, face, answers)
+        level = None
+        if probing:
+            if self._overlay is None:
+                self._overlay = ProbeOverlay(self.config, self.calibration)
+            frame, level = self._overlay.lay(frame, probe_level(now, AMPLITUDE))
         self.display.show(frame)
         shown = self.hub.clock()
         self.counters["render_ms"] = round((time.perf_counter() - start) * 1000.0, 2)
-        return frame, canvas, shown
+        return frame, canvas, shown, level
 
     async def run(self) -> None:
         period = 1.0 / self.config.fps
@@ -174,8 +200,11 @@ class ProjectorService:
             self.step_engine(subscription, now)
             await self.update_face()
             answers = self.engine.answers(now) if self.engine is not None else ()
-            frame, canvas, shown = await render.call(self._render_and_show, now, self._face, answers)
+            probing = self.probing(now)
+            frame, canvas, shown, level = await render.call(self._render_and_show, now, self._face, answers, probing)
             self.hub.projector_canvas.publish(shown, canvas)
+            self.hub.projector_probe.publish(shown, level)
+            self.counters["probe_frames"] += level is not None
             self.hub.projector_video.publish(shown, frame)
             self.counters["frames"] += 1
             due += period

@@ -16,6 +16,13 @@ class SimConfig:
     session: Literal["s1", "s2", "s3"] = setting(
         "s1", "Lighting, noise and projector of the live scene: one of the paper-protocol sessions."
     )
+    room_light: float = setting(
+        0.0,
+        "The room's own light through the membrane, as a fraction of the projector's mean back-light on the sensing "
+        "patch: 0 the paper's dim room, 1 a lit living room (docs/touch.md, A lit room); a lamp off to one side.",
+        min=0.0,
+        max=8.0,
+    )
     autoplay: bool = setting(
         True, "When nobody presses for a while, the live scene pats, holds, strokes or hovers by itself."
     )

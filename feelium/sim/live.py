@@ -20,6 +20,8 @@ import numpy as np
 from feelium.sim.config import SimConfig
 from feelium.sim.hand import HandPose
 from feelium.sim.hand_paths import HOVER_FLOOR_MM, Tremor, min_jerk
+from feelium.sim.room import RoomLight
+from feelium.skin.probe import ProbeLevels, light_at, probe_pattern
 from feelium.sim.sessions import session_presets
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, Projected, SceneRenderer, SceneState, Session
 from feelium.sim.shadow import ShadowParams
@@ -64,7 +66,8 @@ class LiveRearScene:
     ) -> None:
         """``projected``: camera time to the projected light's factor (the projector's share of the membrane's
         light only; room light does not follow it), for a scene lit by what the projector shows; ``None``: the
-        flat back-light."""
+        flat back-light (:meth:`project_probe` can light it with the projector's probe later). ``[sim] room_light``:
+        a lit room's lamp through the membrane (:mod:`feelium.sim.room`)."""
         if width < 32 or height < 24:
             raise ValueError(f"live scene needs at least 32x24 pixels, got {width}x{height}")
         self.width, self.height = width, height
@@ -77,9 +80,11 @@ class LiveRearScene:
             self.session = _scaled_session(self.session, sx)
         self._config = config
         self._rng = np.random.default_rng([config.seed, 0x11FE])
+        self._projected = projected
+        room = RoomLight(level=config.room_light) if config.room_light > 0.0 else None
         self._renderer = SceneRenderer(
-            self.session, self._rng, width=width, height=height, roi=self.roi, projected=projected,
-            projected_share_only=projected is not None,
+            self.session, self._rng, width=width, height=height, roi=self.roi, projected=self._light,
+            projected_share_only=True, room_light=room,
         )  # fmt: skip
         self._tremor = Tremor.draw(self._rng, drift_mm=0.6)
         self._segment: _Segment | None = None  # None: no hand
@@ -91,6 +96,22 @@ class LiveRearScene:
         self._next_auto = config.autoplay_period_s
         self._auto_rng = np.random.default_rng([config.seed, 0xA070])
         self.autoplayed = 0
+
+    def project_probe(self, levels: ProbeLevels, origin: float, latency_s: float) -> None:
+        """Light the scene with the probe the projector lays (:mod:`feelium.skin.probe`): ``levels`` as the
+        projector service publishes them on the daemon's clock (scene time + ``origin``), lit ``latency_s`` after
+        they were shown, mixed over the camera's exposure as the touch side mixes them."""
+        pattern = probe_pattern(self.width, self.height)
+        exposure_s = self.session.sensor.exposure_s
+
+        def probe(t: float) -> np.ndarray | None:
+            level = levels.level(t + origin, exposure_s, latency_s)
+            return None if level is None else light_at(level, pattern)
+
+        self._projected = probe
+
+    def _light(self, t: float) -> np.ndarray | None:
+        return None if self._projected is None else self._projected(t)
 
     # ---- control --------------------------------------------------------------------------
     def press(self, x: float, y: float, t: float, *, hover: bool = False) -> None:

@@ -383,10 +383,12 @@ class TouchPipeline:
         sensed = light if light is not None else probe
         # Learned on hand-free frames only: a shadow's slow change under a tile, while the probe happens to rise or
         # fall, reads as light following the projector (a hover's own tiles came out 0.06 too projector-lit).
-        if sensed is not None and self.settled and not candidates and area < self._activity_area:
+        # A frame with a hand teaches only the membrane's level of share, from the pixels away from its shadow.
+        if sensed is not None and self.settled:
             expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("share.expected", ref.image))
             usable = ~frozen & (raw < cfg.saturation_level) & (expected >= cfg.dark_reference_level)
-            self.projector_share.learn(t, raw, expected, sensed, usable)
+            hand_free = not candidates and area < self._activity_area
+            self.projector_share.learn(t, raw, expected, sensed, usable, hand_free=hand_free)
         if self.settled:
             ref.update(t, work, frozen, anchored)
         else:

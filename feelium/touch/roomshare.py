@@ -37,7 +37,25 @@ its reference, :mod:`feelium.touch.illumination`) the share changes at once:
 the change ``frame = e * reference + added`` measured per tile scales the
 projector's part by ``e`` and the whole by ``e + added / reference``, so the
 sums are rescaled by their ratio and the share follows the switch in the same
-frame instead of relearning for seconds.
+frame instead of relearning for seconds. Slower changes of the room (a person
+walking past the lamp, daylight) never re-seed: the reference follows them
+frame by frame, and so does the share, by the same rule with ``e`` = 1 (the
+projector's part, in the reference's gain-free units, does not move; any
+change of a tile's reference relative to the membrane's median is the room's):
+each learning step scales a tile's sums by the ratio of its normalised
+reference then and now, so the share does not lag the room by its 5 s memory.
+A change of the room over the whole membrane (a person's shadow sweeping it in
+a second, daylight) cannot be told from the exposure by the reference: the
+probe itself measures it. The same fit over a short memory
+(:data:`FAST_TAU_S`, about one probe period), pooled over every tile (the
+membrane's level of share, not its detail), is learned on every frame, hands
+or not (from the pixels away from shadows); one factor ``k`` on the room's
+light everywhere, ``p' = p / (p + k (1 - p))`` (the projector's part fixed, the
+room's scaled), is solved so that the long fit's shares, moved by it, pool to
+what the short fit measures: the detail from 5 s, the room's level from the
+last half second. A tap under a passing person's shadow (room light
+down by 70 %: the true share 0.45 -> 0.7) otherwise met a share learned before
+it, and its contact looked like a hover (``projected_depth`` 0.14 < 0.2).
 
 Pure arrays in, arrays out; no clock.
 """
@@ -49,14 +67,18 @@ import math
 import cv2
 import numpy as np
 
+from feelium.skin import probe
 from feelium.touch.illumination import TILE_PX
 
 MIN_TILE_WEIGHT = 0.5  # share of a tile's pixels that must be usable for it to learn on this frame
-# A tile's share is believed once it has seen this variance of ``light - 1`` (a 3 % probe's sinusoid gives
-# 0.00045 per frame: its weighted sums pass this after a few frames).
-MIN_LIGHT_VAR = 1e-4
+# A tile's share is believed once it has seen this variance of ``light - 1``: the probe's sinusoid gives
+# ``amplitude^2 / 2`` inside a cell (0.00045 at 3 %), and a tile passes at 1 / 4.5 of it (1e-4 at 3 %, session 13's
+# value): after a few frames inside a cell, never on a tile that straddles two cells about equally.
+MIN_LIGHT_VAR = probe.AMPLITUDE**2 / 2.0 / 4.5
 SPREAD_SIGMA_TILES = 1.0  # tiles take the share of the informative tiles about this near
 SHARE_LIMITS = (0.0, 1.0)
+FAST_TAU_S = 0.5  # the short memory of the membrane's level of share: one probe period
+ROOM_SCALE_LIMITS = (0.1, 10.0)  # how far the room's light may have moved since the long fit (a person's shadow: 0.3)
 
 
 def tile_grid(shape: tuple[int, int]) -> tuple[int, int]:
@@ -87,16 +109,26 @@ class ProjectorShare:
         self._map: np.ndarray | None = None  # working-size share, cached until the sums change
         self._coarse: np.ndarray | None = None  # the same per tile
         self._shape: tuple[int, int] | None = None
+        self._expected: np.ndarray | None = None  # per tile: the reference's level, over its median, when last learned
+        self._fast: list[np.ndarray] | None = None  # the same sums as _sums over FAST_TAU_S, on every frame
+        self._fast_t: float | None = None
         self.updates = 0
 
     def reset(self) -> None:
         self._sums = None
         self._last_t = None
         self._map = None
+        self._expected = None
+        self._fast = None
+        self._fast_t = None
         self.updates = 0
 
-    def learn(self, t: float, frame: np.ndarray, expected: np.ndarray, light: np.ndarray, usable: np.ndarray) -> None:
-        """Add one frame: ``frame`` (working size, raw: the projected light not compensated), ``expected`` what the
+    def learn(
+        self, t: float, frame: np.ndarray, expected: np.ndarray, light: np.ndarray, usable: np.ndarray,
+        *, hand_free: bool = True,
+    ) -> None:
+        """Add one frame (``hand_free``: False on a frame with a hand in view, which only the short memory of the
+        membrane's level learns from, away from the shadows ``usable`` excludes): ``frame`` (working size, raw: the projected light not compensated), ``expected`` what the
         reference expects for the flat membrane (exposure gain times reference), ``light`` the predicted projector
         light relative to flat grey, ``usable`` the pixels free of shadows, saturation and darkness."""
         self._shape = frame.shape
@@ -109,11 +141,28 @@ class ProjectorShare:
         np.copyto(z, np.float32(1.0), where=~usable)
         mz, share = tile_mean(z, weight, grid)
         mx, _ = tile_mean(light, weight, grid, share)
-        good = (share >= MIN_TILE_WEIGHT) & np.isfinite(mz) & np.isfinite(mx)
+        me, _ = tile_mean(expected, weight, grid, share)
+        good = (share >= MIN_TILE_WEIGHT) & np.isfinite(mz) & np.isfinite(mx) & np.isfinite(me) & (me > 0.0)
         w = good.astype(np.float64)
         x = np.where(good, mx - 1.0, 0.0).astype(np.float64)
         u = np.where(good, mz - 1.0, 0.0).astype(np.float64)
         fresh = [w, x * w, u * w, x * x * w, x * u * w]
+        level = np.where(good, me / max(float(np.median(me[good])), 1e-6) if good.any() else 1.0, np.nan)
+        self._follow(level)  # both memories, to today's reference, before today's frame joins them
+        if self._expected is None or self._expected.shape != level.shape:
+            self._expected = level
+        else:
+            np.copyto(self._expected, level, where=good)
+        fast_dt = 0.0 if self._fast_t is None else max(t - self._fast_t, 0.0)
+        self._fast_t = t
+        if self._fast is None or self._fast[0].shape != w.shape:
+            self._fast = [f.copy() for f in fresh]
+        else:
+            keep_fast = math.exp(-fast_dt / FAST_TAU_S)
+            self._fast = [s * keep_fast + f for s, f in zip(self._fast, fresh)]
+        self._map = None
+        if not hand_free:
+            return
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
         self._last_t = t
         if self._sums is None or self._sums[0].shape != w.shape:
@@ -124,6 +173,18 @@ class ProjectorShare:
         self._map = None
         self.updates += 1
 
+    def _follow(self, level: np.ndarray) -> None:
+        """The room's slow change since the tiles last learned: where a tile's normalised reference went from ``then``
+        to ``level`` the projector's share went from ``p`` to ``p * then / level``."""
+        if self._expected is None or self._expected.shape != level.shape:
+            return
+        ratio = self._expected / level
+        ratio = np.where(np.isfinite(ratio), np.clip(ratio, 0.25, 4.0), 1.0)
+        for sums in (self._sums, self._fast):  # the short memory too: it judges the level against today's reference
+            if sums is not None and sums[0].shape == ratio.shape:
+                sums[2] = sums[2] * ratio
+                sums[4] = sums[4] * ratio
+
     def rescale(self, factor: np.ndarray) -> None:
         """The room's light changed: every tile's projector share is now ``factor`` (working size) times what it
         was (``e * reference / (e * reference + added)``, see the module docstring)."""
@@ -133,7 +194,41 @@ class ProjectorShare:
         f = np.clip(np.nan_to_num(f, nan=1.0, posinf=1.0, neginf=1.0), 0.0, 4.0).astype(np.float64)
         self._sums[2] = self._sums[2] * f  # u = p * x: scaling p scales u (and its intercept, a gain error)
         self._sums[4] = self._sums[4] * f
+        if self._fast is not None:
+            self._fast[2] = self._fast[2] * f
+            self._fast[4] = self._fast[4] * f
+        self._expected = None  # the re-seeded reference is the new "then": its step is in ``factor`` already
         self._map = None
+
+    def room_scale(self) -> float:
+        """``k``: how much the room's light moved lately, everywhere alike, judged by the short fit (1.0 while either
+        fit knows too little). Solved by Newton's method from 1: the long fit's shares moved by ``k``, pooled with the
+        short fit's weights (its change of light per tile), equal the short fit's pooled share."""
+        fitted = self.tiles()
+        if fitted is None or self._fast is None or self._fast[0].shape != fitted[0].shape:
+            return 1.0
+        p, info = fitted
+        n, sx, su, sxx, sxu = self._fast
+        safe = np.maximum(n, 1e-9)
+        var = np.maximum(sxx - sx * sx / safe, 0.0)  # the short memory's change of light, per tile (weighted sums)
+        known = (info > 0.0) & (var >= MIN_LIGHT_VAR * safe)
+        if not known.any():
+            return 1.0
+        pk, vk = p[known].astype(np.float64), var[known]
+        target = float(np.sum((sxu - sx * su / safe)[known]))
+        qk = 1.0 - pk
+        k = 1.0
+        for _ in range(8):  # Newton's method from "unchanged": the pooled share falls smoothly as k grows
+            den = np.maximum(pk + k * qk, 1e-9)
+            f = float(np.sum(vk * pk / den)) - target
+            slope = -float(np.sum(vk * pk * qk / (den * den)))
+            if slope >= -1e-12:
+                break
+            step = f / slope
+            k = min(max(k - step, ROOM_SCALE_LIMITS[0]), ROOM_SCALE_LIMITS[1])
+            if abs(step) < 1e-4:
+                break
+        return k
 
     def tiles(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Per tile: the fitted share and how much change of light it saw (its weighted variance of ``light - 1``
@@ -170,6 +265,8 @@ class ProjectorShare:
         fallback = float(np.sum(p * info) / np.sum(info))
         spread = np.where(den > 1e-3 * float(info.max()), num / np.maximum(den, 1e-12), fallback).astype(np.float32)
         h, w = self._shape
+        k = np.float32(self.room_scale())
+        spread = np.clip(spread / np.maximum(spread + k * (1.0 - spread), np.float32(1e-6)), *SHARE_LIMITS).astype(np.float32)
         self._coarse = spread
         self._map = cv2.resize(spread, (w, h), interpolation=cv2.INTER_LINEAR)
         return self._map

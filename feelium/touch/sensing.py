@@ -27,6 +27,10 @@ from what the pipeline already computes:
   (:func:`feelium.touch.roomshare.room_dominated`); over
   ``ROOM_DOMINATED_SHARE`` of the membrane, touches there would be dropped as
   hovers, and touch says so.
+- **The share not learned**: while the projector's probe (or compensated
+  content) should teach the share and it is still unknown, the hover gate
+  cannot act and a close hover in a lit room may fire; touch says so until
+  the share is learned (a few probe periods).
 
 A condition must hold for ``HOLD_S`` before it is reported (a fade to black or
 a lamp's warm-up is not a fault) and clears as soon as the light is back.
@@ -56,6 +60,7 @@ class SensingSample:
     saturated: int
     projector_share: float | None  # None until projected content has taught it
     room_dominated: float | None = None  # share of the membrane the room outshines locally; None: share not known
+    share_taught: bool = False  # the probe or compensated content is teaching the share (so it should become known)
 
 
 class SensingMonitor:
@@ -82,6 +87,7 @@ class SensingMonitor:
             "dark": s.pixels > 0 and s.dark > BLIND_SHARE * s.pixels,
             "room_light": share is not None and share < MIN_PROJECTOR_SHARE,
             "room_local": s.room_dominated is not None and s.room_dominated > ROOM_DOMINATED_SHARE,
+            "share_unknown": s.share_taught and s.room_dominated is None,
         }
 
     def reasons(self) -> list[str]:
@@ -105,16 +111,25 @@ class SensingMonitor:
                 f"room light outshines the projector on {100 * s.room_dominated:.0f} % of the membrane (over "
                 f"{100 * ROOM_DOMINATED_SHARE:.0f} %): contacts there cannot be told from close hovers and are not reported"
             )
+        if "share_unknown" in lasting:
+            out.append(
+                "the projector's share of the membrane's light is not learned yet: in a lit room a close hover may "
+                "fire as a touch"
+            )
         return out
 
     def figures(self) -> dict[str, float | None]:
         """The last frame's light, in percent, for health (always shown, also when fine)."""
         s = self.last
         if s is None or s.pixels <= 0:
-            return {"saturated_pct": None, "unlit_pct": None, "projector_share": None, "room_dominated_pct": None}
+            return {
+                "saturated_pct": None, "unlit_pct": None, "projector_share": None, "room_dominated_pct": None,
+                "share_learned": None,
+            }  # fmt: skip
         return {
             "saturated_pct": round(100.0 * s.saturated / s.pixels, 1),
             "unlit_pct": round(100.0 * s.dark / s.pixels, 1),
             "projector_share": None if s.projector_share is None else round(s.projector_share, 3),
             "room_dominated_pct": None if s.room_dominated is None else round(100.0 * s.room_dominated, 1),
+            "share_learned": s.room_dominated is not None,
         }

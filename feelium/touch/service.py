@@ -9,6 +9,14 @@ responsive. Only what must be published goes to the event loop, through a
 of nine (docs/performance.md). Bad frames are counted and skipped; anything
 else the pipeline raises crashes this service only, and the supervisor
 restarts it with a fresh camera and pipeline.
+
+The projector tells touch what it showed: the grey canvas of each frame
+(``hub.projector_canvas``, for the projected content's light when it is
+compensated) and the level of the probe it laid over a static skin
+(``hub.projector_probe``, :mod:`feelium.skin.probe`), which goes with every
+camera frame as ``probe_light``, mixed over that frame's exposure with the
+projector's latency, so the pipeline learns the projector's share of the light
+per place (the lit room's hover gate).
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ from feelium.cameras.select import CameraSource
 from feelium.events import TouchEvent
 from feelium.hub import Hub, Stamped
 from feelium.skin.annotation import ProjectorAnnotation
+from feelium.skin.probe import ProbeLevels, light_at, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
 from feelium.touch.sensing import SensingMonitor, SensingSample
@@ -147,6 +156,9 @@ class TouchService:
         self.projected = projected
         self.stale_after_s = stale_after_s
         self.projector_history = ProjectorHistory(history_window_s(touch_config))
+        self.probe_levels = ProbeLevels(history_window_s(touch_config))
+        self._probe_pattern: np.ndarray | None = None  # the probe's cells at the camera frame's size
+        self.probe_frames = 0  # camera frames that went to the pipeline with the probe's light
         self._exposure_light: ExposureLight | None = None
         self._windowed = False  # the pipeline takes the fine pass's light from self._window_light
         self.projected_errors = 0
@@ -188,6 +200,7 @@ class TouchService:
         slot = self._slot = ThreadSlot()
         inbox = self._inbox = LoopInbox(asyncio.get_running_loop(), self._deliver)
         unlisten = self.hub.projector_canvas.listen(self._record_projector) if self.projected else None
+        unlisten_probe = self.hub.projector_probe.listen(self._record_probe)
         # Each thread runs one job for the whole run: frames go camera -> pipeline thread to thread, and the
         # results reach the loop through the inbox, one wake-up per frame (fewer when the loop lags).
         reading = asyncio.ensure_future(camera_worker.call(read_into, camera, slot))
@@ -207,6 +220,7 @@ class TouchService:
             self._slot = self._inbox = None
             if unlisten is not None:
                 unlisten()
+            unlisten_probe()
             pipeline_worker.shutdown()
             await close_camera(camera, camera_worker)  # after the read loop, which ends with the slot
             with contextlib.suppress(Exception):
@@ -265,14 +279,25 @@ class TouchService:
         """Record the canvas of every frame the projector service shows (called on the loop as it publishes)."""
         self.projector_history.record(item.t, item.seq, item.value)
 
+    def _record_probe(self, item: Stamped[Any]) -> None:
+        """Record the probe's level in every frame the projector service shows (None: a frame without it)."""
+        self.probe_levels.record(item.t, item.value)
+
     def _step(self, pipeline: Any, frame: Frame, want_debug: bool) -> tuple[Any, np.ndarray | None]:
         """Worker-thread part: the pipeline and, at the debug rate, the overlay."""
         projected = self._projected_light(frame.t)
-        if projected is None:
+        probe = self._probe_light(frame.t)
+        if probe is not None:
+            self.probe_frames += 1
+        if projected is None and probe is None:
             result = pipeline.process(frame.t, frame.image)
+        elif projected is None:
+            result = pipeline.process(frame.t, frame.image, probe_light=probe)
         else:
             light, spread = projected
             fine = {} if not self._windowed else {"fine_light": self._window_light}
+            if probe is not None:  # laid over the content after its canvas: its light multiplies the content's
+                light = self._probe_over(light, probe)
             result = pipeline.process(frame.t, frame.image, projected_light=light, projected_spread=spread, **fine)
         debug = None
         if want_debug:
@@ -320,6 +345,27 @@ class TouchService:
         self._windowed = True
         return ExposureLight(coarse, self.touch_config, getattr(fine, "window", None))
 
+    def _probe_light(self, t: float) -> np.ndarray | None:
+        """The probe's light the exposure at ``t`` saw, or None while the projector does not lay it."""
+        if self._probe_pattern is None or not self.probe_levels.active():
+            return None
+        cfg = self.touch_config
+        level = self.probe_levels.level(t, cfg.camera_exposure_s, cfg.projector_latency_s)
+        return None if level is None else light_at(level, self._probe_pattern)
+
+    def _probe_over(self, light: np.ndarray, probe: np.ndarray) -> np.ndarray:
+        """The content's light with the probe's over it, on the content light's grid: the frame's, or the ROI's cut
+        of it. On a coarser detection grid (``detect_scale`` < 1) the probe is left out of the content's light (its
+        +-3 % is not compensated there; docs/touch.md) rather than resampled on every frame."""
+        if light.shape == probe.shape:
+            return light * probe
+        box = getattr(self._pipeline, "roi", None)
+        if self._windowed or box is None:
+            return light
+        x, y, w, h = box
+        cut = probe[y : y + h, x : x + w]
+        return light * cut if cut.shape == light.shape else light
+
     def _pipeline_for(self, frame: Frame) -> tuple[Any, Released | None]:
         """The pipeline for this frame's segment, size and ROI, and the contacts the one it replaces released."""
         size = (int(frame.image.shape[1]), int(frame.image.shape[0]))
@@ -333,6 +379,7 @@ class TouchService:
             # Predicted only over the ROI the pipeline cuts (it takes light of the ROI's size or of the frame's).
             box = getattr(self._pipeline, "roi", None)
             self._exposure_light = self._exposure_light_for(size, box)
+            self._probe_pattern = probe_pattern(*size)  # cells of the same size on the skin at any resolution
             self._last_debug = None
         return self._pipeline, flushed
 
@@ -348,7 +395,15 @@ class TouchService:
             t=t, pixels=int(width * height), dark=masked.dark, saturated=masked.saturated,
             projector_share=None if response is None else response.share,
             room_dominated=getattr(pipeline, "room_dominated", None),
+            share_taught=self._share_taught(),
         )  # fmt: skip
+
+    def _share_taught(self) -> bool:
+        """Whether something teaches the pipeline the projector's share of the light (the probe, or projected
+        content it compensates) for a hover gate that is on: its share must then become known."""
+        if self.touch_config.contact_projected_depth <= 0.0:
+            return False
+        return self.probe_levels.active() or self._exposure_light is not None
 
     def _flush(self) -> Released:
         """Release contacts still down when a segment ends, so no consumer waits for an ``up`` forever."""
@@ -419,6 +474,8 @@ class TouchService:
             "last_frame_at": self.last_frame_at,
             "projection_compensation": self.projected is not None,
             "projector_frames": self.projector_history.recorded,
+            "probe": self.probe_levels.active(),
+            "probe_frames": self.probe_frames,
             "projected_errors": self.projected_errors,
             "last_projected_error": self.last_projected_error,
             "projector_annotation": None

@@ -21,6 +21,11 @@ Both digests were re-pinned on branch i17room (2026-11-27), deliberately: the fr
 (``projected_depth``), and the projected frames teach the projector's share per place, so the projected-light gate
 (``contact_projected_depth``) now decides which of their shadows may land. Checked before re-pinning: with the new field left
 out of the digest the static one is the old pin to the bit, and so is the projected one with the gate off.
+
+The projected digest was re-pinned on branch i17probe (2026-11-27), deliberately: the share learned from projected
+frames now follows the room (a tile's reference change, and the room factor ``k`` from a short fit learned on every
+frame, hands or not: :mod:`feelium.touch.roomshare`). Checked before re-pinning: with ``room_scale`` fixed at 1 and
+the follow off, the projected digest is the old pin to the bit; the static one did not move.
 """
 
 from __future__ import annotations
@@ -128,7 +133,7 @@ def _rounded(value: object) -> object:
     ("projected", "expected"),
     [
         (False, "c3f38af89a05e742a6eed0e447f57693c3d4ca72b258d15575c94ffbda5f3fbb"),
-        (True, "0bcbb95ae754243e9a13b1de1ea0468a22c3cd7a84182ff9d2279aeaec06b239"),
+        (True, "e7d78296aacf3d6ddebb68952a0478ff90c554641ab0517e10c549f9af810387"),
     ],
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:
@@ -137,7 +142,7 @@ def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expecte
 
 def test_light_cut_to_the_roi_gives_the_whole_frames_results() -> None:
     """The daemon predicts the projected light only over the ROI (it is all the pipeline reads): same digest."""
-    assert _digest(True, cut=True) == "0bcbb95ae754243e9a13b1de1ea0468a22c3cd7a84182ff9d2279aeaec06b239"
+    assert _digest(True, cut=True) == "e7d78296aacf3d6ddebb68952a0478ff90c554641ab0517e10c549f9af810387"
 
 
 def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(monkeypatch) -> None:
@@ -154,20 +159,23 @@ def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(m
     ("projected", "expected"),
     [
         (False, "7d2f2dc7bb8576510c404449701eb6da2713eee854a0d14f9d07130816316c23"),
-        (True, "457fe827ece21ee09d1af512368d364d3053738e3e54f742d227766fa64eb7b1"),
+        (True, "4f4f370412cda7964651ddd038fdccb104f8b46d28c5c93092314785c7193189"),
     ],
 )
 def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: str) -> None:
     """``[touch] detect_scale = 0.5`` (feelium.touch.refine) is its own algorithm: pinned apart from the full-scale
     digests above, which it must never move (pinned on branch i16half, 2026-11-27; re-pinned at the merge with
     i17room the same day for the new ``projected_depth`` field and the projected-light gate: with the field left
-    out of the digest and the gate off, both are i16half's pins to the bit)."""
+    out of the digest and the gate off, both are i16half's pins to the bit; the projected one re-pinned on branch
+    i17probe for the share that follows the room: with ``room_scale`` fixed at 1 and the follow off, it is the
+    previous pin to the bit)."""
     assert _digest(projected, detect_scale=0.5) == expected
 
 
 def test_half_scale_light_on_the_detection_grid_with_fine_windows_gives_the_same_results() -> None:
     """The daemon's way at ``detect_scale = 0.5``: light and spread at the detection size, the working resolution's
     light only in the fine pass's windows (``fine_light``). Handed the same values (the working light area-averaged,
-    and its windows), the pipeline computes what it computes from the whole frame's light: the pinned digest."""
-    expected = "457fe827ece21ee09d1af512368d364d3053738e3e54f742d227766fa64eb7b1"
+    and its windows), the pipeline computes what it computes from the whole frame's light: the pinned digest (the
+    projected one of the test above, re-pinned there at the merge of i16coarse with i17probe's share)."""
+    expected = "4f4f370412cda7964651ddd038fdccb104f8b46d28c5c93092314785c7193189"
     assert _digest(True, detect_scale=0.5, grids=True) == expected

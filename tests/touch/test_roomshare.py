@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from feelium.projector.probe import PERIOD_S, probe_light, probe_pattern
+from feelium.skin.probe import PERIOD_S, probe_light, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
 from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
@@ -135,3 +135,55 @@ def test_in_a_lit_corner_the_hover_cannot_land_and_the_contact_does_once_the_pro
     # The same scene on a static skin: nothing tells the two apart and the hover fires (the paper's gates alone).
     static = _lit_room_events(probe=False)
     assert static and static[0][0] == "down" and static[0][1] < contact_from
+
+
+def test_the_share_follows_a_slow_change_of_the_room_without_relearning() -> None:
+    """A person's shadow dims the room's light on a third of the membrane over a second (no re-seed: the reference just
+    follows it): the projector's share there rises, and the learned share follows at once, not over its 5 s memory.
+    (A change over half the membrane or more moves the median the levels are judged against: part of it is then
+    read as exposure, and the share follows it only partly.)"""
+    a, c = membrane(1.0)
+    share = ProjectorShare(tau_s=5.0)
+    rng = np.random.default_rng(5)
+    pattern = probe_pattern(W, H, cell_px=32)
+    usable = np.ones((H, W), bool)
+    dim = np.ones((H, W), np.float32)
+    t = learn(share, a, c, 10 * PERIOD_S, rng)
+    for t in np.arange(t + 1.0 / FPS, t + 1.2, 1.0 / FPS):  # the shadow comes over 1.2 s, to half the room's light
+        dim[:, : W // 3] = max(0.5, float(dim[0, 0]) - 0.5 / (1.2 * FPS))
+        light = probe_light(float(t), pattern)
+        frame = (a * light + c * dim + rng.normal(0.0, 2.0, (H, W))).astype(np.float32)
+        share.learn(float(t), frame, a + c * dim, light, usable)
+    got = share.share_map()
+    assert got is not None
+    truth = a / (a + c * dim)
+    left = (slice(32, -32), slice(32, W // 3 - 32))  # away from the shadow's edge, which the spread blurs
+    before = a / (a + c)
+    assert float(np.median((truth - before)[left])) > 0.1  # the change is large against the fit's error
+    assert float(np.median(np.abs(got - truth)[left])) <= 0.03
+
+
+def test_the_share_follows_a_fall_of_the_rooms_light_over_the_whole_membrane_within_a_period() -> None:
+    """A person's shadow takes 70 % of the lamp's light off the whole membrane in 0.25 s, while a hand is in view (no
+    hand-free frame): the reference cannot tell that from the exposure, the probe can, and the share follows it within
+    three of its short memory's time constants (1.5 s; it cuts the error by two thirds within one second)."""
+    a, c = membrane(1.0)
+    share = ProjectorShare(tau_s=5.0)
+    rng = np.random.default_rng(11)
+    pattern = probe_pattern(W, H, cell_px=32)
+    usable = np.ones((H, W), bool)
+    t = learn(share, a, c, 10 * PERIOD_S, rng)
+    before = share.share_map()
+    assert before is not None
+    for t in np.arange(t + 1.0 / FPS, t + 1.75, 1.0 / FPS):  # the fall, then three of the short memory's 0.5 s
+        room = c * np.float32(1.0 - 0.7 * min(1.0, (t - 5.0) / 0.25))
+        light = probe_light(float(t), pattern)
+        frame = (a * light + room + rng.normal(0.0, 2.0, (H, W))).astype(np.float32)
+        expected = float(np.median(frame / (a + c))) * (a + c)  # the reference reads it all as exposure
+        share.learn(float(t), frame, expected, light, usable, hand_free=False)
+    got = share.share_map()
+    assert got is not None
+    truth = a / (a + 0.3 * c)
+    inner = (slice(16, -16), slice(16, -16))
+    assert float(np.median((truth - before)[inner])) > 0.15
+    assert float(np.median(np.abs(got - truth)[inner])) <= 0.04

@@ -27,7 +27,10 @@ def test_a_condition_is_reported_only_once_it_has_lasted_and_clears_at_once() ->
     assert monitor.reasons() == ["too bright to see shadows: 70 % of the membrane is saturated"]
     monitor.update(sample(3.1 + HOLD_S, saturated=100))
     assert monitor.reasons() == []
-    assert monitor.figures() == {"saturated_pct": 10.0, "unlit_pct": 0.0, "projector_share": None, "room_dominated_pct": None}
+    assert monitor.figures() == {
+        "saturated_pct": 10.0, "unlit_pct": 0.0, "projector_share": None, "room_dominated_pct": None,
+        "share_learned": False,
+    }
 
 
 def test_a_brief_fade_to_black_is_not_a_fault_but_a_long_one_is() -> None:
@@ -116,3 +119,25 @@ async def test_the_service_reports_a_saturated_membrane_and_recovers() -> None:
     assert blinded["light"]["saturated_pct"] > 95.0
     recovered = await _health_after([(1.0, 120), (HOLD_S + 0.5, 255), (0.5, 120)])
     assert recovered["condition"] == "ok" and recovered["light"]["saturated_pct"] == 0.0
+
+
+def test_a_share_that_should_be_learned_and_is_not_is_reported_until_it_is() -> None:
+    monitor = SensingMonitor()
+    taught = lambda t, dominated: SensingSample(  # noqa: E731
+        t=t, pixels=1000, dark=0, saturated=0, projector_share=None, room_dominated=dominated, share_taught=True
+    )
+    monitor.update(taught(0.0, None))
+    monitor.update(taught(HOLD_S - 0.1, None))
+    assert monitor.reasons() == []  # the probe's first periods: learning, not a fault
+    monitor.update(taught(HOLD_S + 0.1, None))
+    assert monitor.reasons() == [
+        "the projector's share of the membrane's light is not learned yet: in a lit room a close hover may fire as a touch"
+    ]
+    assert monitor.figures()["share_learned"] is False
+    monitor.update(taught(HOLD_S + 0.2, 0.05))
+    assert monitor.reasons() == [] and monitor.figures()["share_learned"] is True
+    # nothing teaches it (no probe, no compensated content, or the gate off): unknown is no fault
+    monitor = SensingMonitor()
+    for t in (0.0, 10.0):
+        monitor.update(SensingSample(t=t, pixels=1000, dark=0, saturated=0, projector_share=None))
+    assert monitor.reasons() == []

@@ -47,7 +47,8 @@ from feelium.lab.touch.evaluate import (
 )  # fmt: skip
 from feelium.lab.touch.margins import GateSeries, GateThresholds, gate_margin
 from feelium.recording import NEGATIVE_LABELS
-from feelium.projector.probe import probe_light, probe_pattern
+from feelium.skin import probe
+from feelium.skin.probe import probe_light, probe_pattern
 from feelium.sim.camera import frame_times
 from feelium.sim.room import Passer, RoomLight
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, exposure_samples
@@ -67,6 +68,7 @@ RECOVERY_PERCENTILE = 99.0
 # The projector lays its faint probe over the static skin (feelium.projector.probe) and the pipeline is told its
 # light, so it learns the projector's share per place (feelium.touch.roomshare). False: the static back-light.
 PROBE = True
+AMPLITUDE = probe.AMPLITUDE  # the probe's amplitude (the experiment of docs/projector.md, *The probe*, varies it)
 
 
 def room_for(condition: str, item: protocol.Item, seed: int, duration: float, first_contact: float | None) -> RoomLight | None:
@@ -117,7 +119,7 @@ def render(
     # The probe's cells change the projector's direct light only: the room returns the skin's mean, which it keeps.
     scene = SceneRenderer(
         session, rng, width=WIDTH, height=HEIGHT, roi=ROI, room_light=room,
-        projected=None if pattern is None else (lambda t: probe_light(t, pattern)), projected_share_only=True,
+        projected=None if pattern is None else (lambda t: probe_light(t, pattern, AMPLITUDE)), projected_share_only=True,
     )  # fmt: skip
     warmup = np.arange(-WARMUP_S, -0.25, 1.0 / session.sensor.fps)
     out = [(float(t), scene.frame(float(t), SceneState())) for t in warmup]
@@ -165,7 +167,7 @@ def recovery(frames: list[tuple[float, np.ndarray]], config: TouchConfig, switch
 
 
 def _probe(t: float, pattern: np.ndarray | None) -> np.ndarray | None:
-    return None if pattern is None else probe_light(t, pattern)
+    return None if pattern is None else probe_light(t, pattern, AMPLITUDE)
 
 
 def replay(
