@@ -101,20 +101,23 @@ def tile_mean(image: np.ndarray, weight: np.ndarray, grid: tuple[int, int], shar
 class ProjectorShare:
     """Per coarse tile, the projector's direct share of the membrane's light, learned from projected light."""
 
+    _sums: list[np.ndarray] | None  # weight, x, u, x^2, x*u per tile (x = light - 1, u = z - 1)
+    _last_t: float | None
+    _map: np.ndarray | None  # working-size share, cached until the sums change
+    _expected: np.ndarray | None  # per tile: the reference's level, over its median, when last learned
+    _fast: list[np.ndarray] | None  # the same sums as _sums over FAST_TAU_S, on every frame
+    _fast_t: float | None
+    updates: int
+
     def __init__(self, tau_s: float) -> None:
         """``tau_s``: time constant of the weighted sums (how long a share is remembered in steady light)."""
         self.tau_s = tau_s
-        self._sums: list[np.ndarray] | None = None  # weight, x, u, x^2, x*u per tile (x = light - 1, u = z - 1)
-        self._last_t: float | None = None
-        self._map: np.ndarray | None = None  # working-size share, cached until the sums change
-        self._coarse: np.ndarray | None = None  # the same per tile
+        self._coarse: np.ndarray | None = None  # the same as _map per tile
         self._shape: tuple[int, int] | None = None
-        self._expected: np.ndarray | None = None  # per tile: the reference's level, over its median, when last learned
-        self._fast: list[np.ndarray] | None = None  # the same sums as _sums over FAST_TAU_S, on every frame
-        self._fast_t: float | None = None
-        self.updates = 0
+        self.reset()
 
     def reset(self) -> None:
+        """Forget what was learned (the working size and the last per-tile map stay until the next frame)."""
         self._sums = None
         self._last_t = None
         self._map = None

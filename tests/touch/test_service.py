@@ -306,6 +306,26 @@ class LightRecordingPipeline(FakePipeline):
         return super().process(t, frame)
 
 
+async def _run_over_two_canvases(factory, projected, first, second) -> TouchService:
+    """Three 16x12 camera frames (0.1-0.3 s) through ``factory``'s pipeline with ``projected`` predicting the light;
+    the projector's canvas is ``first`` (time, grey level), then ``second`` once the first has been followed."""
+    hub = Hub()
+    hub.projector_canvas.publish(first[0], np.full((4, 4), first[1], np.uint8))
+    camera = ScriptedCamera([_frame(0.1 * i, size=(16, 12)) for i in range(1, 4)], delay=0.02)
+    service = TouchService(
+        CameraSource("scripted", lambda: camera), hub, TouchConfig(),
+        pipeline_factory=factory, overlay=_overlay, projected=projected,
+    )
+
+    async def second_canvas():
+        while service.health().get("projector_frames", 0) < 1:  # the first one followed, however busy the machine
+            await asyncio.sleep(0.001)
+        hub.projector_canvas.publish(second[0], np.full((4, 4), second[1], np.uint8))
+
+    await asyncio.gather(service.run(), second_canvas())
+    return service
+
+
 async def test_the_projected_light_of_each_exposure_goes_with_its_frame_at_the_frame_size():
     """Projector frames shown at 0.0 (light 0.5) and 0.2 s (light 1.0); 33 ms latency, 30 ms exposure."""
     sizes = []
@@ -314,20 +334,7 @@ async def test_the_projected_light_of_each_exposure_goes_with_its_frame_at_the_f
         sizes.append((size, box))
         return lambda canvas, out=None: np.full((size[1], size[0]), float(canvas[0, 0]) / 100.0, np.float32)
 
-    hub = Hub()
-    hub.projector_canvas.publish(0.0, np.full((4, 4), 50, np.uint8))
-    camera = ScriptedCamera([_frame(0.1 * i, size=(16, 12)) for i in range(1, 4)], delay=0.02)
-    service = TouchService(
-        CameraSource("scripted", lambda: camera), hub, TouchConfig(),
-        pipeline_factory=LightRecordingPipeline, overlay=_overlay, projected=projected,
-    )
-
-    async def second_frame():
-        while service.health().get("projector_frames", 0) < 1:  # the first one followed, however busy the machine
-            await asyncio.sleep(0.001)
-        hub.projector_canvas.publish(0.2, np.full((4, 4), 100, np.uint8))
-
-    await asyncio.gather(service.run(), second_frame())
+    service = await _run_over_two_canvases(LightRecordingPipeline, projected, (0.0, 50), (0.2, 100))
     (pipeline,) = FakePipeline.created
     assert sizes == [((16, 12), pipeline.roi)]  # the light is wanted only over the ROI the pipeline cuts
     assert all(light.shape == (12, 16) and spread.shape == (12, 16) for light, spread in pipeline.lights)
@@ -412,20 +419,7 @@ async def test_a_coarse_pipeline_gets_its_light_on_its_grid_and_the_fine_light_b
                 raise ValueError("no window")
             return np.full((rows.stop - rows.start, cols.stop - cols.start), float(canvas[0, 0]) / 10.0, np.float32)
 
-    hub = Hub()
-    hub.projector_canvas.publish(0.0, np.full((4, 4), 5, np.uint8))
-    camera = ScriptedCamera([_frame(0.1 * i, size=(16, 12)) for i in range(1, 4)], delay=0.02)
-    service = TouchService(
-        CameraSource("scripted", lambda: camera), hub, TouchConfig(),
-        pipeline_factory=CoarsePipeline, overlay=_overlay, projected=Predictor,
-    )
-
-    async def failing_canvas():
-        while service.health().get("projector_frames", 0) < 1:
-            await asyncio.sleep(0.001)
-        hub.projector_canvas.publish(0.15, np.full((4, 4), 13, np.uint8))
-
-    await asyncio.gather(service.run(), failing_canvas())
+    service = await _run_over_two_canvases(CoarsePipeline, Predictor, (0.0, 5), (0.15, 13))
     fine, coarse = calls
     assert fine == ((16, 12), (2, 2, 12, 8)) and coarse[:3] == ((8, 6), (1, 1, 6, 4), 2)
     assert isinstance(coarse[3], Predictor) and coarse[3].box == (2, 2, 12, 8)
