@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
+import cv2
 import numpy as np
 
 AMPLITUDE = 0.03
@@ -50,6 +51,20 @@ def probe_pattern(width: int, height: int, cell_px: int | None = None) -> np.nda
     cell = cell_for(width) if cell_px is None else cell_px
     yy, xx = np.mgrid[0:height, 0:width]
     return np.where(((xx // cell) + (yy // cell)) % 2 == 0, 1.0, -1.0).astype(np.float32)
+
+
+def pattern_on_grid(pattern: np.ndarray, frame_size: tuple[int, int], box: tuple[int, int, int, int]) -> np.ndarray:
+    """The camera-size ``pattern`` area-averaged onto the camera frame scaled to ``frame_size`` (width, height), cut
+    to ``box`` (x, y, width, height in that scaled frame): float32 (height, width) of the box.
+
+    Why: touch may read the light on a coarser grid than the camera's (``detect_scale`` < 1). The probe's light is
+    linear in its pattern, so ``1 + level * pattern_on_grid(...)`` is the camera-size light averaged over each
+    coarse pixel, the cells' edges blended as the camera's pixels blend them."""
+    scaled = pattern if (pattern.shape[1], pattern.shape[0]) == tuple(frame_size) else cv2.resize(
+        pattern, tuple(frame_size), interpolation=cv2.INTER_AREA
+    )
+    x, y, w, h = box
+    return np.ascontiguousarray(scaled[y : y + h, x : x + w], dtype=np.float32)
 
 
 def probe_level(t: float, amplitude: float = AMPLITUDE, period_s: float = PERIOD_S) -> float:

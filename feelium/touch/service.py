@@ -39,7 +39,7 @@ from feelium.cameras.select import CameraSource
 from feelium.events import TouchEvent
 from feelium.hub import Hub, Stamped
 from feelium.skin.annotation import ProjectorAnnotation
-from feelium.skin.probe import ProbeLevels, light_at, probe_pattern
+from feelium.skin.probe import ProbeLevels, light_at, pattern_on_grid, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
 from feelium.touch.sensing import SensingMonitor, SensingSample
@@ -158,6 +158,11 @@ class TouchService:
         self.projector_history = ProjectorHistory(history_window_s(touch_config))
         self.probe_levels = ProbeLevels(history_window_s(touch_config))
         self._probe_pattern: np.ndarray | None = None  # the probe's cells at the camera frame's size
+        # The same cells on each grid the content's light may come on: the frame's, the ROI's cut, the detection
+        # grid's; and the fine pass's windows' grid (``detect_scale`` < 1), with the level of the frame being sensed.
+        self._probe_on_content: tuple[np.ndarray, ...] = ()
+        self._probe_fine: np.ndarray | None = None
+        self._probe_level: float | None = None
         self.probe_frames = 0  # camera frames that went to the pipeline with the probe's light
         self._exposure_light: ExposureLight | None = None
         self._windowed = False  # the pipeline takes the fine pass's light from self._window_light
@@ -286,18 +291,19 @@ class TouchService:
     def _step(self, pipeline: Any, frame: Frame, want_debug: bool) -> tuple[Any, np.ndarray | None]:
         """Worker-thread part: the pipeline and, at the debug rate, the overlay."""
         projected = self._projected_light(frame.t)
-        probe = self._probe_light(frame.t)
-        if probe is not None:
+        level = self._probe_level = self._probe_level_at(frame.t)
+        if level is not None:
             self.probe_frames += 1
-        if projected is None and probe is None:
+        if projected is None and level is None:
             result = pipeline.process(frame.t, frame.image)
         elif projected is None:
-            result = pipeline.process(frame.t, frame.image, probe_light=probe)
+            assert self._probe_pattern is not None
+            result = pipeline.process(frame.t, frame.image, probe_light=light_at(level, self._probe_pattern))
         else:
             light, spread = projected
             fine = {} if not self._windowed else {"fine_light": self._window_light}
-            if probe is not None:  # laid over the content after its canvas: its light multiplies the content's
-                light = self._probe_over(light, probe)
+            if level is not None:  # laid over the content after its canvas: its light multiplies the content's
+                light = self._probe_over(light, level)
             result = pipeline.process(frame.t, frame.image, projected_light=light, projected_spread=spread, **fine)
         debug = None
         if want_debug:
@@ -324,11 +330,17 @@ class TouchService:
         (the pipeline then upsamples its coarse light); a failing prediction costs only that window's detail."""
         assert self._exposure_light is not None
         try:
-            return self._exposure_light.window(rows, cols)
+            window = self._exposure_light.window(rows, cols)
         except Exception as exc:
             self.projected_errors += 1
             self.last_projected_error = f"{type(exc).__name__}: {exc}"
             return None
+        level, pattern = self._probe_level, self._probe_fine
+        if window is not None and level is not None and pattern is not None:
+            cut = pattern[rows, cols]
+            if cut.shape == window.shape:  # a new array each call: the probe's light multiplies it in place
+                window *= light_at(level, cut)
+        return window
 
     def _exposure_light_for(self, size: tuple[int, int], box: tuple[int, int, int, int] | None) -> ExposureLight | None:
         """How each exposure's light is predicted for the new pipeline: over its ROI at the frame's size, or, when it
@@ -345,26 +357,29 @@ class TouchService:
         self._windowed = True
         return ExposureLight(coarse, self.touch_config, getattr(fine, "window", None))
 
-    def _probe_light(self, t: float) -> np.ndarray | None:
-        """The probe's light the exposure at ``t`` saw, or None while the projector does not lay it."""
+    def _probe_level_at(self, t: float) -> float | None:
+        """The probe's level the exposure at ``t`` saw, or None while the projector does not lay it."""
         if self._probe_pattern is None or not self.probe_levels.active():
             return None
         cfg = self.touch_config
-        level = self.probe_levels.level(t, cfg.camera_exposure_s, cfg.projector_latency_s)
-        return None if level is None else light_at(level, self._probe_pattern)
+        return self.probe_levels.level(t, cfg.camera_exposure_s, cfg.projector_latency_s)
 
-    def _probe_over(self, light: np.ndarray, probe: np.ndarray) -> np.ndarray:
-        """The content's light with the probe's over it, on the content light's grid: the frame's, or the ROI's cut
-        of it. On a coarser detection grid (``detect_scale`` < 1) the probe is left out of the content's light (its
-        +-3 % is not compensated there; docs/touch.md) rather than resampled on every frame."""
-        if light.shape == probe.shape:
-            return light * probe
-        box = getattr(self._pipeline, "roi", None)
-        if self._windowed or box is None:
-            return light
-        x, y, w, h = box
-        cut = probe[y : y + h, x : x + w]
-        return light * cut if cut.shape == light.shape else light
+    def _probe_over(self, light: np.ndarray, level: float) -> np.ndarray:
+        """The content's light with the probe's over it, on the content light's grid (the frame's, the ROI's cut of
+        it, or the detection grid's when it is coarser); the content's light alone on a grid of no other shape."""
+        pattern = next((p for p in self._probe_on_content if p.shape == light.shape), None)
+        return light if pattern is None else light * light_at(level, pattern)
+
+    def _probe_grids(self, size: tuple[int, int], box: tuple[int, int, int, int] | None) -> None:
+        """The probe's cells at the camera frame's size and on every grid the new pipeline reads light on."""
+        camera = self._probe_pattern = probe_pattern(*size)  # cells of the same size on the skin at any resolution
+        grids = getattr(self._pipeline, "light_grids", None) if self._windowed else None
+        if grids is not None:  # the content's light comes on the detection grid, the fine pass's in windows
+            self._probe_on_content = (pattern_on_grid(camera, *grids.coarse),)
+            self._probe_fine = None if grids.fine is None else pattern_on_grid(camera, *grids.fine)
+            return
+        self._probe_on_content = (camera,) if box is None else (camera, pattern_on_grid(camera, size, box))
+        self._probe_fine = None
 
     def _pipeline_for(self, frame: Frame) -> tuple[Any, Released | None]:
         """The pipeline for this frame's segment, size and ROI, and the contacts the one it replaces released."""
@@ -379,7 +394,7 @@ class TouchService:
             # Predicted only over the ROI the pipeline cuts (it takes light of the ROI's size or of the frame's).
             box = getattr(self._pipeline, "roi", None)
             self._exposure_light = self._exposure_light_for(size, box)
-            self._probe_pattern = probe_pattern(*size)  # cells of the same size on the skin at any resolution
+            self._probe_grids(size, box)
             self._last_debug = None
         return self._pipeline, flushed
 

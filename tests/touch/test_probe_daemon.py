@@ -91,22 +91,62 @@ async def test_a_lit_rooms_close_hover_does_not_fire_and_a_tap_does() -> None:
 
 
 def test_the_probe_multiplies_compensated_content_on_the_contents_grid() -> None:
-    """Content light over the ROI (the daemon predicts only there) takes the probe's cut of the same ROI; light on a
-    coarser detection grid is left as it is (docs/touch.md); equal grids multiply."""
+    """Content light over the ROI (the daemon predicts only there) takes the probe's cut of the same ROI; light over the
+    whole frame the whole probe; light on any other grid is left as it is."""
     from types import SimpleNamespace
 
     import numpy as np
 
+    from feelium.skin.probe import light_at, probe_pattern
     from feelium.touch.service import TouchService
 
-    probe = np.linspace(0.97, 1.03, 48 * 64, dtype=np.float32).reshape(48, 64)
     roi = (8, 4, 32, 24)
     over = SimpleNamespace(_pipeline=SimpleNamespace(roi=roi), _windowed=False)
-    light = np.full((24, 32), 0.5, np.float32)
-    got = TouchService._probe_over(over, light, probe)  # type: ignore[arg-type]
-    assert np.array_equal(got, light * probe[4:28, 8:40])
+    TouchService._probe_grids(over, (64, 48), roi)  # type: ignore[arg-type]
+    probe = light_at(0.03, probe_pattern(64, 48))
+    light = np.linspace(0.4, 0.6, 24 * 32, dtype=np.float32).reshape(24, 32)
+    assert np.allclose(TouchService._probe_over(over, light, 0.03), light * probe[4:28, 8:40], atol=1e-6)  # type: ignore[arg-type]
     whole = np.full((48, 64), 0.5, np.float32)
-    assert np.array_equal(TouchService._probe_over(over, whole, probe), whole * probe)  # type: ignore[arg-type]
-    coarse = SimpleNamespace(_pipeline=SimpleNamespace(roi=roi), _windowed=True)
-    small = np.full((12, 16), 0.5, np.float32)
-    assert TouchService._probe_over(coarse, small, probe) is small  # type: ignore[arg-type]
+    assert np.allclose(TouchService._probe_over(over, whole, 0.03), whole * probe, atol=1e-6)  # type: ignore[arg-type]
+    odd = np.full((10, 10), 0.5, np.float32)
+    assert TouchService._probe_over(over, odd, 0.03) is odd  # type: ignore[arg-type]
+    assert over._probe_fine is None
+
+
+def test_at_half_detection_scale_the_probe_reaches_the_detection_grid_and_the_fine_windows() -> None:
+    """``detect_scale = 0.5``: the content's light comes on the detection grid and the fine pass's in windows of the
+    working grid; the probe multiplies both, as the camera-size probe light averaged over each of their pixels."""
+    from types import SimpleNamespace
+
+    import cv2
+    import numpy as np
+
+    from feelium.skin.probe import light_at, probe_pattern
+    from feelium.touch.pipeline import TouchPipeline
+    from feelium.touch.service import TouchService
+
+    size, level = (320, 240), -0.025
+    pipeline = TouchPipeline(dataclasses.replace(TouchConfig(), width=320, height=240, detect_scale=0.5), size, None)
+    grids = pipeline.light_grids
+    assert grids is not None and grids.fine is not None
+    window_light = np.full((20, 30), 0.8, np.float32)
+    exposure = SimpleNamespace(window=lambda rows, cols: window_light.copy())
+    svc = SimpleNamespace(_pipeline=pipeline, _windowed=True, _exposure_light=exposure, _probe_level=level)
+    TouchService._probe_grids(svc, size, pipeline.roi)  # type: ignore[arg-type]
+    camera = light_at(level, probe_pattern(*size))
+
+    def on(grid: tuple[tuple[int, int], tuple[int, int, int, int]]) -> np.ndarray:
+        (fw, fh), (x, y, w, h) = grid
+        return cv2.resize(camera, (fw, fh), interpolation=cv2.INTER_AREA)[y : y + h, x : x + w]
+
+    cw, ch = grids.coarse[1][2:]
+    content = np.full((ch, cw), 0.7, np.float32)
+    got = TouchService._probe_over(svc, content, level)  # type: ignore[arg-type]
+    assert np.allclose(got, 0.7 * on(grids.coarse), atol=1e-6)
+    assert got.std() > 0.005  # the cells are there, not averaged away
+    rows, cols = slice(30, 50), slice(40, 70)
+    window = TouchService._window_light(svc, rows, cols)  # type: ignore[arg-type]
+    assert np.allclose(window, 0.8 * on(grids.fine)[rows, cols], atol=1e-6)
+    svc._probe_level = None  # a frame without the probe: the content's light alone
+    assert np.array_equal(TouchService._window_light(svc, rows, cols), window_light)  # type: ignore[arg-type]
+
