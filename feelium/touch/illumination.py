@@ -39,22 +39,35 @@ import numpy as np
 
 from feelium.touch.buffers import Scratch
 
-TILE_PX = 16  # working pixels per coarse tile side
+TILE_PX = 16  # working pixels per coarse tile side at detect_scale 1 (a fixed part of the membrane: tile_px_for)
 MIN_TILE_WEIGHT = 0.5  # share of a tile's pixels that must be usable for its mean to count
 MIN_TILES = 8
 FILL_SIGMA_TILES = 1.5  # tiles under a hand take the change of the good tiles within about this many tiles
 
 
+def tile_px_for(detect_scale: float) -> int:
+    """The tile's side in detection pixels when detection runs at ``detect_scale`` of the working resolution.
+
+    Why: a tile is a part of the membrane, not a number of pixels. Its statistics rest on that: a hand covers less
+    than half the tiles (the median's breakdown point), and a tile averages the same camera pixels' noise. Kept at
+    16 detection pixels, the tiles at 0.5 were four times larger on the membrane and four times fewer: a lean-in
+    hug growing by a fifth of the membrane in one frame then covered enough of them to read as a change of the
+    room's light, and the re-seed ate the hug (tests/projector/test_exchanges.py, at 0.5)."""
+    return max(2, int(round(TILE_PX * detect_scale)))
+
+
 def tile_means(
-    frame: np.ndarray, reference: np.ndarray, usable: np.ndarray, scratch: Scratch | None = None
+    frame: np.ndarray, reference: np.ndarray, usable: np.ndarray, scratch: Scratch | None = None,
+    tile_px: int = TILE_PX,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per coarse tile: the mean of frame and of reference over usable pixels, and the usable share of the tile.
+    """Per coarse tile of ``tile_px`` pixels a side: the mean of frame and of reference over usable pixels, and the
+    usable share of the tile.
 
     ``scratch`` holds the working-size temporaries (:mod:`feelium.touch.buffers`); the results are new arrays.
     Tiles with no usable pixel have means 0.
     """
     h, w = frame.shape
-    size = (max(1, w // TILE_PX), max(1, h // TILE_PX))
+    size = (max(1, w // tile_px), max(1, h // tile_px))
     buf = Scratch() if scratch is None else scratch
     weight = buf.like("tiles.weight", usable, np.float32)
     np.copyto(weight, usable)
@@ -79,6 +92,7 @@ def illumination_change(
     scratch: Scratch | None = None,
     *,
     force: bool = False,
+    tile_px: int = TILE_PX,
 ) -> tuple[float, np.ndarray] | None:
     """How the light changed, ``(e, added)`` with ``frame / gain = e * reference + added``, if it changed shape.
 
@@ -97,7 +111,7 @@ def illumination_change(
     back-light's 4.5-7:1 falloff, and a ratio interpolated from around a bright spot overestimated it there
     (under a hover at the centre: a false shadow deeper than the hover's, which landed and fired).
     """
-    mean_frame, mean_ref, share = tile_means(frame, reference, usable, scratch)
+    mean_frame, mean_ref, share = tile_means(frame, reference, usable, scratch, tile_px)
     good = (share >= MIN_TILE_WEIGHT) & (mean_ref > 0.0)
     if np.count_nonzero(good) < MIN_TILES or not gain > 0.0:
         return None

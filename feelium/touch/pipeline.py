@@ -25,7 +25,7 @@ from feelium.touch.candidates import Candidate, Segmentation, find_candidates
 from feelium.touch.config import TouchConfig
 from feelium.touch.depth import MaskCounts, relative_depth
 from feelium.touch.geometry import LightGrids, WorkingGeometry
-from feelium.touch.illumination import illumination_change, reseed
+from feelium.touch.illumination import TILE_PX, illumination_change, reseed, tile_px_for
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
 from feelium.touch.reference import REFERENCE_FLOOR, AdaptiveReference
 from feelium.touch.refine import (
@@ -98,6 +98,7 @@ class TouchPipeline:
         self.face = face
         self.plain = plain
         self.fine: WorkingGeometry | None = None  # the working resolution, when detection runs coarser
+        self._tile_px = TILE_PX  # the room-light tiles' side in detection pixels: a fixed part of the membrane
         if plain:
             self.geometry = WorkingGeometry.build(frame_size, None, frame_size, np.float64)
             self._roi = WorkingGeometry.build(frame_size, roi, frame_size, np.float64).roi
@@ -111,6 +112,7 @@ class TouchPipeline:
             self._roi = self.geometry.roi
             if scale < 1.0:
                 self.fine = WorkingGeometry.build(frame_size, roi, (config.width, config.height), np.float32)
+                self._tile_px = tile_px_for(scale)
         self._off_face = None if face is None else self._cut_off_face(face, self.geometry)
         self._fine_off_face = None if face is None or self.fine is None else self._cut_off_face(face, self.fine)
         self.reference = AdaptiveReference(
@@ -126,7 +128,7 @@ class TouchPipeline:
         )
         self.tracker = Tracker(config)
         self.response = ProjectorResponse(tau_s=config.projected_response_tau_s, prior_var=config.projected_prior_var)
-        self.projector_share = ProjectorShare(tau_s=config.projector_share_tau_s)
+        self.projector_share = ProjectorShare(tau_s=config.projector_share_tau_s, tile_px=self._tile_px)
         self.settled = True  # False while the projected light's response is not learned: nothing new is raised
         self.uncertain_frames = 0  # frames in which the prediction's spread could fake a darkened pixel
         self._reference_share = self.response.share
@@ -429,7 +431,9 @@ class TouchPipeline:
         usable &= other
         if self._shadow is not None:
             usable &= np.logical_not(self._shadow, out=other)
-        change = illumination_change(work, ref.image, ref.gain, usable, cfg.noise_floor, buf, force=stepped)
+        change = illumination_change(
+            work, ref.image, ref.gain, usable, cfg.noise_floor, buf, force=stepped, tile_px=self._tile_px
+        )
         if change is None:
             return False
         self.light_changes += 1

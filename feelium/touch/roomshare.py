@@ -81,10 +81,11 @@ FAST_TAU_S = 0.5  # the short memory of the membrane's level of share: one probe
 ROOM_SCALE_LIMITS = (0.1, 10.0)  # how far the room's light may have moved since the long fit (a person's shadow: 0.3)
 
 
-def tile_grid(shape: tuple[int, int]) -> tuple[int, int]:
-    """(columns, rows) of coarse tiles for a working image of ``shape`` (rows, columns)."""
+def tile_grid(shape: tuple[int, int], tile_px: int = TILE_PX) -> tuple[int, int]:
+    """(columns, rows) of coarse tiles of ``tile_px`` pixels a side for a working image of ``shape`` (rows,
+    columns)."""
     h, w = shape
-    return max(1, w // TILE_PX), max(1, h // TILE_PX)
+    return max(1, w // tile_px), max(1, h // tile_px)
 
 
 def tile_mean(image: np.ndarray, weight: np.ndarray, grid: tuple[int, int], share: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -109,9 +110,12 @@ class ProjectorShare:
     _fast_t: float | None
     updates: int
 
-    def __init__(self, tau_s: float) -> None:
-        """``tau_s``: time constant of the weighted sums (how long a share is remembered in steady light)."""
+    def __init__(self, tau_s: float, tile_px: int = TILE_PX) -> None:
+        """``tau_s``: time constant of the weighted sums (how long a share is remembered in steady light);
+        ``tile_px``: a tile's side in the images' pixels (the same part of the membrane at any detection scale:
+        :func:`feelium.touch.illumination.tile_px_for`)."""
         self.tau_s = tau_s
+        self.tile_px = tile_px
         self._coarse: np.ndarray | None = None  # the same as _map per tile
         self._shape: tuple[int, int] | None = None
         self.reset()
@@ -135,7 +139,7 @@ class ProjectorShare:
         reference expects for the flat membrane (exposure gain times reference), ``light`` the predicted projector
         light relative to flat grey, ``usable`` the pixels free of shadows, saturation and darkness."""
         self._shape = frame.shape
-        grid = tile_grid(frame.shape)
+        grid = tile_grid(frame.shape, self.tile_px)
         weight = usable.astype(np.float32)
         # z = frame / expected where usable, 1 elsewhere (the weight is 0 there, so only its finiteness matters)
         z = np.maximum(expected, np.float32(1e-3), dtype=np.float32)

@@ -158,8 +158,8 @@ def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(m
 @pytest.mark.parametrize(
     ("projected", "expected"),
     [
-        (False, "7d2f2dc7bb8576510c404449701eb6da2713eee854a0d14f9d07130816316c23"),
-        (True, "4f4f370412cda7964651ddd038fdccb104f8b46d28c5c93092314785c7193189"),
+        (False, "fd5b3bc16f739f07c896d8b479229d90074ee63dab07d85856d10b56db40b27b"),
+        (True, "54ebee2732f3808816d0a347156f3643cc64be2575e1b017f09775325a0ac1e2"),
     ],
 )
 def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: str) -> None:
@@ -168,7 +168,8 @@ def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: st
     i17room the same day for the new ``projected_depth`` field and the projected-light gate: with the field left
     out of the digest and the gate off, both are i16half's pins to the bit; the projected one re-pinned on branch
     i17probe for the share that follows the room: with ``room_scale`` fixed at 1 and the follow off, it is the
-    previous pin to the bit)."""
+    previous pin to the bit; both re-pinned in session 15 for the room-light and share tiles kept the same part of
+    the membrane at 0.5, ``tile_px_for``: with it returning 16 again, both are the previous pins to the bit)."""
     assert _digest(projected, detect_scale=0.5) == expected
 
 
@@ -177,5 +178,5 @@ def test_half_scale_light_on_the_detection_grid_with_fine_windows_gives_the_same
     light only in the fine pass's windows (``fine_light``). Handed the same values (the working light area-averaged,
     and its windows), the pipeline computes what it computes from the whole frame's light: the pinned digest (the
     projected one of the test above, re-pinned there at the merge of i16coarse with i17probe's share)."""
-    expected = "4f4f370412cda7964651ddd038fdccb104f8b46d28c5c93092314785c7193189"
+    expected = "54ebee2732f3808816d0a347156f3643cc64be2575e1b017f09775325a0ac1e2"
     assert _digest(True, detect_scale=0.5, grids=True) == expected

@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from feelium.touch.config import TouchConfig
-from feelium.touch.illumination import illumination_change, reseed
+from feelium.touch.illumination import illumination_change, reseed, tile_px_for
 from feelium.touch.pipeline import TouchPipeline
 from tests.touch.synth import H, ROI, W, Blob, Patch, backlight, render
 
@@ -145,3 +145,18 @@ def test_a_hover_held_through_a_switch_keeps_its_depth_and_leaves_no_false_shado
         deepest_switched = max(r.depth_max for r in switched[hover_frames])
         assert abs(deepest_switched - deepest_steady) < 0.03, (before, after, deepest_switched, deepest_steady)
         assert not any(r.activity for r in switched[-10:])  # gone with the hand, no false shadow left behind
+
+
+def test_the_tiles_are_the_same_part_of_the_membrane_at_any_detection_scale() -> None:
+    """The room-light and share tiles stand for parts of the membrane: at ``detect_scale`` 0.5 they are half as many
+    detection pixels a side, so there are as many of them over the ROI as at 1.0 (the median's breakdown point, a
+    hand covering less than half of them, holds the same)."""
+    from feelium.touch.roomshare import tile_grid
+
+    assert (tile_px_for(1.0), tile_px_for(0.5), tile_px_for(0.25)) == (16, 8, 4)
+    grids = set()
+    for scale in (1.0, 0.5):
+        pipe = TouchPipeline(TouchConfig(detect_scale=scale), (640, 480), (64, 48, 512, 384))
+        w, h = pipe.geometry.work_size
+        grids.add(tile_grid((h, w), pipe.projector_share.tile_px))
+    assert grids == {(16, 12)}

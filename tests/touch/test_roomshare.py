@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -104,14 +105,14 @@ def _disc(shape: tuple[int, int], x: float, y: float, radius: float) -> np.ndarr
     return cv2.GaussianBlur(inside, (0, 0), 1.0)
 
 
-def _lit_room_events(probe: bool) -> list[tuple[str, float]]:
+def _lit_room_events(probe: bool, detect_scale: float = 1.0) -> list[tuple[str, float]]:
     """A lit room whose lamp outshines the back-light's dim corner: a close hover there (its lamp shadow as sharp
     and as deep as a contact's) and then a finger pressed at the same place. The down/up events and their times."""
     a = backlight(SW, SH, ratio=4.0) * 0.5  # the projector's direct light
     c = np.full(a.shape, 1.2 * float(a.mean()), np.float32) + 0.35 * a  # the lamp, and what the room returns
     pattern = probe_pattern(SW, SH, cell_px=32)
     rng = np.random.default_rng(5)
-    pipe = TouchPipeline(TouchConfig(width=SW, height=SH), (SW, SH), SROI)
+    pipe = TouchPipeline(TouchConfig(width=SW, height=SH, detect_scale=detect_scale), (SW, SH), SROI)
     x, y = 40.0, 35.0  # near a corner of the ROI, where the back-light is dim
     shadow = _disc(a.shape, x, y, 6.0)
     plan = [None] * 45 + ["hover"] * 20 + [None] * 10 + ["contact"] * 20 + [None] * 10  # 15 fps: 3 s hand-free first
@@ -127,13 +128,18 @@ def _lit_room_events(probe: bool) -> list[tuple[str, float]]:
     return events
 
 
-def test_in_a_lit_corner_the_hover_cannot_land_and_the_contact_does_once_the_probe_taught_the_share() -> None:
+@pytest.mark.parametrize("detect_scale", [1.0, 0.5])
+def test_in_a_lit_corner_the_hover_cannot_land_and_the_contact_does_once_the_probe_taught_the_share(
+    detect_scale: float,
+) -> None:
+    """At 0.5 too: its share's tiles cover the same parts of the membrane (with 16 detection pixels they were four
+    times larger, the corner's share came out wrong and the contact was split in two)."""
     contact_from = (45 + 20 + 10) / FPS
-    with_probe = _lit_room_events(probe=True)
+    with_probe = _lit_room_events(probe=True, detect_scale=detect_scale)
     assert [phase for phase, _ in with_probe] == ["down", "up"]
     assert with_probe[0][1] >= contact_from
     # The same scene on a static skin: nothing tells the two apart and the hover fires (the paper's gates alone).
-    static = _lit_room_events(probe=False)
+    static = _lit_room_events(probe=False, detect_scale=detect_scale)
     assert static and static[0][0] == "down" and static[0][1] < contact_from
 
 

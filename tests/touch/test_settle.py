@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -142,14 +145,17 @@ def test_face_on_hover_fires_nothing_and_a_press_is_found() -> None:
     assert abs(downs[0].x - 70.0) <= 3.0 and abs(downs[0].y - 55.0) <= 3.0
 
 
-def test_a_late_prediction_at_cuts_fires_nothing_and_a_press_across_a_cut_is_found() -> None:
+@pytest.mark.parametrize("detect_scale", [1.0, 0.5])
+def test_a_late_prediction_at_cuts_fires_nothing_and_a_press_across_a_cut_is_found(detect_scale: float) -> None:
     """The light is 10 ms later than predicted: the cuts' errors stay within the spread; a press over a cut (at
-    6 s) is raised without waiting for anything to settle."""
-    idle = _clip(TouchPipeline(CFG, (W, H), ROI), 9.0, hover=False, press_at=None, compensate=True, error=0.010)
+    6 s) is raised without waiting for anything to settle. At 0.5 too (with room-light tiles of 16 detection
+    pixels, four times larger on the membrane, a cut re-seeded the reference under the press and it was lost)."""
+    cfg = dataclasses.replace(CFG, detect_scale=detect_scale)
+    idle = _clip(TouchPipeline(cfg, (W, H), ROI), 9.0, hover=False, press_at=None, compensate=True, error=0.010)
     assert idle == []
     at = (105.0, 27.0)  # on the face in both framings
     press = _clip(
-        TouchPipeline(CFG, (W, H), ROI), 7.0, hover=False, press_at=(5.9, 6.2), compensate=True, error=0.010, press_xy=at
+        TouchPipeline(cfg, (W, H), ROI), 7.0, hover=False, press_at=(5.9, 6.2), compensate=True, error=0.010, press_xy=at
     )
     downs = [e for e in press if e.phase == "down"]
     assert len(downs) == 1 and downs[0].t <= 6.1  # the old rule held every new touch until 6.25 s
