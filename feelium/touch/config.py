@@ -26,10 +26,11 @@ class TouchConfig:
     )
     height: int = setting(240, "Working resolution height for the whole camera frame.", min=24, max=4096)
     detect_scale: float = setting(
-        1.0,
+        0.5,
         "Fraction of the working resolution the per-pixel work (reference, depth, compensation, candidates) runs at; "
         "below 1 each frame with a candidate finds its fingertips again at the working resolution in a window around "
-        "the shadows (0.5: 4x fewer pixels; docs/touch.md, *Detection at half resolution*).",
+        "the shadows (0.5: 4x fewer pixels, what fits the Pi; 1.0: the whole working image, ~1.6x the CPU; "
+        "docs/touch.md, *Detection at half resolution*).",
         min=0.25,
         max=1.0,
     )

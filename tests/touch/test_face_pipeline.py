@@ -8,7 +8,7 @@ from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
 from tests.touch.synth import H, ROI, W, Blob, Patch, backlight, render
 
-CFG = TouchConfig(width=W, height=H)
+CFG = TouchConfig(width=W, height=H, detect_scale=1.0)  # GOLDEN was pinned on the full-scale path
 
 # Events of the paper's rectangle on the frames below, produced by the pipeline *before* the face model was
 # added (commit cbcf20d): (id, phase, kind, t, x, y, u, v, depth, area). Without a face model nothing may change.

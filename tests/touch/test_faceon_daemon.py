@@ -70,7 +70,9 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
     origin.append(shared.origin)
     touch = TouchService(
         CameraSource("sim", lambda: SimRearCamera(shared, fps=15.0), shared), hub, TouchConfig(),
-        debug_video_fps=0.0, projected=lambda size, box: CanvasLightPredictor(projector_cfg, calibration, size, box=box).gain,
+        debug_video_fps=0.0, projected=lambda size, box, average_of=1, finer=None: CanvasLightPredictor(
+            projector_cfg, calibration, size, box=box, average_of=average_of, finer=finer
+        ),  # the daemon's factory (feelium.daemon.assembly): at detect_scale < 1 it is asked for two grids
     )  # fmt: skip
     projector = ProjectorService(
         projector_cfg, dataclasses.replace(InteractionsConfig(), enabled=False), hub, SimDisplay(), calibration

@@ -17,7 +17,7 @@ from feelium.touch.buffers import Scratch
 from feelium.touch.refine import FineDetail, FineInputs, fine_depth, fine_window, upsample_window
 from tests.touch.synth import H, ROI, W, Blob, Patch, backlight, render
 
-CFG = TouchConfig(width=W, height=H)
+CFG = TouchConfig(width=W, height=H, detect_scale=1.0)  # the full-scale path (HALF: the coarse one)
 HALF = dataclasses.replace(CFG, detect_scale=0.5)
 DT = 1 / 15
 
