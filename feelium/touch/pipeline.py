@@ -332,8 +332,7 @@ class TouchPipeline:
             candidates, geometry = self._refine(fine_inputs, candidates), self.fine
         observations = []
         kept = []
-        share_map = self.projector_share.share_map() if cfg.contact_projected_depth > 0.0 else None
-        coarse = self.projector_share.coarse() if share_map is not None else None
+        coarse = self.projector_share.coarse() if cfg.contact_projected_depth > 0.0 else None
         if coarse is not None:
             grid = (coarse.shape[1], coarse.shape[0])
             noise = cv2.resize(floor, grid, interpolation=cv2.INTER_AREA) * np.float32(1.0 / max(cfg.noise_sigmas, 1.0))
@@ -348,10 +347,9 @@ class TouchPipeline:
             # Where the candidate lies in the detection image (the coarse candidate's own point at scale 1).
             point = (cand.x, cand.y) if geometry is self.geometry else self.geometry.from_camera(cx, cy)
             projected = True  # took the projector's own light away (unknown: assumed, as before the share)
-            if share_map is not None:
-                iy = min(max(int(round(point[1])), 0), share_map.shape[0] - 1)
-                ix = min(max(int(round(point[0])), 0), share_map.shape[1] - 1)
-                taken = projected_depth(cand.peak, float(share_map[iy, ix]))
+            share = self.projector_share.share_at(*point) if coarse is not None else None
+            if share is not None:
+                taken = projected_depth(cand.peak, share)
                 most_projected = taken if most_projected is None else max(most_projected, taken)
                 projected = taken >= cfg.contact_projected_depth  # else all its depth is light from outside
             if self.face is not None:
