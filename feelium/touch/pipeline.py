@@ -136,6 +136,7 @@ class TouchPipeline:
         # Share of the membrane where the room outshines the projector too much for the projected-light gate
         # (:func:`feelium.touch.roomshare.room_dominated`); None while the projector's share is not known.
         self.room_dominated: float | None = None
+        self._room_judged_t: float | None = None  # when room_dominated was last judged
         self.noise = 0.0
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
@@ -191,6 +192,7 @@ class TouchPipeline:
         self.detail.reset()
         self.projector_share.reset()
         self.room_dominated = None
+        self._room_judged_t = None
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -332,8 +334,13 @@ class TouchPipeline:
             candidates, geometry = self._refine(fine_inputs, candidates), self.fine
         observations = []
         kept = []
-        coarse = self.projector_share.coarse() if cfg.contact_projected_depth > 0.0 else None
-        if coarse is not None:
+        # The share per tile is made when something reads it: a candidate, or health's judgement of the room.
+        judge = self._room_judged_t is None or t - self._room_judged_t >= ROOM_JUDGE_INTERVAL_S
+        coarse = None
+        if cfg.contact_projected_depth > 0.0 and (candidates or judge):
+            coarse = self.projector_share.coarse()
+        if coarse is not None and judge:
+            self._room_judged_t = t
             grid = (coarse.shape[1], coarse.shape[0])
             noise = cv2.resize(floor, grid, interpolation=cv2.INTER_AREA) * np.float32(1.0 / max(cfg.noise_sigmas, 1.0))
             if unusable is None:
@@ -634,6 +641,10 @@ def _light_is(light: np.ndarray, geometry: WorkingGeometry) -> bool:
 
 
 SHARE_REBASE = 0.05  # change of the learned projector share that re-bases the reference
+# Seconds between two judgements of where the room outshines the projector (room_dominated): health reports it only
+# once it has lasted feelium.touch.sensing.HOLD_S, and judging it on every frame cost the share's per-tile map
+# and two working-size passes a frame, on frames no candidate reads the share.
+ROOM_JUDGE_INTERVAL_S = 0.2
 # Seconds between two lessons of the fine pattern (feelium.touch.refine.FineDetail): it is static. Measured on the
 # paper protocol at 15 fps, one lesson in 4 frames (0.27 s) and one in 2 kept a close hover's edge within 0.0005 of
 # each other (0.0445), one in 8 let it rise to 0.0459 (full scale: 0.0430; this interval: 0.0438); a lesson costs

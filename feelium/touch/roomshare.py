@@ -88,19 +88,14 @@ def tile_grid(shape: tuple[int, int]) -> tuple[int, int]:
     return max(1, w // TILE_PX), max(1, h // TILE_PX)
 
 
-def tile_mean(image: np.ndarray, weight: np.ndarray, grid: tuple[int, int], share: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per tile: the mean of ``image`` over pixels weighted by ``weight`` (0..1), and the tile's mean weight
-    (``share``: that mean weight when the caller already has it, for several images under one weight)."""
-    num = cv2.resize(np.multiply(image, weight, dtype=np.float32), grid, interpolation=cv2.INTER_AREA)
-    if share is None:
-        share = cv2.resize(weight.astype(np.float32, copy=False), grid, interpolation=cv2.INTER_AREA)
-    return _over(num, share), share
-
-
-def _over(num: np.ndarray, share: np.ndarray) -> np.ndarray:
-    """``num / share`` per tile, 0 where no pixel counted (``share`` 0)."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(share > 0.0, num / np.maximum(share, 1e-6), 0.0).astype(np.float32)
+def _median(values: np.ndarray) -> float:
+    """``float(np.median(values))`` of a non-empty float32 array without NaN, to the bit, without ``np.median``'s
+    checks and dispatch (most of its cost on a few hundred tiles, on every frame)."""
+    half = values.size // 2
+    if values.size % 2:
+        return float(np.partition(values, half)[half])
+    part = np.partition(values, (half - 1, half))
+    return float((part[half - 1] + part[half]) / np.float32(2.0))
 
 
 def upsampled_at(coarse: np.ndarray, shape: tuple[int, int], x: int, y: int) -> float:
@@ -185,27 +180,28 @@ class ProjectorShare:
         area = cv2.INTER_AREA
         weight = self._image("weight", shape)
         np.copyto(weight, usable)  # 1 where usable, 0 elsewhere
-        share = cv2.resize(weight, grid, interpolation=area)
-        # z * weight: frame / expected where usable, 0 elsewhere (z is finite: expected is floored)
-        z = cv2.max(expected, 1e-3, dst=self._image("z", shape))
+        # Per tile, over the usable pixels: the sums of z, light and expected (0, 1, 2) and of the weight (3).
+        tiles = np.empty((4, grid[1], grid[0]), np.float32)
+        cv2.resize(weight, grid, dst=tiles[3], interpolation=area)
+        z = cv2.max(expected, 1e-3, dst=self._image("z", shape))  # z is finite: expected is floored
         cv2.divide(frame, z, dst=z)
-        cv2.multiply(z, weight, dst=z)
-        mz = _over(cv2.resize(z, grid, interpolation=area), share)
+        cv2.multiply(z, weight, dst=z)  # frame / expected where usable, 0 elsewhere
+        cv2.resize(z, grid, dst=tiles[0], interpolation=area)
         product = cv2.multiply(light, weight, dst=self._image("product", shape))
-        mx = _over(cv2.resize(product, grid, interpolation=area), share)
+        cv2.resize(product, grid, dst=tiles[1], interpolation=area)
         cv2.multiply(expected, weight, dst=product)
-        me = _over(cv2.resize(product, grid, interpolation=area), share)
-        good = (share >= MIN_TILE_WEIGHT) & np.isfinite(mz) & np.isfinite(mx) & np.isfinite(me) & (me > 0.0)
-        w = good.astype(np.float64)
-        x = np.where(good, mx - 1.0, 0.0).astype(np.float64)
-        u = np.where(good, mz - 1.0, 0.0).astype(np.float64)
-        fresh = np.empty((5, *w.shape))
-        fresh[0] = w
-        np.multiply(x, w, out=fresh[1])
-        np.multiply(u, w, out=fresh[2])
-        np.multiply(x * x, w, out=fresh[3])
-        np.multiply(x * u, w, out=fresh[4])
-        level = np.where(good, me / max(float(np.median(me[good])), 1e-6) if good.any() else 1.0, np.nan)
+        cv2.resize(product, grid, dst=tiles[2], interpolation=area)
+        share = tiles[3]
+        means = tiles[:3] / np.maximum(share, np.float32(1e-6))  # mz, mx, me: only tiles with half their pixels count
+        me = means[2]
+        good = (share >= MIN_TILE_WEIGHT) & np.isfinite(means).all(axis=0) & (me > 0.0)
+        # fresh: w, x * w, u * w, x^2 * w, x * u * w with w = good (0 or 1) and x, u 0 where it is 0: w multiplies
+        # nothing away, so the products are the plain ones.
+        fresh = np.zeros((5, grid[1], grid[0]))
+        fresh[0] = good
+        np.copyto(fresh[1:3], means[1::-1] - np.float32(1.0), where=good)  # x = mx - 1, u = mz - 1 (float32, widened)
+        np.multiply(fresh[1], fresh[1:3], out=fresh[3:5])
+        level = np.where(good, me / max(_median(me[good]), 1e-6) if good.any() else 1.0, np.nan)
         self._follow(level)  # both memories, to today's reference, before today's frame joins them
         if self._expected is None or self._expected.shape != level.shape:
             self._expected = level
@@ -290,13 +286,11 @@ class ProjectorShare:
         times its weight: the fit's information); None before anything was learned."""
         if self._sums is None:
             return None
-        n, sx, su, sxx, sxu = self._sums
-        safe = np.maximum(n, 1e-9)
-        mx, mu = sx / safe, su / safe
-        var = np.maximum(sxx / safe - mx * mx, 0.0)
-        cov = sxu / safe - mx * mu
-        with np.errstate(invalid="ignore", divide="ignore"):
-            p = np.where(var > 0.0, cov / np.maximum(var, 1e-12), 0.0)
+        n = self._sums[0]
+        mx, mu, mxx, mxu = self._sums[1:] / np.maximum(n, 1e-9)
+        var = np.maximum(mxx - mx * mx, 0.0)
+        cov = mxu - mx * mu
+        p = np.where(var > 0.0, cov / np.maximum(var, 1e-12), 0.0)
         info = np.where(var >= MIN_LIGHT_VAR, var * n, 0.0)
         return np.clip(p, *SHARE_LIMITS).astype(np.float32), info.astype(np.float32)
 
@@ -360,11 +354,13 @@ def _solve_room_scale(pk: np.ndarray, vk: np.ndarray, target: float, start: floa
     a = vk * pk
     aq = a * qk
     low, high = ROOM_SCALE_LIMITS
+    total = np.add.reduce  # np.sum's own arithmetic, without its dispatch
     k = start
     for _ in range(NEWTON_STEPS):
-        den = np.maximum(pk + k * qk, 1e-9)
-        f = float(np.sum(a / den)) - target
-        slope = -float(np.sum(aq / (den * den)))
+        den = k * qk + pk  # >= min(1, k) >= 0.1: pk is clipped to 0..1 and k to its limits
+        f = float(total(a / den)) - target
+        den *= den
+        slope = -float(total(aq / den))
         if slope >= -1e-12:
             return k, True
         step = f / slope
