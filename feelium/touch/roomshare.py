@@ -25,7 +25,8 @@ times the reference), the frame is
 per pixel: the projector's share ``p`` is the slope of ``z`` against
 ``light - 1``, whatever the exposure and the room's level, as long as the
 reference follows them. It is fitted per coarse tile (room light is smooth; a
-tile of 16 x 16 working pixels averages the pixel noise down 16 times) over
+tile of 16 x 16 working pixels, every other row of it read, averages the pixel
+noise down 11 times: :data:`LEARN_ROW_STEP`) over
 exponentially weighted sums of hand-free frames, with an intercept (a global
 error of the exposure gain moves every tile alike and is not light), and
 spread to the tiles that saw too little change of light (a tile straddling
@@ -186,7 +187,7 @@ class ProjectorShare:
         area = cv2.INTER_AREA
         weight = self._image("weight", shape)
         np.copyto(weight, usable)  # 1 where usable, 0 elsewhere
-        # Per tile, over the usable pixels: the sums of z, light and expected (0, 1, 2) and of the weight (3).
+        # Per tile (INTER_AREA: means over its pixels): z, light and expected times the weight (0, 1, 2), the weight (3).
         tiles = np.empty((4, grid[1], grid[0]), np.float32)
         cv2.resize(weight, grid, dst=tiles[3], interpolation=area)
         z = cv2.max(expected, 1e-3, dst=self._image("z", shape))  # z is finite: expected is floored
