@@ -63,6 +63,11 @@ STAGES = {  # (owner, attribute) timed with --profile, charged to the name
     "reference update": ("reference", "update"),
     "tracker": ("tracker", "step"),
     "share learn": ("share", "learn"),
+    # The share's map: made by share_map in older trees (coarse then reads its cache), by coarse since session 15 (a
+    # candidate reads it at its point with share_at; share_map only for the probe's compensation).
+    "share map": ("share", "share_map"),
+    "share coarse": ("share", "coarse"),
+    "share at point": ("share", "share_at"),
     "fine inputs": ("pipeline", "_fine_inputs"),
     "detail lesson": ("pipeline", "_learn_detail"),
 }

@@ -138,6 +138,7 @@ class TouchPipeline:
         # Share of the membrane where the room outshines the projector too much for the projected-light gate
         # (:func:`feelium.touch.roomshare.room_dominated`); None while the projector's share is not known.
         self.room_dominated: float | None = None
+        self._room_judged_t: float | None = None  # when room_dominated was last judged
         self.noise = 0.0
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
@@ -193,6 +194,7 @@ class TouchPipeline:
         self.detail.reset()
         self.projector_share.reset()
         self.room_dominated = None
+        self._room_judged_t = None
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -334,9 +336,13 @@ class TouchPipeline:
             candidates, geometry = self._refine(fine_inputs, candidates), self.fine
         observations = []
         kept = []
-        share_map = self.projector_share.share_map() if cfg.contact_projected_depth > 0.0 else None
-        coarse = self.projector_share.coarse() if share_map is not None else None
-        if coarse is not None:
+        # The share per tile is made when something reads it: a candidate, or health's judgement of the room.
+        judge = self._room_judged_t is None or t - self._room_judged_t >= ROOM_JUDGE_INTERVAL_S
+        coarse = None
+        if cfg.contact_projected_depth > 0.0 and (candidates or judge):
+            coarse = self.projector_share.coarse()
+        if coarse is not None and judge:
+            self._room_judged_t = t
             grid = (coarse.shape[1], coarse.shape[0])
             noise = cv2.resize(floor, grid, interpolation=cv2.INTER_AREA) * np.float32(1.0 / max(cfg.noise_sigmas, 1.0))
             if unusable is None:
@@ -350,10 +356,9 @@ class TouchPipeline:
             # Where the candidate lies in the detection image (the coarse candidate's own point at scale 1).
             point = (cand.x, cand.y) if geometry is self.geometry else self.geometry.from_camera(cx, cy)
             projected = True  # took the projector's own light away (unknown: assumed, as before the share)
-            if share_map is not None:
-                iy = min(max(int(round(point[1])), 0), share_map.shape[0] - 1)
-                ix = min(max(int(round(point[0])), 0), share_map.shape[1] - 1)
-                taken = projected_depth(cand.peak, float(share_map[iy, ix]))
+            share = self.projector_share.share_at(*point) if coarse is not None else None
+            if share is not None:
+                taken = projected_depth(cand.peak, share)
                 most_projected = taken if most_projected is None else max(most_projected, taken)
                 projected = taken >= cfg.contact_projected_depth  # else all its depth is light from outside
             if self.face is not None:
@@ -640,6 +645,10 @@ def _light_is(light: np.ndarray, geometry: WorkingGeometry) -> bool:
 
 
 SHARE_REBASE = 0.05  # change of the learned projector share that re-bases the reference
+# Seconds between two judgements of where the room outshines the projector (room_dominated): health reports it only
+# once it has lasted feelium.touch.sensing.HOLD_S, and judging it on every frame cost the share's per-tile map
+# and two working-size passes a frame, on frames no candidate reads the share.
+ROOM_JUDGE_INTERVAL_S = 0.2
 # Seconds between two lessons of the fine pattern (feelium.touch.refine.FineDetail): it is static. Measured on the
 # paper protocol at 15 fps, one lesson in 4 frames (0.27 s) and one in 2 kept a close hover's edge within 0.0005 of
 # each other (0.0445), one in 8 let it rise to 0.0459 (full scale: 0.0430; this interval: 0.0438); a lesson costs

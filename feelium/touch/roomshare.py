@@ -25,7 +25,8 @@ times the reference), the frame is
 per pixel: the projector's share ``p`` is the slope of ``z`` against
 ``light - 1``, whatever the exposure and the room's level, as long as the
 reference follows them. It is fitted per coarse tile (room light is smooth; a
-tile of 16 x 16 working pixels averages the pixel noise down 16 times) over
+tile of 16 x 16 working pixels, every other row of it read, averages the pixel
+noise down 11 times: :data:`LEARN_ROW_STEP`) over
 exponentially weighted sums of hand-free frames, with an intercept (a global
 error of the exposure gain moves every tile alike and is not light), and
 spread to the tiles that saw too little change of light (a tile straddling
@@ -79,6 +80,11 @@ SPREAD_SIGMA_TILES = 1.0  # tiles take the share of the informative tiles about 
 SHARE_LIMITS = (0.0, 1.0)
 FAST_TAU_S = 0.5  # the short memory of the membrane's level of share: one probe period
 ROOM_SCALE_LIMITS = (0.1, 10.0)  # how far the room's light may have moved since the long fit (a person's shadow: 0.3)
+# The tiles' sums are taken over every LEARN_ROW_STEP-th row of the working image: a tile's 16 x 16 pixels (at detect_scale 1) average
+# the camera's noise far below the probe's 3 % (2 DN of noise over 128 pixels is 0.18 DN against ~3 DN of light
+# change), so half the rows teach the fit what all of them did, at half the cost of the frame's passes.
+LEARN_ROW_STEP = 2
+NEWTON_STEPS = 8  # at most, for the room factor k: from 1 it took 4 to 8 on the lit room's frames
 
 
 def tile_grid(shape: tuple[int, int], tile_px: int = TILE_PX) -> tuple[int, int]:
@@ -88,26 +94,55 @@ def tile_grid(shape: tuple[int, int], tile_px: int = TILE_PX) -> tuple[int, int]
     return max(1, w // tile_px), max(1, h // tile_px)
 
 
-def tile_mean(image: np.ndarray, weight: np.ndarray, grid: tuple[int, int], share: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per tile: the mean of ``image`` over pixels weighted by ``weight`` (0..1), and the tile's mean weight
-    (``share``: that mean weight when the caller already has it, for several images under one weight)."""
-    num = cv2.resize(np.multiply(image, weight, dtype=np.float32), grid, interpolation=cv2.INTER_AREA)
-    if share is None:
-        share = cv2.resize(weight.astype(np.float32, copy=False), grid, interpolation=cv2.INTER_AREA)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(share > 0.0, num / np.maximum(share, 1e-6), 0.0).astype(np.float32)
-    return mean, share
+def _median(values: np.ndarray) -> float:
+    """``float(np.median(values))`` of a non-empty float32 array without NaN, to the bit, without ``np.median``'s
+    checks and dispatch (most of its cost on a few hundred tiles, on every frame)."""
+    half = values.size // 2
+    if values.size % 2:
+        return float(np.partition(values, half)[half])
+    part = np.partition(values, (half - 1, half))
+    return float((part[half - 1] + part[half]) / np.float32(2.0))
+
+
+def upsampled_at(coarse: np.ndarray, shape: tuple[int, int], x: int, y: int) -> float:
+    """The value at working pixel (``x``, ``y``) of ``coarse`` bilinearly upsampled to ``shape`` (rows, columns) as
+    ``cv2.resize(..., INTER_LINEAR)`` does it (pixel centres aligned, the border clamped), without the image: a
+    candidate reads the share at one point, and upsampling the whole map for it cost more than the rest of the
+    share's frame. Computed in float64, so it can differ from OpenCV's float32 result in the last bit."""
+    h, w = coarse.shape
+
+    def axis(d: int, n_out: int, n_in: int) -> tuple[int, int, float]:
+        f = (d + 0.5) * n_in / n_out - 0.5
+        s = math.floor(f)
+        if s < 0:
+            return 0, 0, 0.0
+        if s >= n_in - 1:
+            return n_in - 1, n_in - 1, 0.0
+        return s, s + 1, f - s
+
+    x0, x1, fx = axis(x, shape[1], w)
+    y0, y1, fy = axis(y, shape[0], h)
+    top = float(coarse[y0, x0]) * (1.0 - fx) + float(coarse[y0, x1]) * fx
+    bottom = float(coarse[y1, x0]) * (1.0 - fx) + float(coarse[y1, x1]) * fx
+    return top * (1.0 - fy) + bottom * fy
 
 
 class ProjectorShare:
-    """Per coarse tile, the projector's direct share of the membrane's light, learned from projected light."""
+    """Per coarse tile, the projector's direct share of the membrane's light, learned from projected light.
 
-    _sums: list[np.ndarray] | None  # weight, x, u, x^2, x*u per tile (x = light - 1, u = z - 1)
+    The working-size images a frame needs (the weight, ``z`` and one product at a time) are kept between frames and
+    the per-tile sums live in one array per memory, so a frame costs a few passes over the image and a few dozen
+    operations on tiles: it runs on every camera frame (the short memory), on a board with a core to spare for
+    all of touch."""
+
+    _sums: np.ndarray | None  # (5, rows, columns): weight, x, u, x^2, x*u per tile (x = light - 1, u = z - 1)
     _last_t: float | None
-    _map: np.ndarray | None  # working-size share, cached until the sums change
+    _coarse: np.ndarray | None  # the share per tile, cached until the sums change
+    _map: np.ndarray | None  # the same at the working size, made only when asked for (the probe's compensation)
     _expected: np.ndarray | None  # per tile: the reference's level, over its median, when last learned
-    _fast: list[np.ndarray] | None  # the same sums as _sums over FAST_TAU_S, on every frame
+    _fast: np.ndarray | None  # the same sums as _sums over FAST_TAU_S, on every frame
     _fast_t: float | None
+    _k: float  # the last room factor solved: where Newton's method starts next
     updates: int
 
     def __init__(self, tau_s: float, tile_px: int = TILE_PX) -> None:
@@ -116,19 +151,28 @@ class ProjectorShare:
         :func:`feelium.touch.illumination.tile_px_for`)."""
         self.tau_s = tau_s
         self.tile_px = tile_px
-        self._coarse: np.ndarray | None = None  # the same as _map per tile
         self._shape: tuple[int, int] | None = None
+        self._images: dict[str, np.ndarray] = {}  # working-size scratch, reused frame after frame
         self.reset()
 
     def reset(self) -> None:
-        """Forget what was learned (the working size and the last per-tile map stay until the next frame)."""
+        """Forget what was learned (the working size stays until the next frame)."""
         self._sums = None
         self._last_t = None
+        self._coarse = None
         self._map = None
         self._expected = None
         self._fast = None
         self._fast_t = None
+        self._k = 1.0
         self.updates = 0
+
+    def _image(self, name: str, shape: tuple[int, int]) -> np.ndarray:
+        """A float32 working-size scratch image (its contents are whatever the last frame left)."""
+        image = self._images.get(name)
+        if image is None or image.shape != shape:
+            image = self._images[name] = np.empty(shape, np.float32)
+        return image
 
     def learn(
         self, t: float, frame: np.ndarray, expected: np.ndarray, light: np.ndarray, usable: np.ndarray,
@@ -140,21 +184,35 @@ class ProjectorShare:
         light relative to flat grey, ``usable`` the pixels free of shadows, saturation and darkness."""
         self._shape = frame.shape
         grid = tile_grid(frame.shape, self.tile_px)
-        weight = usable.astype(np.float32)
-        # z = frame / expected where usable, 1 elsewhere (the weight is 0 there, so only its finiteness matters)
-        z = np.maximum(expected, np.float32(1e-3), dtype=np.float32)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            np.divide(frame, z, out=z)
-        np.copyto(z, np.float32(1.0), where=~usable)
-        mz, share = tile_mean(z, weight, grid)
-        mx, _ = tile_mean(light, weight, grid, share)
-        me, _ = tile_mean(expected, weight, grid, share)
-        good = (share >= MIN_TILE_WEIGHT) & np.isfinite(mz) & np.isfinite(mx) & np.isfinite(me) & (me > 0.0)
-        w = good.astype(np.float64)
-        x = np.where(good, mx - 1.0, 0.0).astype(np.float64)
-        u = np.where(good, mz - 1.0, 0.0).astype(np.float64)
-        fresh = [w, x * w, u * w, x * x * w, x * u * w]
-        level = np.where(good, me / max(float(np.median(me[good])), 1e-6) if good.any() else 1.0, np.nan)
+        rows = slice(None, None, LEARN_ROW_STEP)
+        frame, expected, light = (np.asarray(a, np.float32)[rows] for a in (frame, expected, light))
+        usable = usable[rows]
+        shape = frame.shape
+        area = cv2.INTER_AREA
+        weight = self._image("weight", shape)
+        np.copyto(weight, usable)  # 1 where usable, 0 elsewhere
+        # Per tile (INTER_AREA: means over its pixels): z, light and expected times the weight (0, 1, 2), the weight (3).
+        tiles = np.empty((4, grid[1], grid[0]), np.float32)
+        cv2.resize(weight, grid, dst=tiles[3], interpolation=area)
+        z = cv2.max(expected, 1e-3, dst=self._image("z", shape))  # z is finite: expected is floored
+        cv2.divide(frame, z, dst=z)
+        cv2.multiply(z, weight, dst=z)  # frame / expected where usable, 0 elsewhere
+        cv2.resize(z, grid, dst=tiles[0], interpolation=area)
+        product = cv2.multiply(light, weight, dst=self._image("product", shape))
+        cv2.resize(product, grid, dst=tiles[1], interpolation=area)
+        cv2.multiply(expected, weight, dst=product)
+        cv2.resize(product, grid, dst=tiles[2], interpolation=area)
+        share = tiles[3]
+        means = tiles[:3] / np.maximum(share, np.float32(1e-6))  # mz, mx, me: only tiles with half their pixels count
+        me = means[2]
+        good = (share >= MIN_TILE_WEIGHT) & np.isfinite(means).all(axis=0) & (me > 0.0)
+        # fresh: w, x * w, u * w, x^2 * w, x * u * w with w = good (0 or 1) and x, u 0 where it is 0: w multiplies
+        # nothing away, so the products are the plain ones.
+        fresh = np.zeros((5, grid[1], grid[0]))
+        fresh[0] = good
+        np.copyto(fresh[1:3], means[1::-1] - np.float32(1.0), where=good)  # x = mx - 1, u = mz - 1 (float32, widened)
+        np.multiply(fresh[1], fresh[1:3], out=fresh[3:5])
+        level = np.where(good, me / max(_median(me[good]), 1e-6) if good.any() else 1.0, np.nan)
         self._follow(level)  # both memories, to today's reference, before today's frame joins them
         if self._expected is None or self._expected.shape != level.shape:
             self._expected = level
@@ -162,23 +220,27 @@ class ProjectorShare:
             np.copyto(self._expected, level, where=good)
         fast_dt = 0.0 if self._fast_t is None else max(t - self._fast_t, 0.0)
         self._fast_t = t
-        if self._fast is None or self._fast[0].shape != w.shape:
-            self._fast = [f.copy() for f in fresh]
+        if self._fast is None or self._fast.shape != fresh.shape:
+            self._fast = fresh.copy()
         else:
-            keep_fast = math.exp(-fast_dt / FAST_TAU_S)
-            self._fast = [s * keep_fast + f for s, f in zip(self._fast, fresh)]
-        self._map = None
+            self._fast *= math.exp(-fast_dt / FAST_TAU_S)
+            self._fast += fresh
+        self._changed()
         if not hand_free:
             return
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
         self._last_t = t
-        if self._sums is None or self._sums[0].shape != w.shape:
+        if self._sums is None or self._sums.shape != fresh.shape:
             self._sums = fresh
         else:
-            keep = math.exp(-dt / self.tau_s)
-            self._sums = [s * keep + f for s, f in zip(self._sums, fresh)]
-        self._map = None
+            self._sums *= math.exp(-dt / self.tau_s)
+            self._sums += fresh
         self.updates += 1
+
+    def _changed(self) -> None:
+        """The sums moved: the maps made from them are stale."""
+        self._coarse = None
+        self._map = None
 
     def _follow(self, level: np.ndarray) -> None:
         """The room's slow change since the tiles last learned: where a tile's normalised reference went from ``then``
@@ -188,31 +250,32 @@ class ProjectorShare:
         ratio = self._expected / level
         ratio = np.where(np.isfinite(ratio), np.clip(ratio, 0.25, 4.0), 1.0)
         for sums in (self._sums, self._fast):  # the short memory too: it judges the level against today's reference
-            if sums is not None and sums[0].shape == ratio.shape:
-                sums[2] = sums[2] * ratio
-                sums[4] = sums[4] * ratio
+            if sums is not None and sums.shape[1:] == ratio.shape:
+                sums[2::2] *= ratio  # u and x*u
 
     def rescale(self, factor: np.ndarray) -> None:
         """The room's light changed: every tile's projector share is now ``factor`` (working size) times what it
         was (``e * reference / (e * reference + added)``, see the module docstring)."""
         if self._sums is None:
             return
-        f = cv2.resize(factor.astype(np.float32), (self._sums[0].shape[1], self._sums[0].shape[0]), interpolation=cv2.INTER_AREA)
+        f = cv2.resize(factor.astype(np.float32), (self._sums.shape[2], self._sums.shape[1]), interpolation=cv2.INTER_AREA)
         f = np.clip(np.nan_to_num(f, nan=1.0, posinf=1.0, neginf=1.0), 0.0, 4.0).astype(np.float64)
-        self._sums[2] = self._sums[2] * f  # u = p * x: scaling p scales u (and its intercept, a gain error)
-        self._sums[4] = self._sums[4] * f
+        self._sums[2::2] *= f  # u = p * x: scaling p scales u (and its intercept, a gain error), and x*u with it
         if self._fast is not None:
-            self._fast[2] = self._fast[2] * f
-            self._fast[4] = self._fast[4] * f
+            self._fast[2::2] *= f
         self._expected = None  # the re-seeded reference is the new "then": its step is in ``factor`` already
-        self._map = None
+        self._changed()
 
-    def room_scale(self) -> float:
+    def room_scale(self, fitted: tuple[np.ndarray, np.ndarray] | None = None) -> float:
         """``k``: how much the room's light moved lately, everywhere alike, judged by the short fit (1.0 while either
-        fit knows too little). Solved by Newton's method from 1: the long fit's shares moved by ``k``, pooled with the
-        short fit's weights (its change of light per tile), equal the short fit's pooled share."""
-        fitted = self.tiles()
-        if fitted is None or self._fast is None or self._fast[0].shape != fitted[0].shape:
+        fit knows too little). Solved by Newton's method: the long fit's shares moved by ``k``, pooled with the
+        short fit's weights (its change of light per tile), equal the short fit's pooled share. ``fitted``:
+        :meth:`tiles`, when the caller has it.
+
+        Newton starts from the last frame's ``k`` (the room moves little in a frame: one or two steps instead of four
+        to eight from "unchanged"), and again from 1 when that fails to converge."""
+        fitted = self.tiles() if fitted is None else fitted
+        if fitted is None or self._fast is None or self._fast.shape[1:] != fitted[0].shape:
             return 1.0
         p, info = fitted
         n, sx, su, sxx, sxu = self._fast
@@ -223,18 +286,10 @@ class ProjectorShare:
             return 1.0
         pk, vk = p[known].astype(np.float64), var[known]
         target = float(np.sum((sxu - sx * su / safe)[known]))
-        qk = 1.0 - pk
-        k = 1.0
-        for _ in range(8):  # Newton's method from "unchanged": the pooled share falls smoothly as k grows
-            den = np.maximum(pk + k * qk, 1e-9)
-            f = float(np.sum(vk * pk / den)) - target
-            slope = -float(np.sum(vk * pk * qk / (den * den)))
-            if slope >= -1e-12:
-                break
-            step = f / slope
-            k = min(max(k - step, ROOM_SCALE_LIMITS[0]), ROOM_SCALE_LIMITS[1])
-            if abs(step) < 1e-4:
-                break
+        k, converged = _solve_room_scale(pk, vk, target, self._k)
+        if not converged and self._k != 1.0:
+            k, _ = _solve_room_scale(pk, vk, target, 1.0)
+        self._k = k
         return k
 
     def tiles(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -242,27 +297,26 @@ class ProjectorShare:
         times its weight: the fit's information); None before anything was learned."""
         if self._sums is None:
             return None
-        n, sx, su, sxx, sxu = self._sums
-        safe = np.maximum(n, 1e-9)
-        mx, mu = sx / safe, su / safe
-        var = np.maximum(sxx / safe - mx * mx, 0.0)
-        cov = sxu / safe - mx * mu
-        with np.errstate(invalid="ignore", divide="ignore"):
-            p = np.where(var > 0.0, cov / np.maximum(var, 1e-12), 0.0)
+        n = self._sums[0]
+        mx, mu, mxx, mxu = self._sums[1:] / np.maximum(n, 1e-9)
+        var = np.maximum(mxx - mx * mx, 0.0)
+        cov = mxu - mx * mu
+        p = np.where(var > 0.0, cov / np.maximum(var, 1e-12), 0.0)
         info = np.where(var >= MIN_LIGHT_VAR, var * n, 0.0)
         return np.clip(p, *SHARE_LIMITS).astype(np.float32), info.astype(np.float32)
 
-    def share_map(self) -> np.ndarray | None:
-        """The projector's share at every working pixel (float32), or None until some tile saw its light change.
+    def coarse(self) -> np.ndarray | None:
+        """The projector's share per tile (float32), or None until some tile saw its light change.
 
         Every tile takes the share of the informative tiles around it (itself included), weighted by what they saw:
         a tile that straddles two of the probe's cells saw little change of light and its own fit is noisy (kept
         alone, such tiles put the share 0.1-0.2 off in places, and one lost a tap), at the price of a bias where the
-        back-light's fall-off makes the share vary fast from tile to tile."""
-        if self._map is not None:
-            return self._map
+        back-light's fall-off makes the share vary fast from tile to tile. Health judges the membrane at this
+        resolution (a few hundred values a frame), and a candidate reads it at its point (:meth:`share_at`)."""
+        if self._coarse is not None:
+            return self._coarse
         fitted = self.tiles()
-        if fitted is None or self._shape is None:
+        if fitted is None:
             return None
         p, info = fitted
         if not (info > 0.0).any():
@@ -271,17 +325,62 @@ class ProjectorShare:
         den = cv2.GaussianBlur(info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
         fallback = float(np.sum(p * info) / np.sum(info))
         spread = np.where(den > 1e-3 * float(info.max()), num / np.maximum(den, 1e-12), fallback).astype(np.float32)
-        h, w = self._shape
-        k = np.float32(self.room_scale())
+        k = np.float32(self.room_scale(fitted))
         spread = np.clip(spread / np.maximum(spread + k * (1.0 - spread), np.float32(1e-6)), *SHARE_LIMITS).astype(np.float32)
         self._coarse = spread
+        return spread
+
+    def share_map(self) -> np.ndarray | None:
+        """The projector's share at every working pixel (float32; :meth:`coarse` upsampled), or None until some tile
+        saw its light change. Made only when asked for: the probe's compensation needs every pixel."""
+        if self._map is not None:
+            return self._map
+        spread = self.coarse()
+        if spread is None or self._shape is None:
+            return None
+        h, w = self._shape
         self._map = cv2.resize(spread, (w, h), interpolation=cv2.INTER_LINEAR)
         return self._map
 
-    def coarse(self) -> np.ndarray | None:
-        """:meth:`share_map` per tile (what health needs: judging the membrane at the share's own resolution costs a
-        few hundred values a frame, not a working image)."""
-        return self._coarse if self.share_map() is not None else None
+    def share_at(self, x: float, y: float) -> float | None:
+        """The share at the working pixel nearest (``x``, ``y``) (clamped to the image), as :meth:`share_map` has it
+        there but for the last bit (:func:`upsampled_at`), without making the map; None while it is unknown."""
+        spread = self.coarse()
+        if spread is None or self._shape is None:
+            return None
+        h, w = self._shape
+        ix = min(max(int(round(x)), 0), w - 1)
+        iy = min(max(int(round(y)), 0), h - 1)
+        return upsampled_at(spread, self._shape, ix, iy)
+
+
+def _solve_room_scale(pk: np.ndarray, vk: np.ndarray, target: float, start: float) -> tuple[float, bool]:
+    """Newton's method for ``k`` in ``sum(vk * pk / (pk + k (1 - pk))) = target`` from ``start`` (the pooled share
+    falls smoothly as ``k`` grows), at most :data:`NEWTON_STEPS` steps: ``k`` and whether it converged (a step
+    under 1e-4, or a limit of :data:`ROOM_SCALE_LIMITS` with the root beyond it, where it stays).
+
+    The products that do not depend on ``k`` are made once (the same arithmetic, in the same order, as writing
+    them inside the loop)."""
+    qk = 1.0 - pk
+    a = vk * pk
+    aq = a * qk
+    low, high = ROOM_SCALE_LIMITS
+    total = np.add.reduce  # np.sum's own arithmetic, without its dispatch
+    k = start
+    for _ in range(NEWTON_STEPS):
+        den = k * qk + pk  # >= min(1, k) >= 0.1: pk is clipped to 0..1 and k to its limits
+        f = float(total(a / den)) - target
+        den *= den
+        slope = -float(total(aq / den))
+        if slope >= -1e-12:
+            return k, True
+        step = f / slope
+        if (k <= low and step > 0.0) or (k >= high and step < 0.0):
+            return k, True  # at a limit, pushed beyond it
+        k = min(max(k - step, low), high)
+        if abs(step) < 1e-4:
+            return k, True
+    return k, False
 
 
 def projected_depth(depth: float, share: float) -> float:

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from feelium.skin.probe import PERIOD_S, probe_light, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
-from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
+from feelium.touch.roomshare import ProjectorShare, _median, _solve_room_scale, projected_depth, room_dominated
 from tests.touch.synth import H as SH, ROI as SROI, W as SW, backlight
 
 H, W = 240, 320  # the default working size: 20 x 15 coarse tiles
@@ -193,3 +193,55 @@ def test_the_share_follows_a_fall_of_the_rooms_light_over_the_whole_membrane_wit
     inner = (slice(16, -16), slice(16, -16))
     assert float(np.median((truth - before)[inner])) > 0.15
     assert float(np.median(np.abs(got - truth)[inner])) <= 0.04
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**16),
+    size=st.sampled_from([(240, 320), (120, 160), (480, 640), (100, 150)]),
+    points=st.lists(st.tuples(st.floats(-5.0, 700.0), st.floats(-5.0, 500.0)), min_size=1, max_size=8),
+)
+def test_the_share_read_at_a_point_is_the_upsampled_maps_value_there(
+    seed: int, size: tuple[int, int], points: list[tuple[float, float]]
+) -> None:
+    """A candidate reads the coarse share at its point (``share_at``) instead of upsampling the whole map: the same
+    value as the working-size map's pixel nearest the point (clamped), to float32's last bit."""
+    h, w = size
+    rng = np.random.default_rng(seed)
+    a = (100.0 + 50.0 * rng.random((h, w))).astype(np.float32)
+    c = (a.mean() * rng.random() * np.ones((h, w))).astype(np.float32)
+    share = ProjectorShare(tau_s=5.0)
+    pattern = probe_pattern(w, h, cell_px=32)
+    usable = rng.random((h, w)) > 0.2
+    for t in np.arange(0.0, 1.5 * PERIOD_S, 1.0 / FPS):
+        light = probe_light(float(t), pattern)
+        frame = (a * light + c + rng.normal(0.0, 2.0, (h, w))).astype(np.float32)
+        share.learn(float(t), frame, a + c, light, usable)
+    full = share.share_map()
+    assert full is not None
+    for x, y in points:
+        got = share.share_at(x, y)
+        ix, iy = min(max(int(round(x)), 0), w - 1), min(max(int(round(y)), 0), h - 1)
+        assert got is not None
+        assert abs(got - float(full[iy, ix])) <= 2e-7
+
+
+@given(values=st.lists(st.floats(-1e6, 1e6, width=32), min_size=1, max_size=400))
+def test_the_tile_median_is_numpys_to_the_bit(values: list[float]) -> None:
+    array = np.array(values, np.float32)
+    assert _median(array) == float(np.median(array))
+
+
+@settings(deadline=None)
+@given(seed=st.integers(0, 2**16), k=st.floats(0.2, 5.0), start=st.floats(0.1, 10.0))
+def test_the_room_factor_from_last_frames_is_the_one_from_unchanged(seed: int, k: float, start: float) -> None:
+    """Newton's method for ``k`` started from the last frame's value (warm) finds the root it finds from 1."""
+    rng = np.random.default_rng(seed)
+    pk = rng.uniform(0.05, 0.95, 300)
+    vk = rng.uniform(1e-4, 1e-3, 300)
+    target = float(np.sum(vk * pk / (pk + k * (1.0 - pk))))
+    warm, warm_converged = _solve_room_scale(pk, vk, target, start)
+    cold, cold_converged = _solve_room_scale(pk, vk, target, 1.0)
+    assert cold_converged
+    if warm_converged:  # (ProjectorShare.room_scale starts again from 1 when it did not)
+        assert abs(warm - k) <= 1e-5 and abs(cold - k) <= 1e-5
