@@ -11,8 +11,10 @@ own last position, its prediction running on, rather than released or moved
 to the merged centre: both ids survive. A touch is confirmed after
 ``down_frames`` consecutive touching frames and released after ``release_s`` of not touching (debouncing both ends).
 A confirmed ``down`` carries the confirming frame's time (the event cannot be known sooner) but the position,
-depth and area of the frame that passed the gates: the frames after it only had to stay under the release
-hysteresis, and the shortest taps are already lifting then, their fingertip a few pixels off. On
+depth and area of the deepest frame since the gates passed: the frames after that one only had to stay under
+the release hysteresis, and the shortest taps are already lifting then, their fingertip a few pixels off, while
+a press still sinking in is better centred on its deeper frame (the fingertip's shadow in a lit room falls off
+the pad until the skin is pressed). On
 release the contact is classified: a swipe when its fingertip path (with a
 jitter deadband) is long, else a hold when it lasted long, else a tap. Every
 event also says what touched (:mod:`feelium.touch.shape`): a track keeps the
@@ -75,7 +77,7 @@ class Track:
     path_anchor: tuple[float, float] = (0.0, 0.0)
     reported: tuple[float, float] = (0.0, 0.0)
     touch_obs: Observation | None = None
-    gate_obs: Observation | None = None  # the frame that passed the gates, while the onset is being confirmed
+    landing: Observation | None = None  # the deepest frame since the gates passed, while the onset is confirmed
     max_area: int = 0
     max_depth: float = 0.0
     velocity: tuple[float, float] = (0.0, 0.0)  # camera px per second, smoothed
@@ -299,11 +301,11 @@ class Tracker:
         cfg = self.config
         if not track.down:
             track.streak = track.streak + 1 if touching else 0
-            if track.streak == 1:
-                track.gate_obs = track.obs
+            if track.streak == 1 or (touching and track.landing is not None and track.obs.depth > track.landing.depth):
+                track.landing = track.obs
             if touching and track.streak >= cfg.down_frames:
-                landed = track.gate_obs or track.obs
-                track.gate_obs = None
+                landed = track.landing or track.obs
+                track.landing = None
                 track.event_id = self.next_id
                 self.next_id += 1
                 track.down_t = track.last_touch_t = t
