@@ -32,7 +32,7 @@ def register(registry: CommandRegistry) -> None:
         "simulate",
         "condition",
         "Write labelled recordings of a condition of use (issue 17): litroom (room light variants), face (whole curved face,"
-        " by zone), faceon (the wearer's face on the skin, with the projector stream), multitouch (two hands, palm, hug).",
+        " by zone), faceon (the wearer's face on the skin, with the projector stream, in the dim and the lit room), multitouch (two hands, palm, hug).",
         _condition,
     )
     cond.add_argument("condition", choices=("litroom", "face", "faceon", "multitouch"), help="which condition")
@@ -40,7 +40,7 @@ def register(registry: CommandRegistry) -> None:
     cond.add_argument(
         "--variants",
         help="comma-separated variants (litroom: dim,lit,switch-on,switch-off,drift,passer-by; face: centre,mid,edge; faceon:"
-        " static,face; multitouch: one-finger,two-finger-v,two-hands-5cm,two-partners,swipe-cross,swipe-graze,palm,"
+        " static,face,static-lit,face-lit; multitouch: one-finger,two-finger-v,two-hands-5cm,two-partners,swipe-cross,swipe-graze,palm,"
         "palm-and-finger,hug); default all",
     )
     cond.add_argument("--seed", type=int, default=1, help="random seed; the same seed gives identical recordings")

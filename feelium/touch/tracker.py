@@ -9,7 +9,12 @@ own side. While the two shadows are one (the crossing itself), every contact
 that is down and predicted on a shadow that is not only its own is seen at its
 own last position, its prediction running on, rather than released or moved
 to the merged centre: both ids survive. A touch is confirmed after
-``down_frames`` consecutive touching frames and released after ``release_s`` of not touching (debouncing both ends). On
+``down_frames`` consecutive touching frames and released after ``release_s`` of not touching (debouncing both ends).
+A confirmed ``down`` carries the confirming frame's time (the event cannot be known sooner) but the position,
+depth and area of the deepest frame since the gates passed: the frames after that one only had to stay under
+the release hysteresis, and the shortest taps are already lifting then, their fingertip a few pixels off, while
+a press still sinking in is better centred on its deeper frame (the fingertip's shadow in a lit room falls off
+the pad until the skin is pressed). On
 release the contact is classified: a swipe when its fingertip path (with a
 jitter deadband) is long, else a hold when it lasted long, else a tap. Every
 event also says what touched (:mod:`feelium.touch.shape`): a track keeps the
@@ -72,6 +77,7 @@ class Track:
     path_anchor: tuple[float, float] = (0.0, 0.0)
     reported: tuple[float, float] = (0.0, 0.0)
     touch_obs: Observation | None = None
+    landing: Observation | None = None  # the deepest frame since the gates passed, while the onset is confirmed
     max_area: int = 0
     max_depth: float = 0.0
     velocity: tuple[float, float] = (0.0, 0.0)  # camera px per second, smoothed
@@ -295,42 +301,52 @@ class Tracker:
         cfg = self.config
         if not track.down:
             track.streak = track.streak + 1 if touching else 0
+            if track.streak == 1 or (touching and track.landing is not None and track.obs.depth > track.landing.depth):
+                track.landing = track.obs
             if touching and track.streak >= cfg.down_frames:
+                landed = track.landing or track.obs
+                track.landing = None
                 track.event_id = self.next_id
                 self.next_id += 1
                 track.down_t = track.last_touch_t = t
                 track.release_t = None
                 track.path_len = 0.0
-                track.path_anchor = track.reported = (track.obs.x, track.obs.y)
-                track.touch_obs = track.obs
-                track.max_area = track.obs.area
-                track.max_depth = track.obs.depth
-                track.widest = track.obs
+                track.path_anchor = track.reported = (landed.x, landed.y)
+                track.touch_obs = track.widest = landed
+                track.max_area = landed.area
+                track.max_depth = landed.depth
                 events.append(self._event(track, "down", t, None))
+                # This frame is the contact's too: its footprint and path count from the landing point on, the
+                # move it may have made is reported with the next frame's (an event per phase per frame).
+                self._follow(track, track.obs)
             return
         if touching:
             track.last_touch_t = t
             track.release_t = None
-            obs = track.obs
-            track.touch_obs = obs
-            track.max_area = max(track.max_area, obs.area)
-            track.max_depth = max(track.max_depth, obs.depth)
-            if track.widest is None or obs.reach > track.widest.reach:
-                track.widest = obs
-            ax, ay = track.path_anchor
-            step = math.hypot(obs.x - ax, obs.y - ay)
-            if step >= cfg.path_deadband_px:
-                track.path_len += step
-                track.path_anchor = (obs.x, obs.y)
-            rx, ry = track.reported
-            if math.hypot(obs.x - rx, obs.y - ry) >= cfg.move_min_px:
-                track.reported = (obs.x, obs.y)
+            if self._follow(track, track.obs):
+                track.reported = (track.obs.x, track.obs.y)
                 events.append(self._event(track, "move", t, self._kind_so_far(track, t)))
             return
         if track.release_t is None:
             track.release_t = t
         if t - track.last_touch_t >= cfg.release_s:
             events.append(self._release(track))
+
+    def _follow(self, track: Track, obs: Observation) -> bool:
+        """Fold a touching frame into a contact that is down; True when it moved far enough to report."""
+        cfg = self.config
+        track.touch_obs = obs
+        track.max_area = max(track.max_area, obs.area)
+        track.max_depth = max(track.max_depth, obs.depth)
+        if track.widest is None or obs.reach > track.widest.reach:
+            track.widest = obs
+        ax, ay = track.path_anchor
+        step = math.hypot(obs.x - ax, obs.y - ay)
+        if step >= cfg.path_deadband_px:
+            track.path_len += step
+            track.path_anchor = (obs.x, obs.y)
+        rx, ry = track.reported
+        return math.hypot(obs.x - rx, obs.y - ry) >= cfg.move_min_px
 
     def _release(self, track: Track) -> TouchEvent:
         assert track.release_t is not None

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from feelium.cli import main
-from feelium.lab.sim import conditions, protocol, take_multitouch
-from feelium.lab.touch import face_zones, faceon
+from feelium.lab.sim import conditions, protocol, take_faceon, take_multitouch
+from feelium.lab.touch import face_zones, faceon, litroom
 from feelium.lab.touch.commands import evaluate_dataset
 from feelium.lab.touch.recorded_light import CALIBRATION_FILE, recorded_light
 from feelium.lab.touch.replay import replay_recording
@@ -76,6 +76,24 @@ def test_a_tap_under_the_face_is_recorded_with_what_was_projected_and_scored_wit
         evaluate_dataset(tmp_path, TouchConfig())
 
 
+def test_a_tap_under_the_face_in_a_lit_room_is_its_own_condition_scored_with_its_margins(tmp_path, monkeypatch):
+    """faceon/face-lit: the lit-room experiment's lamp in the recording's meta, the stream and the map beside the
+    trial; eval scores it under its own condition, with every gate's margins."""
+    monkeypatch.setattr(faceon, "WARMUP_S", 1.0)
+    item = _first("tap")
+    monkeypatch.setattr(conditions, "plan", lambda c, v, s, clips=False: [conditions.Job("faceon", "face-lit", f"faceon-face-lit/{item.relpath}", item)])
+    (path,) = conditions.simulate_condition(tmp_path, "faceon", variants=("face-lit",), scale=0.01)
+    recording = Recording(path)
+    generator = recording.meta.raw["generator"]
+    assert recording.has_projector and generator["condition"] == "faceon/face-lit"
+    assert generator["room"]["level"] == litroom.LIT and not generator["room"]["steps"]  # steady lamp
+    assert (tmp_path / "faceon-face-lit" / CALIBRATION_FILE).is_file()
+    report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
+    lit = report["conditions"]["faceon/face-lit"]
+    assert (lit["trials"]["tp"], lit["trials"]["fp"], lit["trials"]["fn"]) == (1, 0, 0)
+    assert {"edge", "instant", "sustained"} <= set(lit["margins"]["trials"])
+
+
 def test_two_hands_and_a_palm_are_labelled_contact_by_contact_and_eval_scores_each(tmp_path):
     run = take_multitouch.runs("palm-and-finger", 0.1)[0]
     job = conditions.Job("multitouch", "palm-and-finger", f"multitouch-palm-and-finger/{run.session}/{run.name}", run)
@@ -128,6 +146,7 @@ def test_the_multitouch_plan_runs_every_scene_round_robin_over_the_sessions():
         "multitouch-swipe-cross/s3/swipe-cross-s3-001",
     ]  # fmt: skip
     assert len(conditions.plan("faceon", ("static", "face"), 0.05)) == 2 * 13
+    assert len(conditions.plan("faceon", take_faceon.VARIANTS, 0.05)) == 4 * 13  # each also in the lit room
 
 
 def test_the_paper_gates_alone_are_scored_beside_the_pipeline_on_the_same_frames(tmp_path, monkeypatch, capsys):

@@ -61,3 +61,21 @@ def test_both_margins_are_positive_exactly_when_the_threshold_separates(neg, pos
     m = gate_margin(neg, pos, threshold)
     separates = max(neg) < threshold and min(pos) > threshold
     assert (m["negative_margin"] > 0 and m["positive_margin"] > 0) == separates
+
+
+def test_the_projector_light_gate_counts_only_frames_whose_share_was_known():
+    gates = GateThresholds(0.05, 0.55, 0.30, 0.5, contact_projected_depth=0.2)
+    unknown = np.full(T.size, np.nan)
+    hover = _series(0.0, 0.7, 0.06, negative=True)
+    hover = GateSeries(hover.t, hover.anchor, hover.core_depth, hover.edge, (), True, np.where(T > 1, -0.05, np.nan))
+    blind = GateSeries(T, hover.anchor, hover.core_depth, hover.edge, (), True, unknown)  # the share never learned
+    tap = _series(0.5, 0.6, 0.06, [Contact(1.0, 1.3, None)])
+    press = np.where((T >= 1.0) & (T < 1.3), 0.45, np.nan)
+    press[T > 3.5] = 0.9  # outside the widened contact: not the tap's score
+    tap = GateSeries(T, tap.anchor, tap.core_depth, tap.edge, tap.contacts, False, press)
+    m = margins([hover, blind, tap], gates, widen=(0.2, 0.5))
+    assert (m["projected"]["negatives"], m["projected"]["positives"]) == (1, 1)
+    assert m["projected"]["negative_margin"] == pytest.approx(0.25)
+    assert m["projected"]["positive_margin"] == pytest.approx(0.25)
+    assert m["instant"]["negatives"] == 2  # the other gates still count the blind recording
+    assert "projected" not in margins([hover, tap], GATES)  # the gate off: no margin reported for it

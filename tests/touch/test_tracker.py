@@ -109,6 +109,32 @@ def test_a_one_frame_press_lifting_on_the_next_frame_is_still_a_tap():
     assert events[1].kind == "tap"
 
 
+def test_a_confirmed_down_lands_on_its_deepest_frame_at_the_confirming_time():
+    # A tap pressed for one frame whose lifting frame (hover-like, 5 px off) confirms it: the landing point is the
+    # pressed frame's, the event's time the confirmation's.
+    tracker = Tracker(CFG)
+    pressed, lifting = obs(100, 100, depth=0.8, area=150), obs(105, 100, depth=0.35, area=90)
+    events = run(tracker, [[pressed], [lifting]] + [[]] * 6)
+    assert [e.phase for e in events] == ["down", "up"]
+    down = events[0]
+    assert down.t == DT
+    assert (down.x, down.y, down.u, down.v) == (pressed.x, pressed.y, pressed.u, pressed.v)
+    assert (down.depth, down.area) == (pressed.depth, pressed.area)
+
+
+def test_a_press_still_sinking_in_lands_on_the_deeper_confirming_frame():
+    tracker = Tracker(CFG)
+    events = run(tracker, [[obs(100, 100, depth=0.7)], [obs(103, 100, depth=0.8)]] + [[]] * 6)
+    assert (events[0].phase, events[0].x, events[0].depth, events[0].t) == ("down", 103, 0.8, DT)
+
+
+def test_a_contact_that_moved_while_confirming_reports_the_move_with_the_next_frame():
+    tracker = Tracker(CFG)
+    frames = [[obs(100, 100)], [obs(106, 100)], [obs(106, 100)]] + [[]] * 6
+    events = run(tracker, frames)
+    assert [(e.phase, e.x, e.t) for e in events[:2]] == [("down", 100, DT), ("move", 106, 2 * DT)]
+
+
 def test_a_shallow_shadow_after_no_gate_is_not_confirmed_by_hysteresis():
     tracker = Tracker(CFG)
     assert run(tracker, [[obs(100, 100, depth=0.35)]] * 3 + [[]] * 6) == []

@@ -13,8 +13,8 @@ chosen from detector scores):
 - ``face``: taps, holds, swipes and hovers aimed at targets in each zone of the whole curved front face
   (:mod:`feelium.lab.touch.face_zones`: ``centre``, ``mid``, ``edge``), 1280x960 frames with ``meta.face``;
 - ``faceon``: the protocol's trials under the flat back-light (``static``) and with the wearer's face on the
-  skin (``face``), the latter with the projector stream recorded and the projector calibration written beside
-  the trials (:mod:`feelium.lab.sim.take_faceon`);
+  skin (``face``), each also in the lit room (``static-lit``, ``face-lit``), the face with the projector stream
+  recorded and the projector calibration written beside the trials (:mod:`feelium.lab.sim.take_faceon`);
 - ``multitouch``: the scene bench's two fingers, two hands 5 cm apart, two partners, swipes crossing a held
   fingertip, palm, palm and finger, hug (:mod:`feelium.lab.sim.take_multitouch`), each true contact labelled
   with the optional ``"contact"`` kind, scored contact by contact by ``eval``.
@@ -165,7 +165,8 @@ def _faceon(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, t
     assert isinstance(item, protocol.Item)
     take = take_faceon.render(item, job.variant, seed)
     generator.update(warmup_s=take_faceon.faceon.WARMUP_S, video_offset_s=take.offset_s,
-                     projector_latency_s=take_faceon.faceon.TRUE_LATENCY_S)  # fmt: skip
+                     projector_latency_s=take_faceon.faceon.TRUE_LATENCY_S,
+                     room=None if take.room is None else dataclasses.asdict(take.room))  # fmt: skip
     return (take.frames, take.labels, (WIDTH, HEIGHT), ROI, {}), take
 
 
@@ -235,7 +236,8 @@ def simulate_condition(
     finally:
         if jobs > 1:
             pool.shutdown()
-    if condition == "faceon" and any(job.variant == "face" for job in todo):
+    if condition == "faceon":
         # The map the daemon would use, beside the face trials (`eval` finds it there).
-        take_faceon.calibration(seed).save(Path(out) / "faceon-face" / CALIBRATION_FILE)
+        for variant in sorted({job.variant for job in todo if job.variant.startswith("face")}):
+            take_faceon.calibration(seed).save(Path(out) / f"faceon-{variant}" / CALIBRATION_FILE)
     return sorted(written)

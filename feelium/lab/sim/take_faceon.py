@@ -5,12 +5,17 @@ chosen from detector scores): the scripted wearer's video at full brightness (ta
 scene cuts, fades to black and back) shown through the daemon's renderer with its sensing and fade floors,
 lit on the membrane :data:`~feelium.lab.touch.faceon.TRUE_LATENCY_S` after its frame clock and integrated over
 the camera's exposure; the same hands, session, camera noise and video offset per trial, and the same
-hand-free warm-up (recorded here as frames before 0 s). Two variants:
+hand-free warm-up (recorded here as frames before 0 s). Four variants:
 
 - ``static``: the flat back-light, the baseline every face figure is read against;
 - ``face``: the face on, with the projector stream recorded: every projector frame the daemon handed the
   display, gray, with the time it did so (its frame clock, ``k / fps``; the daemon knows when it showed a
-  frame, not when the light reached the membrane, which is what ``[touch] projector_latency_s`` models).
+  frame, not when the light reached the membrane, which is what ``[touch] projector_latency_s`` models);
+- ``static-lit`` and ``face-lit``: the same two in the lit living room of the lit-room experiment
+  (:func:`feelium.lab.touch.litroom.room_for` ``"lit"``: the room's light through the membrane as bright as the
+  projector's, the trial's own gradient angle, steady), the room's light in the warm-up too. With the face on,
+  its own variation is all that teaches the pipeline the projector's share of the light (no probe is laid over
+  a playing face).
 
 The camera-to-projector map the daemon would use is the Gray-code calibration run against the same simulated
 optics (:func:`feelium.lab.projector.facevideo.sim_calibration`, a decode, not the true warp); the dataset
@@ -27,17 +32,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from feelium.lab.sim import protocol
-from feelium.lab.touch import faceon
+from feelium.lab.touch import faceon, litroom
 from feelium.projector.config import ProjectorConfig
 from feelium.recording import Labels
 from feelium.sim.camera import frame_times
 from feelium.sim.projection import timed_hook
+from feelium.sim.room import RoomLight
 from feelium.sim.scene import ROI, SceneRenderer, SceneState, exposure_samples
 from feelium.sim.sessions import session_presets
 from feelium.skin.projector_map import ProjectorMap
 from feelium.touch.config import TouchConfig
 
-VARIANTS = ("static", "face")
+VARIANTS = ("static", "face", "static-lit", "face-lit")
 
 
 @dataclass
@@ -50,6 +56,7 @@ class FaceTake:
     projector_size: tuple[int, int]
     projector_fps: float
     offset_s: float
+    room: RoomLight | None  # the room's own light (None: the paper's dim room)
 
 
 @functools.lru_cache(maxsize=2)
@@ -64,9 +71,10 @@ def calibration(seed: int) -> ProjectorMap:
 
 
 def render(item: protocol.Item, variant: str, seed: int) -> FaceTake:
-    """``item`` under ``variant`` (``static`` or ``face``)."""
+    """``item`` under ``variant`` (one of :data:`VARIANTS`)."""
     if variant not in VARIANTS:
         raise ValueError(f"faceon: unknown variant {variant!r}")
+    face_on = variant.startswith("face")
     ex = experiment(seed)
     fps = ex.setup.script.fps
     script = protocol.build_script(item, seed)
@@ -74,9 +82,12 @@ def render(item: protocol.Item, variant: str, seed: int) -> FaceTake:
     offset = float(protocol.recording_rng(seed, item.name, 7).uniform(0.0, ex.setup.script.fade_every_s))
     video = faceon.FaceVideo(ex.renderer, ex.source, ex.setup.script, offset)
     shown = faceon._Cache(video.frame)
-    hook = timed_hook(ex.light, shown, fps, faceon.TRUE_LATENCY_S, session.sensor.exposure_s) if variant == "face" else None
+    hook = timed_hook(ex.light, shown, fps, faceon.TRUE_LATENCY_S, session.sensor.exposure_s) if face_on else None
+    labels = script.labels()
+    first = labels.contacts[0].t_on if labels.contacts else None
+    room = litroom.room_for("lit", item, seed, script.duration, first) if variant.endswith("-lit") else None
     rng = protocol.recording_rng(seed, item.name, 1)
-    scene = SceneRenderer(session, rng, roi=ROI, projected=hook, projected_share_only=True)
+    scene = SceneRenderer(session, rng, roi=ROI, projected=hook, projected_share_only=True, room_light=room)
 
     def frames() -> Iterator[tuple[float, np.ndarray]]:
         for t in np.arange(-faceon.WARMUP_S, -0.25, 1.0 / session.sensor.fps):
@@ -93,5 +104,5 @@ def render(item: protocol.Item, variant: str, seed: int) -> FaceTake:
 
     config = ex.setup.projector
     return FaceTake(
-        frames(), script.labels(), projector() if variant == "face" else None, (config.width, config.height), fps, offset
+        frames(), labels, projector() if face_on else None, (config.width, config.height), fps, offset, room
     )

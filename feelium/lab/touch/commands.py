@@ -200,7 +200,8 @@ def scoring_input(root: Path, result: ReplayResult) -> TrialData | ClipData:
         activity=bool(result.activity.any()),
         max_area=float(result.area.max()) if result.area.size else 0.0,
         series=GateSeries(
-            result.t, result.anchor, result.core_depth, result.edge, labels.contacts, labels.label in NEGATIVE_LABELS
+            result.t, result.anchor, result.core_depth, result.edge, labels.contacts, labels.label in NEGATIVE_LABELS,
+            result.projected_depth,
         ),
         face=face_of(result.recording),
     )
@@ -303,7 +304,10 @@ class _Groups:
         (clips if isinstance(item, ClipData) else trials).append(item)  # type: ignore[arg-type]
 
     def report(self, name: str, config: TouchConfig, by_condition: bool) -> tuple[dict[str, Any], list[ClipData]]:
-        gates = GateThresholds(config.contact_edge, config.instant_depth, config.anchor_threshold, config.anchor_min_age_s)
+        gates = GateThresholds(
+            config.contact_edge, config.instant_depth, config.anchor_threshold, config.anchor_min_age_s,
+            config.contact_projected_depth,
+        )
 
         def report_of(title: str, trials: list[TrialData], clips: list[ClipData], timings: list[np.ndarray]) -> dict[str, Any]:
             seconds = np.concatenate(timings) if timings else np.zeros(0)

@@ -45,7 +45,7 @@ from feelium.lab.sim import protocol
 from feelium.lab.touch.evaluate import (
     WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_margins, score_trials,
 )  # fmt: skip
-from feelium.lab.touch.margins import GateSeries, GateThresholds, gate_margin
+from feelium.lab.touch.margins import GateSeries, GateThresholds
 from feelium.recording import NEGATIVE_LABELS
 from feelium.skin import probe
 from feelium.skin.probe import probe_light, probe_pattern
@@ -102,7 +102,6 @@ class Run:
     data: TrialData
     false_touches: int
     recovery_s: float | None  # switch conditions only
-    projected: np.ndarray | None = None  # per frame from 0 s: the largest projected depth of a candidate (NaN: unknown)
 
 
 def _false_touches(events: list[TouchEvent], data: TrialData) -> int:
@@ -211,13 +210,15 @@ def trial(setup: _Setup, item: protocol.Item) -> dict[str, Run]:
         room = room_for(condition, item, setup.seed, script.duration, first)
         frames = render(script, session, item, setup.seed, room)
         events, activity, max_area, s = replay(frames, setup.touch)
-        series = GateSeries(s["t"], s["anchor"], s["core_depth"], s["edge"], labels.contacts, item.label in NEGATIVE_LABELS)
+        series = GateSeries(
+            s["t"], s["anchor"], s["core_depth"], s["edge"], labels.contacts, item.label in NEGATIVE_LABELS, s["projected"]
+        )
         data = TrialData(item.name, labels, events, activity, max_area, series)
         rec = None
         if condition in SWITCHES and room is not None:
             twin = render(script, session, item, setup.seed, room, hands=False)
             rec = recovery(twin, setup.touch, room.steps[0][0])
-        runs[condition] = Run(data, _false_touches(events, data), rec, s["projected"])
+        runs[condition] = Run(data, _false_touches(events, data), rec)
     return runs
 
 
@@ -235,31 +236,13 @@ def _worker_trial(item: protocol.Item) -> dict[str, Run]:
     return trial(_SETUP, item)
 
 
-def projected_margin(runs: list[Run], threshold: float) -> dict[str, Any]:
-    """The projector-light gate's margins: per negative trial its largest projected depth, per touch trial its
-    largest inside its widened contacts (frames where the share was unknown do not count)."""
-    neg, pos = [], []
-    for r in runs:
-        series = r.data.series
-        if r.projected is None or series is None or not np.isfinite(r.projected).any():
-            continue
-        if series.negative:
-            neg.append(float(np.nanmax(r.projected)))
-            continue
-        inside = np.zeros(series.t.size, bool)
-        for c in series.contacts:
-            inside |= (series.t >= c.t_on - WIDEN_BEFORE_S) & (series.t <= c.t_off + WIDEN_AFTER_S)
-        values = r.projected[inside]
-        if np.isfinite(values).any():
-            pos.append(float(np.nanmax(values)))
-    return gate_margin(neg, pos, threshold)
-
-
 def summarise(runs: list[Run], touch: TouchConfig = TouchConfig()) -> dict[str, Any]:
     scored = score_trials([r.data for r in runs])
-    gates = GateThresholds(touch.contact_edge, touch.instant_depth, touch.anchor_threshold, touch.anchor_min_age_s)
+    gates = GateThresholds(
+        touch.contact_edge, touch.instant_depth, touch.anchor_threshold, touch.anchor_min_age_s,
+        touch.contact_projected_depth,
+    )
     margins = score_margins([r.data for r in runs], [], gates)["trials"] or {}
-    margins["projected"] = projected_margin(runs, touch.contact_projected_depth)
     trials = scored["trials"]
     recoveries = [r.recovery_s for r in runs if r.recovery_s is not None]
     return {

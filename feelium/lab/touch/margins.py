@@ -25,7 +25,13 @@ The gates' per-frame scores, as the pipeline sees them (``feelium.touch.gates``)
 - *sustained*: the anchoring score (the rolling minimum since landing, 0
   without an edge). A contact shorter than ``anchor_min_age_s`` can never pass
   it by design (taps are the instant gate's), so only touch trials whose
-  longest contact lasts that long count as its positives.
+  longest contact lasts that long count as its positives;
+- *projected*: the largest projected depth of a candidate, the share of the
+  projector's own light its shadow took (``feelium.touch.roomshare``: a hand
+  above the membrane takes none, so under ``contact_projected_depth`` a shadow
+  cannot land). Only where the share was known (NaN frames do not count) and
+  only when that gate is on; a recording whose share was never known gives
+  this gate no score.
 
 Pure: arrays, timestamps and labels in, numbers out.
 """
@@ -49,6 +55,7 @@ class GateThresholds:
     instant_depth: float
     anchor_threshold: float
     anchor_min_age_s: float
+    contact_projected_depth: float = 0.0  # the projector-light gate (0: off, no margin reported for it)
 
 
 @dataclass(frozen=True)
@@ -61,6 +68,7 @@ class GateSeries:
     edge: np.ndarray  # ... and its contact edge
     contacts: tuple[Contact, ...]
     negative: bool  # a negative trial (hover, disturbance, empty) or a hover clip
+    projected: np.ndarray | None = None  # the projector-light gate's score (NaN where the share was unknown)
 
 
 def gate_margin(negatives: Iterable[float], positives: Iterable[float], threshold: float) -> dict[str, Any]:
@@ -80,10 +88,12 @@ def gate_margin(negatives: Iterable[float], positives: Iterable[float], threshol
 
 
 def _max_within(t: np.ndarray, scores: np.ndarray, windows: list[tuple[float, float]]) -> float | None:
+    """The largest finite score inside ``windows`` (None when there is none)."""
     inside = np.zeros(t.size, bool)
     for w0, w1 in windows:
         inside |= (t >= w0) & (t <= w1)
-    return float(scores[inside].max()) if inside.any() else None
+    values = scores[inside & np.isfinite(scores)]
+    return float(values.max()) if values.size else None
 
 
 def margins(
@@ -93,7 +103,8 @@ def margins(
     widen: tuple[float, float] = (0.0, 0.0),
     per_contact: bool = False,
 ) -> dict[str, dict[str, Any]]:
-    """Per gate (``edge``, ``instant``, ``sustained``), :func:`gate_margin` over ``recordings``.
+    """Per gate (``edge``, ``instant``, ``sustained``, and ``projected`` when that gate is on),
+    :func:`gate_margin` over ``recordings``.
 
     ``widen`` = (before, after): how far each labelled contact is widened when
     looking for its positive score (the trial scoring's window; clips use none).
@@ -101,15 +112,21 @@ def margins(
     ``per_contact`` makes every contact its own positive, as a clip's presses are.
     """
     thresholds = {"edge": gates.contact_edge, "instant": gates.instant_depth, "sustained": gates.anchor_threshold}
+    if gates.contact_projected_depth > 0.0:
+        thresholds["projected"] = gates.contact_projected_depth
     neg: dict[str, list[float]] = {gate: [] for gate in thresholds}
     pos: dict[str, list[float]] = {gate: [] for gate in thresholds}
     for rec in recordings:
         if rec.t.size == 0:
             continue
         series = {"edge": rec.edge, "instant": rec.core_depth, "sustained": rec.anchor}
+        if "projected" in thresholds and rec.projected is not None:
+            series["projected"] = rec.projected
         if rec.negative:
             for gate, scores in series.items():
-                neg[gate].append(float(scores.max()))
+                best = _max_within(rec.t, scores, [(-np.inf, np.inf)])
+                if best is not None:
+                    neg[gate].append(best)
             continue
         if not rec.contacts:
             continue

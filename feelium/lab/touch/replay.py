@@ -7,6 +7,7 @@ apart from the pipeline: speed figures are the pipeline alone.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -34,6 +35,8 @@ class ReplayResult:
     depth_max: np.ndarray = field(default_factory=lambda: np.zeros(0))
     core_depth: np.ndarray = field(default_factory=lambda: np.zeros(0))
     edge: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the deepest shadow's contact edge
+    # the largest share of the projector's own light a shadow took (NaN: its share unknown, or no shadow)
+    projected_depth: np.ndarray = field(default_factory=lambda: np.zeros(0))
     seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))  # wall time
     cpu_seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))  # this thread's CPU time
     work_size: tuple[int, int] = (0, 0)
@@ -81,7 +84,7 @@ def replay_recording(
     if use_grids is not None:  # a recording's light, predicted where the pipeline reads it (the daemon's way)
         use_grids(pipeline.light_grids)
     out = ReplayResult(recording=recording)
-    ts, act, anc, area, dmax, core, edge, spf, cpu = [], [], [], [], [], [], [], [], []
+    ts, act, anc, area, dmax, core, edge, proj, spf, cpu = [], [], [], [], [], [], [], [], [], []
     for t, frame in frames if frames is not None else recording.frames(gray=True):
         extra = light(t) if light is not None else {}  # predicted outside the timing: the pipeline alone is timed
         start, start_cpu = time.perf_counter(), time.thread_time()
@@ -96,6 +99,7 @@ def replay_recording(
         dmax.append(result.depth_max)
         core.append(result.core_depth)
         edge.append(result.edge)
+        proj.append(math.nan if result.projected_depth is None else result.projected_depth)
         if on_frame is not None:
             on_frame(t, frame, result)
     out.events.extend(pipeline.finish())
@@ -106,6 +110,7 @@ def replay_recording(
     out.depth_max = np.asarray(dmax, float)
     out.core_depth = np.asarray(core, float)
     out.edge = np.asarray(edge, float)
+    out.projected_depth = np.asarray(proj, float)
     out.seconds_per_frame = np.asarray(spf, float)
     out.cpu_seconds_per_frame = np.asarray(cpu, float)
     out.work_size = pipeline.geometry.work_size
