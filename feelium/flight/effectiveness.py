@@ -75,6 +75,10 @@ class Effectiveness:
         side = 1 if push > 0.0 else 0
         return self.values[side] if self.assuring_samples[side] else self.lows[side]
 
+    def lowest(self, push: float) -> float:
+        """The box's lower bound for a push of this sign: what a push must be scaled by to act on every plant."""
+        return self.lows[1 if push > 0.0 else 0]
+
     def update(self, t: float, dt: float, push: float, measured_rate: float | None) -> None:
         """Fold in one cycle: the modelled acceleration ``push`` held over ``dt`` and the measured rate at ``t``."""
         self._push_integral += push * dt

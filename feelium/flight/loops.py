@@ -97,6 +97,7 @@ class AltitudeLoop:
         self.settle_until: float | None = None
         self.up_n = -config.net_buoyancy_n
         self.hover_up_n = -config.net_buoyancy_n  # the force that held the body still, lately
+        self.near_limit = False  # a climb slowed for a limit: its braking is planned on the weakest plant
 
     def restart(self, z: float) -> None:
         """Hold here from now on (first reading, or back from a failsafe)."""
@@ -154,7 +155,8 @@ class AltitudeLoop:
         rate_ref = rate_ahead if climb else ref.rate
         predicted = obs.vz + obs.accel(thrust.vertical) * c.motor_lag_s
         wanted = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - predicted)) + ref.accel
-        push = wanted / obs.effectiveness.value(wanted) - obs.disturbance
+        brake = ref.accel if self.near_limit and climb * ref.accel < 0.0 else 0.0  # the climb slowing for a limit
+        push = self._limit_brake_push(brake, obs) + (wanted - brake) / obs.effectiveness.value(wanted - brake) - obs.disturbance
         up_n = c.heave_mass * push - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
         lo, hi = self.mixer.limits_up_n()
         saturated = up_n >= hi or up_n <= lo
@@ -170,12 +172,29 @@ class AltitudeLoop:
             self.hover_up_n += (self.up_n - self.hover_up_n) * min(1.0, dt / HOVER_FORCE_TAU_S)
         return self.up_n
 
+    def _limit_brake_push(self, brake: float, obs: AltitudeObserver) -> float:
+        """The push that slows a climb for a limit: the planned deceleration on the weakest plant of the box.
+
+        Divided by the learned effectiveness like the rest, it was a quarter of the plan on a plant whose
+        braking direction had not been learned yet (the estimate starts at the box's strongest), and the
+        body reached the limit at most of its climb rate (random-2026-17: 10 cm through the ceiling). A
+        stronger plant brakes harder on it and stops short of the limit, the safe side; the push is capped
+        at the share of the headroom the plan counted on.
+        """
+        if brake == 0.0:
+            return 0.0
+        c = self.c
+        lo, hi = self.mixer.limits_up_n()
+        share = LIMIT_BRAKE_SHARE * abs((lo if brake < 0.0 else hi) - self.hover_up_n) / c.heave_mass
+        return math.copysign(min(abs(brake) / obs.effectiveness.lowest(brake), share), brake)
+
     def _climb_within_limits(self, z: float, obs: AltitudeObserver, climb: float) -> float:
         """The commanded climb rate, slowed near the altitude limits so that a held up or down stops there."""
         c = self.c
         z_ahead = z + obs.vz * (HANDOVER_S + c.motor_lag_s * c.uncertainty("heave"))
         room = c.altitude_max_m - z_ahead if climb > 0 else z_ahead - c.altitude_min_m
         allowed = math.sqrt(2.0 * self._braking(obs, climb) * max(room, 0.0))
+        self.near_limit = allowed < abs(climb)
         return math.copysign(min(abs(climb), allowed), climb)
 
     def _braking(self, obs: AltitudeObserver, climb: float) -> float:
