@@ -98,7 +98,6 @@ class TouchPipeline:
         self.face = face
         self.plain = plain
         self.fine: WorkingGeometry | None = None  # the working resolution, when detection runs coarser
-        self._tile_px = TILE_PX  # the room-light tiles' side in detection pixels: a fixed part of the membrane
         if plain:
             self.geometry = WorkingGeometry.build(frame_size, None, frame_size, np.float64)
             self._roi = WorkingGeometry.build(frame_size, roi, frame_size, np.float64).roi
@@ -112,7 +111,8 @@ class TouchPipeline:
             self._roi = self.geometry.roi
             if scale < 1.0:
                 self.fine = WorkingGeometry.build(frame_size, roi, (config.width, config.height), np.float32)
-                self._tile_px = tile_px_for(scale)
+        # The room-light and share tiles' side in detection pixels: a fixed part of the membrane at any scale.
+        self._tile_px = TILE_PX if self.fine is None else tile_px_for(config.detect_scale)
         self._off_face = None if face is None else self._cut_off_face(face, self.geometry)
         self._fine_off_face = None if face is None or self.fine is None else self._cut_off_face(face, self.fine)
         self.reference = AdaptiveReference(
