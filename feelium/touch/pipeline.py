@@ -446,7 +446,8 @@ class TouchPipeline:
         old = ref.image * np.float32(e)
         with np.errstate(invalid="ignore", divide="ignore"):
             self.projector_share.rescale(old / np.maximum(old + added, np.float32(REFERENCE_FLOOR)))
-        ref.reseed(reseed(ref.image, work * np.float32(1.0 / ref.gain), change, self._shadow))
+        image = reseed(ref.image, work * np.float32(1.0 / ref.gain), change, self._shadow)
+        ref.image = np.maximum(image, image.dtype.type(REFERENCE_FLOOR))
         return True
 
     def _fine_inputs(

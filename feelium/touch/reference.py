@@ -83,20 +83,6 @@ class AdaptiveReference:
         self.gain = 1.0
         self.last_t = t
 
-    def reseed(self, image: np.ndarray) -> None:
-        """Take ``image`` as the membrane after a change of light, and average the next frames into it.
-
-        Why: a re-seeded reference is (outside shadows) one camera frame, with that frame's whole noise. Followed
-        at the slow rate it keeps that noise for seconds: after a lamp was switched off in a lit room (the membrane
-        darker, its relative noise larger) the hand-free membrane read 0.13-0.16 deep against the 0.15 of a
-        candidate for 1-2 s. So the warm-up of :meth:`initialise` starts again: a plain running mean of the
-        following frames (their noise falls as one over the root of their count) until the slow rate takes over.
-        Shadowed pixels are frozen as always, so a hand present through the change is not learned faster.
-        """
-        assert self.image is not None
-        self.image = np.maximum(image, self._floor).astype(self.image.dtype, copy=False)
-        self.updates = 0
-
     def measure_gain(self, frame: np.ndarray, shadow: np.ndarray | None) -> float:
         """Robust exposure gain: median of frame / reference over usable, unshadowed pixels.
 
@@ -130,7 +116,8 @@ class AdaptiveReference:
             np.copyto(scaled, frame, where=~shadow)
         else:
             scaled = frame.astype(self.image.dtype, copy=True)
-        self.reseed(scaled)
+        np.maximum(scaled, REFERENCE_FLOOR, out=scaled)
+        self.image = scaled
         self.gain = 1.0
         self.rebaselines += 1
         return True

@@ -32,12 +32,6 @@ the share's tiles are summed over every other row of the working image (``roomsh
 of its passes). Checked before re-pinning: with ``LEARN_ROW_STEP = 1`` all four projected digests are the old pins to
 the bit (the branch's other changes to the share, its buffers, sums and the warm-started ``k``, kept them); the static
 ones did not move.
-
-All six digests were re-pinned in session 16 (2026-11-27), deliberately: a re-seeded reference (a lighting step's
-re-baseline, a room-light re-seed) now averages the following frames into it as a running mean, as a new one does
-(``AdaptiveReference.reseed``), instead of keeping one frame's noise at the slow rate. The frames above hold both
-re-seeds. With ``reseed`` not restarting the warm-up, every digest is the previous pin to the bit (they are the
-previous code's).
 """
 
 from __future__ import annotations
@@ -144,8 +138,8 @@ def _rounded(value: object) -> object:
 @pytest.mark.parametrize(
     ("projected", "expected"),
     [
-        (False, "c2d5a49e175be21a4c30ad6a7228841430dfbf82552f4dabdb564a49359f45b6"),
-        (True, "bf4b92811f62d78c064d93bb23d97131e61a2db42ffbadcca0294bb821804df1"),
+        (False, "f94933c4d9d82e272ecf03605844effbc7be420787d9772698e9c3840f50c75a"),
+        (True, "df6ea0222adc6a9dff5cafacbc0205094195ec4e80974f0af16c3505c9563aaf"),
     ],
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:
@@ -156,7 +150,7 @@ def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expecte
 
 def test_light_cut_to_the_roi_gives_the_whole_frames_results() -> None:
     """The daemon predicts the projected light only over the ROI (it is all the pipeline reads): same digest."""
-    assert _digest(True, cut=True) == "bf4b92811f62d78c064d93bb23d97131e61a2db42ffbadcca0294bb821804df1"
+    assert _digest(True, cut=True) == "df6ea0222adc6a9dff5cafacbc0205094195ec4e80974f0af16c3505c9563aaf"
 
 
 def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(monkeypatch) -> None:
@@ -172,8 +166,8 @@ def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(m
 @pytest.mark.parametrize(
     ("projected", "expected"),
     [
-        (False, "4d8dc15fde2763f969e832c0bf845f88ddcac84a25d9fa1e173e55e5426fb0aa"),
-        (True, "e86cbab00af7172af65320c14f81bff57afb9d4066c476caf661d3fe09644e26"),
+        (False, "3e0a8316300532c3e8f88600e21f0877c90a4a97c268c5ed60660a858c19594b"),
+        (True, "26b70dff5cea1ccbccdb14b42e60c010f95d2a14b81d92b48cf595e87186ac4f"),
     ],
 )
 def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: str) -> None:
@@ -193,5 +187,5 @@ def test_half_scale_light_on_the_detection_grid_with_fine_windows_gives_the_same
     light only in the fine pass's windows (``fine_light``). Handed the same values (the working light area-averaged,
     and its windows), the pipeline computes what it computes from the whole frame's light: the pinned digest (the
     projected one of the test above, re-pinned there at the merge of i16coarse with i17probe's share)."""
-    expected = "e86cbab00af7172af65320c14f81bff57afb9d4066c476caf661d3fe09644e26"
+    expected = "26b70dff5cea1ccbccdb14b42e60c010f95d2a14b81d92b48cf595e87186ac4f"
     assert _digest(True, detect_scale=0.5, grids=True) == expected

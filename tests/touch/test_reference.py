@@ -73,46 +73,6 @@ def test_lighting_step_rebaselines_outside_shadows():
     assert not ref.observe_gain(1.05, frame, shadow)
 
 
-def _noise_after_a_step(rebaseline: bool) -> float:
-    """RMS error against the truth of a reference re-seeded from one noisy frame after 8 more noisy frames."""
-    rng = np.random.default_rng(7)
-    truth = np.full((64, 64), 40.0, np.float32)
-    ref = make()
-    ref.initialise(0.0, truth.copy())
-    for k in range(1, 200):  # long past the first warm-up: the slow rate is in force
-        ref.update(k / 15, truth, np.zeros(truth.shape, bool), None)
-    def noisy() -> np.ndarray:
-        return (truth + rng.normal(0.0, 4.0, truth.shape)).astype(np.float32)
-    first = noisy()
-    if rebaseline:
-        assert ref.observe_gain(1.5, first * 1.5, None)  # the exposure stepped: a re-baseline to this frame
-        scale = 1.5
-    else:
-        ref.reseed(first)  # the room's light changed: the pipeline re-seeds to this frame
-        scale = 1.0
-    for k in range(200, 208):
-        ref.update(k / 15, noisy() * scale, np.zeros(truth.shape, bool), None)
-    return float(np.sqrt(np.mean((ref.image * ref.gain / scale - truth) ** 2)))
-
-
-@pytest.mark.parametrize("rebaseline", [False, True])
-def test_a_reference_seeded_from_one_frame_averages_the_next_ones(rebaseline):
-    # One frame's noise is 4 grey levels; a running mean of 9 frames has 4 / 3. At the slow rate (4 s) the
-    # reference would still carry about 0.88 of the seed frame's noise after 8 frames.
-    assert _noise_after_a_step(rebaseline) < 4.0 / 3.0 * 1.25
-
-
-def test_a_reseed_keeps_frozen_pixels_frozen():
-    ref = make()
-    ref.initialise(0.0, np.full((4, 4), 100.0, np.float32))
-    ref.reseed(np.full((4, 4), 50.0, np.float32))
-    shadow = np.zeros((4, 4), bool)
-    shadow[0, 0] = True
-    ref.update(1 / 15, np.full((4, 4), 40.0, np.float32), shadow, shadow)  # darker: no faster bright rate
-    assert ref.image[0, 0] == 50.0  # under an anchored shadow: not learned, warm-up or not
-    assert ref.image[3, 3] == pytest.approx(45.0)  # the running mean of the seed and one frame
-
-
 @pytest.mark.slow
 def test_a_million_updates_neither_drift_nor_denormalise():
     ref = make()
