@@ -76,7 +76,7 @@ LinkState = Literal["up", "stalled", "resyncing"]
 class _Requests(NamedTuple):
     """One poll's requests and their bytes on the line, built once for each order (a control tick asks one)."""
 
-    requests: tuple[tuple[int, bytes], ...]
+    commands: tuple[int, ...]  # in order, each a telemetry request without payload
     wire: bytes
 
 
@@ -87,7 +87,7 @@ def _poll_burst(rangefinder_at: int, with_battery: bool) -> _Requests:
     if with_battery:
         commands.append(m.MSP_ANALOG)
     commands.insert(rangefinder_at, m.MSP_SONAR_ALTITUDE)
-    return _Requests(tuple((command, b"") for command in commands), b"".join(encode_v2(command) for command in commands))
+    return _Requests(tuple(commands), b"".join(encode_v2(command) for command in commands))
 
 
 class MspClient:
@@ -225,11 +225,13 @@ class MspClient:
     def _write_burst(self, burst: Burst, requests: list[tuple[int, bytes]] | _Requests) -> None:
         burst.t = self.clock()
         self._bursts = burst.number
-        if isinstance(requests, _Requests):  # a poll's burst, encoded once
+        if isinstance(requests, _Requests):  # a poll's burst, encoded once; telemetry requests only
             self.link.write(requests.wire)
-            requests = requests.requests
-        else:
-            self.link.write(b"".join(encode_v2(command, payload) for command, payload in requests))
+            written_t, number = burst.t, burst.number
+            self._outstanding.extend([Outstanding(command, written_t, number) for command in requests.commands])
+            self._replies_owed += len(requests.commands)
+            return
+        self.link.write(b"".join(encode_v2(command, payload) for command, payload in requests))
         self._outstanding.extend(Outstanding(command, burst.t, burst.number) for command, _ in requests)
         motors = sum(command == m.MSP_SET_MOTOR for command, _ in requests)
         self._acks_owed += motors
