@@ -133,14 +133,15 @@ class LoopInbox(Generic[T]):
 
 
 async def call_on(executor: Executor, fn: Callable[..., T], *args: Any) -> T:
-    """``fn(*args)`` on ``executor``'s thread, awaited: ``run_in_executor`` with half its cost on the loop.
+    """``fn(*args)`` on ``executor``'s thread, awaited: ``run_in_executor`` at about half its cost on the loop.
 
     ``run_in_executor`` chains two futures: the executor's (with its condition variable) calls back on the
     worker thread, which schedules the copy of its state into an asyncio future, whose completion then
     schedules the task. Here the worker posts the outcome straight into the awaited future (one
-    ``call_soon_threadsafe``, as before), and the chain's bookkeeping goes: per hand-off on uvloop, ~41-44 ->
-    ~19-21 us of the loop thread and ~64-68 -> ~37-40 us of the process on this machine (docs/performance.md,
-    session 16), paid 50 times a second by flight and 30 by the projector. The rest is as before: jobs run
+    ``call_soon_threadsafe``, as before), and the chain's bookkeeping goes: per hand-off on uvloop, 41-44 ->
+    19-25 us of the loop thread and 64-68 -> 37-45 us of the process on this machine
+    (``benchmarks/handoff_cost.py``; docs/performance.md, session 16), paid 50 times a second by flight and 30
+    by the projector. The rest is as before: jobs run
     one after another on the executor's threads, an exception is raised to the awaiting task, and a
     cancelled wait cancels a job that has not started (one that runs finishes; its outcome is dropped).
     """
