@@ -31,7 +31,7 @@ def register(registry: CommandRegistry) -> None:
     cond = registry.subcommand(
         "simulate",
         "condition",
-        "Write labelled recordings of a condition of use (issue 17): litroom (room light variants), face (whole curved face,"
+        "Write labelled recordings of a condition of use (issue 17): litroom (room light variants, the still skin with the probe as the projector stream), face (whole curved face,"
         " by zone), faceon (the wearer's face on the skin, with the projector stream, in the dim and the lit room), multitouch (two hands, palm, hug).",
         _condition,
     )
