@@ -379,7 +379,7 @@ class TouchPipeline:
             kept.append(point)
         step = self.tracker.step(t, observations, settled=self.settled)
         if self._margin_kernel is not None and darkened:
-            shadow = cv2.dilate(shadow.view(np.uint8), self._margin_kernel).view(bool)
+            shadow = _dilated(shadow, self._margin_kernel)
         seeds = [point for point, p in zip(kept, step.protected) if p]
         anchored = _regions_containing(shadow, seeds) if seeds else None
         frozen = shadow if unusable is None else (shadow | unusable)
@@ -674,6 +674,21 @@ def _noise_floor_map(signed_depth: np.ndarray, sigmas: float, minimum: float, sc
     tiles *= sigmas
     np.maximum(tiles, minimum, out=tiles)
     return cv2.resize(tiles, (w, h), dst=scratch.get("floor", (h, w), tiles.dtype), interpolation=cv2.INTER_LINEAR)
+
+
+def _dilated(mask: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """``cv2.dilate(mask, kernel)`` (bool, a new array), computed only over the mask's bounding box widened by the
+    kernel's reach: the same pixels to the bit (outside that box nothing can be set, and dilation's border counts
+    as empty either way), at the cost of the shadow's box instead of the whole image (a hand's shadow is a small
+    part of it, and the margin's ellipse is the costliest kernel the pipeline runs)."""
+    bx, by, bw, bh = cv2.boundingRect(mask.view(np.uint8))
+    ry, rx = kernel.shape[0] // 2, kernel.shape[1] // 2
+    h, w = mask.shape
+    y0, y1, x0, x1 = max(by - ry, 0), min(by + bh + ry, h), max(bx - rx, 0), min(bx + bw + rx, w)
+    out = np.zeros(mask.shape, bool)
+    part = np.ascontiguousarray(mask[y0:y1, x0:x1]).view(np.uint8)
+    out[y0:y1, x0:x1] = cv2.dilate(part, kernel).view(bool)
+    return out
 
 
 def _regions_containing(mask: np.ndarray, seeds: list[tuple[float, float]]) -> np.ndarray:
