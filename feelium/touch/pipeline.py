@@ -324,7 +324,8 @@ class TouchPipeline:
         darkened = int(np.count_nonzero(shadow))
         area = int(round(darkened * self.geometry.area_scale))
         depth_max = float(smooth.max()) if smooth.size else 0.0
-        candidates, segmentation = self._find(smooth, self._min_area, self._edge_radius, buf)
+        # With a fine pass the coarse candidates only say where to look (fine_window): their edges go unread.
+        candidates, _ = self._find(smooth, self._min_area, self._edge_radius, buf, edges=self.fine is None)
         geometry = self.geometry
         fine_inputs = None
         learn_detail = self.fine is not None and self.settled and self.detail.due(t)
@@ -388,12 +389,19 @@ class TouchPipeline:
         if learn_detail and fine_inputs is not None:
             self._learn_detail(t, fine_inputs, frozen)
         sensed = light if light is not None else probe
+        learn_share = sensed is not None and self.settled
+        free = None  # neither frozen nor saturated: what the response and the share learn from (one mask for both)
+        if light is not None or learn_share:
+            free = np.logical_not(frozen, out=buf.like("learn.free", frozen))
+            free &= np.less(raw, cfg.saturation_level, out=buf.like("learn.unsaturated", frozen))
         # Learned on hand-free frames only: a shadow's slow change under a tile, while the probe happens to rise or
         # fall, reads as light following the projector (a hover's own tiles came out 0.06 too projector-lit).
         # A frame with a hand teaches only the membrane's level of share, from the pixels away from its shadow.
-        if sensed is not None and self.settled:
+        if learn_share:
+            assert free is not None
             expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("share.expected", ref.image))
-            usable = ~frozen & (raw < cfg.saturation_level) & (expected >= cfg.dark_reference_level)
+            usable = np.greater_equal(expected, cfg.dark_reference_level, out=buf.like("share.usable", frozen))
+            usable &= free
             hand_free = not candidates and area < self._activity_area
             self.projector_share.learn(t, raw, expected, sensed, usable, hand_free=hand_free)
         if self.settled:
@@ -401,7 +409,8 @@ class TouchPipeline:
         else:
             ref.hold(t)
         if light is not None:
-            self.response.learn(t, raw, light, ~frozen & (raw < self.config.saturation_level))
+            assert free is not None
+            self.response.learn(t, raw, light, free)
             share, based = self.response.share, self._reference_share
             if share is not None and (based is None or abs(share - based) > SHARE_REBASE):
                 # The model of what the flat membrane looks like changed (first fit, a new room light):
@@ -514,9 +523,10 @@ class TouchPipeline:
         return [shifted(c, window) for c in found]
 
     def _find(
-        self, smooth: np.ndarray, min_area: int, edge_radius: float, scratch: Scratch
+        self, smooth: np.ndarray, min_area: int, edge_radius: float, scratch: Scratch, *, edges: bool = True
     ) -> tuple[list[Candidate], Segmentation | None]:
-        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes."""
+        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes (``edges``:
+        :func:`find_candidates`'s)."""
         cfg = self.config
         return find_candidates(
             smooth,
@@ -527,6 +537,7 @@ class TouchPipeline:
             edge_radius=edge_radius,
             scratch=scratch,
             split_fraction=cfg.contact_split_fraction,
+            edges=edges,
         )
 
     def _learn_detail(self, t: float, inputs: FineInputs, frozen: np.ndarray) -> None:
