@@ -139,6 +139,7 @@ class TouchPipeline:
         # (:func:`feelium.touch.roomshare.room_dominated`); None while the projector's share is not known.
         self.room_dominated: float | None = None
         self._room_judged_t: float | None = None  # when room_dominated was last judged
+        self._learned_t: float | None = None  # when the response last learned (RESPONSE_LEARN_INTERVAL_S)
         self.noise = 0.0
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
@@ -195,6 +196,7 @@ class TouchPipeline:
         self.projector_share.reset()
         self.room_dominated = None
         self._room_judged_t = None
+        self._learned_t = None
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -390,8 +392,13 @@ class TouchPipeline:
             self._learn_detail(t, fine_inputs, frozen)
         sensed = light if light is not None else probe
         learn_share = sensed is not None and self.settled
+        learn_response = light is not None and (
+            self._learned_t is None or t - self._learned_t >= 0.75 * RESPONSE_LEARN_INTERVAL_S
+        )
+        if learn_response:
+            self._learned_t = t
         free = None  # neither frozen nor saturated: what the response and the share learn from (one mask for both)
-        if light is not None or learn_share:
+        if learn_response or learn_share:
             free = np.logical_not(frozen, out=buf.like("learn.free", frozen))
             free &= np.less(raw, cfg.saturation_level, out=buf.like("learn.unsaturated", frozen))
         # Learned on hand-free frames only: a shadow's slow change under a tile, while the probe happens to rise or
@@ -408,7 +415,7 @@ class TouchPipeline:
             ref.update(t, work, frozen, anchored)
         else:
             ref.hold(t)
-        if light is not None:
+        if learn_response:
             assert free is not None
             self.response.learn(t, raw, light, free)
             share, based = self.response.share, self._reference_share
@@ -665,6 +672,14 @@ ROOM_JUDGE_INTERVAL_S = 0.2
 # each other (0.0445), one in 8 let it rise to 0.0459 (full scale: 0.0430; this interval: 0.0438); a lesson costs
 # ~0.6 ms of fine-resolution passes at 256x192.
 DETAIL_INTERVAL_S = 0.25
+# Seconds between two frames the projector's response (feelium.touch.photometric) learns from: about 15 a second,
+# the rate of the recordings every accuracy figure was measured on (the paper's ~15 fps), so at the camera's 30 fps
+# it learns as it did there. Why: its per-pixel sums were ~6 % of the touch thread's time at 30 fps (issue 16) for a
+# memory of 20 s (``projected_response_tau_s``) solved every 0.2 s: every other frame adds little the fit can use.
+# Three quarters of it count (a camera's frame times jitter): a 15 fps recording learns on every frame, as before,
+# and 30 fps on every other frame. The share per place still learns on every frame: its short memory (0.5 s) follows
+# a passer-by, and learned at 1/15 s it lost a tap of the lit room's seed 4 (docs/performance.md, session 14).
+RESPONSE_LEARN_INTERVAL_S = 1.0 / 15.0
 NOISE_TILES = (8, 6)
 _SPECK_KERNEL = np.ones((3, 3), np.uint8)
 
