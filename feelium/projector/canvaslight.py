@@ -215,10 +215,10 @@ class CanvasLightPredictor:
         camera exposure mixes the projector frames it saw (a new float32 array).
 
         Why: the prediction is linear in the light (the remap interpolates, the blur and the division by the lit
-        weight are linear; the border's light and the uncovered pixels' 1.0 take the weights' sum), so the canvases' lights
-        are mixed first, on the small reduced canvas, and the window is remapped and blurred once instead of once
-        per canvas: equal to mixing the windows up to float rounding (~1e-7 of the light). The mix is kept for the
-        next windows of the same parts: the fine pass's window and the pattern's lesson read the same exposure."""
+        weight are linear; the border's light and the uncovered pixels' 1.0 take the weights' sum), so the canvases'
+        lights are mixed first, on the small reduced canvas, and the window is remapped and blurred once instead of
+        once per canvas: equal to mixing the windows up to float rounding. The mix is kept for the next windows of
+        the same parts: the fine pass's window and the pattern's lesson read the same exposure."""
         if len(parts) == 1:
             canvas, weight = parts[0]
             out = self.window(canvas, rows, cols)

@@ -137,11 +137,9 @@ def find_candidates(
             fys, fxs = np.nonzero(footprint)
             edge = 0.0
             if edges:
-                edge = steepest_gradient(
-                    full_depth,
-                    (bx + x0 + int(xs.min()), by + y0 + int(ys.min()), bx + x0 + int(xs.max()), by + y0 + int(ys.max())),
-                    edge_radius,
-                )
+                x_min, y_min = bx + x0 + int(xs.min()), by + y0 + int(ys.min())
+                x_max, y_max = bx + x0 + int(xs.max()), by + y0 + int(ys.max())
+                edge = steepest_gradient(full_depth, (x_min, y_min, x_max, y_max), edge_radius)
             found.append(Candidate(
                 cx, cy, float(part_values.max()), float(part_values.mean()), part_area, edge, label,
                 (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys),
