@@ -9,7 +9,9 @@ through a :class:`LoopInbox`, which wakes the loop once per batch: once per
 frame when the loop keeps up, once for several when it lags. Both are bounded,
 so a slow side makes the other drop (the camera's frames, newest wins) or wait
 (the pipeline, for a loop that has not drained its results), never queue
-without bound.
+without bound. A job that must be awaited once per unit of work (flight's tick,
+the projector's render) goes to its thread by :func:`call_on`, which posts the
+result straight to the awaiting future.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ from __future__ import annotations
 import asyncio
 import threading
 from collections.abc import Callable
-from typing import Generic, TypeVar
+from concurrent.futures import Executor
+from typing import Any, Generic, TypeVar
 
 from feelium.cameras.base import Camera, Frame
 
@@ -127,3 +130,46 @@ class LoopInbox(Generic[T]):
             self._changed.notify_all()
         if items and not closed:
             self.deliver(items)
+
+
+async def call_on(executor: Executor, fn: Callable[..., T], *args: Any) -> T:
+    """``fn(*args)`` on ``executor``'s thread, awaited: ``run_in_executor`` at about half its cost on the loop.
+
+    ``run_in_executor`` chains two futures: the executor's (with its condition variable) calls back on the
+    worker thread, which schedules the copy of its state into an asyncio future, whose completion then
+    schedules the task. Here the worker posts the outcome straight into the awaited future (one
+    ``call_soon_threadsafe``, as before), and the chain's bookkeeping goes: per hand-off on uvloop, 41-44 ->
+    19-25 us of the loop thread and 64-68 -> 37-45 us of the process on this machine
+    (``benchmarks/handoff_cost.py``; docs/performance.md, session 16), paid 50 times a second by flight and 30
+    by the projector. The rest is as before: jobs run
+    one after another on the executor's threads, an exception is raised to the awaiting task, and a
+    cancelled wait cancels a job that has not started (one that runs finishes; its outcome is dropped).
+    """
+    loop = asyncio.get_running_loop()
+    outcome: asyncio.Future[T] = loop.create_future()
+    job = executor.submit(_run_and_post, loop, outcome, fn, args)
+    try:
+        return await outcome
+    except asyncio.CancelledError:
+        job.cancel()
+        raise
+
+
+def _run_and_post(loop: asyncio.AbstractEventLoop, outcome: asyncio.Future[Any], fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+    """Worker-thread side of :func:`call_on` (a closed loop raises here, into the executor's unread future)."""
+    try:
+        result = fn(*args)
+    except BaseException as exc:  # as run_in_executor: whatever the job raised reaches the awaiting task
+        loop.call_soon_threadsafe(_settle, outcome, None, exc)
+    else:
+        loop.call_soon_threadsafe(_settle, outcome, result, None)
+
+
+def _settle(outcome: asyncio.Future[Any], result: Any, exc: BaseException | None) -> None:
+    """On the loop: complete the awaited future, unless the wait was cancelled meanwhile."""
+    if outcome.cancelled():
+        return
+    if exc is None:
+        outcome.set_result(result)
+    else:
+        outcome.set_exception(exc)

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import asyncio
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
 from feelium.cameras.base import Camera
+from feelium.cameras.handoff import call_on
 from feelium.priority import lower_current_thread
 
 T = TypeVar("T")
@@ -30,7 +30,7 @@ class Worker:
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix=name, initializer=lower_current_thread)
 
     async def call(self, fn: Callable[..., T], *args: Any) -> T:
-        return await asyncio.get_running_loop().run_in_executor(self._executor, fn, *args)
+        return await call_on(self._executor, fn, *args)
 
     def shutdown(self) -> None:
         """Let the thread end after its current job; never waits (a stuck device read cannot hold shutdown up)."""

@@ -40,10 +40,11 @@ reply overtook a request is not used, and repeated ones resynchronise.
 
 from __future__ import annotations
 
+import functools
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from typing import Literal
+from typing import Literal, NamedTuple
 
 from feelium.flight import messages as m
 from feelium.flight.msp import MspFrame, MspParser, encode_v2
@@ -62,6 +63,7 @@ class MspErrorReply(RuntimeError):
 
 
 POLL_COMMANDS = (m.MSP_SONAR_ALTITUDE, m.MSP_ATTITUDE, m.MSP_RAW_IMU, m.MSP2_SENSOR_OPTIC_FLOW)
+_SET_MOTOR = m.MSP_SET_MOTOR
 # Three bursts' worth: the poll commands, the battery and the motor command of each cycle.
 MAX_OUTSTANDING = 3 * (len(POLL_COMMANDS) + 2)
 STALL_BURSTS = 3
@@ -69,6 +71,23 @@ STALE_BURSTS = 3
 PROBE_COMMAND = m.MSP_API_VERSION  # every board answers it; one small frame per poll while stalled
 
 LinkState = Literal["up", "stalled", "resyncing"]
+
+
+class _Requests(NamedTuple):
+    """One poll's requests and their bytes on the line, built once for each order (a control tick asks one)."""
+
+    commands: tuple[int, ...]  # in order, each a telemetry request without payload
+    wire: bytes
+
+
+@functools.lru_cache(maxsize=16)
+def _poll_burst(rangefinder_at: int, with_battery: bool) -> _Requests:
+    """The telemetry requests with the rangefinder's at ``rangefinder_at`` (see ``MspClient._poll_requests``)."""
+    commands = [command for command in POLL_COMMANDS if command != m.MSP_SONAR_ALTITUDE]
+    if with_battery:
+        commands.append(m.MSP_ANALOG)
+    commands.insert(rangefinder_at, m.MSP_SONAR_ALTITUDE)
+    return _Requests(tuple(commands), b"".join(encode_v2(command) for command in commands))
 
 
 class MspClient:
@@ -177,7 +196,7 @@ class MspClient:
         """
         return self._exchange(requests).replies
 
-    def _exchange(self, requests: list[tuple[int, bytes]]) -> Burst:
+    def _exchange(self, requests: list[tuple[int, bytes]] | _Requests) -> Burst:
         """Write the burst, then read what was already waiting before it, then collect its replies.
 
         The waiting bytes are only counted before the write and read after it, so the write
@@ -203,9 +222,15 @@ class MspClient:
         burst.stale_bytes = max(stale, 0)
         self.stale_bytes += burst.stale_bytes
 
-    def _write_burst(self, burst: Burst, requests: list[tuple[int, bytes]]) -> None:
+    def _write_burst(self, burst: Burst, requests: list[tuple[int, bytes]] | _Requests) -> None:
         burst.t = self.clock()
         self._bursts = burst.number
+        if isinstance(requests, _Requests):  # a poll's burst, encoded once; telemetry requests only
+            self.link.write(requests.wire)
+            written_t, number = burst.t, burst.number
+            self._outstanding.extend([Outstanding(command, written_t, number) for command in requests.commands])
+            self._replies_owed += len(requests.commands)
+            return
         self.link.write(b"".join(encode_v2(command, payload) for command, payload in requests))
         self._outstanding.extend(Outstanding(command, burst.t, burst.number) for command, _ in requests)
         motors = sum(command == m.MSP_SET_MOTOR for command, _ in requests)
@@ -229,10 +254,12 @@ class MspClient:
         """Parse what came in and settle the replies owed (every read goes through here)."""
         frames = self.parser.feed(data)
         for frame in frames:
-            if is_ack(frame):
+            if frame.direction == "<":
+                continue
+            if frame.command == _SET_MOTOR:  # an ack (is_ack, inlined: ~6 frames a tick come through here)
                 self._acks_owed = max(0, self._acks_owed - 1)
                 self._acks_since_resync += 1
-            elif frame.direction != "<":
+            else:
                 self._replies_owed = max(0, self._replies_owed - 1)
         return frames
 
@@ -241,26 +268,28 @@ class MspClient:
         if frame.direction == "<":
             self.unexpected_replies += 1  # our own requests echoed back (e.g. loop://)
             return
-        request = self._take(frame.command, newest, None if is_ack(frame) else burst)
-        if is_ack(frame):
-            if frame.is_error:
+        command = frame.command
+        if command == _SET_MOTOR:  # an ack: it never decides that the requests it overtook were lost
+            request = self._take(command, newest, None)
+            if frame.direction == "!":
                 self.motor_rejections += 1
             else:
                 self.motor_acks += 1
             if request is not None and request.burst == burst.number:
-                burst.replies[frame.command] = frame  # set_motors() waits for its own ack
+                burst.replies[command] = frame  # set_motors() waits for its own ack
             return  # an ack without a request answers a command sent while resynchronising
+        request = self._take(command, newest, burst)
         if request is None:
             self.unexpected_replies += 1
             burst.unmatched += 1
             return
-        if frame.is_error:
-            self.error_replies[frame.command] = self.error_replies.get(frame.command, 0) + 1
+        if frame.direction == "!":
+            self.error_replies[command] = self.error_replies.get(command, 0) + 1
         if request.burst != burst.number:
             self.late_replies += 1
             burst.late += 1
             return
-        burst.replies[frame.command] = frame
+        burst.replies[command] = frame
 
     def _take(self, command: int, newest: int, overtaking: Burst | None) -> Outstanding | None:
         request, lost = take_reply(self._outstanding, command, newest, overtaking is not None)
@@ -305,7 +334,7 @@ class MspClient:
             self.last_reply_t, self.telemetry_t = self.clock(), burst.t
         return telemetry
 
-    def _poll_requests(self, with_battery: bool) -> list[tuple[int, bytes]]:
+    def _poll_requests(self, with_battery: bool) -> _Requests:
         """This burst's telemetry requests, the rangefinder's moved one place on from burst to burst.
 
         The board answers in any order we ask; varying it is what lets a misalignment show.
@@ -315,11 +344,8 @@ class MspClient:
         rangefinder moves: the others keep their order, which keeps the simulated board's noise
         draws (attitude, then gyro) and so every simulated flight as it was.
         """
-        commands = [command for command in POLL_COMMANDS if command != m.MSP_SONAR_ALTITUDE]
-        if with_battery:
-            commands.append(m.MSP_ANALOG)
-        commands.insert((self._bursts + 1) % (len(commands) + 1), m.MSP_SONAR_ALTITUDE)
-        return [(command, b"") for command in commands]
+        slots = len(POLL_COMMANDS) + (1 if with_battery else 0)  # where the rangefinder can go
+        return _poll_burst((self._bursts + 1) % slots, with_battery)
 
     def _judge(self, burst: Burst) -> bool:
         """After a burst: a silent board is stalled; a backlog, repeated stale bytes or a stray reply mean resync.

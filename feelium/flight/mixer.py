@@ -122,17 +122,27 @@ class Mixer:
         return self.limit(wanted, dt)
 
     def limit(self, wanted: tuple[float, ...], dt: float) -> tuple[float, float, float, float]:
-        step = self.g.slew_per_s * max(dt, 0.0)
+        """Each command clipped to ``max_output``, then moved at most ``slew_per_s * dt`` from the last one.
+
+        Written out with comparisons instead of ``min(max(...))`` (it runs every tick); each picks what
+        the builtins would, ties and NaN included: ``max(a, b)`` is ``b if b > a else a``, ``min(a, b)``
+        is ``b if b < a else a``.
+        """
+        step = self.g.slew_per_s * (0.0 if 0.0 > dt else dt)
+        top = self.g.max_output
+        bottom = -top
         out = []
         for previous, target in zip(self.last, wanted):
-            target = min(max(target, -self.g.max_output), self.g.max_output)
-            out.append(min(max(target, previous - step), previous + step))
+            target = bottom if bottom > target else target
+            target = top if top < target else target
+            low, high = previous - step, previous + step
+            target = low if low > target else target
+            out.append(high if high < target else target)
         self.last = (out[0], out[1], out[2], out[3])
         return self.last
 
 
 def to_microseconds(commands: tuple[float, ...]) -> tuple[int, ...]:
     """Commands in [-1, 1] to MSP motor values around the 1500 us neutral."""
-    return tuple(
-        int(min(m.MOTOR_MAX_US, max(m.MOTOR_MIN_US, round(m.MOTOR_NEUTRAL_US + 500.0 * c)))) for c in commands
-    )
+    low, high, neutral = m.MOTOR_MIN_US, m.MOTOR_MAX_US, m.MOTOR_NEUTRAL_US
+    return tuple(int(low if us <= low else high if us >= high else us) for us in [round(neutral + 500.0 * c) for c in commands])

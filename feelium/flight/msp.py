@@ -29,6 +29,7 @@ _V2 = ord("X")
 _KINDS = frozenset(b"MX")
 _DIRECTIONS = frozenset(b"<>!")
 _V2_HEADER = struct.Struct("<BHH")
+_BAD = object()  # a frame that failed its checks: the parser steps one byte on
 
 
 def _crc8_dvb_s2_bitwise(data: bytes | bytearray, crc: int = 0) -> int:
@@ -134,14 +135,49 @@ class MspParser:
     _buffer: bytearray = field(default_factory=bytearray)
 
     def feed(self, data: bytes | bytearray) -> list[MspFrame]:
-        """Append ``data`` and return every frame now complete, oldest first."""
-        self._buffer.extend(data)
+        """Append ``data`` and return every frame now complete, oldest first.
+
+        One pass over the buffer with an index, the consumed bytes dropped once at the end: a
+        control tick parses ~6 frames, and a method call, a ``del`` of the buffer's head and a
+        status string per frame cost more than the checks themselves. On any failure it steps
+        one byte on and looks again, as the module says.
+        """
+        buf = self._buffer
+        buf += data
+        counters = self.counters
         frames: list[MspFrame] = []
-        while True:
-            outcome = self._next()
-            if outcome is None:
+        size_limit = self.max_payload
+        n = len(buf)
+        pos = 0
+        while pos < n:
+            start = buf.find(b"$", pos)
+            if start < 0:
+                counters.garbage_bytes += n - pos
+                pos = n
                 break
-            frames.append(outcome)
+            if start > pos:
+                counters.garbage_bytes += start - pos
+                pos = start
+            if n - pos < 3:
+                break
+            kind = buf[pos + 1]  # as ints: slicing out one-byte strings cost more than the rest of the check
+            if kind not in _KINDS or buf[pos + 2] not in _DIRECTIONS:
+                counters.garbage_bytes += 1
+                pos += 1
+                continue
+            frame = self._v2_at(buf, pos, n, size_limit) if kind == _V2 else self._v1_at(buf, pos, n, size_limit)
+            if frame is None:  # incomplete: wait for more bytes
+                break
+            if frame is _BAD:
+                pos += 1
+                continue
+            frame, pos = frame
+            counters.frames += 1
+            if frame.direction == "!":
+                counters.error_replies += 1
+            frames.append(frame)
+        if pos:
+            del buf[:pos]
         return frames
 
     def pending(self) -> int:
@@ -157,78 +193,44 @@ class MspParser:
                 self.counters.garbage_bytes += len(self._buffer)
             self._buffer.clear()
 
-    def _skip(self, count: int = 1) -> None:
-        del self._buffer[:count]
-
-    def _next(self) -> MspFrame | None:
-        buf = self._buffer
-        while buf:
-            start = buf.find(b"$")
-            if start < 0:
-                self.counters.garbage_bytes += len(buf)
-                buf.clear()
-                return None
-            if start:
-                self.counters.garbage_bytes += start
-                self._skip(start)
-            if len(buf) < 3:
-                return None
-            kind = buf[1]  # as ints: slicing out one-byte strings cost more than the rest of the check
-            if kind not in _KINDS or buf[2] not in _DIRECTIONS:
-                self.counters.garbage_bytes += 1
-                self._skip()
-                continue
-            parsed = self._parse_v2() if kind == _V2 else self._parse_v1()
-            if parsed == "wait":
-                return None
-            if parsed == "bad":
-                self._skip()
-                continue
-            assert isinstance(parsed, MspFrame)
-            self.counters.frames += 1
-            if parsed.is_error:
-                self.counters.error_replies += 1
-            return parsed
-        return None
-
-    def _parse_v1(self) -> MspFrame | str:
-        buf = self._buffer
-        if len(buf) < 5:
-            return "wait"
-        size, command = buf[3], buf[4]
-        header = 5
+    def _v1_at(self, buf: bytearray, pos: int, n: int, size_limit: int) -> tuple[MspFrame, int] | object | None:
+        """The v1 frame at ``pos`` and the index after it; ``_BAD`` (counted) or ``None`` (incomplete)."""
+        if n - pos < 5:
+            return None
+        size, command = buf[pos + 3], buf[pos + 4]
+        header = pos + 5
         if size == V1_JUMBO:
-            if len(buf) < 7:
-                return "wait"
-            size = buf[5] | (buf[6] << 8)
-            header = 7
-        if size > self.max_payload:
+            if n - pos < 7:
+                return None
+            size = buf[pos + 5] | (buf[pos + 6] << 8)
+            header = pos + 7
+        if size > size_limit:
             self.counters.oversized += 1
-            return "bad"
+            return _BAD
         end = header + size
-        if len(buf) < end + 1:
-            return "wait"
-        if xor_checksum(buf[3:end]) != buf[end]:
+        if n < end + 1:
+            return None
+        if xor_checksum(buf[pos + 3 : end]) != buf[end]:
             self.counters.bad_checksums += 1
-            return "bad"
-        frame = MspFrame(1, chr(buf[2]), command, bytes(buf[header:end]))  # type: ignore[arg-type]
-        self._skip(end + 1)
-        return frame
+            return _BAD
+        return MspFrame(1, chr(buf[pos + 2]), command, bytes(buf[header:end])), end + 1  # type: ignore[arg-type]
 
-    def _parse_v2(self) -> MspFrame | str:
-        buf = self._buffer
-        if len(buf) < 8:
-            return "wait"
-        flags, command, size = _V2_HEADER.unpack_from(buf, 3)
-        if size > self.max_payload:
+    def _v2_at(self, buf: bytearray, pos: int, n: int, size_limit: int) -> tuple[MspFrame, int] | object | None:
+        """The v2 frame at ``pos`` and the index after it; ``_BAD`` (counted) or ``None`` (incomplete)."""
+        if n - pos < 8:
+            return None
+        flags, command, size = _V2_HEADER.unpack_from(buf, pos + 3)
+        if size > size_limit:
             self.counters.oversized += 1
-            return "bad"
-        end = 8 + size
-        if len(buf) < end + 1:
-            return "wait"
-        if crc8_dvb_s2(buf[3:end]) != buf[end]:
+            return _BAD
+        end = pos + 8 + size
+        if n < end + 1:
+            return None
+        crc = 0
+        table = _CRC8_TABLE
+        for byte in buf[pos + 3 : end]:
+            crc = table[crc ^ byte]
+        if crc != buf[end]:
             self.counters.bad_checksums += 1
-            return "bad"
-        frame = MspFrame(2, chr(buf[2]), command, bytes(buf[8:end]), flags)  # type: ignore[arg-type]
-        self._skip(end + 1)
-        return frame
+            return _BAD
+        return MspFrame(2, chr(buf[pos + 2]), command, bytes(buf[pos + 8 : end]), flags), end + 1  # type: ignore[arg-type]

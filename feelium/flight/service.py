@@ -36,6 +36,7 @@ from contextlib import suppress
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from feelium.bus import Subscription
+from feelium.cameras.handoff import call_on
 from feelium.cameras.reader import RateMeter
 from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.client import MspClient
@@ -188,9 +189,10 @@ class FlightService:
         self.step_late = LatenessHistogram()
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
-        """Run a port operation on this run's serial thread (jobs run one at a time, in order)."""
+        """Run a port operation on this run's serial thread (jobs run one at a time, in order); its outcome comes
+        back by one post to the loop (:func:`call_on`), 50 times a second."""
         assert self._serial is not None, "serial I/O outside run()"
-        return await asyncio.get_running_loop().run_in_executor(self._serial, call, *args)
+        return await call_on(self._serial, call, *args)
 
     # ------------------------------------------------------------ lifecycle
     async def run(self) -> None:

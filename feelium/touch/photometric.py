@@ -31,6 +31,7 @@ import cv2
 import numpy as np
 
 from feelium.touch.buffers import Scratch
+from feelium.touch.roomshare import MIN_LIGHT_VAR
 
 LIGHT_MIN = 0.05  # predicted light (relative to flat) below which frame / light says nothing
 LIGHT_MAX = 16.0  # predicted light above which a prediction is not believed
@@ -190,9 +191,17 @@ class ProjectorResponse:
         """Median share of projected light ``a / (a + c)`` over pixels whose light varied (else the last one)."""
         k = SHARE_SAMPLE_STEP  # a median over every k-th pixel in both directions is as good and k^2 cheaper
         var, cov, mx, mf = var[::k, ::k], cov[::k, ::k], mx[::k, ::k], mf[::k, ::k]
-        informative = seen[::k, ::k] & (var > np.float32(self.prior_var))
+        seen = seen[::k, ::k]
+        informative = seen & (var > np.float32(self.prior_var))
         if np.count_nonzero(informative) < MIN_INFORMATIVE:
-            return self.share
+            # A static skin's light varies only by the probe's few percent (feelium.skin.probe), far under the
+            # prior's variance: no pixel ever outweighs its prior, and without a share nothing settled, so the
+            # projector's share was never learned either (a blimp compensating a still avatar never raised a
+            # touch). A median over many pixels needs no single pixel to outweigh its prior: it takes those that
+            # saw the probe (the variance at which the share per place is believed, roomshare.MIN_LIGHT_VAR).
+            informative = seen & (var > np.float32(MIN_LIGHT_VAR))
+            if np.count_nonzero(informative) < MIN_INFORMATIVE:
+                return self.share
         a = cov[informative] / var[informative]
         flat = mf[informative] + a * (np.float32(1.0) - mx[informative])  # a + c: the value under flat grey
         ok = np.isfinite(a) & np.isfinite(flat) & (flat > 0.0)

@@ -419,9 +419,13 @@ class TouchPipeline:
             assert free is not None
             self.response.learn(t, raw, light, free)
             share, based = self.response.share, self._reference_share
-            if share is not None and (based is None or abs(share - based) > SHARE_REBASE):
+            if share is not None and (based is None or abs(share - based) * _light_reach(light) > SHARE_REBASE):
                 # The model of what the flat membrane looks like changed (first fit, a new room light):
-                # the reference was built on the old one, so it starts again from the next frame.
+                # the reference was built on the old one, so it starts again from the next frame. A share's
+                # change moves the compensated frame by that change times ``1 - light`` (in the flat membrane's
+                # units): under a face about the change itself, on a static skin, lit only by the probe's few
+                # percent, a small part of it, which the reference follows without starting again (it started
+                # again under a held hand when the probe's share wavered after a lamp went off: the hold was lost).
                 ref.reset()
                 self._reference_share = share
         self._shadow = frozen
@@ -662,7 +666,16 @@ def _light_is(light: np.ndarray, geometry: WorkingGeometry) -> bool:
     return light.shape in ((fh, fw), (geometry.roi[3], geometry.roi[2]))
 
 
-SHARE_REBASE = 0.05  # change of the learned projector share that re-bases the reference
+SHARE_REBASE = 0.05  # change of the compensated flat membrane (its share's change times 1 - light) that re-bases
+LIGHT_REACH_STEP = 4  # the light's reach is read on every 4th pixel both ways (a face's dark or bright parts are larger)
+
+
+def _light_reach(light: np.ndarray) -> float:
+    """How far the predicted light strays from the flat grey, ``max |1 - light|`` (at most 1, the face's case)."""
+    sample = light[::LIGHT_REACH_STEP, ::LIGHT_REACH_STEP]
+    with np.errstate(invalid="ignore"):
+        reach = float(np.nanmax(np.abs(np.float32(1.0) - sample))) if sample.size else 1.0
+    return min(1.0, reach) if math.isfinite(reach) else 1.0
 # Seconds between two judgements of where the room outshines the projector (room_dominated): health reports it only
 # once it has lasted feelium.touch.sensing.HOLD_S, and judging it on every frame cost the share's per-tile map
 # and two working-size passes a frame, on frames no candidate reads the share.

@@ -1,4 +1,5 @@
-"""Frames between threads and results back to the loop: newest wins, nothing lost on demand, one wake-up per batch."""
+"""Frames between threads and results back to the loop: newest wins, nothing lost on demand, one wake-up per batch,
+one post per awaited job."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 
 from feelium.cameras.base import Frame
-from feelium.cameras.handoff import LoopInbox, ThreadSlot, read_into
+from feelium.cameras.handoff import LoopInbox, ThreadSlot, call_on, read_into
 
 
 def _frame(i: int) -> Frame:
@@ -156,3 +157,46 @@ async def test_a_real_loop_gets_the_batch_in_order():
     await asyncio.to_thread(lambda: [inbox.post(i) for i in range(5)])
     await asyncio.sleep(0)
     assert [i for batch in batches for i in batch] == [0, 1, 2, 3, 4]
+
+
+async def test_a_job_called_on_a_thread_returns_its_result_in_order_and_raises_its_error():
+    from concurrent.futures import ThreadPoolExecutor
+
+    ran_on: list[str] = []
+
+    def job(i: int) -> int:
+        ran_on.append(threading.current_thread().name)
+        return i * i
+
+    with ThreadPoolExecutor(1, thread_name_prefix="serial") as executor:
+        assert [await call_on(executor, job, i) for i in range(4)] == [0, 1, 4, 9]
+        with pytest.raises(ZeroDivisionError):
+            await call_on(executor, lambda: 1 / 0)
+    assert ran_on == ["serial_0"] * 4
+
+
+async def test_a_cancelled_wait_cancels_a_job_not_started_and_drops_a_running_ones_outcome():
+    from concurrent.futures import ThreadPoolExecutor
+
+    release, started, ran = threading.Event(), threading.Event(), []
+
+    def blocking() -> str:
+        started.set()
+        release.wait(5.0)
+        ran.append("blocking")
+        return "late"
+
+    with ThreadPoolExecutor(1) as executor:
+        running = asyncio.ensure_future(call_on(executor, blocking))
+        queued = asyncio.ensure_future(call_on(executor, ran.append, "queued"))
+        while not started.is_set():
+            await asyncio.sleep(0.001)
+        running.cancel()
+        queued.cancel()
+        await asyncio.sleep(0.01)  # the tasks take their cancellation (as with run_in_executor, on the loop's next turn)
+        release.set()
+        for task in (running, queued):
+            with pytest.raises(asyncio.CancelledError):
+                await task
+        assert await call_on(executor, len, "abc") == 3  # the thread goes on with the next job
+    assert ran == ["blocking"]  # the queued job never ran; the running one finished, its result dropped

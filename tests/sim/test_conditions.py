@@ -26,17 +26,38 @@ def _first(label: str) -> protocol.Item:
     return next(item for item in protocol.plan(0.01) if item.label == label and not item.clip)
 
 
-def test_a_tap_through_a_lamp_switched_on_is_one_touch_of_its_condition(tmp_path):
-    item = _first("tap")
-    job = conditions.Job("litroom", "switch-on", f"litroom-switch-on/{item.relpath}", item)
-    path = conditions.write_job(job, tmp_path, seed=1, scale=0.01)
-    meta = Recording(path).meta.raw
-    generator = meta["generator"]
+def _litroom_trial(tmp_path, monkeypatch, label: str, variant: str) -> Recording:
+    """One protocol trial of ``label`` under ``variant``, written as ``feelium simulate condition litroom`` does."""
+    item = _first(label)
+    job = conditions.Job("litroom", variant, f"litroom-{variant}/{item.relpath}", item)
+    monkeypatch.setattr(conditions, "plan", lambda c, v, s, clips=False: [job])
+    (path,) = conditions.simulate_condition(tmp_path, "litroom", variants=(variant,), scale=0.01)
+    return Recording(path)
+
+
+def test_a_tap_through_a_lamp_switched_on_is_one_touch_of_its_condition(tmp_path, monkeypatch):
+    recording = _litroom_trial(tmp_path, monkeypatch, "tap", "switch-on")
+    generator = recording.meta.raw["generator"]
     assert generator["condition"] == "litroom/switch-on"
     assert generator["room"]["level"] == 0.0 and generator["room"]["steps"][0][1] == 1.0  # the lamp comes on
-    assert Recording(path).frames().__next__()[0] < 0.0  # the hand-free warm-up is recorded before 0 s
+    assert recording.frames().__next__()[0] < 0.0  # the hand-free warm-up is recorded before 0 s
     report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
     trials = report["conditions"]["litroom/switch-on"]["trials"]
+    assert (trials["tp"], trials["fp"], trials["fn"]) == (1, 0, 0)
+
+
+def test_a_hold_through_a_lamp_switched_off_is_scored_with_the_probe_it_was_lit_by(tmp_path, monkeypatch):
+    """litroom/switch-off: the static skin with the probe laid on it is the projector stream, the calibration lies
+    beside the trial, and eval predicts the light from them as the daemon does. The probe's few percent are all the
+    share is learned from (a static skin used to leave it unknown: nothing settled, no touch) and the hold lasts
+    through the lamp going off (the share's waver after the switch used to restart the reference under it)."""
+    recording = _litroom_trial(tmp_path, monkeypatch, "hold", "switch-off")
+    generator = recording.meta.raw["generator"]
+    assert recording.has_projector and generator["condition"] == "litroom/switch-off"
+    assert generator["probe"]["amplitude"] > 0.0 and generator["room"]["steps"][0][1] == 0.0  # the lamp goes off
+    assert (tmp_path / "litroom-switch-off" / CALIBRATION_FILE).is_file()
+    report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
+    trials = report["conditions"]["litroom/switch-off"]["trials"]
     assert (trials["tp"], trials["fp"], trials["fn"]) == (1, 0, 0)
 
 

@@ -38,7 +38,8 @@ at the frames' 30 fps the projector's response learns from at most 15 frames a s
 (``pipeline.RESPONSE_LEARN_INTERVAL_S``; the recordings accuracy is measured on are 15 fps and learn on every frame as
 before). Checked before re-pinning: with ``RESPONSE_LEARN_INTERVAL_S = 0`` all four projected digests are the old pins
 to the bit (the branch's other changes, the medians, the margin's dilation, the coarse pass without edges, kept
-them); the static ones did not move.
+them), also after merging main at e88dd2d (whose 0.5 pin moved for the share's probe-only pooling); the static ones
+did not move.
 """
 
 from __future__ import annotations
@@ -185,7 +186,11 @@ def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: st
     i17probe for the share that follows the room: with ``room_scale`` fixed at 1 and the follow off, it is the
     previous pin to the bit; re-pinned on branch i16share for the share's tiles summed over every other row (with
     ``LEARN_ROW_STEP = 1`` the previous pin to the bit), and in session 15 for the room-light and share tiles kept
-    the same part of the membrane at 0.5, ``tile_px_for`` (with it returning 16, i16share's pins to the bit)."""
+    the same part of the membrane at 0.5, ``tile_px_for`` (with it returning 16, i16share's pins to the bit); the
+    projected one re-pinned in session 16 for the projector's share pooled from pixels that saw only a probe's
+    variance of light when none saw the prior's (``photometric.MIN_LIGHT_VAR``: the area-averaged light at 0.5 has
+    a quarter of the variance, so its first frames now give a share; with that fallback off, the previous pin to the
+    bit; the full-scale digests do not move)."""
     assert _digest(projected, detect_scale=0.5) == expected
 
 
@@ -200,9 +205,10 @@ def test_half_scale_light_on_the_detection_grid_with_fine_windows_gives_the_same
 
 def test_learning_on_every_frame_gives_the_previous_pin(monkeypatch) -> None:
     """With the response learning on every frame again (``RESPONSE_LEARN_INTERVAL_S = 0``), the daemon's way at 0.5
-    is session 15's pin to the bit: the response's learning rate is the only change of results on branch i16touch."""
+    is main's pin to the bit (e88dd2d's, re-pinned there in session 16 for the share's probe-only pooling): the
+    response's learning rate is the only change of results on branch i16touch."""
     import feelium.touch.pipeline as pipeline_module
 
     monkeypatch.setattr(pipeline_module, "RESPONSE_LEARN_INTERVAL_S", 0.0)
-    expected = "26b70dff5cea1ccbccdb14b42e60c010f95d2a14b81d92b48cf595e87186ac4f"
+    expected = "febe90df1c86e99ebbc30a8a0c5728fd57930b1d55608ffc2a139f613d249b7d"
     assert _digest(True, detect_scale=0.5, grids=True) == expected

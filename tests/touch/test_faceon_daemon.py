@@ -43,7 +43,9 @@ QUIET_S = 5.0  # face playing, nobody near: no touch may be raised
 PRESS_S = 1.5
 
 
-async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
+async def _run(face_on: bool) -> tuple[list[TouchEvent], list[TouchEvent], TouchService, LiveRearScene]:
+    """The daemon's touch and projector services, a quiet spell, then a press; with the wearer's video playing or
+    (``face_on`` False) the static skin, on which the projector lays its probe."""
     hub = Hub()
     projector_cfg = ProjectorConfig()
     calibration = default_calibration(DEFAULT_CAMERA_SIZE, DEFAULT_ROI, (projector_cfg.width, projector_cfg.height))
@@ -88,7 +90,8 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
         pressed = released = False
         quiet: list[TouchEvent] = []
         while (now := hub.clock() - start) < QUIET_S + PRESS_S + 0.5:
-            hub.face.publish(hub.clock(), video.wearer(now))
+            if face_on:
+                hub.face.publish(hub.clock(), video.wearer(now))
             item = hub.projector_video.get()
             if item is not None and item.seq != seq:
                 seq = item.seq
@@ -109,12 +112,32 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
     runs = [asyncio.create_task(touch.run()), asyncio.create_task(projector.run())]
     quiet = await world()
     await asyncio.gather(*runs)
-    pressed = events.drain()
+    return quiet, events.drain(), touch, scene
+
+
+async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
+    quiet, pressed, touch, scene = await _run(face_on=True)
     health = touch.health()
     assert health["projector_frames"] > 30 and health["projected_errors"] == 0, health
     share = touch._pipeline.response.share
     assert share is not None and abs(share - 0.45) < 0.1, share  # it learned the projector's share of s1's light
     assert quiet == [], quiet  # no phantom touch while the face played
+    downs = [e for e in pressed if e.phase == "down"]
+    assert len(downs) == 1, pressed
+    rx, ry, rw, rh = scene.roi
+    assert math.hypot(downs[0].x - (rx + rw * 0.4), downs[0].y - (ry + rh * 0.45)) <= 6.0
+
+
+async def test_a_static_skin_compensated_learns_its_share_from_the_probe_and_a_press_is_found() -> None:
+    """Nobody inside: the skin is still, the projector lays its probe (``[projector] probe = "auto"``) and touch
+    compensates the predicted light as on the blimp (a real camera with a calibration). The probe's few percent are
+    all that can teach the projector's share; before session 16 nothing was ever settled there and no press was
+    raised."""
+    quiet, pressed, touch, scene = await _run(face_on=False)
+    health = touch.health()
+    assert health["projector_frames"] > 30 and health["probe_frames"] > 30, health
+    assert touch._pipeline.settled and touch._pipeline.response.share is not None
+    assert quiet == [], quiet
     downs = [e for e in pressed if e.phase == "down"]
     assert len(downs) == 1, pressed
     rx, ry, rw, rh = scene.roi

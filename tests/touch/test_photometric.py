@@ -136,3 +136,35 @@ def test_solving_at_the_interval_lags_the_every_frame_solve_by_less_than_its_own
             share_lag = max(share_lag, abs(sparse.share - every.share))
     assert lag <= own / 2.0
     assert share_lag < SHARE_REBASE
+
+
+def _probe_light(t: float, shape: tuple[int, int]) -> np.ndarray:
+    """A static skin's light: flat, with the probe's +-3 % checkerboard at 2 Hz (feelium.skin.probe)."""
+    from feelium.skin.probe import light_at, probe_level, probe_pattern
+
+    return light_at(probe_level(t), probe_pattern(shape[1], shape[0], cell_px=8))
+
+
+def test_a_static_skin_with_the_probe_teaches_the_share() -> None:
+    """The probe's light varies by 3 %, a variance far under the prior's: no pixel outweighs its prior, yet the
+    share pooled over the many pixels that saw the probe comes out (a static skin used to leave it unknown, and
+    nothing of a compensating blimp's touch was ever settled)."""
+    rng = np.random.default_rng(5)
+    a = rng.uniform(60.0, 120.0, SHAPE).astype(np.float32)
+    c = (a * 1.5).astype(np.float32)  # a lit room: the projector's share 0.4
+    r = _response()
+    for i in range(150):  # 10 s at 15 fps: 20 periods of the probe
+        light = _probe_light(i / 15.0, SHAPE)
+        r.learn(i / 15.0, a * light + c + rng.normal(0, 1.0, SHAPE).astype(np.float32), light, np.ones(SHAPE, bool))
+    assert r.share is not None and abs(r.share - 0.4) < 0.08
+
+
+def test_a_light_that_never_varies_teaches_no_share() -> None:
+    """Without the probe (a static skin, nothing varying) there is nothing to learn the share from: it stays unknown
+    rather than being made up from noise."""
+    rng = np.random.default_rng(6)
+    r = _response()
+    light = np.ones(SHAPE, np.float32)
+    for i in range(150):
+        r.learn(i / 15.0, 100.0 + rng.normal(0, 1.0, SHAPE).astype(np.float32), light, np.ones(SHAPE, bool))
+    assert r.share is None

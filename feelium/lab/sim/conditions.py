@@ -9,7 +9,8 @@ chosen from detector scores):
 
 - ``litroom``: the protocol's trials under each room light of :mod:`feelium.lab.touch.litroom` (``dim``,
   ``lit``, ``switch-on``, ``switch-off``, ``drift``, ``passer-by``), with its hand-free warm-up in the
-  starting light recorded as frames before 0 s;
+  starting light recorded as frames before 0 s, the static skin with the probe as the projector stream and the
+  projector calibration beside the trials (:mod:`feelium.lab.sim.take_litroom`);
 - ``face``: taps, holds, swipes and hovers aimed at targets in each zone of the whole curved front face
   (:mod:`feelium.lab.touch.face_zones`: ``centre``, ``mid``, ``edge``), 1280x960 frames with ``meta.face``;
 - ``faceon``: the protocol's trials under the flat back-light (``static``) and with the wearer's face on the
@@ -35,13 +36,14 @@ from typing import Any
 
 import cv2
 
-from feelium.lab.sim import protocol, take_faceon, take_multitouch
+from feelium.lab.sim import protocol, take_faceon, take_litroom, take_multitouch
 from feelium.lab.touch import face_zones, litroom
 from feelium.lab.touch.recorded_light import CALIBRATION_FILE
 from feelium.recording import RecordingWriter
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, exposure_samples
 from feelium.sim.camera import frame_times
 from feelium.sim.sessions import session_presets
+from feelium.skin import probe
 from feelium.skin.face import FaceModel
 
 CONDITIONS: dict[str, tuple[str, ...]] = {
@@ -103,7 +105,7 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
     }  # fmt: skip
     take: take_faceon.FaceTake | None = None
     if job.condition == "litroom":
-        frames, labels, size, roi, extra = _litroom(job, seed, generator)
+        (frames, labels, size, roi, extra), take = _litroom(job, seed, generator)
     elif job.condition == "faceon":
         (frames, labels, size, roi, extra), take = _faceon(job, seed, generator)
     elif job.condition == "multitouch":
@@ -129,17 +131,14 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
 Rendered = tuple[Iterator[tuple[float, Any]], Any, tuple[int, int], tuple[int, int, int, int], dict[str, Any]]
 
 
-def _litroom(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
+def _litroom(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.FaceTake]:
     item = job.trial
     assert isinstance(item, protocol.Item)
-    script = protocol.build_script(item, seed)
-    labels = script.labels()
-    first = labels.contacts[0].t_on if labels.contacts else None
-    room = litroom.room_for(job.variant, item, seed, script.duration, first)
-    generator["room"] = None if room is None else dataclasses.asdict(room)
-    generator["warmup_s"] = litroom.WARMUP_S
-    frames = litroom.render(script, session_presets(seed)[item.session], item, seed, room)
-    return iter(frames), labels, (WIDTH, HEIGHT), ROI, {}
+    take = take_litroom.render(item, job.variant, seed)
+    generator.update(room=None if take.room is None else dataclasses.asdict(take.room), warmup_s=litroom.WARMUP_S,
+                     probe={"amplitude": probe.AMPLITUDE, "period_s": probe.PERIOD_S},
+                     projector_latency_s=take_faceon.faceon.TRUE_LATENCY_S)  # fmt: skip
+    return (take.frames, take.labels, (WIDTH, HEIGHT), ROI, {}), take
 
 
 def _face(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
@@ -236,8 +235,9 @@ def simulate_condition(
     finally:
         if jobs > 1:
             pool.shutdown()
-    if condition == "faceon":
-        # The map the daemon would use, beside the face trials (`eval` finds it there).
-        for variant in sorted({job.variant for job in todo if job.variant.startswith("face")}):
-            take_faceon.calibration(seed).save(Path(out) / f"faceon-{variant}" / CALIBRATION_FILE)
+    # The map the daemon would use, beside the trials that carry a projector stream (`eval` finds it there).
+    projected = {job.variant for job in todo if condition == "litroom" or job.variant.startswith("face")}
+    if condition in ("faceon", "litroom"):
+        for variant in sorted(projected):
+            take_faceon.calibration(seed).save(Path(out) / f"{condition}-{variant}" / CALIBRATION_FILE)
     return sorted(written)

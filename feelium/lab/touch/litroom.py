@@ -110,15 +110,21 @@ def _false_touches(events: list[TouchEvent], data: TrialData) -> int:
 
 
 def render(
-    script: Any, session: Any, item: protocol.Item, seed: int, room: RoomLight | None, *, hands: bool = True
+    script: Any, session: Any, item: protocol.Item, seed: int, room: RoomLight | None, *, hands: bool = True,
+    projected: Callable[[float], np.ndarray] | None = None,
 ) -> list[tuple[float, np.ndarray]]:
-    """Warm-up (hand-free) frames before 0, then the trial's frames; the same noise stream for every condition."""
+    """Warm-up (hand-free) frames before 0, then the trial's frames; the same noise stream for every condition.
+
+    ``projected``: the projector's light factor at a camera time, instead of the ideal probe (a recording renders
+    the probe through projector frames, :mod:`feelium.lab.sim.take_litroom`)."""
     rng = protocol.recording_rng(seed, item.name, 1)
-    pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
+    if projected is None and PROBE:
+        pattern = probe_pattern(WIDTH, HEIGHT)
+        projected = lambda t: probe_light(t, pattern, AMPLITUDE)  # noqa: E731
     # The probe's cells change the projector's direct light only: the room returns the skin's mean, which it keeps.
     scene = SceneRenderer(
-        session, rng, width=WIDTH, height=HEIGHT, roi=ROI, room_light=room,
-        projected=None if pattern is None else (lambda t: probe_light(t, pattern, AMPLITUDE)), projected_share_only=True,
+        session, rng, width=WIDTH, height=HEIGHT, roi=ROI, room_light=room, projected=projected,
+        projected_share_only=True,
     )  # fmt: skip
     warmup = np.arange(-WARMUP_S, -0.25, 1.0 / session.sensor.fps)
     out = [(float(t), scene.frame(float(t), SceneState())) for t in warmup]
