@@ -125,7 +125,7 @@ def main() -> int:
     pipeline = TouchPipeline(config.touch, size, roi)
     # With detect_scale < 1 (trees that have it): on the detection grid, the fine pass's windows at the working size.
     grids = getattr(pipeline, "light_grids", None)
-    window = None
+    window = mix_window = None
     if grids is None:
         predictor = CanvasLightPredictor(config.projector, calibration, size, **box)
     else:
@@ -134,6 +134,7 @@ def main() -> int:
         if fine_grid is not None:  # as the daemon builds them (feelium.touch.service)
             finer = CanvasLightPredictor(config.projector, calibration, fine_grid[0], box=fine_grid[1])
             window = finer.window
+            mix_window = getattr(finer, "window_of_mix", None)  # older trees predict each frame's window apart
         predictor = CanvasLightPredictor(
             config.projector, calibration, coarse_size, box=coarse_box, average_of=grids.average_of, finer=finer
         )
@@ -156,13 +157,22 @@ def main() -> int:
         finally:
             cpu["predict (fine windows)"] += time.thread_time() - start
 
+    def predict_mixed_window(parts: list[tuple[np.ndarray, float]], rows: slice, cols: slice) -> np.ndarray:
+        start = time.thread_time()
+        try:
+            assert mix_window is not None
+            return mix_window(parts, rows, cols)
+        finally:
+            cpu["predict (fine windows)"] += time.thread_time() - start
+
     if args.profile:
         _instrument(pipeline, cpu)
     if grids is None:
         exposure = ExposureLight(predict, config.touch)
         fine = {}
     else:
-        exposure = ExposureLight(predict, config.touch, predict_window if window is not None else None)
+        by_mix = {"mixed_window": predict_mixed_window} if mix_window is not None else {}  # as the daemon's service
+        exposure = ExposureLight(predict, config.touch, predict_window if window is not None else None, **by_mix)
         fine = {"fine_light": exposure.window}
     history = ProjectorHistory(history_window_s(config.touch))
     per_loop: list[dict[str, float]] = []

@@ -22,6 +22,8 @@ the border's light before the blur (a camera pixel at the edge sees a little of 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import cv2
 import numpy as np
 
@@ -164,6 +166,8 @@ class CanvasLightPredictor:
         self._seen = np.empty(self._map2.shape, np.float32)
         self._blurred = np.empty(self._map2.shape, np.float32)
         self._recent: list[tuple[np.ndarray, np.ndarray]] = []  # (canvas, its light) of the last windows' canvases
+        self._mix = np.empty(0, np.float32)  # the last exposure's mixed canvas light (window_of_mix)
+        self._mix_key: list[tuple[np.ndarray, float]] | None = None  # the parts it was mixed from
 
     def gain(self, canvas_grey: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """(h, w) float32 gain over the box (the whole frame by default) for a grey (uint8) skin canvas.
@@ -204,24 +208,68 @@ class CanvasLightPredictor:
         c0, c1, _ = cols.indices(bw)
         if r1 <= r0 or c1 <= c0:
             raise ValueError(f"window {rows}, {cols} is empty or outside the {bw}x{bh} box")
-        light = self._window_light(canvas_grey)
+        return self._window_of(self._window_light(canvas_grey), r0, r1, c0, c1)
+
+    def window_of_mix(self, parts: Sequence[tuple[np.ndarray, float]], rows: slice, cols: slice) -> np.ndarray:
+        """:meth:`window` of the light of several canvases mixed with weights (``parts``: canvas, weight), as one
+        camera exposure mixes the projector frames it saw (a new float32 array).
+
+        Why: the prediction is linear in the light (the remap interpolates, the blur and the division by the lit
+        weight are linear; the border's light and the uncovered pixels' 1.0 take the weights' sum), so the canvases'
+        lights are mixed first, on the small reduced canvas, and the window is remapped and blurred once instead of
+        once per canvas: equal to mixing the windows up to float rounding. The mix is kept for the next windows of
+        the same parts: the fine pass's window and the pattern's lesson read the same exposure."""
+        if len(parts) == 1:
+            canvas, weight = parts[0]
+            out = self.window(canvas, rows, cols)
+            out *= np.float32(weight)
+            return out
+        bh, bw = self._lit_blur.shape
+        r0, r1, _ = rows.indices(bh)
+        c0, c1, _ = cols.indices(bw)
+        if r1 <= r0 or c1 <= c0:
+            raise ValueError(f"window {rows}, {cols} is empty or outside the {bw}x{bh} box")
+        total = float(sum(weight for _, weight in parts))
+        return self._window_of(self._mixed_light(parts), r0, r1, c0, c1, total)
+
+    def _mixed_light(self, parts: Sequence[tuple[np.ndarray, float]]) -> np.ndarray:
+        """The canvases' lights mixed with their weights, into the predictor's buffer; kept while the same parts (the
+        same canvas arrays and weights) are asked for again."""
+        key = self._mix_key
+        if key is not None and len(key) == len(parts) and all(c is k and w == v for (c, w), (k, v) in zip(parts, key)):
+            return self._mix
+        for i, (canvas, weight) in enumerate(parts):
+            light = self._window_light(canvas)
+            if i == 0:
+                if self._mix.shape != light.shape:
+                    self._mix = np.empty_like(light)
+                np.multiply(light, np.float32(weight), out=self._mix)
+            else:
+                cv2.scaleAdd(light, float(weight), self._mix, dst=self._mix)  # mix += weight * light, one pass
+        self._mix_key = [(canvas, float(weight)) for canvas, weight in parts]
+        return self._mix
+
+    def _window_of(self, light: np.ndarray, r0: int, r1: int, c0: int, c1: int, total: float = 1.0) -> np.ndarray:
+        """Rows ``r0:r1``, columns ``c0:c1`` of the box's light for a reduced canvas light (a new float32 array);
+        ``total``: the weight the light was mixed with (what the border's light and the uncovered pixels' take)."""
+        border = self._border * total
         iy, ix = self._inner[0].start, self._inner[1].start
         if self.diffusion_px <= 0:
             part = (slice(iy + r0, iy + r1), slice(ix + c0, ix + c1))
             out = cv2.remap(light, self._map1[part], self._map2[part], cv2.INTER_LINEAR,
-                            borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=border)
         else:
             mh, mw = self._map2.shape
             part = blur_window((mw, mh), (ix + c0, iy + r0, c1 - c0, r1 - r0), self.diffusion_px)
             # Into the front of whole-window buffers: contiguous, and no 0.2 MB allocation (an mmap) per call.
             shape = (part[0].stop - part[0].start, part[1].stop - part[1].start)
             seen = cv2.remap(light, self._map1[part], self._map2[part], cv2.INTER_LINEAR,
-                             dst=_front(self._seen, shape), borderMode=cv2.BORDER_CONSTANT, borderValue=self._border)
+                             dst=_front(self._seen, shape), borderMode=cv2.BORDER_CONSTANT, borderValue=border)
             seen[self._dark[part]] = 0.0
             blurred = cv2.GaussianBlur(seen, (0, 0), self.diffusion_px, dst=_front(self._blurred, shape))
             y0, x0 = iy + r0 - part[0].start, ix + c0 - part[1].start
             out = blurred[y0 : y0 + r1 - r0, x0 : x0 + c1 - c0] / self._lit_blur[r0:r1, c0:c1]
-        out[self._uncovered[r0:r1, c0:c1]] = 1.0
+        out[self._uncovered[r0:r1, c0:c1]] = total
         return out
 
     def _window_light(self, canvas_grey: np.ndarray) -> np.ndarray:

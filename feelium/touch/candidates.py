@@ -76,6 +76,7 @@ def find_candidates(
     edge_radius: float = 10.0,
     scratch: Scratch | None = None,
     split_fraction: float = 0.0,
+    edges: bool = True,
 ) -> tuple[list[Candidate], Segmentation | None]:
     """Candidates (largest shadow first, working-image coordinates) and their segmentation (None when none).
 
@@ -85,6 +86,9 @@ def find_candidates(
     part. 0 never splits. Of two candidates centred on each other's footprint only the deeper is kept.
 
     ``scratch`` holds the working-size mask (:mod:`feelium.touch.buffers`); nothing returned refers to it.
+    ``edges=False`` leaves every candidate's edge at 0.0: a caller that reads only where the shadows are (the coarse
+    pass of a two-resolution pipeline, :mod:`feelium.touch.refine`, which finds the candidates again finer) saves
+    the gradient filters, the costliest part of a candidate.
     """
     buf = Scratch() if scratch is None else scratch
     full_mask = np.greater(depth, threshold, out=buf.like("candidates.mask", depth, bool)).view(np.uint8)
@@ -131,11 +135,11 @@ def find_candidates(
             # large flat contact is the largest of many noisy pixels, so a level from it cuts into the plateau.
             footprint = owned & (values >= core_fraction * float(part_values.mean()))
             fys, fxs = np.nonzero(footprint)
-            edge = steepest_gradient(
-                full_depth,
-                (bx + x0 + int(xs.min()), by + y0 + int(ys.min()), bx + x0 + int(xs.max()), by + y0 + int(ys.max())),
-                edge_radius,
-            )
+            edge = 0.0
+            if edges:
+                x_min, y_min = bx + x0 + int(xs.min()), by + y0 + int(ys.min())
+                x_max, y_max = bx + x0 + int(xs.max()), by + y0 + int(ys.max())
+                edge = steepest_gradient(full_depth, (x_min, y_min, x_max, y_max), edge_radius)
             found.append(Candidate(
                 cx, cy, float(part_values.max()), float(part_values.mean()), part_area, edge, label,
                 (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys),

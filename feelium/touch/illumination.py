@@ -38,6 +38,7 @@ import cv2
 import numpy as np
 
 from feelium.touch.buffers import Scratch
+from feelium.touch.median import median
 
 TILE_PX = 16  # working pixels per coarse tile side at detect_scale 1 (a fixed part of the membrane: tile_px_for)
 MIN_TILE_WEIGHT = 0.5  # share of a tile's pixels that must be usable for its mean to count
@@ -117,11 +118,11 @@ def illumination_change(
         return None
     with np.errstate(invalid="ignore", divide="ignore"):
         values = mean_frame[good] / (np.float32(gain) * mean_ref[good])
-    median = float(np.median(values))
-    spread = float(np.median(np.abs(values - median)))
-    if not (np.isfinite(median) and np.isfinite(spread) and median > 0.0):
+    middle = median(values)
+    spread = median(np.abs(values - middle))
+    if not (np.isfinite(middle) and np.isfinite(spread) and middle > 0.0):
         return None
-    if spread <= spread_limit * median and not force:
+    if spread <= spread_limit * middle and not force:
         return None
     # frame = e * gain * reference + r per tile: exposure multiplies everything, room light adds. One e and the
     # smooth r are separable because the back-light (the reference) varies 4.5-7:1 across the tiles.

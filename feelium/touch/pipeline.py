@@ -139,6 +139,7 @@ class TouchPipeline:
         # (:func:`feelium.touch.roomshare.room_dominated`); None while the projector's share is not known.
         self.room_dominated: float | None = None
         self._room_judged_t: float | None = None  # when room_dominated was last judged
+        self._learned_t: float | None = None  # when the response last learned (RESPONSE_LEARN_INTERVAL_S)
         self.noise = 0.0
         self._last_t: float | None = None
         self._shadow: np.ndarray | None = None
@@ -195,6 +196,7 @@ class TouchPipeline:
         self.projector_share.reset()
         self.room_dominated = None
         self._room_judged_t = None
+        self._learned_t = None
         self.settled = True
         self._reference_share = self.response.share
         self._last_t = None
@@ -324,7 +326,8 @@ class TouchPipeline:
         darkened = int(np.count_nonzero(shadow))
         area = int(round(darkened * self.geometry.area_scale))
         depth_max = float(smooth.max()) if smooth.size else 0.0
-        candidates, segmentation = self._find(smooth, self._min_area, self._edge_radius, buf)
+        # With a fine pass the coarse candidates only say where to look (fine_window): their edges go unread.
+        candidates, _ = self._find(smooth, self._min_area, self._edge_radius, buf, edges=self.fine is None)
         geometry = self.geometry
         fine_inputs = None
         learn_detail = self.fine is not None and self.settled and self.detail.due(t)
@@ -379,7 +382,7 @@ class TouchPipeline:
             kept.append(point)
         step = self.tracker.step(t, observations, settled=self.settled)
         if self._margin_kernel is not None and darkened:
-            shadow = cv2.dilate(shadow.view(np.uint8), self._margin_kernel).view(bool)
+            shadow = _dilated(shadow, self._margin_kernel)
         seeds = [point for point, p in zip(kept, step.protected) if p]
         anchored = _regions_containing(shadow, seeds) if seeds else None
         frozen = shadow if unusable is None else (shadow | unusable)
@@ -388,20 +391,33 @@ class TouchPipeline:
         if learn_detail and fine_inputs is not None:
             self._learn_detail(t, fine_inputs, frozen)
         sensed = light if light is not None else probe
+        learn_share = sensed is not None and self.settled
+        learn_response = light is not None and (
+            self._learned_t is None or t - self._learned_t >= 0.75 * RESPONSE_LEARN_INTERVAL_S
+        )
+        if learn_response:
+            self._learned_t = t
+        free = None  # neither frozen nor saturated: what the response and the share learn from (one mask for both)
+        if learn_response or learn_share:
+            free = np.logical_not(frozen, out=buf.like("learn.free", frozen))
+            free &= np.less(raw, cfg.saturation_level, out=buf.like("learn.unsaturated", frozen))
         # Learned on hand-free frames only: a shadow's slow change under a tile, while the probe happens to rise or
         # fall, reads as light following the projector (a hover's own tiles came out 0.06 too projector-lit).
         # A frame with a hand teaches only the membrane's level of share, from the pixels away from its shadow.
-        if sensed is not None and self.settled:
+        if learn_share:
+            assert free is not None
             expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("share.expected", ref.image))
-            usable = ~frozen & (raw < cfg.saturation_level) & (expected >= cfg.dark_reference_level)
+            usable = np.greater_equal(expected, cfg.dark_reference_level, out=buf.like("share.usable", frozen))
+            usable &= free
             hand_free = not candidates and area < self._activity_area
             self.projector_share.learn(t, raw, expected, sensed, usable, hand_free=hand_free)
         if self.settled:
             ref.update(t, work, frozen, anchored)
         else:
             ref.hold(t)
-        if light is not None:
-            self.response.learn(t, raw, light, ~frozen & (raw < self.config.saturation_level))
+        if learn_response:
+            assert free is not None
+            self.response.learn(t, raw, light, free)
             share, based = self.response.share, self._reference_share
             if share is not None and (based is None or abs(share - based) * _light_reach(light) > SHARE_REBASE):
                 # The model of what the flat membrane looks like changed (first fit, a new room light):
@@ -518,9 +534,10 @@ class TouchPipeline:
         return [shifted(c, window) for c in found]
 
     def _find(
-        self, smooth: np.ndarray, min_area: int, edge_radius: float, scratch: Scratch
+        self, smooth: np.ndarray, min_area: int, edge_radius: float, scratch: Scratch, *, edges: bool = True
     ) -> tuple[list[Candidate], Segmentation | None]:
-        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes."""
+        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes (``edges``:
+        :func:`find_candidates`'s)."""
         cfg = self.config
         return find_candidates(
             smooth,
@@ -531,6 +548,7 @@ class TouchPipeline:
             edge_radius=edge_radius,
             scratch=scratch,
             split_fraction=cfg.contact_split_fraction,
+            edges=edges,
         )
 
     def _learn_detail(self, t: float, inputs: FineInputs, frozen: np.ndarray) -> None:
@@ -667,6 +685,14 @@ ROOM_JUDGE_INTERVAL_S = 0.2
 # each other (0.0445), one in 8 let it rise to 0.0459 (full scale: 0.0430; this interval: 0.0438); a lesson costs
 # ~0.6 ms of fine-resolution passes at 256x192.
 DETAIL_INTERVAL_S = 0.25
+# Seconds between two frames the projector's response (feelium.touch.photometric) learns from: about 15 a second,
+# the rate of the recordings every accuracy figure was measured on (the paper's ~15 fps), so at the camera's 30 fps
+# it learns as it did there. Why: its per-pixel sums were ~6 % of the touch thread's time at 30 fps (issue 16) for a
+# memory of 20 s (``projected_response_tau_s``) solved every 0.2 s: every other frame adds little the fit can use.
+# Three quarters of it count (a camera's frame times jitter): a 15 fps recording learns on every frame, as before,
+# and 30 fps on every other frame. The share per place still learns on every frame: its short memory (0.5 s) follows
+# a passer-by, and learned at 1/15 s it lost a tap of the lit room's seed 4 (docs/performance.md, session 14).
+RESPONSE_LEARN_INTERVAL_S = 1.0 / 15.0
 NOISE_TILES = (8, 6)
 _SPECK_KERNEL = np.ones((3, 3), np.uint8)
 
@@ -687,6 +713,21 @@ def _noise_floor_map(signed_depth: np.ndarray, sigmas: float, minimum: float, sc
     tiles *= sigmas
     np.maximum(tiles, minimum, out=tiles)
     return cv2.resize(tiles, (w, h), dst=scratch.get("floor", (h, w), tiles.dtype), interpolation=cv2.INTER_LINEAR)
+
+
+def _dilated(mask: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """``cv2.dilate(mask, kernel)`` (bool, a new array), computed only over the mask's bounding box widened by the
+    kernel's reach: the same pixels to the bit (outside that box nothing can be set, and dilation's border counts
+    as empty either way), at the cost of the shadow's box instead of the whole image (a hand's shadow is a small
+    part of it, and the margin's ellipse is the costliest kernel the pipeline runs)."""
+    bx, by, bw, bh = cv2.boundingRect(mask.view(np.uint8))
+    ry, rx = kernel.shape[0] // 2, kernel.shape[1] // 2
+    h, w = mask.shape
+    y0, y1, x0, x1 = max(by - ry, 0), min(by + bh + ry, h), max(bx - rx, 0), min(bx + bw + rx, w)
+    out = np.zeros(mask.shape, bool)
+    part = np.ascontiguousarray(mask[y0:y1, x0:x1]).view(np.uint8)
+    out[y0:y1, x0:x1] = cv2.dilate(part, kernel).view(bool)
+    return out
 
 
 def _regions_containing(mask: np.ndarray, seeds: list[tuple[float, float]]) -> np.ndarray:

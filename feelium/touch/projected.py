@@ -15,7 +15,7 @@ Data flows one way: the projector never hears from touch.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import cv2
 import numpy as np
@@ -27,6 +27,8 @@ from feelium.touch.settle import exposure_shares, predicted_exposure
 LATE_S = 0.1  # how long after its exposure a camera frame may still be processed: three frames at 30 fps
 # A projector frame's grey canvas to its light over (rows, cols) of the finer box (see ExposureLight.window).
 WindowPredictor = Callable[[np.ndarray, slice, slice], np.ndarray]
+# The light of several grey canvases mixed with weights, over (rows, cols) of the finer box, in one go.
+MixWindowPredictor = Callable[[Sequence[tuple[np.ndarray, float]], slice, slice], np.ndarray]
 HISTORY_MAX = 16  # a bound whatever the projector's rate (0.2 MB canvases: 3.1 MB at most; 60 fps needs 11)
 
 
@@ -75,6 +77,8 @@ class ExposureLight:
         predict: Callable[[np.ndarray, np.ndarray | None], np.ndarray],
         config: TouchConfig,
         window: WindowPredictor | None = None,
+        *,
+        mixed_window: MixWindowPredictor | None = None,
     ) -> None:
         """``predict(canvas, out)``: a projector frame's grey canvas to its light at the camera frame size (relative
         to the flat grey), written into ``out`` when it is an array of that size (float32) or a new array when it is
@@ -83,9 +87,13 @@ class ExposureLight:
 
         ``window(canvas, rows, cols)``: the light at a finer size than ``predict``'s, over a window only; with it,
         :meth:`window` gives the last exposure's light there (the touch pipeline's fine pass, ``detect_scale`` < 1).
+        ``mixed_window(parts, rows, cols)``, used instead when given: the same for the exposure's frames and weights
+        (``parts``: canvas, weight) at once, so a predictor that is linear in the light mixes the canvases first and
+        predicts the window once (:meth:`feelium.projector.canvaslight.CanvasLightPredictor.window_of_mix`).
         """
         self._predict = predict
         self._window = window
+        self._mixed_window = mixed_window
         self._last: tuple[list[tuple[float, int, np.ndarray]], float] | None = None
         self._latency = config.projector_latency_s
         self._sigma = config.projector_latency_sigma_s
@@ -149,12 +157,18 @@ class ExposureLight:
         working resolution's detail, and the projected light carries as sharp edges as the frame (a face's features
         blurred by ~0.5 camera px): upsampling the coarse light would leave them in the depth. Each frame is predicted
         again in the window (not cached: the window moves with the hand), mixed with the same weights."""
-        if self._window is None or self._last is None:
+        if (self._window is None and self._mixed_window is None) or self._last is None:
             return None
         frames, t = self._last
         shown = [f[0] for f in frames]
+        shares = exposure_shares(shown, t, self._exposure, self._latency)
+        if self._mixed_window is not None:
+            if not shares:
+                return None
+            return self._mixed_window([(frames[i][2], w) for i, w in shares], rows, cols).astype(np.float32, copy=False)
+        assert self._window is not None
         out: np.ndarray | None = None
-        for i, w in exposure_shares(shown, t, self._exposure, self._latency):
+        for i, w in shares:
             light = self._window(frames[i][2], rows, cols).astype(np.float32, copy=False)
             if out is None:
                 out = np.multiply(light, np.float32(w))

@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 from feelium.touch.buffers import Scratch
+from feelium.touch.median import median
 
 REFERENCE_FLOOR = 1.0 / 64.0  # grey levels; far below the dark mask, far above denormals
 GAIN_LIMITS = (1e-3, 1e3)
@@ -98,7 +99,7 @@ class AdaptiveReference:
             usable &= ~shadow[::s, ::s]
         if np.count_nonzero(usable) < max(8, usable.size // 50):
             return self.gain
-        ratio = float(np.median(f[usable] / r[usable]))
+        ratio = median(f[usable] / r[usable])
         if not math.isfinite(ratio):
             return self.gain
         return min(max(ratio, GAIN_LIMITS[0]), GAIN_LIMITS[1])

@@ -70,6 +70,7 @@ import numpy as np
 
 from feelium.skin import probe
 from feelium.touch.illumination import TILE_PX
+from feelium.touch.median import median
 
 MIN_TILE_WEIGHT = 0.5  # share of a tile's pixels that must be usable for it to learn on this frame
 # A tile's share is believed once it has seen this variance of ``light - 1``: the probe's sinusoid gives
@@ -92,16 +93,6 @@ def tile_grid(shape: tuple[int, int], tile_px: int = TILE_PX) -> tuple[int, int]
     columns)."""
     h, w = shape
     return max(1, w // tile_px), max(1, h // tile_px)
-
-
-def _median(values: np.ndarray) -> float:
-    """``float(np.median(values))`` of a non-empty float32 array without NaN, to the bit, without ``np.median``'s
-    checks and dispatch (most of its cost on a few hundred tiles, on every frame)."""
-    half = values.size // 2
-    if values.size % 2:
-        return float(np.partition(values, half)[half])
-    part = np.partition(values, (half - 1, half))
-    return float((part[half - 1] + part[half]) / np.float32(2.0))
 
 
 def upsampled_at(coarse: np.ndarray, shape: tuple[int, int], x: int, y: int) -> float:
@@ -212,7 +203,7 @@ class ProjectorShare:
         fresh[0] = good
         np.copyto(fresh[1:3], means[1::-1] - np.float32(1.0), where=good)  # x = mx - 1, u = mz - 1 (float32, widened)
         np.multiply(fresh[1], fresh[1:3], out=fresh[3:5])
-        level = np.where(good, me / max(_median(me[good]), 1e-6) if good.any() else 1.0, np.nan)
+        level = np.where(good, me / max(median(me[good]), 1e-6) if good.any() else 1.0, np.nan)
         self._follow(level)  # both memories, to today's reference, before today's frame joins them
         if self._expected is None or self._expected.shape != level.shape:
             self._expected = level

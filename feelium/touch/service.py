@@ -355,7 +355,9 @@ class TouchService:
         fine = None if grids.fine is None else self.projected(*grids.fine)
         coarse = self.projected(*grids.coarse, grids.average_of, fine)  # the fine one shares its canvas light
         self._windowed = True
-        return ExposureLight(coarse, self.touch_config, getattr(fine, "window", None))
+        return ExposureLight(
+            coarse, self.touch_config, getattr(fine, "window", None), mixed_window=getattr(fine, "window_of_mix", None)
+        )
 
     def _probe_level_at(self, t: float) -> float | None:
         """The probe's level the exposure at ``t`` saw, or None while the projector does not lay it."""

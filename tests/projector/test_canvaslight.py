@@ -167,6 +167,33 @@ def test_a_window_of_the_light_is_the_boxs_light_there_bit_for_bit(seed, r0, c0,
     np.testing.assert_array_equal(predictor.window(canvas, *window), whole[window])
 
 
+@settings(max_examples=20, deadline=None)
+@given(
+    st.integers(0, 2**32 - 1), st.integers(1, 3), st.floats(0.5, 1.0), st.integers(0, 150), st.integers(0, 200),
+)
+def test_a_window_of_a_mix_is_the_mix_of_the_windows(seed, count, total, r0, c0):
+    """An exposure's frames mixed on the canvas and predicted once in the window give what predicting each frame's
+    window and mixing them gives, within float rounding, whatever the weights sum to (an exposure partly before the
+    first frame); one frame is exactly its window times its weight; the same parts asked again give the same values."""
+    predictor = _bench_predictor()
+    rng = np.random.default_rng(seed)
+    canvases = [
+        cv2.resize(rng.integers(0, 256, (6, 8), np.uint8), (CONFIG.canvas_width, CONFIG.canvas_height),
+                   interpolation=cv2.INTER_NEAREST)
+        for _ in range(count)
+    ]  # fmt: skip
+    weights = rng.dirichlet(np.ones(count)) * total
+    parts = list(zip(canvases, weights.tolist()))
+    window = (slice(r0, min(r0 + 40, 192)), slice(c0, min(c0 + 56, 256)))
+    expected = sum(np.float32(w) * predictor.window(c, *window) for c, w in parts)
+    got = predictor.window_of_mix(parts, *window)
+    if count == 1:
+        np.testing.assert_array_equal(got, predictor.window(canvases[0], *window) * np.float32(weights[0]))
+    np.testing.assert_allclose(got, expected, rtol=2e-6, atol=2e-6)
+    np.testing.assert_array_equal(predictor.window_of_mix(parts, *window), got)
+    assert float(np.abs(expected - 1.0).max()) > 0.05  # the canvases' light is not flat there
+
+
 def test_on_the_detection_grid_the_light_is_the_working_lights_mean():
     """Predicted on the half-size grid directly, a talking face's light is what the working resolution's light
     area-averaged gives (what detection at 0.5 read before, and was measured with), closer with the averaging's

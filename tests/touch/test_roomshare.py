@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from feelium.skin.probe import PERIOD_S, probe_light, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
-from feelium.touch.roomshare import ProjectorShare, _median, _solve_room_scale, projected_depth, room_dominated
+from feelium.touch.roomshare import ProjectorShare, _solve_room_scale, projected_depth, room_dominated
 from tests.touch.synth import H as SH, ROI as SROI, W as SW, backlight
 
 H, W = 240, 320  # the default working size: 20 x 15 coarse tiles
@@ -224,12 +224,6 @@ def test_the_share_read_at_a_point_is_the_upsampled_maps_value_there(
         ix, iy = min(max(int(round(x)), 0), w - 1), min(max(int(round(y)), 0), h - 1)
         assert got is not None
         assert abs(got - float(full[iy, ix])) <= 2e-7
-
-
-@given(values=st.lists(st.floats(-1e6, 1e6, width=32), min_size=1, max_size=400))
-def test_the_tile_median_is_numpys_to_the_bit(values: list[float]) -> None:
-    array = np.array(values, np.float32)
-    assert _median(array) == float(np.median(array))
 
 
 @settings(deadline=None)
