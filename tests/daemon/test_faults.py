@@ -277,7 +277,7 @@ async def test_the_watchdog_is_fed_with_the_rear_camera_dead_and_stops_when_the_
         assert watchdog.pings_since(dead) >= 10  # every ~0.05 s while the camera stays dead
         flight = supervisor.records["flight"].service
 
-        async def stuck(events: Any) -> None:
+        async def stuck(events: Any, due: float) -> None:
             await asyncio.Event().wait()  # a cycle that never ends: the loop is alive, flight is not
 
         flight._cycle = stuck
