@@ -18,61 +18,34 @@ def decode_telemetry(replies: dict[int, MspFrame], t: float) -> tuple[Telemetry,
     Straight-line, every reply looked up once: it runs every control tick (a closure and a dict of
     keyword arguments per call cost as much as the decoding).
     """
-    bad = 0
-    range_m = heading = roll = pitch = yaw_rate = battery_v = flow_x = flow_y = flow_quality = None
     get = replies.get
-    frame = get(m.MSP_SONAR_ALTITUDE)
-    if frame is not None:
-        rng = _decoded(frame, m.Rangefinder.decode)
-        if rng is None:
-            bad += 1
-        elif rng is not _ERROR:
-            range_m = rng.distance_m
-    frame = get(m.MSP_ATTITUDE)
-    if frame is not None:
-        att = _decoded(frame, m.Attitude.decode)
-        if att is None:
-            bad += 1
-        elif att is not _ERROR:
-            heading, roll, pitch = att.heading_deg, att.roll_deg, att.pitch_deg
-    frame = get(m.MSP_RAW_IMU)
-    if frame is not None:
-        imu = _decoded(frame, m.RawImu.decode)
-        if imu is None:
-            bad += 1
-        elif imu is not _ERROR:
-            yaw_rate = float(imu.gyro_dps[2])
-    frame = get(m.MSP2_SENSOR_OPTIC_FLOW)
-    if frame is not None:
-        flow = _decoded(frame, m.OpticFlow.decode)
-        if flow is None:
-            bad += 1
-        elif flow is not _ERROR:
-            flow_quality = flow.quality
-            if flow.quality > 0:
-                flow_x, flow_y = flow.x_rad_s, flow.y_rad_s
-    frame = get(m.MSP_ANALOG)
-    if frame is not None:
-        analog = _decoded(frame, m.Analog.decode)
-        if analog is None:
-            bad += 1
-        elif analog is not _ERROR:
-            battery_v = analog.voltage_v
+    rng, bad_rng = _decoded(get(m.MSP_SONAR_ALTITUDE), m.Rangefinder.decode)
+    att, bad_att = _decoded(get(m.MSP_ATTITUDE), m.Attitude.decode)
+    imu, bad_imu = _decoded(get(m.MSP_RAW_IMU), m.RawImu.decode)
+    flow, bad_flow = _decoded(get(m.MSP2_SENSOR_OPTIC_FLOW), m.OpticFlow.decode)
+    analog, bad_analog = _decoded(get(m.MSP_ANALOG), m.Analog.decode)
+    moving = flow is not None and flow.quality > 0
     telemetry = Telemetry(
-        t, range_m=range_m, heading_deg=heading, yaw_rate_dps=yaw_rate, roll_deg=roll, pitch_deg=pitch,
-        battery_v=battery_v, flow_x_rad_s=flow_x, flow_y_rad_s=flow_y, flow_quality=flow_quality,
+        t,
+        range_m=None if rng is None else rng.distance_m,
+        heading_deg=None if att is None else att.heading_deg,
+        yaw_rate_dps=None if imu is None else float(imu.gyro_dps[2]),
+        roll_deg=None if att is None else att.roll_deg,
+        pitch_deg=None if att is None else att.pitch_deg,
+        battery_v=None if analog is None else analog.voltage_v,
+        flow_x_rad_s=flow.x_rad_s if moving else None,
+        flow_y_rad_s=flow.y_rad_s if moving else None,
+        flow_quality=None if flow is None else flow.quality,
     )
-    return telemetry, bad
+    return telemetry, bad_rng + bad_att + bad_imu + bad_flow + bad_analog
 
 
-_ERROR: object = object()  # the board answered with an error frame: no value, and not a bad payload
-
-
-def _decoded(frame: MspFrame, decoder: Callable[[bytes], _M]) -> _M | object | None:
-    """The frame's payload decoded; ``_ERROR`` for an error reply, ``None`` for a payload that does not decode."""
-    if frame.direction == "!":
-        return _ERROR
+def _decoded(frame: MspFrame | None, decoder: Callable[[bytes], _M]) -> tuple[_M | None, int]:
+    """The frame's payload decoded, and 1 when it does not decode (counted as bad); no value and nothing bad for a
+    missing reply or an error reply (the board said it has no such value)."""
+    if frame is None or frame.direction == "!":
+        return None, 0
     try:
-        return decoder(frame.payload)
+        return decoder(frame.payload), 0
     except m.PayloadError:
-        return None
+        return None, 1
