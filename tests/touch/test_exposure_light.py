@@ -64,35 +64,9 @@ def test_recycled_lights_give_what_fresh_ones_give(seed, repeats):
         np.testing.assert_array_equal(got[1], want[1])
 
 
-@settings(max_examples=30, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(2, 8), st.integers(0, 5), st.integers(0, 7))
-def test_a_window_is_the_finer_whole_lights_mix_there(seed, count, r0, c0):
-    """The fine pass's window: the same frames, the same weights as the exposure's mix, at the finer size."""
-    rng = np.random.default_rng(seed)
-    config = TouchConfig()
-    finer = {}
-
-    def fine(frame: np.ndarray) -> np.ndarray:
-        return finer.setdefault(id(frame), rng.random((6, 8)).astype(np.float32))
-
-    frames = [(i / 30.0, i + 1, rng.integers(0, 255, (6, 8, 3), np.uint8)) for i in range(count)]
-    light = ExposureLight(_predict, config, lambda frame, rows, cols: fine(frame)[rows, cols])
-    whole = ExposureLight(lambda frame, out: fine(frame), config)
-    t = (count - 1) / 30.0 + config.projector_latency_s + float(rng.uniform(-0.02, 0.02))
-    assert light.window(slice(0, 2), slice(0, 2)) is None  # no exposure asked for yet
-    assert light(frames, t) is not None
-    expected = whole(frames, t)
-    assert expected is not None
-    window = (slice(r0, 6), slice(c0, 8))
-    np.testing.assert_array_equal(light.window(*window), expected[0][window])
-    assert ExposureLight(_predict, config).window(*window) is None  # without a window predictor
-
-
-@settings(max_examples=30, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(2, 8), st.integers(0, 5), st.integers(0, 7))
-def test_a_window_by_mix_gets_the_exposures_frames_and_weights(seed, count, r0, c0):
-    """With ``mixed_window`` the predictor is handed the exposure's frames and weights at once (and computes the
-    mix), giving the finer whole lights' mix there."""
+def _window_and_whole(seed: int, count: int, r0: int, c0: int, by_mix: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A window of the exposure's light, predicted by window (``by_mix``: the exposure's frames and weights handed
+    over at once), and the same window of the mix of the finer whole lights."""
     rng = np.random.default_rng(seed)
     config = TouchConfig()
     finer: dict[int, np.ndarray] = {}
@@ -104,7 +78,10 @@ def test_a_window_by_mix_gets_the_exposures_frames_and_weights(seed, count, r0, 
         return sum(np.float32(w) * fine(frame)[rows, cols] for frame, w in parts)
 
     frames = [(i / 30.0, i + 1, rng.integers(0, 255, (6, 8, 3), np.uint8)) for i in range(count)]
-    light = ExposureLight(_predict, config, mixed_window=mixed)
+    if by_mix:
+        light = ExposureLight(_predict, config, mixed_window=mixed)
+    else:
+        light = ExposureLight(_predict, config, lambda frame, rows, cols: fine(frame)[rows, cols])
     whole = ExposureLight(lambda frame, out: fine(frame), config)
     t = (count - 1) / 30.0 + config.projector_latency_s + float(rng.uniform(-0.02, 0.02))
     assert light.window(slice(0, 2), slice(0, 2)) is None  # no exposure asked for yet
@@ -112,4 +89,24 @@ def test_a_window_by_mix_gets_the_exposures_frames_and_weights(seed, count, r0, 
     expected = whole(frames, t)
     assert expected is not None
     window = (slice(r0, 6), slice(c0, 8))
-    np.testing.assert_allclose(light.window(*window), expected[0][window], rtol=1e-6)
+    got = light.window(*window)
+    assert got is not None
+    return got, expected[0][window]
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 8), st.integers(0, 5), st.integers(0, 7))
+def test_a_window_is_the_finer_whole_lights_mix_there(seed, count, r0, c0):
+    """The fine pass's window: the same frames, the same weights as the exposure's mix, at the finer size."""
+    got, expected = _window_and_whole(seed, count, r0, c0, by_mix=False)
+    np.testing.assert_array_equal(got, expected)
+    assert ExposureLight(_predict, TouchConfig()).window(slice(r0, 6), slice(c0, 8)) is None  # no window predictor
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 8), st.integers(0, 5), st.integers(0, 7))
+def test_a_window_by_mix_gets_the_exposures_frames_and_weights(seed, count, r0, c0):
+    """With ``mixed_window`` the predictor is handed the exposure's frames and weights at once (and computes the
+    mix), giving the finer whole lights' mix there."""
+    got, expected = _window_and_whole(seed, count, r0, c0, by_mix=True)
+    np.testing.assert_allclose(got, expected, rtol=1e-6)
