@@ -419,7 +419,7 @@ class TouchPipeline:
             assert free is not None
             self.response.learn(t, raw, light, free)
             share, based = self.response.share, self._reference_share
-            if share is not None and (based is None or abs(share - based) * _light_reach(light) > SHARE_REBASE):
+            if share is not None and (based is None or _rebases(abs(share - based), light)):
                 # The model of what the flat membrane looks like changed (first fit, a new room light):
                 # the reference was built on the old one, so it starts again from the next frame. A share's
                 # change moves the compensated frame by that change times ``1 - light`` (in the flat membrane's
@@ -668,6 +668,13 @@ def _light_is(light: np.ndarray, geometry: WorkingGeometry) -> bool:
 
 SHARE_REBASE = 0.05  # change of the compensated flat membrane (its share's change times 1 - light) that re-bases
 LIGHT_REACH_STEP = 4  # the light's reach is read on every 4th pixel both ways (a face's dark or bright parts are larger)
+
+
+def _rebases(moved: float, light: np.ndarray) -> bool:
+    """Whether a change of the learned share by ``moved`` moves the compensated membrane past :data:`SHARE_REBASE`.
+    The light's reach is at most 1, so it is read only when the share itself moved that far (most frames it did
+    not)."""
+    return moved > SHARE_REBASE and moved * _light_reach(light) > SHARE_REBASE
 
 
 def _light_reach(light: np.ndarray) -> float:

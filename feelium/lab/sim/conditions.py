@@ -103,7 +103,7 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
         "name": GENERATOR, "version": GENERATOR_VERSION, "seed": seed, "scale": scale,
         "condition": f"{job.condition}/{job.variant}",
     }  # fmt: skip
-    take: take_faceon.FaceTake | None = None
+    take: take_faceon.ProjectedTake | None = None
     if job.condition == "litroom":
         (frames, labels, size, roi, extra), take = _litroom(job, seed, generator)
     elif job.condition == "faceon":
@@ -131,7 +131,7 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
 Rendered = tuple[Iterator[tuple[float, Any]], Any, tuple[int, int], tuple[int, int, int, int], dict[str, Any]]
 
 
-def _litroom(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.FaceTake]:
+def _litroom(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.ProjectedTake]:
     item = job.trial
     assert isinstance(item, protocol.Item)
     take = take_litroom.render(item, job.variant, seed)
@@ -159,7 +159,7 @@ def _face(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
     return frames(), script.labels(), job.frame, roi, {"face": face.to_json()}
 
 
-def _faceon(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.FaceTake]:
+def _faceon(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.ProjectedTake]:
     item = job.trial
     assert isinstance(item, protocol.Item)
     take = take_faceon.render(item, job.variant, seed)

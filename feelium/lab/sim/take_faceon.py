@@ -47,8 +47,9 @@ VARIANTS = ("static", "face", "static-lit", "face-lit")
 
 
 @dataclass
-class FaceTake:
-    """The camera frames (warm-up first), labels and, with the face on, the projector stream."""
+class ProjectedTake:
+    """The camera frames (warm-up first), labels and the projector stream, when one was recorded (the face on
+    here; the still skin with the probe in :mod:`feelium.lab.sim.take_litroom`)."""
 
     frames: Iterator[tuple[float, np.ndarray]]
     labels: Labels
@@ -70,7 +71,7 @@ def calibration(seed: int) -> ProjectorMap:
     return experiment(seed).calibration
 
 
-def render(item: protocol.Item, variant: str, seed: int) -> FaceTake:
+def render(item: protocol.Item, variant: str, seed: int) -> ProjectedTake:
     """``item`` under ``variant`` (one of :data:`VARIANTS`)."""
     if variant not in VARIANTS:
         raise ValueError(f"faceon: unknown variant {variant!r}")
@@ -103,6 +104,6 @@ def render(item: protocol.Item, variant: str, seed: int) -> FaceTake:
             yield k / fps, shown(k)
 
     config = ex.setup.projector
-    return FaceTake(
+    return ProjectedTake(
         frames(), labels, projector() if face_on else None, (config.width, config.height), fps, offset, room
     )

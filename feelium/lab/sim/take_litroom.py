@@ -30,7 +30,7 @@ from feelium.sim.sessions import session_presets
 from feelium.skin.probe import probe_level
 
 
-def render(item: protocol.Item, variant: str, seed: int) -> take_faceon.FaceTake:
+def render(item: protocol.Item, variant: str, seed: int) -> take_faceon.ProjectedTake:
     """``item`` in the room of ``variant`` (one of :data:`feelium.lab.touch.litroom.CONDITIONS`), with its
     projector stream."""
     if variant not in litroom.CONDITIONS:
@@ -53,4 +53,4 @@ def render(item: protocol.Item, variant: str, seed: int) -> take_faceon.FaceTake
         for k in range(math.floor(-litroom.WARMUP_S * fps) - 2, math.ceil(script.duration * fps) + 1):
             yield k / fps, shown(k)
 
-    return take_faceon.FaceTake(iter(frames), labels, projector(), (config.width, config.height), fps, 0.0, room)
+    return take_faceon.ProjectedTake(iter(frames), labels, projector(), (config.width, config.height), fps, 0.0, room)
