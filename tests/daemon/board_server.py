@@ -28,6 +28,7 @@ class BoardServer:
         self.commands: list[tuple[float, tuple[int, ...]]] = []  # (arrival, motors_us) of every MSP_SET_MOTOR
         self._lock = threading.Lock()
         self._closed = threading.Event()
+        self._hung_up = threading.Event()  # the connection being served reached its end: every byte sent was read
         self._listener = socket.create_server(("127.0.0.1", 0))
         self._listener.settimeout(0.1)
         self.port = self._listener.getsockname()[1]
@@ -46,6 +47,13 @@ class BoardServer:
         with self._lock:
             return self.commands[-1] if self.commands else None
 
+    def wait_hung_up(self, timeout: float) -> bool:
+        """Until the daemon's connection has closed and everything it sent has been read (False on timeout).
+
+        A daemon that exits has written its last command, but this board reads it on its own thread, later
+        under load: asked before then, ``last_command`` is an older one."""
+        return self._hung_up.wait(timeout)
+
     def motors_us(self) -> tuple[int, ...]:
         with self._lock:
             return tuple(self.board.motors_us)
@@ -63,7 +71,9 @@ class BoardServer:
                 continue
             except OSError:
                 return
+            self._hung_up.clear()
             self._serve(conn)
+            self._hung_up.set()
 
     def _serve(self, conn: socket.socket) -> None:
         parser = MspParser()

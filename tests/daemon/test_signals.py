@@ -79,6 +79,7 @@ def test_a_stop_signal_sends_neutral_last_then_exits(tmp_path, board, sig):
     finally:
         if proc.poll() is None:
             proc.kill()
+    assert board.wait_hung_up(5.0), f"the daemon left its link to the board open:\n{out}"
     arrived, motors = board.last_command()
     assert motors == NEUTRAL_MOTORS_US and arrived >= sent, out
     assert proc.returncode == 0, out
@@ -142,5 +143,6 @@ def test_an_unhandled_exception_sends_neutral_then_exits_1(tmp_path, board):
     out = done.stdout + done.stderr
     assert done.returncode == 1, out
     assert "the daemon failed; the motors were set neutral on the way out" in out and "a bug in the daemon's loop" in out
+    assert board.wait_hung_up(5.0), out
     assert len(board.commands) > 25, out  # it flew before the bug struck
     assert board.last_command()[1] == NEUTRAL_MOTORS_US
