@@ -4,7 +4,7 @@ Each tick (at ``projector.fps``) it drains touch events and wearer actions
 from the bus into the interaction engine, publishes the engine's
 ``InteractionEvent``s for the wearer's view, hands its motion replies to the
 dead-man motion path (never over the wearer's own steering), decodes the
-newest face JPEG if one arrived, renders the frame in a worker thread and
+newest face JPEG if one arrived (a looping avatar's frames once each, :mod:`feelium.projector.facecache`), renders the frame in a worker thread and
 shows it; the newest frame also goes to ``hub.projector_video``, stamped with
 the time the display got it, for the HTTP preview, and its grey skin canvas to
 ``hub.projector_canvas``, stamped the same, for the touch service, which
@@ -32,6 +32,7 @@ from feelium.jpeginfo import JpegHeaderError, jpeg_size, reduction_for
 from feelium.interactions.engine import InteractionEngine, MotionReply
 from feelium.projector.config import ProjectorConfig
 from feelium.projector.display import Display
+from feelium.projector.facecache import DecodedFaces
 from feelium.projector.probe import ProbeOverlay
 from feelium.projector.renderer import Renderer
 from feelium.skin.face import FaceModel
@@ -85,6 +86,7 @@ class ProjectorService:
         self._face: np.ndarray | None = None
         self._face_seq = 0
         self._face_at = -np.inf  # when the last new face frame arrived (the daemon's clock)
+        self._faces = DecodedFaces(int(config.face_cache_mb * 2**20))
         self._overlay: ProbeOverlay | None = None  # built on the first frame that carries the probe (0.15 s: a map fit)
         self._stopping = False
         self.counters: dict[str, Any] = {
@@ -145,7 +147,11 @@ class ProjectorService:
         if item.value is None:  # the wearer cleared the face: back to the default avatar
             self._face = None
             return
-        face = await asyncio.to_thread(self._decode_face, item.value)
+        face = self._faces.get(item.value, self._face_at)  # a looping avatar's frame shown before
+        if face is None:
+            face = await asyncio.to_thread(self._decode_face, item.value)
+            if face is not None:
+                face = self._faces.put(item.value, face, self._face_at)
         if face is None:
             self.counters["bad_faces"] += 1
         else:
@@ -221,6 +227,8 @@ class ProjectorService:
         report["display"] = self.display.name
         report["calibration"] = self.calibration.source
         report["rendered"] = self.renderer.rendered  # the rest of "frames" showed the previous frame again
+        report["faces_decoded"] = self._faces.misses  # the rest of "faces" came from the decoded faces kept
+        report["faces_kept_mb"] = round(self._faces.bytes / 2**20, 1)
         if self.engine is not None:
             report["engine"] = dict(self.engine.counts)
         return report
