@@ -6,7 +6,8 @@ frames a second by default, and each showing was decoded and fitted to the canva
 per frame here (decode 1.3, fit 0.8, and the page faults of two fresh 0.5 MB arrays), 20-25 ms of CPU a second in
 ``feelium bench board`` (docs/performance.md, session 17). Kept, each fitted face costs its canvas-sized array
 (0.59 MB at 512x384), so the cache holds at most ``max_bytes``: faces that do not fit are decoded every time, as
-before, and the faces of an upload that stopped playing make room once they were not shown for ``idle_s``.
+before. Faces not shown for ``idle_s`` (an upload that stopped playing) are let go when the next face is decoded,
+and all of them when the wearer clears the face: their memory goes back to the system (each is an mmap).
 
 The faces handed out are read-only: the renderer takes "the same face array" for "the same picture" (it skips
 redrawing), so an array shown again must never have been changed in place.
@@ -33,8 +34,7 @@ class DecodedFaces:
         self.idle_s = idle_s
         self._entries: dict[bytes, _Entry] = {}
         self.bytes = 0
-        self.hits = 0
-        self.misses = 0
+        self.misses = 0  # asked for a face not kept: decoded by the caller
 
     def get(self, jpeg: object, now: float) -> np.ndarray | None:
         """The face decoded from ``jpeg`` before, or None (also for anything that is not ``bytes``)."""
@@ -43,22 +43,25 @@ class DecodedFaces:
             self.misses += 1
             return None
         entry.used = now
-        self.hits += 1
         return entry.face
 
     def put(self, jpeg: object, face: np.ndarray, now: float) -> np.ndarray:
         """Keep ``face`` (decoded from ``jpeg``) if it fits, after dropping faces unused for ``idle_s``; returns it,
         read-only either way (kept or not, the renderer may be handed it again only unchanged)."""
         face.flags.writeable = False
-        if not isinstance(jpeg, bytes) or jpeg in self._entries or face.nbytes > self.max_bytes:
+        for key in [k for k, e in self._entries.items() if now - e.used >= self.idle_s]:
+            self.bytes -= self._entries.pop(key).face.nbytes
+        if not isinstance(jpeg, bytes) or jpeg in self._entries:
             return face
-        if self.bytes + face.nbytes > self.max_bytes:
-            for key in [k for k, e in self._entries.items() if now - e.used >= self.idle_s]:
-                self.bytes -= self._entries.pop(key).face.nbytes
         if self.bytes + face.nbytes <= self.max_bytes:
             self._entries[jpeg] = _Entry(face, now)
             self.bytes += face.nbytes
         return face
+
+    def clear(self) -> None:
+        """Let every kept face go (the wearer cleared the face)."""
+        self._entries.clear()
+        self.bytes = 0
 
     def __len__(self) -> int:
         return len(self._entries)

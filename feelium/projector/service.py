@@ -146,6 +146,7 @@ class ProjectorService:
         self._face_at = self.hub.clock()
         if item.value is None:  # the wearer cleared the face: back to the default avatar
             self._face = None
+            self._faces.clear()
             return
         face = self._faces.get(item.value, self._face_at)  # a looping avatar's frame shown before
         if face is None:

@@ -53,9 +53,12 @@ async def test_a_looping_avatar_is_decoded_once_per_frame_and_shows_the_same_pic
         assert np.array_equal(face, reference)
     assert shown[3] is shown[0]  # the kept array itself, round after round
     assert not any(face.flags.writeable for face in shown)  # the renderer's "same array, same picture" holds
+    hub.face.publish(hub.clock(), None)  # the wearer cleared the face: the kept faces go too
+    await service.update_face()
+    assert service._face is None and service.health()["faces_kept_mb"] == 0.0
 
 
-def test_the_budget_holds_and_unused_faces_make_room():
+def test_the_budget_holds_and_unused_faces_are_let_go():
     face = np.zeros((10, 10, 3), np.uint8)  # 300 bytes
     faces = DecodedFaces(max_bytes=700, idle_s=5.0)
     faces.put(b"a", face.copy(), 0.0)
@@ -63,9 +66,13 @@ def test_the_budget_holds_and_unused_faces_make_room():
     faces.put(b"c", face.copy(), 2.0)  # over the budget, and nothing is idle yet: not kept
     assert len(faces) == 2 and faces.bytes == 600
     assert faces.get(b"c", 2.0) is None and faces.get(b"b", 5.5) is not None
-    faces.put(b"c", face.copy(), 6.0)  # "a" was last used at 0.0: it makes room; "b" (5.5) stays
+    faces.put(b"c", face.copy(), 6.0)  # "a" was last shown at 0.0: let go; "b" (5.5) stays
     assert faces.get(b"a", 6.0) is None and faces.get(b"b", 6.0) is not None and faces.get(b"c", 6.0) is not None
     assert faces.bytes == 600
+    faces.put(b"d", np.zeros((2, 2, 3), np.uint8), 20.0)  # a still face long after the loop: the loop's faces go
+    assert len(faces) == 1 and faces.bytes == 12
+    faces.clear()
+    assert len(faces) == 0 and faces.bytes == 0
 
 
 def test_only_jpeg_bytes_are_kept_and_what_is_handed_back_is_read_only():
