@@ -55,9 +55,9 @@ class ProjectorConfig:
     )
     face_cache_mb: float = setting(
         16.0,
-        "Memory for the wearer's faces kept decoded, so a looping avatar's frames are decoded once, not at every "
-        "showing (0.59 MB a face at the default canvas: 16 MB holds 27; frames beyond it are decoded each time "
-        "round). 0 decodes every showing.",
+        "Memory for the wearer's faces kept decoded, so a looping avatar's frames are decoded in its first two "
+        "rounds only, not at every showing (a face is kept when it comes round again; 0.59 MB a face at the default "
+        "canvas: 16 MB holds 27; frames beyond it are decoded each time round). 0 decodes every showing.",
         min=0.0,
         max=64.0,
     )
