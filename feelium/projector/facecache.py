@@ -1,5 +1,5 @@
-"""The wearer's faces already decoded, by their JPEG bytes: a looping avatar is decoded once per frame, not once per
-showing.
+"""The wearer's faces already decoded, by their JPEG bytes: a looping avatar's frames are decoded in its first two
+rounds, not at every showing.
 
 Why: a looping upload (``PUT /face`` with several frames, docs/api.md) plays the same JPEGs again and again, at 12
 frames a second by default, and each showing was decoded and fitted to the canvas anew: ~2 ms of the shared pool

@@ -4,7 +4,7 @@ Each tick (at ``projector.fps``) it drains touch events and wearer actions
 from the bus into the interaction engine, publishes the engine's
 ``InteractionEvent``s for the wearer's view, hands its motion replies to the
 dead-man motion path (never over the wearer's own steering), decodes the
-newest face JPEG if one arrived (a looping avatar's frames once each, :mod:`feelium.projector.facecache`), renders the frame in a worker thread and
+newest face JPEG if one arrived (a looping avatar's frames in its first two rounds only, :mod:`feelium.projector.facecache`), renders the frame in a worker thread and
 shows it; the newest frame also goes to ``hub.projector_video``, stamped with
 the time the display got it, for the HTTP preview, and its grey skin canvas to
 ``hub.projector_canvas``, stamped the same, for the touch service, which
