@@ -123,6 +123,8 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
     assert result["services"]["flight"]["tick_step_late_ms_p99"] is not None  # the loop's delay of the control step
     assert 0 < result["services"]["touch"]["loop_wakeups_per_frame"] <= 1.0
     assert "pi_cores" in format_table(result)
+    host = result["host"]  # the machine's speed on two fixed workloads, to compare reports across machines
+    assert host["cpu_model"] and host["python_ms"] > 0 and host["numeric_ms"] > 0
     shares = result["numeric_split"]["shares"]  # a second, profiled run: each part's numpy/OpenCV share
     assert 0 < shares["touch"]["thread"] <= 1 and 0 < shares["projector"]["pool"] <= 1
     assert result["pi_cores_at_6x"] <= result["pi_cores"] <= result["pi_cores_at_10x"]

@@ -56,6 +56,7 @@ from feelium.lab.daemon.attribution import (
     thread_cpu,
 )
 from feelium.lab.daemon.bench import memory_mb
+from feelium.lab.daemon.host import host_reference
 from feelium.lab.daemon.numeric import NumericProfiler, numeric_shares
 from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_frames
 from feelium.lab.daemon.projection import project
@@ -372,6 +373,7 @@ def bench_board(
     ``numeric_split_s``: then run the daemon again, this long, with the numeric profiler
     (:mod:`feelium.lab.daemon.numeric`), and project each service's parts by their measured numeric share;
     0 projects everything at 10x."""
+    host = host_reference()  # before anything else runs in this process
     scratch = tempfile.TemporaryDirectory(prefix="feelium-bench-")
     split: dict[str, Any] | None = None
     try:
@@ -400,6 +402,7 @@ def bench_board(
     result: dict[str, Any] = {
         "seconds": round(wall, 2),
         "cpus": os.cpu_count(),
+        "host": host,
         "load_average_1min_before_after": [round(load_before, 2), round(load_after, 2)],
         "malloc": malloc or "glibc defaults",
         "background_nice": background_nice(),
@@ -465,7 +468,8 @@ def _callbacks_line(result: dict[str, Any]) -> str:
 def format_table(result: dict[str, Any]) -> str:
     quota = result["cpu_quota"]
     lines = [
-        f"feelium bench board: {result['seconds']} s on {result['cpus']} CPUs (1 min load before / after "
+        f"feelium bench board: {result['seconds']} s on {result['cpus']} CPUs of {result['host']['cpu_model']} (reference "
+        f"workloads: Python {result['host']['python_ms']} ms, numeric {result['host']['numeric_ms']} ms; 1 min load before / after "
         f"{result['load_average_1min_before_after']}); rear {result['rear']}, front {result['front']}"
         + (f"; CPU quota {quota['quota_period_us']} us in {quota['cgroup']}" if quota else "")
         + f"; projected light compensated: {result['projected_light_compensation']}; motion over {result['motion_transport']}"

@@ -17,7 +17,9 @@ OpenCV's own worker threads run only native numeric code, at 6x. Without a
 measured split every figure is projected at the conservative 10x, as before
 2026-11-26. The totals at 10x and at 6x are always given beside it. The
 simulated devices' own work (``SIM_DEVICES``, since 2026-11-27) is measured and
-reported but projected at 0: the blimp runs the real sensor instead. Replace
+reported but projected at 0: the blimp runs the real sensor instead. The factors are per core of *this* machine, so a faster host projects a lighter
+Pi: each report carries the host's CPU model and its time on two fixed workloads
+(:mod:`feelium.lab.daemon.host`), and reports are compared only beside them. Replace
 all of it with a run on the board itself (``feelium bench board`` runs there
 unchanged) when one exists.
 """
