@@ -23,6 +23,24 @@ rate from -0.9 to +3.4 deg/s, past the calm threshold, and the heading loop's
 answer reversed both motors (session 10). In calm hover the speed is under
 4.5 cm/s, so a surge correction that waits costs little; a yaw kick costs
 reversals. Yaw wins over surge, as in the mixer.
+
+Two more rules once the hover has settled (``SETTLE_S``), calm or not (session 16,
+docs/calibrate-flight.md; the settling after a command keeps full authority, or
+a lapsed manoeuvre's stop waits on them: corner-mTDL 1.26 -> 2.64 s):
+
+- A motor keeps its direction against a *small* command the other way
+  (``MIN_REVERSAL_COMMAND``): hysteresis near zero demand. When the heading
+  loop's stiffness and damping nearly cancel (the body turning back toward its
+  heading at 3-3.5 deg/s, past the calm threshold), the sum's sign followed the
+  gyro's noise and both motors flipped every cycle or two at a few per cent of
+  their thrust. Held at neutral such a push is hardly missed; a correction that
+  needs the other direction grows past the threshold within a few cycles.
+- While the body is *still* (under ``CALM_SPEED_M_S``) but turning faster than
+  calm, a motor that would reverse *alone* waits as in calm hover, its partner
+  keeping the torque: that is a surge push against the motor holding the yaw
+  torque (on the light strong corners a saturated one, six reversals of one
+  motor in a second). Both motors reversing is the torque itself turning, and
+  goes through.
 """
 
 from __future__ import annotations
@@ -37,6 +55,11 @@ MIN_INTERVAL_S = 2.5  # at most one reversal per 2.5 s per motor: 0.4/s, under t
 CALM_SPEED_M_S = 0.045
 CALM_YAW_DPS = 2.5
 SETTLE_S = 3.0  # after a command or a brake, this long with full authority first
+# In any hover a motor reverses only for a command at least this large: by the config's thrust curve
+# (deadband 0.06) 0.15 is 1 % of the motor's thrust, and on a motor with the box's deadband (up to 0.12)
+# mostly none. Below it a reversal is the loops' balance of stiffness against damping flipping sign on
+# the gyro's noise (random-2026-29: +-0.02-0.06 every cycle for 0.2 s, 5 reversals of both motors).
+MIN_REVERSAL_COMMAND = 0.15
 
 
 @dataclass(frozen=True)
@@ -70,15 +93,22 @@ class ReversalGuard:
         self._hovering_since = math.inf
         self.held = 0  # cycles in which a motor was kept from reversing, for health
 
-    def limit(self, t: float, commands: tuple[float, float, float, float], hovering: bool, calm: bool) -> tuple[float, float, float, float]:
+    def limit(self, t: float, commands: tuple[float, float, float, float], hovering: bool, calm: bool,
+              still: bool | None = None) -> tuple[float, float, float, float]:
         """``commands`` with each horizontal motor that would reverse too soon at neutral: only while the
-        body is ``calm`` and has been ``hovering`` for ``SETTLE_S`` (the settling after a command or a brake
-        keeps full authority)."""
+        body has been ``hovering`` for ``SETTLE_S`` (the settling after a command or a brake keeps full
+        authority) and is ``calm``, or is ``still`` (slower than ``CALM_SPEED_M_S``, whatever its yaw rate;
+        default: ``calm``) and only one motor of the pair would reverse; and, calm or not, each that would
+        reverse for less than ``MIN_REVERSAL_COMMAND``."""
         if not hovering:
             self._hovering_since = math.inf
         elif self._hovering_since == math.inf:
             self._hovering_since = t
-        quiet = calm and t - self._hovering_since >= SETTLE_S
+        settled = t - self._hovering_since >= SETTLE_S
+        reversing = [commands[i] != 0.0 and self._sign[i] != 0.0 and math.copysign(1.0, commands[i]) != self._sign[i] for i in range(2)]
+        # One motor reversing alone is the surge push against the motor that holds the yaw torque (the
+        # partner keeps the torque below); both reversing is the torque itself turning, which only calm waits.
+        quiet = settled and (calm or (calm if still is None else still) and reversing[0] != reversing[1])
         out = list(commands)
         for i in range(2):
             if commands[i] == 0.0:
@@ -88,7 +118,8 @@ class ReversalGuard:
             wanted = math.copysign(1.0, commands[i])
             if wanted == self._sign[i]:
                 continue
-            if quiet and self._sign[i] != 0.0 and t - self._since[i] < MIN_INTERVAL_S:
+            small = settled and abs(commands[i]) < MIN_REVERSAL_COMMAND
+            if reversing[i] and (small or quiet and t - self._since[i] < MIN_INTERVAL_S):
                 out[i] = 0.0
                 continue
             self._sign[i], self._since[i] = wanted, t
