@@ -24,23 +24,12 @@ answer reversed both motors (session 10). In calm hover the speed is under
 4.5 cm/s, so a surge correction that waits costs little; a yaw kick costs
 reversals. Yaw wins over surge, as in the mixer.
 
-Two more rules once the hover has settled (``SETTLE_S``), calm or not (session 16,
-docs/calibrate-flight.md; the settling after a command keeps full authority, or
-a lapsed manoeuvre's stop waits on them: corner-mTDL 1.26 -> 2.64 s):
-
-- A motor keeps its direction against a *small* command the other way
-  (``MIN_REVERSAL_COMMAND``): hysteresis near zero demand. When the heading
-  loop's stiffness and damping nearly cancel (the body turning back toward its
-  heading at 3-3.5 deg/s, past the calm threshold), the sum's sign followed the
-  gyro's noise and both motors flipped every cycle or two at a few per cent of
-  their thrust. Held at neutral such a push is hardly missed; a correction that
-  needs the other direction grows past the threshold within a few cycles.
-- While the body is *still* (under ``CALM_SPEED_M_S``) but turning faster than
-  calm, a motor that would reverse *alone* waits as in calm hover, its partner
-  keeping the torque: that is a surge push against the motor holding the yaw
-  torque (on the light strong corners a saturated one, six reversals of one
-  motor in a second). Both motors reversing is the torque itself turning, and
-  goes through.
+While the body is *still* (under ``CALM_SPEED_M_S``) but turning faster than
+calm, a motor that would reverse *alone* waits as in calm hover, its partner
+keeping the torque (session 16, docs/calibrate-flight.md): that is a surge push
+against the motor holding the yaw torque (on the light strong corners a
+saturated one, reversing the torque's motor at each engagement: corner-mTDL). Both
+motors reversing is the torque itself turning, and goes through.
 """
 
 from __future__ import annotations
@@ -55,11 +44,6 @@ MIN_INTERVAL_S = 2.5  # at most one reversal per 2.5 s per motor: 0.4/s, under t
 CALM_SPEED_M_S = 0.045
 CALM_YAW_DPS = 2.5
 SETTLE_S = 3.0  # after a command or a brake, this long with full authority first
-# In any hover a motor reverses only for a command at least this large: by the config's thrust curve
-# (deadband 0.06) 0.15 is 1 % of the motor's thrust, and on a motor with the box's deadband (up to 0.12)
-# mostly none. Below it a reversal is the loops' balance of stiffness against damping flipping sign on
-# the gyro's noise (random-2026-29: +-0.02-0.06 every cycle for 0.2 s, 5 reversals of both motors).
-MIN_REVERSAL_COMMAND = 0.15
 
 
 @dataclass(frozen=True)
@@ -98,8 +82,7 @@ class ReversalGuard:
         """``commands`` with each horizontal motor that would reverse too soon at neutral: only while the
         body has been ``hovering`` for ``SETTLE_S`` (the settling after a command or a brake keeps full
         authority) and is ``calm``, or is ``still`` (slower than ``CALM_SPEED_M_S``, whatever its yaw rate;
-        default: ``calm``) and only one motor of the pair would reverse; and, calm or not, each that would
-        reverse for less than ``MIN_REVERSAL_COMMAND``."""
+        default: ``calm``) and only one motor of the pair would reverse."""
         if not hovering:
             self._hovering_since = math.inf
         elif self._hovering_since == math.inf:
@@ -118,8 +101,7 @@ class ReversalGuard:
             wanted = math.copysign(1.0, commands[i])
             if wanted == self._sign[i]:
                 continue
-            small = settled and abs(commands[i]) < MIN_REVERSAL_COMMAND
-            if reversing[i] and (small or quiet and t - self._since[i] < MIN_INTERVAL_S):
+            if reversing[i] and quiet and t - self._since[i] < MIN_INTERVAL_S:
                 out[i] = 0.0
                 continue
             self._sign[i], self._since[i] = wanted, t
