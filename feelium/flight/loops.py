@@ -132,6 +132,7 @@ class AltitudeLoop:
             self.braking = True
         # A held climb flies on its rate alone, but past a limit the limit is a position to hold.
         p_gain = 0.0 if climb and c.altitude_min_m <= z <= c.altitude_max_m else 1.0
+        obs.climbing = bool(climb)
         if not climb and self.braking:
             ref.rate, ref.accel = ramp_to_zero(ref.rate, c.brake_climb_m_s2, dt)
             ref.value += ref.rate * dt
