@@ -42,6 +42,8 @@ def register(registry: CommandRegistry) -> None:
     bench.add_argument("--no-flow", action="store_true", help="with --plants: a board without the optical-flow sensor")
     bench.add_argument("--calibrated", action="store_true",
                        help="with --plants: also calibrate each plant (calibrate flight) and fly it with the fitted config: before and after")
+    bench.add_argument("--command-delay-ms", type=float, default=0.0,
+                       help="with --plants: the simulated board's motors act this long after a command arrives (a phase sweep: 0, 2.5, 5, 7.5)")
 
 
 def _probe(args: argparse.Namespace) -> int:
@@ -94,7 +96,8 @@ def _bench(args: argparse.Namespace) -> int:
         from feelium.lab.flight.plant_bench import format_plant_table, run_plant_bench
         from feelium.lab.report import emit_report
 
-        report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow, calibrated=args.calibrated)
+        report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow, calibrated=args.calibrated,
+                                 command_delay_s=args.command_delay_ms / 1000.0)
         emit_report(format_plant_table(report), report, args.json)
         return 0
     results = run_bench(config, Path(args.out), seed=args.seed)

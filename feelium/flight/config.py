@@ -92,6 +92,11 @@ class FlightConfig:
     yaw_uncertainty: float = setting(
         0.0, "plant_uncertainty of turns alone (torque per yaw inertia, reverse ratio); 0: plant_uncertainty.", min=0.0, max=4.0
     )
+    braking_shown: bool = setting(
+        False, "The horizontal reverse thrust above was measured on this blimp: `feelium calibrate flight` sets it when"
+        " its flight braked (reverse surge steps). Before the first brake in flight a forward or backward speed is"
+        " then capped at what the fitted model can stop from, not at the box's weakest reverse thrust."
+    )
 
     # Gains (accelerations per unit error, so they do not change with mass).
     altitude_kp: float = setting(2.2, "Altitude stiffness, (m/s^2) per m.", min=0.0, max=50.0)

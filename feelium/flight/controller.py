@@ -146,7 +146,8 @@ class FlightController:
         surge_n = self.surge_loop.step(t, dt, 0.0 if soft else setpoint.forward_m_s, gain, self.surge, self.thrust)
         commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt)
         hovering = self.heading_loop.hovering and self.surge_loop.hovering
-        commands = self.reversals.limit(t, commands, hovering, calm(self.surge.speed, self.yaw.rate_dps))
+        commands = self.reversals.limit(t, commands, hovering, calm(self.surge.speed, self.yaw.rate_dps),
+                                        still=calm(self.surge.speed, 0.0))
         self.thrust.targets = self._modelled_forces(commands)
         return self._output(t, commands, "soft" if soft and mode == "flying" else mode)
 

@@ -26,7 +26,7 @@ class Effectiveness:
 
     def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
-                 confirming_change: float = 0.0) -> None:
+                 confirming_change: float = 0.0, shown: float | None = None) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -34,7 +34,10 @@ class Effectiveness:
         ``assuring_change``: the smallest *real* rate change (modelled times learned) that may teach what
         a safety margin counts on. Small
         corrections against drift are biased high (the air's drag brakes the body along with the
-        push and is credited to it), so a margin waits for a real push, such as a brake."""
+        push and is credited to it), so a margin waits for a real push, such as a brake;
+        ``shown``: the effectiveness a calibration flight's own pushes showed (1: the fitted model's), which a
+        safety margin counts on until a real push in flight teaches it (``None``: nothing shown, the box's
+        lower bound)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -44,6 +47,7 @@ class Effectiveness:
         self.assuring_change = assuring_change
         self.assuring_samples = [0, 0]
         self.confirming_change = confirming_change
+        self.shown = shown
         self.confirming_samples = [0, 0]
         self.values = [high, high]  # [push < 0, push > 0]
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
@@ -71,9 +75,12 @@ class Effectiveness:
 
     def assured(self, push: float) -> float:
         """The effectiveness a safety margin may count on: the learned one once a real push taught it, else
-        the box's lower bound."""
+        the one a calibration showed (within the box), else the box's lower bound. A calibration's brakes
+        taught a point estimate as an in-flight brake does, from more and longer steps."""
         side = 1 if push > 0.0 else 0
-        return self.values[side] if self.assuring_samples[side] else self.lows[side]
+        if self.assuring_samples[side]:
+            return self.values[side]
+        return self.lows[side] if self.shown is None else min(max(self.shown, self.lows[side]), self.high)
 
     def lowest(self, push: float) -> float:
         """The box's lower bound for a push of this sign: what a push must be scaled by to act on every plant."""

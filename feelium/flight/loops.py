@@ -132,6 +132,9 @@ class AltitudeLoop:
             self.braking = True
         # A held climb flies on its rate alone, but past a limit the limit is a position to hold.
         p_gain = 0.0 if climb and c.altitude_min_m <= z <= c.altitude_max_m else 1.0
+        # Away from the limits a held climb on a trusted model may filter the range noise harder; near one the
+        # observer keeps its full bandwidth, where a wrong model's lag would carry the body past the limit.
+        obs.climbing = bool(climb) and not self.near_limit
         if not climb and self.braking:
             ref.rate, ref.accel = ramp_to_zero(ref.rate, c.brake_climb_m_s2, dt)
             ref.value += ref.rate * dt

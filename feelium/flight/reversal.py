@@ -23,6 +23,13 @@ rate from -0.9 to +3.4 deg/s, past the calm threshold, and the heading loop's
 answer reversed both motors (session 10). In calm hover the speed is under
 4.5 cm/s, so a surge correction that waits costs little; a yaw kick costs
 reversals. Yaw wins over surge, as in the mixer.
+
+While the body is *still* (under ``CALM_SPEED_M_S``) but turning faster than
+calm, a motor that would reverse *alone* waits as in calm hover, its partner
+keeping the torque (session 16, docs/calibrate-flight.md): that is a surge push
+against the motor holding the yaw torque (on the light strong corners a
+saturated one, reversing the torque's motor at each engagement: corner-mTDL). Both
+motors reversing is the torque itself turning, and goes through.
 """
 
 from __future__ import annotations
@@ -70,15 +77,21 @@ class ReversalGuard:
         self._hovering_since = math.inf
         self.held = 0  # cycles in which a motor was kept from reversing, for health
 
-    def limit(self, t: float, commands: tuple[float, float, float, float], hovering: bool, calm: bool) -> tuple[float, float, float, float]:
+    def limit(self, t: float, commands: tuple[float, float, float, float], hovering: bool, calm: bool,
+              still: bool | None = None) -> tuple[float, float, float, float]:
         """``commands`` with each horizontal motor that would reverse too soon at neutral: only while the
-        body is ``calm`` and has been ``hovering`` for ``SETTLE_S`` (the settling after a command or a brake
-        keeps full authority)."""
+        body has been ``hovering`` for ``SETTLE_S`` (the settling after a command or a brake keeps full
+        authority) and is ``calm``, or is ``still`` (slower than ``CALM_SPEED_M_S``, whatever its yaw rate;
+        default: ``calm``) and only one motor of the pair would reverse."""
         if not hovering:
             self._hovering_since = math.inf
         elif self._hovering_since == math.inf:
             self._hovering_since = t
-        quiet = calm and t - self._hovering_since >= SETTLE_S
+        settled = t - self._hovering_since >= SETTLE_S
+        reversing = [commands[i] != 0.0 and self._sign[i] != 0.0 and math.copysign(1.0, commands[i]) != self._sign[i] for i in range(2)]
+        # One motor reversing alone is the surge push against the motor that holds the yaw torque (the
+        # partner keeps the torque below); both reversing is the torque itself turning, which only calm waits.
+        quiet = settled and (calm or (calm if still is None else still) and reversing[0] != reversing[1])
         out = list(commands)
         for i in range(2):
             if commands[i] == 0.0:
@@ -88,7 +101,7 @@ class ReversalGuard:
             wanted = math.copysign(1.0, commands[i])
             if wanted == self._sign[i]:
                 continue
-            if quiet and self._sign[i] != 0.0 and t - self._since[i] < MIN_INTERVAL_S:
+            if reversing[i] and quiet and t - self._since[i] < MIN_INTERVAL_S:
                 out[i] = 0.0
                 continue
             self._sign[i], self._since[i] = wanted, t

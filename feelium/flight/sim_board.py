@@ -58,6 +58,10 @@ class BoardParams:
     sensors: SensorParams = field(default_factory=SensorParams)
     drafts: bm.DraftParams | None = None
     watchdog_s: float = 0.3
+    # How long after it arrives a motor command starts to act (UART, the flight code's loop, the ESC's
+    # next pulse). 0 is the contract's ideal; a sweep over a physics step shows the controller's margin
+    # does not hang on one phase of command against physics (docs/calibrate-flight.md, session 15).
+    command_delay_s: float = 0.0
     initial: bm.BlimpState = field(default_factory=bm.BlimpState)
 
 
@@ -76,6 +80,8 @@ class SimMotorBoard:
         self.state = params.initial
         self.t = start_t
         self._start_t = start_t
+        self._steps = 0  # whole physics steps since start_t: the time is counted, never accumulated (float drift)
+        self._pending: list[tuple[float, tuple[int, ...]]] = []  # motor commands not yet acting, by the time they act
         self._rng = np.random.default_rng(seed)
         self._drafts = bm.Drafts(params.drafts, seed + 1) if params.drafts else None
         self.motors_us: tuple[int, ...] = m.NEUTRAL_MOTORS_US
@@ -99,25 +105,52 @@ class SimMotorBoard:
 
     # ---- physics and sensors ----
     def advance_to(self, t: float) -> None:
-        """Integrate up to time ``t`` in fixed physics steps."""
-        while self.t + PHYSICS_DT <= t + 1e-12:
-            self._physics_step(PHYSICS_DT)
-            self.t += PHYSICS_DT
+        """Integrate up to time ``t`` in fixed physics steps on the grid ``start_t + k * PHYSICS_DT``.
 
-    def _physics_step(self, dt: float) -> None:
+        The grid is counted in whole steps, so a step ending exactly at ``t`` always runs before a command
+        that arrives at ``t``: the command acts from its arrival (plus ``command_delay_s``), never a step
+        early (an accumulated ``t += PHYSICS_DT`` drifted past its tolerance after 30-90 s and let a third
+        of the commands act a step early: docs/calibrate-flight.md, session 15).
+        """
+        t = round(t, 9)
+        while (end := self._grid(self._steps + 1)) <= t:
+            self._physics_step(end)
+            self._steps += 1
+            self.t = end
+        while self._pending and self._pending[0][0] <= self.t:
+            self.motors_us = self._pending.pop(0)[1]
+
+    def _grid(self, steps: int) -> float:
+        return round(self._start_t + steps * PHYSICS_DT, 9)
+
+    def _physics_step(self, end: float) -> None:
+        """One physics step from ``self.t`` to ``end``; a command due inside it takes over there.
+
+        The drafts and sensors draw once per whole step whatever the split, so a command delay changes
+        only when the command acts, not the noise the flight sees.
+        """
         if self._last_motor_t is not None and self.t - self._last_motor_t > self.params.watchdog_s and not self._watchdog_tripped:
             self.motors_us = m.NEUTRAL_MOTORS_US
             self.watchdog_trips += 1
             self._watchdog_tripped = True
-        commands = tuple(us_to_command(v) for v in self.motors_us[:4])
-        wind, torque = self._drafts.advance(dt) if self._drafts else ((0.0, 0.0, 0.0), 0.0)
-        self.state = bm.step(
-            self.params.blimp, self.state, commands, dt, wind, self.external_force_n, torque, self.held  # type: ignore[arg-type]
-        )
-        self._update_gyro(dt)
+        wind, torque = self._drafts.advance(end - self.t) if self._drafts else ((0.0, 0.0, 0.0), 0.0)
+        start = self.t
+        while True:
+            due, motors = self._pending[0] if self._pending and self._pending[0][0] < end else (end, None)
+            if due > start:
+                commands = tuple(us_to_command(v) for v in self.motors_us[:4])
+                self.state = bm.step(
+                    self.params.blimp, self.state, commands, due - start, wind, self.external_force_n, torque, self.held  # type: ignore[arg-type]
+                )
+                self._update_battery(commands, due - start)
+                start = due
+            if motors is None:
+                break
+            self._pending.pop(0)
+            self.motors_us = motors
+        self._update_gyro(end - self.t)
         self._update_range()
         self._update_flow()
-        self._update_battery(commands, dt)
 
     def _gyro_dps(self) -> float:
         s = self.params.sensors
@@ -140,7 +173,7 @@ class SimMotorBoard:
         if self.t < self._next_range_t:
             return
         s = self.params.sensors
-        self._next_range_t = self.t + s.range_period_s
+        self._next_range_t = round(self.t + s.range_period_s, 9)
         z = self.state.z
         if z > s.range_max_m or self._rng.random() < s.range_dropout_probability:
             self._range_m = None
@@ -153,7 +186,7 @@ class SimMotorBoard:
         if self.t < self._next_flow_t:
             return
         s = self.params.sensors
-        self._next_flow_t = self.t + s.flow_period_s
+        self._next_flow_t = round(self.t + s.flow_period_s, 9)
         z = self.state.z
         if not s.flow_min_height_m <= z <= s.flow_max_height_m:
             self._flow = m.OpticFlow(0, 0.0, 0.0)
@@ -194,7 +227,12 @@ class SimMotorBoard:
                 return None
             if len(values) < 4:
                 return None
-            self.motors_us = tuple(int(np.clip(v, m.MOTOR_MIN_US, m.MOTOR_MAX_US)) if v else m.MOTOR_NEUTRAL_US for v in values[:4])
+            motors = tuple(int(np.clip(v, m.MOTOR_MIN_US, m.MOTOR_MAX_US)) if v else m.MOTOR_NEUTRAL_US for v in values[:4])
+            delay = self.params.command_delay_s
+            if delay > 0.0:
+                self._pending.append((round(self.t + delay, 9), motors))
+            else:
+                self.motors_us = motors
             self._last_motor_t = self.t
             self._watchdog_tripped = False
             return b""

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import copy
+from dataclasses import replace
+
 import pytest
 
 from feelium.flight import messages as m
@@ -96,3 +99,34 @@ def test_send_motors_ack_is_consumed_by_the_next_poll() -> None:
     client.poll()
     assert client.motor_acks == 1 and client.unexpected_replies == 0
     assert encode_v2(m.MSP_SET_MOTOR, m.encode_motors([1500] * 4))[:3] == b"$X<"
+
+
+
+def _set(board: SimMotorBoard, motors: list[int]) -> None:
+    board.handle(MspParser().feed(encode_v2(m.MSP_SET_MOTOR, m.encode_motors(motors), "<"))[0])
+
+
+def test_a_command_acts_from_its_arrival_even_after_a_long_flight() -> None:
+    """The board counts its physics steps: from 15.36 s on, in 2087 of the first 4500 ticks, an accumulated
+    ``t += 0.005`` had drifted past its tolerance and left the tick's last step to run after the command,
+    which then acted a step early (docs/calibrate-flight.md, session 15). A delayed
+    board (``command_delay_s``, the phase sweep) acts part of a step later."""
+    board = SimMotorBoard(BoardParams(), seed=3)
+    t = 0.0
+    while t < 15.4 - 1e-9:  # a 50 Hz control grid, neutral commands keeping the watchdog fed
+        t = round(t + 0.02, 9)
+        board.advance_to(t)
+        _set(board, [1500, 1500, 1500, 1500])
+    assert board.t == t  # every step up to the command's arrival has run
+    idle, prompt, late = board, copy.deepcopy(board), copy.deepcopy(board)
+    late.params = replace(late.params, command_delay_s=0.0025)
+    before = board.state.thrust_n
+    for commanded in (prompt, late):
+        _set(commanded, [1500, 1500, 1100, 1100])
+    for each in (idle, prompt, late):
+        each.advance_to(round(t + 0.005, 9))
+    fresh = SimMotorBoard(BoardParams(), seed=3)
+    _set(fresh, [1500, 1500, 1100, 1100])
+    fresh.advance_to(0.005)
+    assert prompt.state.thrust_n[2] == pytest.approx(fresh.state.thrust_n[2], rel=1e-9)  # one step of it, not two
+    assert prompt.state.thrust_n[2] < late.state.thrust_n[2] < idle.state.thrust_n[2] == before[2] == 0.0

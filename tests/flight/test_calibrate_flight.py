@@ -22,7 +22,7 @@ from feelium.flight.config import FlightConfig
 from feelium.flight.estimators import SurgeEstimate
 from feelium.flight.sysid import Estimate, FlightRecord, PlantFit, lagged_mean, least_squares, motor_shape, prepare, smooth
 from feelium.flight.blimp_model import BlimpParams
-from feelium.lab.flight.calibrate import MAX_FLIGHT_S, axis_uncertainties, calibrate_sim, fly, hover_guess, recovery_errors, sim_run, tight_goals
+from feelium.lab.flight.calibrate import MAX_FLIGHT_S, axis_uncertainties, braked, calibrate_sim, fly, hover_guess, recovery_errors, sim_run, tight_goals
 from feelium.lab.flight.plants import describe, plant_set
 from feelium.lab.flight.calibration_pilot import CalibrationPilot
 
@@ -152,6 +152,16 @@ def test_an_aborted_flight_leaves_the_motors_neutral(how: str) -> None:
     assert run.board.motors_us[:4] == m.NEUTRAL_MOTORS_US[:4]
 
 
+def test_braking_is_shown_only_by_a_flown_reverse_surge_step() -> None:
+    pilot = CalibrationPilot(hover_command=0.0)
+    assert [(step.axis, step.level) for step in pilot.script[:2]] == [("surge", 0.25), ("surge", -0.25)]
+    assert not braked(pilot)  # nothing flown (a flight stopped at once)
+    pilot.segments.append((0, 6.0, 9.0))
+    assert not braked(pilot)  # forward only
+    pilot.segments.append((1, 15.0, 18.0))
+    assert braked(pilot)
+
+
 def _noise_free() -> dict[str, Any]:
     cal = calibrate_sim(CONFIG, drafts=False, sensors=EXACT_SENSORS)
     return {"errors": recovery_errors(cal.fit, BlimpParams()), "lag": (cal.config.motor_lag_s, cal.fit.value("motor_lag_s"))}
@@ -244,6 +254,7 @@ def test_cli_on_the_simulator_writes_a_loadable_config_a_report_and_plots(tmp_pa
     assert main(["calibrate", "flight", "--sim", "--out", str(tmp_path)]) == 0
     fitted = load_config(tmp_path / "flight-calibrated.toml").flight
     assert fitted.heave_mass_kg > 0.0 and fitted.plant_uncertainty >= 1.0
+    assert fitted.braking_shown  # the script flies reverse surge steps: the speed cap may count on the fit
     text = (tmp_path / "flight-calibrated.toml").read_text()
     assert "# fitted: +-" in text and "residual heave" in text
     for axis in ("heave", "surge", "yaw"):

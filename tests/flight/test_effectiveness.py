@@ -94,6 +94,33 @@ def test_small_corrections_teach_the_loop_but_only_a_real_push_teaches_the_safet
     assert gentle.assured(-1.0) == 0.25 and gentle.assured(1.0) == 0.25  # ...a stop's margin does not
 
 
+def test_a_calibration_that_braked_is_counted_on_until_a_real_push_teaches_the_margin() -> None:
+    shown = Effectiveness(0.8, 1.25, reverse_low=0.73, assuring_change=0.02, shown=1.0)
+    assert shown.assured(-1.0) == shown.assured(1.0) == 1.0  # the fit's own value, not the box's weakest
+    assert Effectiveness(0.8, 1.25, shown=2.0).assured(-1.0) == 1.25  # never outside the box
+    _fly(shown, (0.9, 0.9), seconds=6.0)
+    assert shown.assured(-1.0) == pytest.approx(shown.values[0]) == pytest.approx(0.9, rel=0.1)  # then the flight's
+
+
+def _speed_cap(config) -> float:  # type: ignore[no-untyped-def]
+    from feelium.flight.controller import FlightController
+
+    controller = FlightController(config)
+    controller.surge.last_flow_t = 0.0  # the flow sensor reads
+    return controller.surge_loop._stoppable_speed(0.0, controller.surge, config.forward_speed_m_s)
+
+
+def test_a_fitted_config_whose_calibration_braked_cruises_at_the_command_before_its_first_brake() -> None:
+    """Calibrated random-2026-1 (plant 17; surge fitted within 1.11) cruised at 0.890 of the commanded speed: before
+    its first brake the cap counted on the box's weakest reverse effectiveness, 1.11^-3 = 0.73, though the
+    calibration flight had braked. A config that does not say so keeps that margin."""
+    fitted = replace(Config().flight, mass_kg=0.6291, horizontal_thrust_n=0.2424, horizontal_reverse_ratio=0.504, motor_lag_s=0.0859,
+                     plant_uncertainty=1.26, heave_uncertainty=1.26, surge_uncertainty=1.11, yaw_uncertainty=1.11)  # its fit's surge
+    assert _speed_cap(fitted) < 0.95 * fitted.forward_speed_m_s
+    assert _speed_cap(replace(fitted, braking_shown=True)) == fitted.forward_speed_m_s
+    assert _speed_cap(Config().flight) < 0.7 * fitted.forward_speed_m_s  # the shipped box: unchanged, far below
+
+
 def test_a_steady_push_against_a_draft_does_not_make_a_large_push_count_on_a_low_value() -> None:
     """The loop holds a steady push against a steady draft (no rate change) and now and then turns hard."""
     estimator = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035)

@@ -145,8 +145,19 @@ def _motion(name: str, seed: int, one_direction: bool = False) -> sc.MotionResul
 def test_latency_is_at_the_physical_floor(name: str) -> None:
     result = _motion(name, 1)
     floor = latency_floor(name, CONFIG)
-    # Within 5 ms of the best the mixer and slew limits allow from rest (the body is never quite at rest).
-    assert result.latency_s <= floor.slew_limited_s + 0.005
+    # Within 5 ms of the best the mixer and slew limits allow from rest. The floor is from rest, so the
+    # body's motion is measured as its change since the command: the hover leaves it drifting a few mm/s
+    # either way, and that drift, not the controller, moved the raw latency by 10-15 ms (session 15: with
+    # the simulator's sensor grid fixed, seed 1's `down` started at -0.5 cm/s, 85 ms raw against a floor of
+    # 72 ms; seed 2 under the old grid started at +0.6 cm/s and read 56 ms, 16 ms *under* the floor).
+    assert _latency_of_change(result, name) <= floor.slew_limited_s + 0.005
+
+
+def _latency_of_change(result: sc.MotionResult, name: str) -> float:
+    """Issue -> the body's rate has changed by the motion threshold the commanded way (interpolated)."""
+    signal = result.fraction * result.commanded
+    issued = int(np.nonzero(result.t >= -1e-9)[0][0])
+    return sc._first_crossing(result.t, signal - signal[issued], sc.MOTION_THRESHOLD[name], 0.0)
 
 
 @pytest.mark.slow

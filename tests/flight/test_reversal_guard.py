@@ -7,7 +7,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from feelium.flight.reversal import CALM_SPEED_M_S, CALM_YAW_DPS, MIN_INTERVAL_S, SETTLE_S, PairThrust, ReversalGuard, calm
+from feelium.flight.reversal import (
+    CALM_SPEED_M_S,
+    CALM_YAW_DPS,
+    MIN_INTERVAL_S,
+    SETTLE_S,
+    PairThrust,
+    ReversalGuard,
+    calm,
+)
 
 
 def _settled_guard() -> ReversalGuard:
@@ -43,6 +51,29 @@ def test_any_command_but_neutral_takes_a_direction() -> None:
     assert guard.limit(t, (-0.05, -0.04, 0.5, 0.5), hovering=True, calm=True) == (0.0, -0.04, 0.5, 0.5)
     assert guard.limit(t + 0.02, (0.0, 0.0, 0.5, 0.5), hovering=True, calm=True) == (0.0, 0.0, 0.5, 0.5)
     assert guard.held == 1
+
+
+def test_a_still_body_turning_keeps_a_motor_from_reversing_alone_but_lets_the_torque_turn() -> None:
+    """Still (under CALM_SPEED_M_S) but turning faster than calm: one motor reversing alone is a surge
+    push against the motor holding the yaw torque, and waits (the partner keeps the torque); both
+    reversing is the torque turning, and goes through (corner-mTDL: the surge push saturated against the
+    motor holding the torque at 2.5-4 deg/s, that motor reversed at each engagement and back)."""
+    guard = ReversalGuard(PAIR)
+    guard.limit(0.0, (0.3, -0.3, 0.5, 0.5), hovering=True, calm=False, still=True)
+    assert guard.limit(SETTLE_S, (-0.3, 0.3, 0.5, 0.5), hovering=True, calm=False, still=True) == (-0.3, 0.3, 0.5, 0.5)
+    t = SETTLE_S + 0.1
+    out = guard.limit(t, (-0.6, -0.2, 0.5, 0.5), hovering=True, calm=False, still=True)
+    assert out[1] == 0.0 and out[0] < 0.0
+    assert _torque(out) == pytest.approx(_torque((-0.6, -0.2)), rel=1e-9)
+    assert guard.limit(t + 0.02, (0.3, -0.3, 0.5, 0.5), hovering=True, calm=False, still=True) == (0.3, -0.3, 0.5, 0.5)
+    # Moving (not still), or not yet settled in the hover: full authority.
+    moving = ReversalGuard(PAIR)
+    moving.limit(0.0, (0.3, -0.3, 0.5, 0.5), hovering=True, calm=False, still=False)
+    moving.limit(SETTLE_S, (-0.3, 0.3, 0.5, 0.5), hovering=True, calm=False, still=False)
+    assert moving.limit(t, (-0.6, -0.2, 0.5, 0.5), hovering=True, calm=False, still=False) == (-0.6, -0.2, 0.5, 0.5)
+    fresh = ReversalGuard(PAIR)
+    fresh.limit(0.0, (-0.3, 0.3, 0.5, 0.5), hovering=True, calm=False, still=True)
+    assert fresh.limit(0.1, (-0.6, -0.2, 0.5, 0.5), hovering=True, calm=False, still=True) == (-0.6, -0.2, 0.5, 0.5)
 
 
 def test_calm_is_inside_the_stop_goal() -> None:

@@ -111,7 +111,12 @@ class Calibration:
 def calibrate_from(log: FlightLogRecorder, pilot: CalibrationPilot, config: FlightConfig) -> Calibration:
     record = log.record()
     fit, fits, sig = identify(record, config.net_buoyancy_n, config.arm_m, config.altitude_min_m - 0.4, config.altitude_max_m + 0.4)
-    return Calibration(fit, fitted_config(config, fit), record, pilot, (fits, sig))
+    return Calibration(fit, fitted_config(config, fit, braked(pilot)), record, pilot, (fits, sig))
+
+
+def braked(pilot: CalibrationPilot) -> bool:
+    """Whether the flight flew a reverse surge step: a brake, whose response the fitted reverse thrust is."""
+    return any(pilot.script[index].axis == "surge" and pilot.script[index].level < 0.0 for index, _, _ in pilot.segments)
 
 
 # The controller's drag models are simpler than the fit's: translational drag is a fixed 0.02 N per m/s plus
@@ -128,8 +133,9 @@ def equivalent_quadratic(linear: float, quadratic: float, model_linear: float, a
     return (linear * at + quadratic * at * at - model_linear * at) / (at * at)
 
 
-def fitted_config(config: FlightConfig, fit: PlantFit) -> FlightConfig:
-    """``config`` with the fitted plant: what the controller reads, and how much it may now trust it."""
+def fitted_config(config: FlightConfig, fit: PlantFit, braking_shown: bool = False) -> FlightConfig:
+    """``config`` with the fitted plant: what the controller reads, and how much it may now trust it;
+    ``braking_shown`` when the flight braked (:func:`braked`), so the speed cap may count on the fit."""
     def v(name: str) -> float:
         return float(fit.value(name))
 
@@ -151,6 +157,7 @@ def fitted_config(config: FlightConfig, fit: PlantFit) -> FlightConfig:
         heave_uncertainty=axes["heave"],
         surge_uncertainty=axes["surge"],
         yaw_uncertainty=axes["yaw"],
+        braking_shown=braking_shown,
     )
 
 
@@ -194,7 +201,8 @@ DERIVED_NOTES = {"quadratic_drag": "the fitted drag at 0.15 m/s as this model's 
                  "heave_uncertainty": "the box holding 3 sigma of the heave thrust per mass, heave mass and vertical reverse ratio",
                  "surge_uncertainty": "the box holding 3 sigma of the surge thrust per mass and horizontal reverse ratio",
                  "yaw_uncertainty": "the box holding 3 sigma of the yaw torque per inertia and horizontal reverse ratio",
-                 "net_buoyancy_n": "weighed, not fitted: the fit's scale"}
+                 "net_buoyancy_n": "weighed, not fitted: the fit's scale",
+                 "braking_shown": "the flight flew reverse surge steps: the speed cap counts on the fitted reverse thrust"}
 
 
 def render_calibrated(full_config: Any, calibration: Calibration) -> str:

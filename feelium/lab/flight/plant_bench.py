@@ -27,21 +27,25 @@ from feelium.lab.flight.safety import GOALS, safety_flight
 VARIANTS = {"learned": None, "model_trusted": 1.0}
 
 
-def _fly(job: tuple[FlightConfig, Plant, bool]) -> dict[str, Any]:
-    config, plant, flow = job
-    result = safety_flight(config, plant, flow=flow)
+Job = tuple[FlightConfig, Plant, bool, float]  # config, plant, optical flow fitted, the board's command delay (s)
+
+
+def _fly(job: Job) -> dict[str, Any]:
+    config, plant, flow, command_delay_s = job
+    result = safety_flight(config, plant, flow=flow, command_delay_s=command_delay_s)
     return {"plant": plant.name, "figures": result.figures(), "failures": result.failures(), "manoeuvres": result.manoeuvres}
 
 
-def _fly_calibrated(job: tuple[FlightConfig, Plant, bool]) -> dict[str, Any]:
+def _fly_calibrated(job: Job) -> dict[str, Any]:
     """Calibrate on the plant, then the safety flight and the tight goals with the fitted config (and the
-    tight goals with the shipped one, for the before-and-after)."""
+    tight goals with the shipped one, for the before-and-after). The command delay applies to the safety
+    flight only: the calibration and the tight goals fly the board's ideal phase."""
     from feelium.lab.flight.calibrate import calibrate_sim, recovery_errors, tight_goals
 
-    config, plant, flow = job
+    config, plant, flow, command_delay_s = job
     calibration = calibrate_sim(config, plant.blimp)
     fitted = calibration.config
-    row = _fly((fitted, plant, flow))
+    row = _fly((fitted, plant, flow, command_delay_s))
     weighed = replace(config, net_buoyancy_n=fitted.net_buoyancy_n)
     row["tight_before"] = tight_goals(weighed, plant.blimp)
     row["tight_after"] = tight_goals(fitted, plant.blimp)
@@ -82,7 +86,7 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def _run(fly: Any, jobs: list[tuple[FlightConfig, Plant, bool]], workers: int) -> list[dict[str, Any]]:
+def _run(fly: Any, jobs: list[Job], workers: int) -> list[dict[str, Any]]:
     if workers > 1:
         with ProcessPoolExecutor(workers) as pool:
             return list(pool.map(fly, jobs))
@@ -90,17 +94,19 @@ def _run(fly: Any, jobs: list[tuple[FlightConfig, Plant, bool]], workers: int) -
 
 
 def run_plant_bench(config: FlightConfig, count: int, seed: int = 2026, workers: int = 1, flow: bool = True,
-                    calibrated: bool = False) -> dict[str, Any]:
-    """Every plant under every variant; per goal the median, the worst and which plant it was."""
+                    calibrated: bool = False, command_delay_s: float = 0.0) -> dict[str, Any]:
+    """Every plant under every variant; per goal the median, the worst and which plant it was.
+    ``command_delay_s``: how late the simulated board's motors act on a command (a real board's phase
+    against the physics is arbitrary: docs/calibrate-flight.md, session 16)."""
     plants = plant_set(count, seed)
-    report: dict[str, Any] = {"plants": count, "seed": seed, "optical_flow": flow,
+    report: dict[str, Any] = {"plants": count, "seed": seed, "optical_flow": flow, "command_delay_s": command_delay_s,
                               "plant_list": {plant.name: describe(plant) for plant in plants}}
     for variant, uncertainty in VARIANTS.items():
         variant_config = config if uncertainty is None else replace(config, plant_uncertainty=uncertainty)
-        rows = _run(_fly, [(variant_config, plant, flow) for plant in plants], workers)
+        rows = _run(_fly, [(variant_config, plant, flow, command_delay_s) for plant in plants], workers)
         report[variant] = {"plant_uncertainty": variant_config.plant_uncertainty, "summary": _summary(rows), "per_plant": rows}
     if calibrated:
-        rows = _run(_fly_calibrated, [(config, plant, flow) for plant in plants], workers)
+        rows = _run(_fly_calibrated, [(config, plant, flow, command_delay_s) for plant in plants], workers)
         report["calibrated"] = {"summary": _summary(rows), "tight_before": _tight_summary(rows, "tight_before"),
                                 "tight_after": _tight_summary(rows, "tight_after"),
                                 "tight_after_trusted": _tight_summary(rows, "tight_after_trusted"), "recovery": _recovery_summary(rows),
@@ -109,7 +115,8 @@ def run_plant_bench(config: FlightConfig, count: int, seed: int = 2026, workers:
 
 
 def format_plant_table(report: dict[str, Any]) -> str:
-    lines = [f"safety goals over {report['plants']} plants (seed {report['seed']}, optical flow {'on' if report['optical_flow'] else 'off'})",
+    lines = [f"safety goals over {report['plants']} plants (seed {report['seed']}, optical flow {'on' if report['optical_flow'] else 'off'}, "
+             f"command delay {1000 * report.get('command_delay_s', 0.0):g} ms)",
              f"{'goal':28s} {'limit':>7s} | " + " | ".join(f"{v:>34s}" for v in VARIANTS)]
     lines.append(f"{'':28s} {'':>7s} | " + " | ".join(f"{'median':>9s} {'worst':>9s} {'missed':>6s} {'':>7s}" for _ in VARIANTS))
     for goal, limit in GOALS.items():

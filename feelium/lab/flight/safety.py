@@ -109,10 +109,12 @@ class _Pilot:
 
 
 def safety_flight(config: FlightConfig, plant: Plant, seed: int = 1, controller: Controller | None = None,
-                  flow: bool = True, report: Callable[[str], None] | None = None) -> SafetyResult:
-    """Fly the whole script on ``plant``; ``flow=False`` is a board without the optical-flow sensor."""
-    board = board_with(BoardParams(blimp=plant.blimp, drafts=MILD_DRAFTS, sensors=SensorParams(flow_fitted=flow)),
-                       z=START_ALTITUDE_M)
+                  flow: bool = True, report: Callable[[str], None] | None = None,
+                  command_delay_s: float = 0.0) -> SafetyResult:
+    """Fly the whole script on ``plant``; ``flow=False`` is a board without the optical-flow sensor;
+    ``command_delay_s`` is how late the board's motors act on a command (the phase sweep)."""
+    board = board_with(BoardParams(blimp=plant.blimp, drafts=MILD_DRAFTS, sensors=SensorParams(flow_fitted=flow),
+                                   command_delay_s=command_delay_s), z=START_ALTITUDE_M)
     flight = SimFlight(config, board, seed=seed, controller=controller)
     pilot = _Pilot(flight, config)
     result = SafetyResult(plant.name)

@@ -27,12 +27,14 @@ STOPPED_FRACTION = 0.1
 
 
 def new_flight(
-    config: FlightConfig, drafts: bool, seed: int = 1, controller: Controller | None = None, blimp: BlimpParams | None = None
+    config: FlightConfig, drafts: bool, seed: int = 1, controller: Controller | None = None, blimp: BlimpParams | None = None,
+    command_delay_s: float = 0.0,
 ) -> SimFlight:
-    """A simulated flight at the start altitude; ``blimp`` replaces the body (what-ifs), default the paper's."""
-    board = BoardParams(drafts=DraftParams() if drafts else None)
+    """A simulated flight at the start altitude; ``blimp`` replaces the body (what-ifs), default the paper's;
+    ``command_delay_s`` is how late the board's motors act on a command (the phase sweep)."""
+    board = BoardParams(drafts=DraftParams() if drafts else None, command_delay_s=command_delay_s)
     if blimp is not None:
-        board = BoardParams(blimp=blimp, drafts=board.drafts)
+        board = BoardParams(blimp=blimp, drafts=board.drafts, command_delay_s=command_delay_s)
     params = board_with(board, z=START_ALTITUDE_M)
     return SimFlight(config, params, seed=seed, controller=controller)
 
@@ -152,10 +154,11 @@ def _first_crossing(t: np.ndarray, signal: np.ndarray, threshold: float, after: 
 
 
 def motion(
-    config: FlightConfig, name: str, hold_s: float = 3.0, seed: int = 1, drafts: bool = False, blimp: BlimpParams | None = None
+    config: FlightConfig, name: str, hold_s: float = 3.0, seed: int = 1, drafts: bool = False, blimp: BlimpParams | None = None,
+    command_delay_s: float = 0.0,
 ) -> MotionResult:
     """Drive one command through the dead-man path, refreshed every 0.1 s, then let it lapse."""
-    flight = new_flight(config, drafts, seed, blimp=blimp)
+    flight = new_flight(config, drafts, seed, blimp=blimp, command_delay_s=command_delay_s)
     flight.run(SETTLE_S)
     dead_man = DeadManCommands()
     t_issue = flight.t + flight.period
