@@ -58,6 +58,10 @@ last half second. A tap under a passing person's shadow (room light
 down by 70 %: the true share 0.45 -> 0.7) otherwise met a share learned before
 it, and its contact looked like a hover (``projected_depth`` 0.14 < 0.2).
 
+A re-seed also re-bases both memories (:meth:`ProjectorShare.rebase`): what the
+new reference kept of the projected pattern is a new intercept per tile, not a
+change of share.
+
 Pure arrays in, arrays out; no clock.
 """
 
@@ -260,8 +264,10 @@ class ProjectorShare:
 
     def rescale(self, factor: np.ndarray) -> None:
         """The room's light changed: every tile's projector share is now ``factor`` (working size) times what it
-        was (``e * reference / (e * reference + added)``, see the module docstring)."""
+        was (``e * reference / (e * reference + added)``, see the module docstring). The reference is re-seeded with
+        it: :meth:`rebase`."""
         if self._sums is None:
+            self.rebase()  # nothing to rescale yet, but the short memory's frames are divided by another reference
             return
         f = cv2.resize(factor.astype(np.float32), (self._sums.shape[2], self._sums.shape[1]), interpolation=cv2.INTER_AREA)
         f = np.clip(np.nan_to_num(f, nan=1.0, posinf=1.0, neginf=1.0), 0.0, 4.0).astype(np.float64)
@@ -281,17 +287,16 @@ class ProjectorShare:
         compensation left in it (on a recording the photometric response's share, learned over 20 s, lags a passing
         person's shadow: a third of the probe stayed in the reference) divides every later frame: a new intercept per
         tile, of the probe's sign in every cell. Sums that mix frames before and after read that step, times the probe
-        after it, as slope, the same way in every tile: the short memory's pooled share came out 0.05-0.08 low and the
-        room factor ``k`` 1.16-1.33 after a passer's re-seed while the room had darkened (a recorded tap held back as a
-        hover). So each memory keeps what it learned as its variance and covariance about its own means so far
+        after it, as slope, the same way in every tile: after a passer's re-seed the short memory's pooled share read
+        0.19-0.22 on a recording against the lab's 0.25-0.27, and the room factor ``k`` 1.16-1.33 while the room had
+        darkened (a recorded tap held back as a hover). So each memory keeps what it learned as its variance and covariance about its own means so far
         (decayed with it) and starts its means anew: the intercept may differ on either side, the slope is the same."""
-        for name in ("_sums", "_fast"):
-            sums = getattr(self, name)
-            if sums is None:
-                continue
-            carry_name = "_carry" if name == "_sums" else "_fast_carry"
-            setattr(self, carry_name, np.stack(_centred(sums, getattr(self, carry_name))))
-            sums.fill(0.0)
+        if self._sums is not None:
+            self._carry = np.stack(_centred(self._sums, self._carry))
+            self._sums.fill(0.0)
+        if self._fast is not None:
+            self._fast_carry = np.stack(_centred(self._fast, self._fast_carry))
+            self._fast.fill(0.0)
         self._changed()
 
     def room_scale(self, fitted: tuple[np.ndarray, np.ndarray] | None = None) -> float:

@@ -79,13 +79,13 @@ OFF_RAMP_S = 0.05
 SWITCH_BEFORE_S = (0.5, 1.5)  # a touch trial's switch comes this long before its first contact
 DRIFT_LEVEL, DRIFT_AMP, DRIFT_PERIOD_S = 0.6, 0.5, 20.0
 RECOVERY_PERCENTILE = 99.0
-# The known contact of the sensitivity measure: the frustrated reflection's share of a pressed fingertip in the dim room
-# (0.4-0.5, docs/touch.md, the sessions' contact_depth) pressed over a fingertip's pad (12 camera px across at 640 x 480).
+# The known contact of the sensitivity measure: the frustrated reflection's share of a pressed fingertip in the dim
+# room (0.4-0.5, docs/touch.md, the sessions' contact_depth), over a fingertip's pad (12 camera px across at 640 x 480).
 SENSE_DEPTH = 0.45
 SENSE_RADIUS_PX = 6.0
 SENSE_PLACES = ((0.5, 0.5), (0.2, 0.25), (0.8, 0.25), (0.2, 0.75), (0.8, 0.75))  # fractions of the ROI: centre, corners
-# How far a known contact's depth may read from steady light's: a third of the thinnest instant-gate margin of a positive
-# in the steady lit rooms (+0.144 to +0.171 over six seeds, docs/touch.md), so the gates decide as in steady light.
+# How far a known contact's depth may read from steady light's: a third of the thinnest instant-gate margin of a
+# positive in the steady lit rooms (+0.144 to +0.171 over six seeds, docs/touch.md), so the gates decide as in steady light.
 SENSE_TOLERANCE = 0.05
 STEADY_EVERY = 5  # the steady twin's readings are taken on every 5th frame: a median over 15-20 frames of the trial
 # The projector lays its faint probe over the static skin (feelium.projector.probe) and the pipeline is told its
@@ -181,22 +181,26 @@ def recovery(frames: list[tuple[float, np.ndarray]], config: TouchConfig, switch
     """Seconds from ``switch_at`` until the hand-free twin's depth error stays within ``candidate_depth`` (inf: never)."""
     pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
     pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
-    last_bad: float | None = None
+    bad = []
     for t, frame in frames:
         err = depth_error(pipeline, frame)
         pipeline.process(t, frame, probe_light=_probe(t, pattern))
-        if t >= switch_at and err is not None and err > config.candidate_depth:
-            last_bad = t
+        bad.append((t, t >= switch_at and err is not None and err > config.candidate_depth))
+    return _recovered(bad, switch_at)
+
+
+def _recovered(bad: list[tuple[float, bool]], switch_at: float) -> float:
+    """Seconds from ``switch_at`` to the first frame after the last bad one (0.0: none was bad; inf: bad to the end)."""
+    last_bad = max((t for t, b in bad if b), default=None)
     if last_bad is None:
         return 0.0
-    if last_bad >= frames[-1][0]:
-        return float("inf")
-    after = [t for t, _ in frames if t > last_bad]
-    return after[0] - switch_at
+    after = [t for t, _ in bad if t > last_bad]
+    return after[0] - switch_at if after else float("inf")
 
 
 def _pressed(frame: np.ndarray, place: tuple[float, float]) -> np.ndarray:
-    """``frame`` with a fingertip's shadow of :data:`SENSE_DEPTH` at ``place`` (fractions of the ROI), edge blurred 1 px."""
+    """``frame`` with a fingertip's shadow of :data:`SENSE_DEPTH` at ``place`` (fractions of the ROI), its edge
+    blurred by 1 px."""
     x0, y0, w, h = ROI
     cx, cy = x0 + place[0] * w, y0 + place[1] * h
     ys, xs = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]].astype(np.float32)
@@ -216,27 +220,26 @@ def sensed(
     for n, (t, frame) in enumerate(frames):
         light = _probe(t, pattern)
         if t >= since and pipeline.reference.image is not None and n % every == 0:
-            out.append((t, [copy.deepcopy(pipeline).process(t, _pressed(frame, p), probe_light=light).core_depth for p in SENSE_PLACES]))
+            pressed = (copy.deepcopy(pipeline).process(t, _pressed(frame, p), probe_light=light) for p in SENSE_PLACES)
+            out.append((t, [result.core_depth for result in pressed]))
         pipeline.process(t, frame, probe_light=light)
     return out
 
 
 def sensitivity_recovery(
-    frames: list[tuple[float, np.ndarray]], steady: list[tuple[float, np.ndarray]], config: TouchConfig, switch_at: float
+    frames: list[tuple[float, np.ndarray]],
+    steady: list[tuple[float, np.ndarray]],
+    config: TouchConfig,
+    switch_at: float,
 ) -> float:
     """Seconds from ``switch_at`` until the known contact reads as in ``steady`` (the final light held) at every place,
     from then on (inf: never): see the module's docstring."""
     reference = np.median(np.array([d for _, d in sensed(steady, config, 0.0, every=STEADY_EVERY)]), axis=0)
-    last_bad: float | None = None
-    readings = sensed(frames, config, switch_at)
-    for t, depths in readings:
+    bad = []
+    for t, depths in sensed(frames, config, switch_at):
         d = np.array(depths)
-        if np.any(d <= 0.0) or np.any(np.abs(d - reference) > SENSE_TOLERANCE):
-            last_bad = t
-    if last_bad is None:
-        return 0.0
-    after = [t for t, _ in readings if t > last_bad]
-    return after[0] - switch_at if after else float("inf")
+        bad.append((t, bool(np.any(d <= 0.0) or np.any(np.abs(d - reference) > SENSE_TOLERANCE))))
+    return _recovered(bad, switch_at)
 
 
 def _probe(t: float, pattern: np.ndarray | None) -> np.ndarray | None:
