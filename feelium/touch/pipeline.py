@@ -427,6 +427,7 @@ class TouchPipeline:
                 # percent, a small part of it, which the reference follows without starting again (it started
                 # again under a held hand when the probe's share wavered after a lamp went off: the hold was lost).
                 ref.reset()
+                self.projector_share.rebase()  # the frames it divides will be by another reference
                 self._reference_share = share
         self._shadow = frozen
         self._deep = (smooth > cfg.candidate_depth) if candidates else None

@@ -58,6 +58,10 @@ last half second. A tap under a passing person's shadow (room light
 down by 70 %: the true share 0.45 -> 0.7) otherwise met a share learned before
 it, and its contact looked like a hover (``projected_depth`` 0.14 < 0.2).
 
+A re-seed also re-bases both memories (:meth:`ProjectorShare.rebase`): what the
+new reference kept of the projected pattern is a new intercept per tile, not a
+change of share.
+
 Pure arrays in, arrays out; no clock.
 """
 
@@ -133,6 +137,10 @@ class ProjectorShare:
     _expected: np.ndarray | None  # per tile: the reference's level, over its median, when last learned
     _fast: np.ndarray | None  # the same sums as _sums over FAST_TAU_S, on every frame
     _fast_t: float | None
+    # Per memory, once the reference was re-seeded (:meth:`rebase`): (3, rows, columns) weight, variance and covariance
+    # of the frames before, each about its own means, decayed as the sums are; None until then.
+    _carry: np.ndarray | None
+    _fast_carry: np.ndarray | None
     _k: float  # the last room factor solved: where Newton's method starts next
     updates: int
 
@@ -155,6 +163,8 @@ class ProjectorShare:
         self._expected = None
         self._fast = None
         self._fast_t = None
+        self._carry = None
+        self._fast_carry = None
         self._k = 1.0
         self.updates = 0
 
@@ -212,20 +222,26 @@ class ProjectorShare:
         fast_dt = 0.0 if self._fast_t is None else max(t - self._fast_t, 0.0)
         self._fast_t = t
         if self._fast is None or self._fast.shape != fresh.shape:
-            self._fast = fresh.copy()
+            self._fast, self._fast_carry = fresh.copy(), None
         else:
-            self._fast *= math.exp(-fast_dt / FAST_TAU_S)
+            keep = math.exp(-fast_dt / FAST_TAU_S)
+            self._fast *= keep
             self._fast += fresh
+            if self._fast_carry is not None:
+                self._fast_carry *= keep
         self._changed()
         if not hand_free:
             return
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
         self._last_t = t
         if self._sums is None or self._sums.shape != fresh.shape:
-            self._sums = fresh
+            self._sums, self._carry = fresh, None
         else:
-            self._sums *= math.exp(-dt / self.tau_s)
+            keep = math.exp(-dt / self.tau_s)
+            self._sums *= keep
             self._sums += fresh
+            if self._carry is not None:
+                self._carry *= keep
         self.updates += 1
 
     def _changed(self) -> None:
@@ -240,21 +256,47 @@ class ProjectorShare:
             return
         ratio = self._expected / level
         ratio = np.where(np.isfinite(ratio), np.clip(ratio, 0.25, 4.0), 1.0)
-        for sums in (self._sums, self._fast):  # the short memory too: it judges the level against today's reference
-            if sums is not None and sums.shape[1:] == ratio.shape:
+        for sums, carry in ((self._sums, self._carry), (self._fast, self._fast_carry)):  # the short memory too: it
+            if sums is not None and sums.shape[1:] == ratio.shape:  # judges the level against today's reference
                 sums[2::2] *= ratio  # u and x*u
+                if carry is not None:
+                    carry[2] *= ratio  # the covariance with u
 
     def rescale(self, factor: np.ndarray) -> None:
         """The room's light changed: every tile's projector share is now ``factor`` (working size) times what it
-        was (``e * reference / (e * reference + added)``, see the module docstring)."""
+        was (``e * reference / (e * reference + added)``, see the module docstring). The reference is re-seeded with
+        it: :meth:`rebase`."""
         if self._sums is None:
+            self.rebase()  # nothing to rescale yet, but the short memory's frames are divided by another reference
             return
         f = cv2.resize(factor.astype(np.float32), (self._sums.shape[2], self._sums.shape[1]), interpolation=cv2.INTER_AREA)
         f = np.clip(np.nan_to_num(f, nan=1.0, posinf=1.0, neginf=1.0), 0.0, 4.0).astype(np.float64)
         self._sums[2::2] *= f  # u = p * x: scaling p scales u (and its intercept, a gain error), and x*u with it
         if self._fast is not None:
             self._fast[2::2] *= f
+        for carry in (self._carry, self._fast_carry):
+            if carry is not None:
+                carry[2] *= f
         self._expected = None  # the re-seeded reference is the new "then": its step is in ``factor`` already
+        self.rebase()
+
+    def rebase(self) -> None:
+        """The reference was re-seeded or restarted: every tile's ``u`` may have stepped by a constant from this frame on.
+
+        A re-seed copies one frame, as compensated, into the reference; whatever part of the projected pattern the
+        compensation left in it (on a recording the photometric response's share, learned over 20 s, lags a passing
+        person's shadow: a third of the probe stayed in the reference) divides every later frame: a new intercept per
+        tile, of the probe's sign in every cell. Sums that mix frames before and after read that step, times the probe
+        after it, as slope, the same way in every tile: after a passer's re-seed the short memory's pooled share read
+        0.19-0.22 on a recording against the lab's 0.25-0.27, and the room factor ``k`` 1.16-1.33 while the room had
+        darkened (a recorded tap held back as a hover). So each memory keeps what it learned as its variance and covariance about its own means so far
+        (decayed with it) and starts its means anew: the intercept may differ on either side, the slope is the same."""
+        if self._sums is not None:
+            self._carry = np.stack(_centred(self._sums, self._carry))
+            self._sums.fill(0.0)
+        if self._fast is not None:
+            self._fast_carry = np.stack(_centred(self._fast, self._fast_carry))
+            self._fast.fill(0.0)
         self._changed()
 
     def room_scale(self, fitted: tuple[np.ndarray, np.ndarray] | None = None) -> float:
@@ -269,14 +311,12 @@ class ProjectorShare:
         if fitted is None or self._fast is None or self._fast.shape[1:] != fitted[0].shape:
             return 1.0
         p, info = fitted
-        n, sx, su, sxx, sxu = self._fast
-        safe = np.maximum(n, 1e-9)
-        var = np.maximum(sxx - sx * sx / safe, 0.0)  # the short memory's change of light, per tile (weighted sums)
-        known = (info > 0.0) & (var >= MIN_LIGHT_VAR * safe)
+        n, var, cov = _centred(self._fast, self._fast_carry)  # the short memory's change of light, per tile
+        known = (info > 0.0) & (var >= MIN_LIGHT_VAR * np.maximum(n, 1e-9))
         if not known.any():
             return 1.0
         pk, vk = p[known].astype(np.float64), var[known]
-        target = float(np.sum((sxu - sx * su / safe)[known]))
+        target = float(np.sum(cov[known]))
         k, converged = _solve_room_scale(pk, vk, target, self._k)
         if not converged and self._k != 1.0:
             k, _ = _solve_room_scale(pk, vk, target, 1.0)
@@ -288,12 +328,9 @@ class ProjectorShare:
         times its weight: the fit's information); None before anything was learned."""
         if self._sums is None:
             return None
-        n = self._sums[0]
-        mx, mu, mxx, mxu = self._sums[1:] / np.maximum(n, 1e-9)
-        var = np.maximum(mxx - mx * mx, 0.0)
-        cov = mxu - mx * mu
+        n, var, cov = _centred(self._sums, self._carry)  # weighted sums: per unit of weight they are the means'
         p = np.where(var > 0.0, cov / np.maximum(var, 1e-12), 0.0)
-        info = np.where(var >= MIN_LIGHT_VAR, var * n, 0.0)
+        info = np.where(var >= MIN_LIGHT_VAR * np.maximum(n, 1e-9), var, 0.0)
         return np.clip(p, *SHARE_LIMITS).astype(np.float32), info.astype(np.float32)
 
     def coarse(self) -> np.ndarray | None:
@@ -343,6 +380,19 @@ class ProjectorShare:
         ix = min(max(int(round(x)), 0), w - 1)
         iy = min(max(int(round(y)), 0), h - 1)
         return upsampled_at(spread, self._shape, ix, iy)
+
+
+def _centred(sums: np.ndarray, carry: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per tile, from a memory's sums (and its ``carry`` from before the last :meth:`ProjectorShare.rebase`): the weight,
+    and the weighted sums of squares of ``x`` and of products ``x * u`` about their means (each side of a re-base about
+    its own)."""
+    n, sx, su, sxx, sxu = sums
+    safe = np.maximum(n, 1e-9)
+    var = np.maximum(sxx - sx * sx / safe, 0.0)
+    cov = sxu - sx * su / safe
+    if carry is None:
+        return n, var, cov
+    return n + carry[0], var + carry[1], cov + carry[2]
 
 
 def _solve_room_scale(pk: np.ndarray, vk: np.ndarray, target: float, start: float) -> tuple[float, bool]:

@@ -26,11 +26,25 @@ switch's start until the hand-free membrane's relative depth (99th percentile
 over the ROI of its absolute value, smoothed as the pipeline does) stays
 within ``candidate_depth``: no false shadow deep enough to be a candidate, and
 no true shadow's depth off by that much, anywhere (steady light keeps it at
-0.05-0.08, the noise).
+0.05-0.08, the noise, in bright sessions; in the dimmest sessions steady dim light
+alone reaches 0.15, so there it reads the camera's noise, not the switch).
+
+*Sensitivity* after a switch (:func:`sensitivity_recovery`) measures what the
+recovery is for: how deep a known contact reads. At every frame of the
+hand-free twin from the switch on, a copy of the pipeline is handed that frame
+with a fingertip's shadow of known depth (:data:`SENSE_DEPTH`, a disc of
+:data:`SENSE_RADIUS_PX`) pressed at each of :data:`SENSE_PLACES` in turn, and
+reads its core depth; the same contacts are read on the twin of the room's
+final light held steady (the steady condition's twin, same noise stream). Full
+sensitivity is recovered from the first frame after which every place reads
+within :data:`SENSE_TOLERANCE` of its steady reading (median over the steady
+twin) and is found at all. The noise of the new light is in both readings, so
+only what the switch left behind counts.
 """
 
 from __future__ import annotations
 
+import copy
 import multiprocessing
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -65,6 +79,15 @@ OFF_RAMP_S = 0.05
 SWITCH_BEFORE_S = (0.5, 1.5)  # a touch trial's switch comes this long before its first contact
 DRIFT_LEVEL, DRIFT_AMP, DRIFT_PERIOD_S = 0.6, 0.5, 20.0
 RECOVERY_PERCENTILE = 99.0
+# The known contact of the sensitivity measure: the frustrated reflection's share of a pressed fingertip in the dim
+# room (0.4-0.5, docs/touch.md, the sessions' contact_depth), over a fingertip's pad (12 camera px across at 640 x 480).
+SENSE_DEPTH = 0.45
+SENSE_RADIUS_PX = 6.0
+SENSE_PLACES = ((0.5, 0.5), (0.2, 0.25), (0.8, 0.25), (0.2, 0.75), (0.8, 0.75))  # fractions of the ROI: centre, corners
+# How far a known contact's depth may read from steady light's: a third of the thinnest instant-gate margin of a
+# positive in the steady lit rooms (+0.144 to +0.171 over six seeds, docs/touch.md), so the gates decide as in steady light.
+SENSE_TOLERANCE = 0.05
+STEADY_EVERY = 5  # the steady twin's readings are taken on every 5th frame: a median over 15-20 frames of the trial
 # The projector lays its faint probe over the static skin (feelium.projector.probe) and the pipeline is told its
 # light, so it learns the projector's share per place (feelium.touch.roomshare). False: the static back-light.
 PROBE = True
@@ -102,6 +125,7 @@ class Run:
     data: TrialData
     false_touches: int
     recovery_s: float | None  # switch conditions only
+    sensitivity_s: float | None = None  # switch conditions only: :func:`sensitivity_recovery`
 
 
 def _false_touches(events: list[TouchEvent], data: TrialData) -> int:
@@ -157,18 +181,65 @@ def recovery(frames: list[tuple[float, np.ndarray]], config: TouchConfig, switch
     """Seconds from ``switch_at`` until the hand-free twin's depth error stays within ``candidate_depth`` (inf: never)."""
     pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
     pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
-    last_bad: float | None = None
+    bad = []
     for t, frame in frames:
         err = depth_error(pipeline, frame)
         pipeline.process(t, frame, probe_light=_probe(t, pattern))
-        if t >= switch_at and err is not None and err > config.candidate_depth:
-            last_bad = t
+        bad.append((t, t >= switch_at and err is not None and err > config.candidate_depth))
+    return _recovered(bad, switch_at)
+
+
+def _recovered(bad: list[tuple[float, bool]], switch_at: float) -> float:
+    """Seconds from ``switch_at`` to the first frame after the last bad one (0.0: none was bad; inf: bad to the end)."""
+    last_bad = max((t for t, b in bad if b), default=None)
     if last_bad is None:
         return 0.0
-    if last_bad >= frames[-1][0]:
-        return float("inf")
-    after = [t for t, _ in frames if t > last_bad]
-    return after[0] - switch_at
+    after = [t for t, _ in bad if t > last_bad]
+    return after[0] - switch_at if after else float("inf")
+
+
+def _pressed(frame: np.ndarray, place: tuple[float, float]) -> np.ndarray:
+    """``frame`` with a fingertip's shadow of :data:`SENSE_DEPTH` at ``place`` (fractions of the ROI), its edge
+    blurred by 1 px."""
+    x0, y0, w, h = ROI
+    cx, cy = x0 + place[0] * w, y0 + place[1] * h
+    ys, xs = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]].astype(np.float32)
+    disc = cv2.GaussianBlur(((xs - cx) ** 2 + (ys - cy) ** 2 <= SENSE_RADIUS_PX**2).astype(np.float32), (0, 0), 1.0)
+    return np.clip(np.rint(frame * (1.0 - SENSE_DEPTH * disc)), 0, 255).astype(np.uint8)
+
+
+def sensed(
+    frames: list[tuple[float, np.ndarray]], config: TouchConfig, since: float, every: int = 1
+) -> list[tuple[float, list[float]]]:
+    """Per ``every``-th frame from ``since``: the core depth a copy of the pipeline reads for the known contact at each
+    of :data:`SENSE_PLACES` pressed on that frame (0 where it finds no shadow); the pipeline itself sees every frame as
+    it is."""
+    pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
+    pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
+    out = []
+    for n, (t, frame) in enumerate(frames):
+        light = _probe(t, pattern)
+        if t >= since and pipeline.reference.image is not None and n % every == 0:
+            pressed = (copy.deepcopy(pipeline).process(t, _pressed(frame, p), probe_light=light) for p in SENSE_PLACES)
+            out.append((t, [result.core_depth for result in pressed]))
+        pipeline.process(t, frame, probe_light=light)
+    return out
+
+
+def sensitivity_recovery(
+    frames: list[tuple[float, np.ndarray]],
+    steady: list[tuple[float, np.ndarray]],
+    config: TouchConfig,
+    switch_at: float,
+) -> float:
+    """Seconds from ``switch_at`` until the known contact reads as in ``steady`` (the final light held) at every place,
+    from then on (inf: never): see the module's docstring."""
+    reference = np.median(np.array([d for _, d in sensed(steady, config, 0.0, every=STEADY_EVERY)]), axis=0)
+    bad = []
+    for t, depths in sensed(frames, config, switch_at):
+        d = np.array(depths)
+        bad.append((t, bool(np.any(d <= 0.0) or np.any(np.abs(d - reference) > SENSE_TOLERANCE))))
+    return _recovered(bad, switch_at)
 
 
 def _probe(t: float, pattern: np.ndarray | None) -> np.ndarray | None:
@@ -220,11 +291,14 @@ def trial(setup: _Setup, item: protocol.Item) -> dict[str, Run]:
             s["t"], s["anchor"], s["core_depth"], s["edge"], labels.contacts, item.label in NEGATIVE_LABELS, s["projected"]
         )
         data = TrialData(item.name, labels, events, activity, max_area, series)
-        rec = None
+        rec = sens = None
         if condition in SWITCHES and room is not None:
             twin = render(script, session, item, setup.seed, room, hands=False)
             rec = recovery(twin, setup.touch, room.steps[0][0])
-        runs[condition] = Run(data, _false_touches(events, data), rec)
+            held = room_for("dim" if condition == "switch-off" else "lit", item, setup.seed, script.duration, first)
+            steady = render(script, session, item, setup.seed, held, hands=False)
+            sens = sensitivity_recovery(twin, steady, setup.touch, room.steps[0][0])
+        runs[condition] = Run(data, _false_touches(events, data), rec, sens)
     return runs
 
 
@@ -251,6 +325,7 @@ def summarise(runs: list[Run], touch: TouchConfig = TouchConfig()) -> dict[str, 
     margins = score_margins([r.data for r in runs], [], gates)["trials"] or {}
     trials = scored["trials"]
     recoveries = [r.recovery_s for r in runs if r.recovery_s is not None]
+    sensitivities = [r.sensitivity_s for r in runs if r.sensitivity_s is not None]
     return {
         "recall": trials["recall"],
         "tp": trials["tp"],
@@ -262,6 +337,9 @@ def summarise(runs: list[Run], touch: TouchConfig = TouchConfig()) -> dict[str, 
         "recovery_s": None
         if not recoveries
         else {"median": float(np.median(recoveries)), "max": float(max(recoveries)), "n": len(recoveries)},
+        "sensitivity_s": None
+        if not sensitivities
+        else {"median": float(np.median(sensitivities)), "max": float(max(sensitivities)), "n": len(sensitivities)},
         "by_label": trials["by_label"],
         "margins": {
             gate: {"negative": m["negative_margin"], "positive": m["positive_margin"]} for gate, m in margins.items()
@@ -314,7 +392,7 @@ def format_table(report: dict[str, Any]) -> str:
     lines = [
         f"lit room: {report['trials']} trials (scale {report['scale']}, seed {report['seed']})",
         f"{'condition':<12}{'recall':>8}{'neg fired':>11}{'false touches':>15}{'loc med px':>12}{'recovery s med/max':>20}"
-        "  margins -/+ edge, instant, sustained, projected",
+        f"{'sensitivity s med/max':>23}  margins -/+ edge, instant, sustained, projected",
     ]
 
     def num(v: float | None, fmt: str = ".3f") -> str:
@@ -324,9 +402,11 @@ def format_table(report: dict[str, Any]) -> str:
         loc = c["localisation_error_px"]
         rec = c["recovery_s"]
         recs = "-" if rec is None else f"{rec['median']:.2f} / {rec['max']:.2f}"
+        sens = c.get("sensitivity_s")
+        senses = "-" if sens is None else f"{sens['median']:.2f} / {sens['max']:.2f}"
         lines.append(
             f"{name:<12}{num(c['recall']):>8}{c['negatives_fired']:>6} / {c['negatives']:<3}{c['false_touches']:>15}"
-            f"{num(loc['median'] if loc else None, '.2f'):>12}{recs:>20}  "
+            f"{num(loc['median'] if loc else None, '.2f'):>12}{recs:>20}{senses:>23}  "
             + ", ".join(f"{num(m['negative'], '+.3f')} / {num(m['positive'], '+.3f')}" for m in c["margins"].values())
         )
     return "\n".join(lines)
