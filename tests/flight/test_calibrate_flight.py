@@ -20,11 +20,12 @@ from feelium.flight import messages as m
 from feelium.flight.sim_board import BoardParams, SensorParams
 from feelium.flight.config import FlightConfig
 from feelium.flight.estimators import SurgeEstimate
+from feelium.flight.telemetry import Telemetry
 from feelium.flight.sysid import Estimate, FlightRecord, PlantFit, lagged_mean, least_squares, motor_shape, prepare, smooth
 from feelium.flight.blimp_model import BlimpParams
 from feelium.lab.flight.calibrate import MAX_FLIGHT_S, axis_uncertainties, braked, calibrate_sim, fly, hover_guess, recovery_errors, sim_run, tight_goals
 from feelium.lab.flight.plants import describe, plant_set
-from feelium.lab.flight.calibration_pilot import CalibrationPilot
+from feelium.lab.flight.calibration_pilot import CalibrationPilot, Step
 
 CONFIG = Config().flight
 
@@ -160,6 +161,34 @@ def test_braking_is_shown_only_by_a_flown_reverse_surge_step() -> None:
     assert not braked(pilot)  # forward only
     pilot.segments.append((1, 15.0, 18.0))
     assert braked(pilot)
+
+
+def _surge_step_lengths(accel_per_command: float) -> list[float]:
+    """The surge steps' flown lengths on a toy body whose forward acceleration is ``accel_per_command`` x the mean
+    horizontal command (1.45 m up, no yaw, no drafts): the pilot alone, fed the flow it would read."""
+    script = [Step("surge", 0.5, 1.0, extend_s=2.0), Step("surge", -0.5, 1.0, extend_s=2.0)]
+    pilot = CalibrationPilot(hover_command=0.0, script=script)
+    u, t = 0.0, 0.0
+    while not pilot.done and t < 120.0:
+        left, right, _, _ = pilot.step(t, Telemetry(t, range_m=1.45, yaw_rate_dps=0.0, flow_x_rad_s=u / 1.45))
+        u += accel_per_command * 0.5 * (left + right) * 0.02
+        t += 0.02
+    assert pilot.done and pilot.aborted is None
+    return [round(end - start, 2) for _, start, end in pilot.segments]
+
+
+def test_a_surge_step_that_barely_moves_the_body_is_held_on_and_a_brisk_one_is_not() -> None:
+    """A heavy, weak plant's surge steps drowned in the drafts (its reverse ratio fitted +-30 %): a step that has
+    changed the speed by less than ``surge_change_m_s`` runs its ``extend_s`` too; one that has, ends on time."""
+    assert _surge_step_lengths(0.05) == pytest.approx([3.0, 3.0], abs=0.03)  # one tick; 0.025 m/s^2: 0.075 m/s after 3 s
+    assert _surge_step_lengths(0.5) == pytest.approx([1.0, 1.0], abs=0.03)  # 0.25 m/s^2: 0.25 m/s after 1 s
+
+
+def test_the_script_at_its_longest_ends_before_the_flight_time_limit() -> None:
+    """Every step held to its extension and every settle to its maximum: still inside ``MAX_FLIGHT_S``."""
+    pilot = CalibrationPilot(hover_command=0.0)
+    longest = pilot.gains.settle_max_s * (len(pilot.script) + 1) + sum(s.seconds + s.extend_s for s in pilot.script)
+    assert 240.0 < longest < MAX_FLIGHT_S
 
 
 def _noise_free() -> dict[str, Any]:

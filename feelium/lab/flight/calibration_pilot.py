@@ -33,6 +33,7 @@ class Envelope:
     speed_m_s: float = 0.35
     turn_dps: float = 45.0
     telemetry_timeout_s: float = 0.3
+    surge_change_m_s: float = 0.2  # a surge step this weak (a heavy, weak plant) is held on, up to its ``extend_s``
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,7 @@ class Step:
     seconds: float
     start_z: float = 1.45
     absolute: bool = False
+    extend_s: float = 0.0  # surge: longer while the speed has changed by less than ``Envelope.surge_change_m_s``
 
 
 def default_script() -> list[Step]:
@@ -54,8 +56,8 @@ def default_script() -> list[Step]:
     (two of them long and gentle, for the drag at steadier speeds), then absolute commands through the
     deadband and into reverse, short, from low down (the body rises fast: buoyancy helps them)."""
     steps: list[Step] = []
-    for level in (0.25, 0.45, 0.65):
-        steps += [Step("surge", level, 3.0), Step("surge", -level, 3.0)]
+    for level in (0.25, 0.45, 0.65, 0.85):
+        steps += [Step("surge", level, 3.0, extend_s=3.0), Step("surge", -level, 3.0, extend_s=3.0)]
     for level in (0.2, 0.35, 0.55):
         steps += [Step("yaw", level, 2.5), Step("yaw", -level, 2.5)]
     for delta, seconds in ((0.12, 2.5), (0.25, 2.0), (0.06, 4.0)):
@@ -102,6 +104,7 @@ class CalibrationPilot:
     _last_telemetry_t: float | None = None
     _integral: float = 0.0
     _z_ref: float = 1.45
+    _step_u: float = 0.0  # the forward speed when the step began
 
     def abort(self, reason: str) -> None:
         """Stop the script at once: motors neutral from the next step on."""
@@ -126,7 +129,7 @@ class CalibrationPilot:
                 self._next_step(t)
             return hold
         step = self.script[self.index]
-        if t - self._phase_t >= step.seconds or self._outside(step):
+        if t - self._phase_t >= self._duration(step) or self._outside(step):
             self.segments.append((self.index, self._phase_t, t))
             self.phase, self._phase_t = "settle", t
             self._z_ref = self._next_start_z()
@@ -185,7 +188,7 @@ class CalibrationPilot:
         if self.index >= len(self.script):
             self.done = True
             return
-        self.phase, self._phase_t = "step", t
+        self.phase, self._phase_t, self._step_u = "step", t, self.u
 
     def _next_start_z(self) -> float:
         following = self.index + 1
@@ -201,6 +204,12 @@ class CalibrationPilot:
             return (step.level, -step.level, front, rear)
         vertical = step.level if step.absolute else self.hover_command + self._integral + step.level
         return (left, right, vertical, vertical)
+
+    def _duration(self, step: Step) -> float:
+        """How long this step runs: a surge step that has barely changed the speed (a heavy, weak plant, where a
+        reverse step at a fixed length drowned in the drafts and left the reverse ratio +-30 %) is held on."""
+        weak = step.axis == "surge" and abs(self.u - self._step_u) < self.envelope.surge_change_m_s
+        return step.seconds + (step.extend_s if weak else 0.0)
 
     def _outside(self, step: Step) -> bool:
         e = self.envelope
