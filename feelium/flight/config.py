@@ -95,7 +95,8 @@ class FlightConfig:
     braking_shown: bool = setting(
         False, "The horizontal reverse thrust above was measured on this blimp: `feelium calibrate flight` sets it when"
         " its flight braked (reverse surge steps). Before the first brake in flight a forward or backward speed is"
-        " then capped at what the fitted model can stop from, not at the box's weakest reverse thrust."
+        " then capped at what the fitted model, its reverse thrust less one factor surge_uncertainty, can stop from,"
+        " not at the box's weakest reverse thrust."
     )
 
     # Gains (accelerations per unit error, so they do not change with mass).

@@ -362,12 +362,14 @@ class SurgeEstimate:
         self._drag_integral = 0.0
         low, high = effectiveness_bounds(config.uncertainty("surge"), reverse=False)
         reverse_low, _ = effectiveness_bounds(config.uncertainty("surge"), reverse=True)
-        # A fitted config whose calibration braked has shown its reverse thrust: the speed cap counts on the fit
-        # before the first brake in flight (calibrated random-2026-1 cruised at 0.890 of the command, capped by
-        # the box's weakest reverse effectiveness 1.11^-3 = 0.73: docs/calibrate-flight.md, session 17).
+        # A fitted config whose calibration braked has shown its reverse thrust: until the first brake in flight the
+        # speed cap counts on the fit, less one box factor, 1/U (calibrated random-2026-1 cruised at 0.890 of the
+        # command on the box's weakest, 1.11^-3 = 0.73, and 0.98 on this). The point estimate itself (1) let
+        # corner-MtdL's fitted config take 1.14 s to stop on a plant as weak in reverse as the fit's 3-sigma
+        # box allows; 1/U stopped it in 0.90 s (docs/calibrate-flight.md, session 17, branch i13heavy).
         self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005,
                                            assuring_change=SURGE_ASSURING_CHANGE_M_S,
-                                           shown=1.0 if config.braking_shown else None)
+                                           shown=1.0 / config.uncertainty("surge") if config.braking_shown else None)
 
     def measured(self, t: float) -> bool:
         return self.last_flow_t is not None and t - self.last_flow_t <= FLOW_FRESH_S

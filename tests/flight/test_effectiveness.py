@@ -121,6 +121,21 @@ def test_a_fitted_config_whose_calibration_braked_cruises_at_the_command_before_
     assert _speed_cap(Config().flight) < 0.7 * fitted.forward_speed_m_s  # the shipped box: unchanged, far below
 
 
+def test_a_calibration_that_braked_lets_the_cap_count_on_its_reverse_thrust_less_one_box_factor() -> None:
+    """Corner-MtdL's fitted surge (calibrated on branch i13heavy, surge box 1.26): its fitted config took 1.14 s to stop
+    on a plant as weak in reverse as the fit's 3-sigma box allows when the cap counted on the point estimate, 0.90 s
+    on the estimate / U. The cap counts on 1/U of the fitted brake: between the box's weakest and the point estimate."""
+    from feelium.flight.controller import FlightController
+
+    fitted = replace(Config().flight, mass_kg=1.9651, horizontal_thrust_n=0.183, horizontal_reverse_ratio=0.439, quadratic_drag=0.0,
+                     motor_lag_s=0.1248, surge_uncertainty=1.26, braking_shown=True)
+    controller = FlightController(fitted)
+    assert controller.surge.effectiveness.assured(-1.0) == pytest.approx(1.0 / 1.26)
+    unshown, shown = _speed_cap(replace(fitted, braking_shown=False)), _speed_cap(fitted)
+    point = _speed_cap(replace(fitted, surge_uncertainty=1.0))  # the same fit trusted outright: the cap's upper end
+    assert unshown < shown < point < fitted.forward_speed_m_s
+
+
 def test_a_steady_push_against_a_draft_does_not_make_a_large_push_count_on_a_low_value() -> None:
     """The loop holds a steady push against a steady draft (no rate change) and now and then turns hard."""
     estimator = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035)

@@ -52,7 +52,8 @@ class Step:
 
 
 def default_script() -> list[Step]:
-    """About four minutes: three sizes each way on surge and yaw; on heave steps around the hover command
+    """About four to five minutes: four sizes each way on surge (held on while they barely move the body:
+    ``extend_s``), three on yaw; on heave steps around the hover command
     (two of them long and gentle, for the drag at steadier speeds), then absolute commands through the
     deadband and into reverse, short, from low down (the body rises fast: buoyancy helps them)."""
     steps: list[Step] = []
