@@ -144,7 +144,7 @@ def depth_uncertainty(
         np.divide(bound, expected[window], out=bound)
     if not cv2.checkRange(bound)[0]:  # one pass; finite inputs (the pipeline cleans them) give a finite bound
         np.nan_to_num(bound, copy=False, nan=0.0, posinf=1.0, neginf=0.0)
-    np.clip(bound, 0.0, 1.0, out=bound)
+    bound.clip(0.0, 1.0, out=bound)
     if sigma > 0.2:
         smooth = buf.like("uncertainty.smooth", full)[window]
         bound = cv2.GaussianBlur(bound, (0, 0), sigma, dst=smooth, borderType=cv2.BORDER_REPLICATE)
