@@ -200,6 +200,7 @@ async def _measure(
         profiler.install()
     ledger = Ledger()
     loop = asyncio.get_running_loop()
+    ledger.per_callback = loop_kind(loop) == "asyncio"  # uvloop runs its callbacks in C: charge_loop_callbacks sees none
     loop.set_default_executor(ChargingExecutor(ledger, WORKER_THREADS))
     undo = charge_loop_callbacks(ledger)
     overhead_s = callback_overhead_s(loop, ledger)
