@@ -136,17 +136,14 @@ def test_the_simulated_microphones_synthesis_is_charged_apart_from_audio():
     microphone = SimMicrophone(48000, 440.0, clock=lambda: next(ticks))
     real = SimMicrophone._synth
 
-    async def record() -> None:
-        for _ in range(20):
-            await microphone.read(96000)
-
     async def charged() -> Ledger:
         ledger = Ledger()
         undo = charge_loop_callbacks(ledger)
         try:
             with sim_devices_apart(ledger):
                 ledger.counting = True
-                await asyncio.create_task(record())  # its steps are the audio service's loop callbacks
+                for _ in range(20):  # each read its own task: every step of it, the last included, is audio's callback
+                    await asyncio.create_task(microphone.read(96000))
                 ledger.counting = False
         finally:
             undo()
