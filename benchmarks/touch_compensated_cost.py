@@ -3,13 +3,15 @@ the rear frames the bench plays (320x240), the bench's projector calibration, a 
 face-on experiment's wearer video through the daemon's renderer, 30 fps), each camera frame's light and spread
 mixed by :class:`feelium.touch.projected.ExposureLight` and the pipeline fed with them.
 
-    PYTHONPATH=$PWD python3 benchmarks/touch_compensated_cost.py [--loops 3] [--profile] [--detect-scale S] [--json FILE]
+    PYTHONPATH=$PWD python3 benchmarks/touch_compensated_cost.py [--loops 3] [--profile] [--calls] [--detect-scale S] [--json FILE]
 
 One OpenCV thread (the daemon's touch thread competes with the projector's pool: its own figure is the one that
 counts). Reports ms per camera frame: ``predict`` (each new projector canvas to its light; with ``detect_scale``
 < 1 at the detection size, and ``predict (fine windows)`` the fine pass's windows, inside ``pipeline``), ``mix`` (the exposure
 mixes and spread), ``pipeline`` (``TouchPipeline.process``) and ``total``; ``--profile`` also splits the
-pipeline's time by stage (timing wrappers: they add a few microseconds a call). The bench's frames hold no
+pipeline's time by stage (timing wrappers: they add a few microseconds a call); ``--calls`` adds one more pass
+under ``cProfile``, outside the timed ones, and reports the Python-level calls per frame (functions and builtins,
+the interpreter's per-frame work) and the functions called most. The bench's frames hold no
 projection, so this measures cost, not accuracy (the face-on experiment measures that). The first loop warms
 up; each figure is the median over the later loops of their means. For an A/B run it from the older tree with
 ``PYTHONPATH`` pointing there, back to back.
@@ -18,7 +20,9 @@ up; each figure is the median over the later loops of their means. For an A/B ru
 from __future__ import annotations
 
 import argparse
+import cProfile
 import inspect
+import pstats
 import json
 import statistics
 import tempfile
@@ -97,10 +101,22 @@ def _instrument(pipeline: TouchPipeline, sink: dict[str, float]) -> None:
             setattr(target, attr, _timed(getattr(target, attr), name, sink))
 
 
+def _calls_per_frame(counter: cProfile.Profile, frames: int, top: int = 25) -> dict[str, Any]:
+    """Python-level calls per frame in total and of the ``top`` functions called most (the counting pass's)."""
+    stats = pstats.Stats(counter).stats  # type: ignore[attr-defined]
+    calls = {f"{Path(file).name}:{line} {name}": row[1] for (file, line, name), row in stats.items()}
+    most = sorted(calls.items(), key=lambda item: -item[1])[:top]
+    return {
+        "python_calls_per_frame": round(sum(calls.values()) / frames, 1),
+        "most_called_per_frame": {name: round(n / frames, 1) for name, n in most},
+    }
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--loops", type=int, default=3, help="passes over the 6 s of frames (the first warms up)")
     parser.add_argument("--profile", action="store_true", help="split the pipeline's time by stage")
+    parser.add_argument("--calls", action="store_true", help="count the Python calls per frame in one more pass")
     parser.add_argument("--json", help="write the figures here")
     parser.add_argument("--detect-scale", type=float, help="[touch] detect_scale (default: the config's)")
     args = parser.parse_args()
@@ -118,7 +134,8 @@ def main() -> int:
     source = Renderer(replace(config.projector, sensing_floor=0.0, fade_floor=0.0), calibration)
     video = FaceVideo(renderer, source, FaceScript(), 0.0)
     loops = max(2, args.loops)
-    canvases = [video.shown(k)[1] for k in range(len(frames) * loops + 2)]  # rendered outside the timing
+    passes = loops + 1 if args.calls else loops  # the counting pass runs last, outside the timed ones
+    canvases = [video.shown(k)[1] for k in range(len(frames) * passes + 2)]  # rendered outside the timing
     # As the daemon builds it: over the pipeline's ROI (older trees predict the whole frame).
     boxed = "box" in inspect.signature(CanvasLightPredictor).parameters
     box = {"box": roi} if boxed else {}
@@ -177,13 +194,17 @@ def main() -> int:
     history = ProjectorHistory(history_window_s(config.touch))
     per_loop: list[dict[str, float]] = []
     shown = 0
-    for loop in range(loops):
+    counter = cProfile.Profile()
+    for loop in range(passes):
         cpu.clear()
+        counting = loop == loops
         for i, frame in enumerate(frames):
             t = (loop * len(frames) + i) / FPS
             while shown / FPS + SHOWN_OFFSET_S <= t:
                 history.record(shown / FPS + SHOWN_OFFSET_S, shown + 1, canvases[shown])
                 shown += 1
+            if counting:
+                counter.enable()
             start = time.thread_time()
             mixed = exposure(history.frames(), t)
             middle = time.thread_time()
@@ -192,12 +213,15 @@ def main() -> int:
             else:
                 pipeline.process(t, frame, projected_light=mixed[0], projected_spread=mixed[1], **fine)
             end = time.thread_time()
+            if counting:
+                counter.disable()
             cpu["exposure light"] += middle - start
             cpu["pipeline"] += end - middle
         row = {name: 1000.0 * value / len(frames) for name, value in cpu.items()}
         row["mix"] = row["exposure light"] - row.get("predict", 0.0)
         row["total"] = row["exposure light"] + row["pipeline"]
-        per_loop.append(row)
+        if not counting:
+            per_loop.append(row)
     later = per_loop[1:]
     report = {
         "frames_per_loop": len(frames),
@@ -208,6 +232,8 @@ def main() -> int:
         "ms_per_frame": {k: round(statistics.median(r.get(k, 0.0) for r in later), 3) for k in sorted(later[0])},
         "total_by_loop": [round(r["total"], 3) for r in per_loop],
     }
+    if args.calls:
+        report.update(_calls_per_frame(counter, len(frames)))
     print(json.dumps(report, indent=1))
     if args.json:
         with open(args.json, "w") as out:

@@ -27,5 +27,12 @@ class Scratch:
         return array
 
     def like(self, name: str, template: np.ndarray, dtype: type | np.dtype | None = None) -> np.ndarray:
-        """The buffer called ``name`` with ``template``'s shape (and dtype unless given)."""
-        return self.get(name, template.shape, template.dtype if dtype is None else np.dtype(dtype))
+        """The buffer called ``name`` with ``template``'s shape (and dtype unless given).
+
+        :meth:`get`'s lookup written out: the pipeline asks for ~40 buffers a frame, and on the Pi a Python call
+        is worth saving there (issue 16)."""
+        wanted = template.dtype if dtype is None else dtype  # a dtype compares equal to its type (``bool``)
+        array = self._arrays.get(name)
+        if array is None or array.shape != template.shape or array.dtype != wanted:
+            array = self._arrays[name] = np.empty(template.shape, wanted)
+        return array

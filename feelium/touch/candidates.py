@@ -126,7 +126,7 @@ def find_candidates(
         for part, owned, part_area in _core_parts(values, core, inside, split_level, min_area):
             part_weights = np.where(part, weights, 0.0)
             total = float(part_weights.sum())
-            ys, xs = np.nonzero(part)
+            ys, xs = part.nonzero()
             w_core = part_weights[ys, xs]
             cx = bx + x0 + float(np.dot(xs, w_core)) / total
             cy = by + y0 + float(np.dot(ys, w_core)) / total
@@ -134,7 +134,7 @@ def find_candidates(
             # The footprint: where the shadow is at least core_fraction of the core's *mean* depth. The peak of a
             # large flat contact is the largest of many noisy pixels, so a level from it cuts into the plateau.
             footprint = owned & (values >= core_fraction * float(part_values.mean()))
-            fys, fxs = np.nonzero(footprint)
+            fys, fxs = footprint.nonzero()
             edge = 0.0
             if edges:
                 x_min, y_min = bx + x0 + int(xs.min()), by + y0 + int(ys.min())

@@ -59,7 +59,7 @@ def relative_depth(
     np.copyto(expected, dtype(1.0), where=masked)
     depth = np.divide(frame, expected, out=buf.get("depth.depth", expected.shape, np.result_type(frame, expected)))
     np.subtract(dtype(1.0), depth, out=depth)
-    np.clip(depth, -1.0 if signed else 0.0, 1.0, out=depth)
+    depth.clip(-1.0 if signed else 0.0, 1.0, out=depth)  # the method: np.clip less its dispatch
     np.copyto(depth, depth.dtype.type(0.0), where=masked)
     bad = np.isfinite(depth, out=buf.like("depth.bad", reference, bool))
     np.logical_not(bad, out=bad)

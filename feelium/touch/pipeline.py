@@ -657,7 +657,7 @@ def _clean_light(light: np.ndarray, unknown: float) -> np.ndarray:
     """``light`` in place: NaN and inf become ``unknown``, negatives 0, the rest clipped to the light's range."""
     if not cv2.checkRange(light)[0]:  # one pass, and almost always all finite: nan_to_num takes four
         np.nan_to_num(light, copy=False, nan=unknown, posinf=unknown, neginf=0.0)
-    np.clip(light, 0.0, LIGHT_MAX, out=light)
+    light.clip(0.0, LIGHT_MAX, out=light)  # the method: np.clip less its dispatch
     return light
 
 

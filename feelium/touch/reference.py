@@ -145,7 +145,7 @@ class AdaptiveReference:
         buf = self._scratch
         ratio = np.divide(frame, self.image, out=buf.get("rows.ratio", frame.shape, np.result_type(frame, self.image)))
         ratio *= self.dtype_cast(1.0 / self.gain)
-        np.clip(ratio, one - self.dtype_cast(c), one + self.dtype_cast(c), out=ratio)
+        ratio.clip(one - self.dtype_cast(c), one + self.dtype_cast(c), out=ratio)
         dark = self.dtype_cast(self.dark_level / self.gain)
         usable = np.greater_equal(self.image, dark, out=buf.like("rows.usable", frame, bool))
         other = np.less(frame, self.saturation_level, out=buf.like("rows.other", frame, bool))

@@ -112,7 +112,7 @@ class FineDetail:
         buf = self._scratch
         ratio = np.maximum(expected, np.float32(1e-3), out=buf.get("detail.lesson", flat.shape, np.float32))
         np.divide(flat, ratio, out=ratio)
-        np.clip(ratio, *DETAIL_LIMITS, out=ratio)
+        ratio.clip(*DETAIL_LIMITS, out=ratio)
         if self.ratio is None or self.ratio.shape != ratio.shape:
             self.ratio = np.ones(ratio.shape, np.float32)
             self._lessons = np.zeros(ratio.shape, np.float32)

@@ -136,6 +136,8 @@ class Tracker:
         """
         cfg = self.config
         out = TrackerStep()
+        if not observations and not self.tracks:
+            return out  # nothing seen and nothing to follow (most frames): what every step below would leave
         matched = self._associate(t, observations)
         shared = self._shared(t, observations, matched)
         for track in self.tracks:

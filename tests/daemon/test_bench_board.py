@@ -6,15 +6,26 @@ Speed claims live in the benchmark (docs/performance.md), not here: nothing belo
 from __future__ import annotations
 
 import asyncio
+import itertools
 import json
 import math
 
 import pytest
 
+from feelium.audio.backends import SimMicrophone
 from feelium.daemon.config import Config
 from feelium.daemon.eventloop import loop_kind
-from feelium.lab.daemon.attribution import LOOP_OTHER, OTHER_THREADS, SIM_DEVICES, Ledger, charge, charged_apart, service_of_module
-from feelium.lab.daemon.board import bench_board, format_table
+from feelium.lab.daemon.attribution import (
+    LOOP_OTHER,
+    OTHER_THREADS,
+    SIM_DEVICES,
+    Ledger,
+    charge,
+    charge_loop_callbacks,
+    charged_apart,
+    service_of_module,
+)
+from feelium.lab.daemon.board import bench_board, format_table, sim_devices_apart
 
 
 def test_modules_and_threads_are_charged_to_their_service():
@@ -108,6 +119,41 @@ def test_a_simulated_devices_work_moves_out_of_the_service_that_calls_it():
     assert moved > 0 and ledger.seconds["thermal", "loop"] == -moved  # the charged total is unchanged
     charged = charge({"MainThread": 0.0}, {"MainThread": 1.0}, ledger)
     assert charged[LOOP_OTHER]["loop"] == pytest.approx(1.0)
+    unseen = Ledger()  # uvloop: no loop callback is charged to a service, the loop's time is all the remainder
+    unseen.per_callback = False
+    unseen.counting = True
+    with charged_apart(_Device, "transaction", "audio", unseen):
+        _Device().transaction()
+    moved = unseen.seconds[SIM_DEVICES, "loop"]
+    assert moved > 0 and ("audio", "loop") not in unseen.seconds  # no service goes below zero...
+    charged = charge({"MainThread": 0.0}, {"MainThread": 1.0}, unseen)
+    assert charged[LOOP_OTHER]["loop"] == pytest.approx(1.0 - moved)  # ...the remainder gives the device's time up
+
+
+def test_the_simulated_microphones_synthesis_is_charged_apart_from_audio():
+    """The tone the simulated microphone synthesises on the loop thread is not the Pi's work: it leaves audio."""
+    ticks = itertools.count(0.0, 1000.0)  # every read is already due: no real waiting
+    microphone = SimMicrophone(48000, 440.0, clock=lambda: next(ticks))
+    real = SimMicrophone._synth
+
+    async def charged() -> Ledger:
+        ledger = Ledger()
+        undo = charge_loop_callbacks(ledger)
+        try:
+            with sim_devices_apart(ledger):
+                ledger.counting = True
+                for _ in range(20):  # each read its own task: every step of it, the last included, is audio's callback
+                    await asyncio.create_task(microphone.read(96000))
+                ledger.counting = False
+        finally:
+            undo()
+        return ledger
+
+    ledger = asyncio.run(charged())
+    assert SimMicrophone._synth is real
+    moved = ledger.seconds[SIM_DEVICES, "loop"]
+    assert moved > 0 and ledger.callbacks_by["audio"] >= 20  # the synthesis ran inside audio's callbacks...
+    assert ledger.seconds["audio", "loop"] >= 0  # ...and only its own time was taken from audio
 
 
 def test_bench_board_runs_every_service_and_writes_finite_json():

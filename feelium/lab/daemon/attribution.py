@@ -11,9 +11,10 @@ Three kinds of thread run a service's work, and each is charged differently:
   each ``asyncio`` handle (:func:`charge_loop_callbacks`).
 
 A simulated device's own work inside a service's call (the MLX90640 simulation
-writing its RAM, where the blimp's sensor costs the Pi one I2C read) is taken
-out of that service and charged to :data:`SIM_DEVICES` (:func:`charged_apart`),
-which the projection leaves out.
+writing its RAM, where the blimp's sensor costs the Pi one I2C read; the
+simulated microphone synthesising its tone, where the Pi's ALSA capture hands
+over recorded samples) is taken out of that service and charged to
+:data:`SIM_DEVICES` (:func:`charged_apart`), which the projection leaves out.
 
 Thread CPU time, not wall time: other processes on the machine delay a thread
 but do not add to its CPU time, so a loaded machine inflates these figures far
@@ -125,6 +126,9 @@ class Ledger:
         self.seconds: dict[tuple[str, str], float] = defaultdict(float)  # (service, "loop" or "pool") -> s
         self.callbacks = 0  # loop callbacks timed while counting
         self.callbacks_by: dict[str, int] = defaultdict(int)  # ...and by the service each was charged to
+        # Whether the loop thread's callbacks are charged one by one (asyncio's loop). On uvloop they run in C,
+        # unseen: all of the loop thread's time is the remainder, event loop (other), and a service has no loop time.
+        self.per_callback = True
         self.counting = False
         self._lock = threading.Lock()
 
@@ -247,7 +251,9 @@ def charged_apart(owner: type, method: str, service: str, ledger: Ledger) -> Ite
 
     For a simulated device a service calls into: the call is timed with the calling thread's CPU clock and
     that time is taken from the service's part of the same kind (loop, pool or thread), so the service's
-    own work and the total charged are unchanged; only the device's share moves.
+    own work and the total charged are unchanged; only the device's share moves. On a loop whose callbacks are not
+    charged one by one (``ledger.per_callback`` false: uvloop) the loop thread's part is taken from the remainder,
+    event loop (other), which :func:`charge` computes net of everything the ledger holds.
     """
     real = getattr(owner, method)
     inside = threading.local()
@@ -263,7 +269,8 @@ def charged_apart(owner: type, method: str, service: str, ledger: Ledger) -> Ite
         finally:
             inside.depth = 0
             spent, kind = time.thread_time() - started, _kind_here()
-            ledger.add(service, kind, -spent)
+            if kind != "loop" or ledger.per_callback:
+                ledger.add(service, kind, -spent)
             ledger.add(SIM_DEVICES, kind, spent)
 
     setattr(owner, method, timed)

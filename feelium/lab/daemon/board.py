@@ -37,6 +37,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from feelium.audio.backends import SimMicrophone
 from feelium.daemon.assembly import SERVICES, load_projected_light, load_projector_annotation
 from feelium.daemon.config import Config, load_config
 from feelium.daemon.eventloop import loop_kind, new_event_loop
@@ -75,6 +76,12 @@ LAG_PROBE_S = 0.01
 RSS_EVERY_S = 0.5
 REAR_LOOP_S = 6.0  # seconds of rear frames preloaded (touches every ~1.5 s); longer only costs memory
 FRONT_LOOP_S = 1.0
+# A simulated device's own work inside a service's call, charged apart (:func:`sim_devices_apart`): the device's
+# class, its method, the service that calls it.
+SIM_DEVICE_CALLS: tuple[tuple[type, str, str], ...] = (
+    (SimMlx90640, "transaction", "thermal"),
+    (SimMicrophone, "_synth", "audio"),
+)
 
 
 @dataclasses.dataclass
@@ -152,6 +159,15 @@ def _percentile(values: list[float], q: float) -> float:
     return float(np.percentile(np.asarray(values, dtype=np.float64), q)) if values else float("nan")
 
 
+@contextlib.contextmanager
+def sim_devices_apart(ledger: Ledger) -> Iterator[None]:
+    """While open, every call of :data:`SIM_DEVICE_CALLS` is charged to ``SIM_DEVICES`` instead of its service."""
+    with contextlib.ExitStack() as stack:
+        for owner, method, service in SIM_DEVICE_CALLS:
+            stack.enter_context(charged_apart(owner, method, service, ledger))
+        yield
+
+
 async def _lag_probe(lags_ms: SampleBlock, stop: asyncio.Event) -> None:
     """How late the loop wakes a 10 ms sleeper: what any callback waits behind the others."""
     while not stop.is_set():
@@ -184,6 +200,7 @@ async def _measure(
         profiler.install()
     ledger = Ledger()
     loop = asyncio.get_running_loop()
+    ledger.per_callback = loop_kind(loop) == "asyncio"  # uvloop runs its callbacks in C: charge_loop_callbacks sees none
     loop.set_default_executor(ChargingExecutor(ledger, WORKER_THREADS))
     undo = charge_loop_callbacks(ledger)
     overhead_s = callback_overhead_s(loop, ledger)
@@ -244,10 +261,12 @@ async def _measure(
             await asyncio.sleep(RSS_EVERY_S)
 
     tasks = [asyncio.create_task(window()), asyncio.create_task(_lag_probe(lags, lag_stop)), asyncio.create_task(peak())]
-    # The simulated MLX90640 writes its RAM inside each of thermal's I2C reads: on the blimp that is the sensor's
-    # work, and the Pi pays an I2C transfer. Its share moves out of thermal (not in a profiled run, whose shares
-    # are of thermal with the device: its numeric seconds are not split).
-    apart = charged_apart(SimMlx90640, "transaction", "thermal", ledger) if profiler is None else contextlib.nullcontext()
+    # Simulated devices' own work, which the blimp's hardware does instead, moves out of the service that calls it
+    # (not in a profiled run, whose shares are of each service with its device: their numeric seconds are not
+    # split): the simulated MLX90640 writes its RAM inside each of thermal's I2C reads (the Pi pays an I2C
+    # transfer), and the simulated microphone synthesises its tone on the loop thread (the Pi's ALSA capture
+    # hands over samples the sound card recorded).
+    apart = sim_devices_apart(ledger) if profiler is None else contextlib.nullcontext()
     try:
         with apart:
             await run_daemon(config, stop=stop, hub=hub, notifier=Notifier({}), builders=builders(cameras),
