@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import json
 import statistics
 import time
 from pathlib import Path
@@ -29,6 +28,7 @@ from feelium.lab.daemon.headset import FACE_FPS, _face_video
 from feelium.projector.display import SimDisplay
 from feelium.projector.service import ProjectorService
 from feelium.skin.projector_map import ProjectorMap, load_or_default
+from feelium.lab.report import print_and_save
 
 
 async def _play(jpegs: list[bytes], seconds: float, calibration: ProjectorMap) -> float:
@@ -59,10 +59,7 @@ def main() -> int:
     runs = [asyncio.run(_play(jpegs, args.seconds, calibration)) for _ in range(args.rounds)]
     report = {"frames": len(jpegs), "fps": FACE_FPS, "seconds": args.seconds, "cpu_ms_per_s": round(statistics.median(runs), 2),
               "runs": [round(r, 2) for r in runs]}
-    print(json.dumps(report))
-    if args.json:
-        with open(args.json, "w") as out:
-            json.dump(report, out, indent=2)
+    print_and_save(report, args.json)
     return 0
 
 

@@ -21,7 +21,6 @@ reports that figure too: the one that multiplies into the daemon's CPU.
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
@@ -36,6 +35,7 @@ from feelium.flight.setpoint import HOLD, Setpoint, setpoint_for_motion
 from feelium.flight.sim_board import BoardParams, SensorParams, SimSerial, board_with
 from feelium.flight.telemetry import Telemetry
 from feelium.lab.flight.simulation import SimFlight
+from feelium.lab.report import print_and_save
 
 CONFIG = Config().flight
 SCRIPT = (  # (until s, motion command); the pinned tick test's flight without its absolute setpoint
@@ -213,10 +213,7 @@ def main() -> int:
         report["paced_client_ms_per_tick"] = round(1000.0 * client_paced / n, 4)
         report["paced_controller_ms_per_tick"] = round(1000.0 * controller_paced / n, 4)
         report["paced_ms_per_tick"] = round(1000.0 * (client_paced + controller_paced) / n, 4)
-    print(json.dumps(report))
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(report, fh, indent=2)
+    print_and_save(report, args.json)
     return 0
 
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import cProfile
-import json
 import pstats
 import subprocess
 import sys
@@ -27,6 +26,7 @@ from feelium.flight.controller import FlightController
 from feelium.flight.service import FlightService, SerialOpener
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.hub import Hub
+from feelium.lab.report import print_and_save
 from loop_callbacks import CallbackCount  # benchmarks/ is the script's own folder
 
 
@@ -106,10 +106,7 @@ def main() -> int:
     finally:
         board.kill()
         board.wait()
-    print(json.dumps(report))
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(report, fh, indent=2)
+    print_and_save(report, args.json)
     return 0
 
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import json
 import sys
 import time
 
@@ -23,6 +22,7 @@ from feelium.daemon.config import Config
 from feelium.hub import Hub
 from loop_callbacks import CallbackCount  # benchmarks/ is the script's own folder
 from feelium.thermal.service import ThermalService, sim_driver
+from feelium.lab.report import print_and_save
 
 
 async def _run(seconds: float) -> dict[str, float]:
@@ -64,10 +64,7 @@ def main() -> int:
     parser.add_argument("--json", help="write the figures here")
     args = parser.parse_args()
     report = asyncio.run(_run(args.seconds))
-    print(json.dumps(report))
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(report, fh, indent=2)
+    print_and_save(report, args.json)
     return 0
 
 

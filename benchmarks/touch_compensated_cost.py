@@ -23,7 +23,6 @@ import argparse
 import cProfile
 import inspect
 import pstats
-import json
 import statistics
 import tempfile
 import time
@@ -47,6 +46,7 @@ from feelium.skin.projector_map import load_or_default
 from feelium.touch import pipeline as pipeline_module
 from feelium.touch.pipeline import TouchPipeline
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
+from feelium.lab.report import print_and_save
 
 FPS = 30.0
 SHOWN_OFFSET_S = 0.004  # the projector's frames are handed over a little after the camera's (unsynchronised clocks)
@@ -234,10 +234,7 @@ def main() -> int:
     }
     if args.calls:
         report.update(_calls_per_frame(counter, len(frames)))
-    print(json.dumps(report, indent=1))
-    if args.json:
-        with open(args.json, "w") as out:
-            json.dump(report, out, indent=2)
+    print_and_save(report, args.json, indent=1)
     return 0
 
 

@@ -12,7 +12,6 @@ For an A/B, run it from a worktree of the older commit with ``PYTHONPATH`` point
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import time
 
@@ -22,6 +21,7 @@ from feelium.daemon.config import Config
 from feelium.daemon.memory import tune_malloc
 from feelium.lab.daemon.preloaded import rear_frames
 from feelium.touch.pipeline import TouchPipeline
+from feelium.lab.report import print_and_save
 
 
 def main() -> int:
@@ -57,10 +57,7 @@ def main() -> int:
         "ms_per_frame_by_loop": [round(v, 3) for v in per_loop],
         "ms_per_frame": round(statistics.median(per_loop[1:]), 3),
     }
-    print(json.dumps(report))
-    if args.json:
-        with open(args.json, "w") as out:
-            json.dump(report, out, indent=2)
+    print_and_save(report, args.json)
     return 0
 
 

@@ -18,6 +18,13 @@ def emit_report(table: str, result: dict[str, Any], json_path: str | None) -> No
         print(text)
 
 
+def print_and_save(report: dict[str, Any], json_path: str | None, *, indent: int | None = None) -> None:
+    """A benchmark's report: printed as JSON (one line unless ``indent``), and written indented to ``json_path`` if given."""
+    print(json.dumps(report, indent=indent))
+    if json_path:
+        Path(json_path).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+
+
 def print_progress(n: int, total: int, name: str) -> None:
     """One progress line on stderr, rewritten in place, for an experiment that takes minutes."""
     print(f"\r{n}/{total} {name:<30}", end="", file=sys.stderr, flush=True)
