@@ -55,6 +55,9 @@ class Candidate:
     bbox: tuple[int, int, int, int]  # x, y, w, h in working pixels (of the whole shadow)
     footprint_area: int = 0  # working pixels of the contact's footprint (see find_candidates)
     footprint_cov: tuple[float, float, float] = (0.0, 0.0, 0.0)  # var x, var y, cov xy of the footprint, working px^2
+    # The whole core's centroid when the fingertip (x, y) was taken from its part deeper than the room's floor, else
+    # None (the same point). The projected gate reads the share there, so the gates are what they were without it.
+    core_point: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -144,10 +147,12 @@ def find_candidates(
             w_core = part_weights[ys, xs]
             cx = bx + x0 + float(np.dot(xs, w_core)) / total
             cy = by + y0 + float(np.dot(ys, w_core)) / total
+            core_point = None
             if room_floor is not None:
                 floor = room_floor(cx, cy)
                 if floor is not None and floor > level:
-                    cx, cy = _contact_point(values, part, floor, (bx + x0, by + y0), (cx, cy))
+                    core_point = (cx, cy)
+                    cx, cy = _contact_point(values, part, floor, (bx + x0, by + y0), core_point)
             part_values = values[part]
             # The footprint: where the shadow is at least core_fraction of the core's *mean* depth. The peak of a
             # large flat contact is the largest of many noisy pixels, so a level from it cuts into the plateau.
@@ -160,7 +165,7 @@ def find_candidates(
                 edge = steepest_gradient(full_depth, (x_min, y_min, x_max, y_max), edge_radius)
             found.append(Candidate(
                 cx, cy, float(part_values.max()), float(part_values.mean()), part_area, edge, label,
-                (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys),
+                (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys), core_point,
             ))  # fmt: skip
             if len(found) >= max_candidates:
                 break

@@ -362,7 +362,9 @@ class TouchPipeline:
             # Where the candidate lies in the detection image (the coarse candidate's own point at scale 1).
             point = (cand.x, cand.y) if geometry is self.geometry else self.geometry.from_camera(cx, cy)
             projected = True  # took the projector's own light away (unknown: assumed, as before the share)
-            share = self.projector_share.share_at(*point) if coarse is not None else None
+            share = None
+            if coarse is not None:
+                share = self.projector_share.share_at(*self._gate_point(cand, geometry, point))
             if share is not None:
                 taken = projected_depth(cand.peak, share)
                 most_projected = taken if most_projected is None else max(most_projected, taken)
@@ -543,6 +545,18 @@ class TouchPipeline:
             smooth, self._fine_min_area, self._fine_edge_radius, buf, room_floor=self._room_floor(to_detection)
         )
         return [shifted(c, window) for c in found]
+
+    def _gate_point(
+        self, cand: Candidate, geometry: WorkingGeometry, point: tuple[float, float]
+    ) -> tuple[float, float]:
+        """Where the projected gate reads the share for ``cand`` (detection image): its whole core's centroid, which is
+        ``point`` unless the fingertip was taken from the part below the room's floor (:func:`find_candidates`). The
+        gate is judged where it was before that localisation, so it fires exactly as it did."""
+        if cand.core_point is None:
+            return point
+        if geometry is self.geometry:
+            return cand.core_point
+        return self.geometry.from_camera(*geometry.to_camera(*cand.core_point))
 
     def _room_floor(
         self, to_detection: Callable[[float, float], tuple[float, float]]

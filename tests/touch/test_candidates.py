@@ -73,6 +73,7 @@ def test_a_lit_rooms_finger_shadow_pulls_the_core_but_not_the_part_deeper_than_t
     assert plain.y - 30.0 > 5.0  # the finger joined the core: the point slid towards the wrist
     assert abs(lit.x - 40.0) < 0.25 and abs(lit.y - 30.0) < 1.0
     assert (lit.core_depth, lit.area, lit.edge) == (plain.core_depth, plain.area, plain.edge)
+    assert plain.core_point is None and lit.core_point == (plain.x, plain.y)  # where the projected gate reads the share
 
 
 def test_a_floor_above_the_whole_shadow_or_unknown_keeps_the_core_centroid():
