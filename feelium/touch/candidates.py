@@ -18,11 +18,20 @@ shadows overlap): each separate part of its core is a candidate of its own,
 and its *footprint* (the part's shadow at least ``core_fraction`` of its core's
 mean depth: a pressed contact's plateau, up to its blurred edge) gives the
 contact's area and second moments (:mod:`feelium.touch.shape`).
+
+Where the room's share of the light is known (``room_floor``), the fingertip is
+taken only from the part of the core deeper than any hand *above* the membrane
+could make it. A finger blocks the room's light along its whole length, and in
+a lit room that shadow is nearly as deep as the pad's, so a core at a fraction
+of the peak takes in the finger behind the pad and the point slides towards the
+wrist; only skin on the membrane takes the projector's own light (the
+frustrated reflection), so the part deeper than the room's share is the pad.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -46,6 +55,9 @@ class Candidate:
     bbox: tuple[int, int, int, int]  # x, y, w, h in working pixels (of the whole shadow)
     footprint_area: int = 0  # working pixels of the contact's footprint (see find_candidates)
     footprint_cov: tuple[float, float, float] = (0.0, 0.0, 0.0)  # var x, var y, cov xy of the footprint, working px^2
+    # The whole core's centroid when the fingertip (x, y) was taken from its part deeper than the room's floor, else
+    # None (the same point). The projected gate reads the share there, so the gates are what they were without it.
+    core_point: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -77,6 +89,7 @@ def find_candidates(
     scratch: Scratch | None = None,
     split_fraction: float = 0.0,
     edges: bool = True,
+    room_floor: Callable[[float, float], float | None] | None = None,
 ) -> tuple[list[Candidate], Segmentation | None]:
     """Candidates (largest shadow first, working-image coordinates) and their segmentation (None when none).
 
@@ -89,6 +102,10 @@ def find_candidates(
     ``edges=False`` leaves every candidate's edge at 0.0: a caller that reads only where the shadows are (the coarse
     pass of a two-resolution pipeline, :mod:`feelium.touch.refine`, which finds the candidates again finer) saves
     the gradient filters, the costliest part of a candidate.
+
+    ``room_floor(x, y)``: the deepest smoothed depth a hand above the membrane can cast at a point of ``depth``
+    (all the light that is not the projector's, :mod:`feelium.touch.roomshare`), None where it is unknown. A core
+    deeper than it is localised on that part alone (:func:`_contact_point`); depth, area and edge do not change.
     """
     buf = Scratch() if scratch is None else scratch
     full_mask = np.greater(depth, threshold, out=buf.like("candidates.mask", depth, bool)).view(np.uint8)
@@ -130,6 +147,12 @@ def find_candidates(
             w_core = part_weights[ys, xs]
             cx = bx + x0 + float(np.dot(xs, w_core)) / total
             cy = by + y0 + float(np.dot(ys, w_core)) / total
+            core_point = None
+            if room_floor is not None:
+                floor = room_floor(cx, cy)
+                if floor is not None and floor > level:
+                    core_point = (cx, cy)
+                    cx, cy = _contact_point(values, part, floor, (bx + x0, by + y0), core_point)
             part_values = values[part]
             # The footprint: where the shadow is at least core_fraction of the core's *mean* depth. The peak of a
             # large flat contact is the largest of many noisy pixels, so a level from it cuts into the plateau.
@@ -142,11 +165,26 @@ def find_candidates(
                 edge = steepest_gradient(full_depth, (x_min, y_min, x_max, y_max), edge_radius)
             found.append(Candidate(
                 cx, cy, float(part_values.max()), float(part_values.mean()), part_area, edge, label,
-                (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys),
+                (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys), core_point,
             ))  # fmt: skip
             if len(found) >= max_candidates:
                 break
     return _drop_surrounding(found), Segmentation(labels, (bx, by))
+
+
+def _contact_point(
+    values: np.ndarray, part: np.ndarray, floor: float, origin: tuple[int, int], fallback: tuple[float, float]
+) -> tuple[float, float]:
+    """The centroid of the ``part`` deeper than ``floor``, weighted by how far each pixel goes below it (``origin``:
+    the patch's corner); ``fallback`` when nothing in it is (a hover: all its depth is the room's light)."""
+    weights = np.where(part, values - np.float32(floor), 0.0)
+    np.maximum(weights, 0.0, out=weights)
+    total = float(weights.sum())
+    if total <= 0.0 or not math.isfinite(total):
+        return fallback
+    ys, xs = np.nonzero(weights)
+    w = weights[ys, xs]
+    return origin[0] + float(np.dot(xs, w)) / total, origin[1] + float(np.dot(ys, w)) / total
 
 
 def _drop_surrounding(found: list[Candidate]) -> list[Candidate]:

@@ -38,7 +38,7 @@ from feelium.touch.refine import (
     shifted,
     upsample_window,
 )
-from feelium.touch.roomshare import ProjectorShare, projected_depth, room_dominated
+from feelium.touch.roomshare import SHARE_ERROR, ProjectorShare, projected_depth, room_dominated
 from feelium.touch.settle import depth_uncertainty, spread_window
 from feelium.touch.shape import axes_from_moments, contact_shape
 from feelium.touch.tracker import Contact, Observation, Tracker
@@ -327,7 +327,10 @@ class TouchPipeline:
         area = int(round(darkened * self.geometry.area_scale))
         depth_max = float(smooth.max()) if smooth.size else 0.0
         # With a fine pass the coarse candidates only say where to look (fine_window): their edges go unread.
-        candidates, _ = self._find(smooth, self._min_area, self._edge_radius, buf, edges=self.fine is None)
+        candidates, _ = self._find(
+            smooth, self._min_area, self._edge_radius, buf, edges=self.fine is None,
+            room_floor=self._room_floor(lambda x, y: (x, y)) if self.fine is None else None,
+        )  # fmt: skip
         geometry = self.geometry
         fine_inputs = None
         learn_detail = self.fine is not None and self.settled and self.detail.due(t)
@@ -359,7 +362,9 @@ class TouchPipeline:
             # Where the candidate lies in the detection image (the coarse candidate's own point at scale 1).
             point = (cand.x, cand.y) if geometry is self.geometry else self.geometry.from_camera(cx, cy)
             projected = True  # took the projector's own light away (unknown: assumed, as before the share)
-            share = self.projector_share.share_at(*point) if coarse is not None else None
+            share = None
+            if coarse is not None:
+                share = self.projector_share.share_at(*self._gate_point(cand, geometry, point))
             if share is not None:
                 taken = projected_depth(cand.peak, share)
                 most_projected = taken if most_projected is None else max(most_projected, taken)
@@ -531,14 +536,57 @@ class TouchPipeline:
             inputs, window, sigma=self._fine_sigma, dark_level=cfg.dark_reference_level,
             saturation_level=float(cfg.saturation_level), scratch=buf,
         )  # fmt: skip
-        found, _ = self._find(smooth, self._fine_min_area, self._fine_edge_radius, buf)
+        dx, dy = window[1].start, window[0].start
+
+        def to_detection(x: float, y: float) -> tuple[float, float]:
+            return self.geometry.from_camera(*fine.to_camera(x + dx, y + dy))
+
+        found, _ = self._find(
+            smooth, self._fine_min_area, self._fine_edge_radius, buf, room_floor=self._room_floor(to_detection)
+        )
         return [shifted(c, window) for c in found]
 
+    def _gate_point(
+        self, cand: Candidate, geometry: WorkingGeometry, point: tuple[float, float]
+    ) -> tuple[float, float]:
+        """Where the projected gate reads the share for ``cand`` (detection image): its whole core's centroid, which is
+        ``point`` unless the fingertip was taken from the part below the room's floor (:func:`find_candidates`). The
+        gate is judged where it was before that localisation, so it fires exactly as it did."""
+        if cand.core_point is None:
+            return point
+        if geometry is self.geometry:
+            return cand.core_point
+        return self.geometry.from_camera(*geometry.to_camera(*cand.core_point))
+
+    def _room_floor(
+        self, to_detection: Callable[[float, float], tuple[float, float]]
+    ) -> Callable[[float, float], float | None] | None:
+        """The deepest a hand above the membrane can darken a point (given in the coordinates ``to_detection`` maps
+        to the detection image): the light that is not the projector's, ``1 - share``, plus the share's error
+        (:data:`SHARE_ERROR`); None at a point whose share is unknown, and no function while the share is not
+        used (``contact_projected_depth`` 0). Read only for a candidate, so the share map is made only then."""
+        if self.config.contact_projected_depth <= 0.0:
+            return None
+        share_at = self.projector_share.share_at
+
+        def floor(x: float, y: float) -> float | None:
+            share = share_at(*to_detection(x, y))
+            return None if share is None else 1.0 - share + SHARE_ERROR
+
+        return floor
+
     def _find(
-        self, smooth: np.ndarray, min_area: int, edge_radius: float, scratch: Scratch, *, edges: bool = True
+        self,
+        smooth: np.ndarray,
+        min_area: int,
+        edge_radius: float,
+        scratch: Scratch,
+        *,
+        edges: bool = True,
+        room_floor: Callable[[float, float], float | None] | None = None,
     ) -> tuple[list[Candidate], Segmentation | None]:
-        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes (``edges``:
-        :func:`find_candidates`'s)."""
+        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes (``edges``,
+        ``room_floor``: :func:`find_candidates`'s)."""
         cfg = self.config
         return find_candidates(
             smooth,
@@ -550,6 +598,7 @@ class TouchPipeline:
             scratch=scratch,
             split_fraction=cfg.contact_split_fraction,
             edges=edges,
+            room_floor=room_floor,
         )
 
     def _learn_detail(self, t: float, inputs: FineInputs, frozen: np.ndarray) -> None:

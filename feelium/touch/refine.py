@@ -206,4 +206,8 @@ def shifted(candidate: Candidate, window: Window) -> Candidate:
     """A candidate found in ``window`` in the coordinates of the whole fine working image."""
     dx, dy = window[1].start, window[0].start
     x, y, w, h = candidate.bbox
-    return dataclasses.replace(candidate, x=candidate.x + dx, y=candidate.y + dy, bbox=(x + dx, y + dy, w, h))
+    core = candidate.core_point
+    return dataclasses.replace(
+        candidate, x=candidate.x + dx, y=candidate.y + dy, bbox=(x + dx, y + dy, w, h),
+        core_point=None if core is None else (core[0] + dx, core[1] + dy),
+    )  # fmt: skip
