@@ -123,7 +123,8 @@ def test_the_scripted_flight_ends_neutral_and_stays_in_its_envelope() -> None:
 
     log = fly(run.client, pilot, run.clock, wait, 0.02)
     assert pilot.done and pilot.aborted is None
-    assert len(pilot.segments) == len(pilot.script)
+    assert pilot.skipped == [6, 7]  # the paper's blimp is brisk: the +-0.65 pair moved it, no +-0.85 pair
+    assert len(pilot.segments) + len(pilot.skipped) == len(pilot.script)
     assert 60.0 < log.rows[-1][0] < MAX_FLIGHT_S  # a few minutes of flight
     assert run.board.motors_us[:4] == m.NEUTRAL_MOTORS_US[:4]
     # The steps end at 0.7 and 2.2 m; the hold catches them inside the altitude limits a user may fly to.
@@ -163,10 +164,9 @@ def test_braking_is_shown_only_by_a_flown_reverse_surge_step() -> None:
     assert braked(pilot)
 
 
-def _surge_step_lengths(accel_per_command: float) -> list[float]:
-    """The surge steps' flown lengths on a toy body whose forward acceleration is ``accel_per_command`` x the mean
-    horizontal command (1.45 m up, no yaw, no drafts): the pilot alone, fed the flow it would read."""
-    script = [Step("surge", 0.5, 1.0, extend_s=2.0), Step("surge", -0.5, 1.0, extend_s=2.0)]
+def _toy_surge_flight(accel_per_command: float, script: list[Step]) -> CalibrationPilot:
+    """The pilot alone flying ``script`` on a toy body whose forward acceleration is ``accel_per_command`` x the
+    mean horizontal command (1.45 m up, no yaw, no drafts), fed the flow it would read."""
     pilot = CalibrationPilot(hover_command=0.0, script=script)
     u, t = 0.0, 0.0
     while not pilot.done and t < 120.0:
@@ -174,7 +174,13 @@ def _surge_step_lengths(accel_per_command: float) -> list[float]:
         u += accel_per_command * 0.5 * (left + right) * 0.02
         t += 0.02
     assert pilot.done and pilot.aborted is None
-    return [round(end - start, 2) for _, start, end in pilot.segments]
+    return pilot
+
+
+def _surge_step_lengths(accel_per_command: float) -> list[float]:
+    """The flown lengths of a held-on surge pair on the toy body."""
+    script = [Step("surge", 0.5, 1.0, extend_s=2.0), Step("surge", -0.5, 1.0, extend_s=2.0)]
+    return [round(end - start, 2) for _, start, end in _toy_surge_flight(accel_per_command, script).segments]
 
 
 def test_a_surge_step_that_barely_moves_the_body_is_held_on_and_a_brisk_one_is_not() -> None:
@@ -182,6 +188,20 @@ def test_a_surge_step_that_barely_moves_the_body_is_held_on_and_a_brisk_one_is_n
     changed the speed by less than ``surge_change_m_s`` runs its ``extend_s`` too; one that has, ends on time."""
     assert _surge_step_lengths(0.05) == pytest.approx([3.0, 3.0], abs=0.03)  # one tick; 0.025 m/s^2: 0.075 m/s after 3 s
     assert _surge_step_lengths(0.5) == pytest.approx([1.0, 1.0], abs=0.03)  # 0.25 m/s^2: 0.25 m/s after 1 s
+
+
+def test_the_bigger_surge_pair_flies_only_when_the_pair_before_it_barely_moved_the_body() -> None:
+    """On a light plant the +-0.85 pair was a sub-second step cut by the speed guard (deadband and reverse ratio
+    fitted worse): an ``only_if_weak`` step flies only if the pair before it changed the speed by less than
+    ``surge_change_m_s``."""
+    weak_only = [Step("surge", 0.8, 1.0, only_if_weak=True), Step("surge", -0.8, 1.0, only_if_weak=True)]
+    script = [Step("surge", 0.5, 1.0, extend_s=2.0), Step("surge", -0.5, 1.0, extend_s=2.0), *weak_only]
+    brisk = _toy_surge_flight(0.5, script)  # 0.25 m/s after 1 s
+    assert [index for index, _, _ in brisk.segments] == [0, 1] and brisk.skipped == [2, 3]
+    assert min(brisk.surge_changes.values()) >= brisk.envelope.surge_change_m_s
+    weak = _toy_surge_flight(0.05, script)  # 0.075 m/s after 3 s
+    assert [index for index, _, _ in weak.segments] == [0, 1, 2, 3] and weak.skipped == []
+    assert max(weak.surge_changes[i] for i in (0, 1)) < weak.envelope.surge_change_m_s
 
 
 def test_the_script_at_its_longest_ends_before_the_flight_time_limit() -> None:

@@ -49,16 +49,21 @@ class Step:
     start_z: float = 1.45
     absolute: bool = False
     extend_s: float = 0.0  # surge: longer while the speed has changed by less than ``Envelope.surge_change_m_s``
+    only_if_weak: bool = False  # surge: flown only if the pair before it changed the speed by less than that too
 
 
 def default_script() -> list[Step]:
-    """About four to five minutes: four sizes each way on surge (held on while they barely move the body:
-    ``extend_s``), three on yaw; on heave steps around the hover command
+    """About four to five minutes: three sizes each way on surge (held on while they barely move the body:
+    ``extend_s``) and a fourth, +-0.85, only on a plant the +-0.65 pair barely moved (``only_if_weak``: on a
+    light plant it is a sub-second step cut short by the speed guard, and the light draggy corners' fitted
+    configs cruised 11 % slow with it), three on yaw; on heave steps around the hover command
     (two of them long and gentle, for the drag at steadier speeds), then absolute commands through the
     deadband and into reverse, short, from low down (the body rises fast: buoyancy helps them)."""
     steps: list[Step] = []
     for level in (0.25, 0.45, 0.65, 0.85):
-        steps += [Step("surge", level, 3.0, extend_s=3.0), Step("surge", -level, 3.0, extend_s=3.0)]
+        weak_only = level > 0.7
+        steps += [Step("surge", level, 3.0, extend_s=3.0, only_if_weak=weak_only),
+                  Step("surge", -level, 3.0, extend_s=3.0, only_if_weak=weak_only)]
     for level in (0.2, 0.35, 0.55):
         steps += [Step("yaw", level, 2.5), Step("yaw", -level, 2.5)]
     for delta, seconds in ((0.12, 2.5), (0.25, 2.0), (0.06, 4.0)):
@@ -100,12 +105,15 @@ class CalibrationPilot:
     index: int = -1  # the step being flown or settled for; -1 the first settle
     phase: str = "settle"
     segments: list[tuple[int, float, float]] = field(default_factory=list)  # (step index, start t, end t)
+    surge_changes: dict[int, float] = field(default_factory=dict)  # surge step index -> its speed change in ``seconds``
+    skipped: list[int] = field(default_factory=list)  # ``only_if_weak`` steps not flown: the plant was brisk
     _phase_t: float | None = None
     _last_t: float | None = None
     _last_telemetry_t: float | None = None
     _integral: float = 0.0
     _z_ref: float = 1.45
     _step_u: float = 0.0  # the forward speed when the step began
+    _step_change: float = 0.0  # the largest |speed - _step_u| within the step's ``seconds`` (before any hold-on)
 
     def abort(self, reason: str) -> None:
         """Stop the script at once: motors neutral from the next step on."""
@@ -130,8 +138,12 @@ class CalibrationPilot:
                 self._next_step(t)
             return hold
         step = self.script[self.index]
+        if t - self._phase_t <= step.seconds:  # not the hold-on: it runs until the change reaches the threshold
+            self._step_change = max(self._step_change, abs(self.u - self._step_u))
         if t - self._phase_t >= self._duration(step) or self._outside(step):
             self.segments.append((self.index, self._phase_t, t))
+            if step.axis == "surge":
+                self.surge_changes[self.index] = self._step_change
             self.phase, self._phase_t = "settle", t
             self._z_ref = self._next_start_z()
             return hold
@@ -185,14 +197,32 @@ class CalibrationPilot:
         return elapsed >= self.gains.settle_s * (0.5 if self.index >= 0 else 1.0) and still
 
     def _next_step(self, t: float) -> None:
-        self.index += 1
+        self.index = self._following()
         if self.index >= len(self.script):
             self.done = True
             return
-        self.phase, self._phase_t, self._step_u = "step", t, self.u
+        self.phase, self._phase_t, self._step_u, self._step_change = "step", t, self.u, 0.0
+
+    def _following(self) -> int:
+        """The next step to fly after the current one, recording the ``only_if_weak`` ones passed over."""
+        following = self.index + 1
+        while following < len(self.script) and not self._flies(following):
+            if following not in self.skipped:
+                self.skipped.append(following)
+            following += 1
+        return following
+
+    def _flies(self, index: int) -> bool:
+        """An ``only_if_weak`` step flies only if either of the last two unconditional surge steps flown (the
+        pair before it) changed the speed by less than ``surge_change_m_s`` in its ``seconds`` (it needed its
+        hold-on): the plant needs the bigger push. With no surge step measured yet it flies (nothing says brisk)."""
+        if not self.script[index].only_if_weak:
+            return True
+        before = [i for i in sorted(self.surge_changes) if i < index and not self.script[i].only_if_weak][-2:]
+        return not before or min(self.surge_changes[i] for i in before) < self.envelope.surge_change_m_s
 
     def _next_start_z(self) -> float:
-        following = self.index + 1
+        following = self._following()
         return self.script[following].start_z if following < len(self.script) else self._z_ref
 
     # ---- the steps ----
