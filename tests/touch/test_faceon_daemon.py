@@ -83,19 +83,18 @@ async def _run(face_on: bool) -> tuple[list[TouchEvent], list[TouchEvent], Touch
     script = FaceScript(cut_every_s=1.5, fade_every_s=5.0, fade_at_s=2.0)
     video = FaceVideo(Renderer(projector_cfg, calibration), source, script, 0.0)
     events = hub.bus.subscribe([TouchEvent], maxsize=256)
+    # The membrane is lit by every frame the projector shows, as it is published: a world that polled for the newest
+    # frame lagged it on a loaded machine (and missed frames), so the simulated light fell behind the daemon's
+    # prediction and the probe taught a wrong share per place (a press read as a hover, projected depth < 0).
+    hub.projector_video.listen(lambda item: shown.record(item.t, item.seq, item.value))
 
     async def world() -> list[TouchEvent]:
         start = hub.clock()
-        seq = 0
         pressed = released = False
         quiet: list[TouchEvent] = []
         while (now := hub.clock() - start) < QUIET_S + PRESS_S + 0.5:
             if face_on:
                 hub.face.publish(hub.clock(), video.wearer(now))
-            item = hub.projector_video.get()
-            if item is not None and item.seq != seq:
-                seq = item.seq
-                shown.record(item.t, item.seq, item.value)
             if now >= QUIET_S and not pressed:
                 quiet = events.drain()
                 rx, ry, rw, rh = scene.roi
