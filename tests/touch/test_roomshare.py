@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import cv2
 import numpy as np
 import pytest
@@ -39,6 +41,26 @@ def learn(share: ProjectorShare, a: np.ndarray, c: np.ndarray, seconds: float, r
         measured = float(np.median(frame / (a + c)))  # the pipeline's exposure gain: what the reference expects
         share.learn(float(t), frame, measured * (a + c), light, usable)
     return float(t)
+
+
+class Learned(NamedTuple):
+    """A share learned for ten probe periods in steady light, and what a test goes on with."""
+
+    a: np.ndarray
+    c: np.ndarray
+    share: ProjectorShare
+    rng: np.random.Generator
+    pattern: np.ndarray
+    usable: np.ndarray
+    t: float
+
+
+def learned_share(seed: int) -> Learned:
+    a, c = membrane(1.0)
+    share = ProjectorShare(tau_s=5.0)
+    rng = np.random.default_rng(seed)
+    t = learn(share, a, c, 10 * PERIOD_S, rng)
+    return Learned(a, c, share, rng, probe_pattern(W, H, cell_px=32), np.ones((H, W), bool), t)
 
 
 @settings(max_examples=5, deadline=None)
@@ -148,13 +170,8 @@ def test_the_share_follows_a_slow_change_of_the_room_without_relearning() -> Non
     follows it): the projector's share there rises, and the learned share follows at once, not over its 5 s memory.
     (A change over half the membrane or more moves the median the levels are judged against: part of it is then
     read as exposure, and the share follows it only partly.)"""
-    a, c = membrane(1.0)
-    share = ProjectorShare(tau_s=5.0)
-    rng = np.random.default_rng(5)
-    pattern = probe_pattern(W, H, cell_px=32)
-    usable = np.ones((H, W), bool)
+    a, c, share, rng, pattern, usable, t = learned_share(5)
     dim = np.ones((H, W), np.float32)
-    t = learn(share, a, c, 10 * PERIOD_S, rng)
     for t in np.arange(t + 1.0 / FPS, t + 1.2, 1.0 / FPS):  # the shadow comes over 1.2 s, to half the room's light
         dim[:, : W // 3] = max(0.5, float(dim[0, 0]) - 0.5 / (1.2 * FPS))
         light = probe_light(float(t), pattern)
@@ -173,12 +190,7 @@ def test_the_share_follows_a_fall_of_the_rooms_light_over_the_whole_membrane_wit
     """A person's shadow takes 70 % of the lamp's light off the whole membrane in 0.25 s, while a hand is in view (no
     hand-free frame): the reference cannot tell that from the exposure, the probe can, and the share follows it within
     three of its short memory's time constants (1.5 s; it cuts the error by two thirds within one second)."""
-    a, c = membrane(1.0)
-    share = ProjectorShare(tau_s=5.0)
-    rng = np.random.default_rng(11)
-    pattern = probe_pattern(W, H, cell_px=32)
-    usable = np.ones((H, W), bool)
-    t = learn(share, a, c, 10 * PERIOD_S, rng)
+    a, c, share, rng, pattern, usable, t = learned_share(11)
     before = share.share_map()
     assert before is not None
     for t in np.arange(t + 1.0 / FPS, t + 1.75, 1.0 / FPS):  # the fall, then three of the short memory's 0.5 s
@@ -247,12 +259,7 @@ def test_a_reseeded_reference_that_kept_part_of_the_probe_does_not_move_the_room
     every tile's ``z`` is off by a constant of the probe's sign: a new intercept, not a new share. The room factor
     stays within 0.05 of 1 over the second after (1.000-1.007; sums mixing both sides read the step as slope: ``k``
     0.97-1.29 here before ``ProjectorShare.rebase``, 1.16-1.33 on the recorded passer-by, where a tap was lost)."""
-    a, c = membrane(1.0)
-    share = ProjectorShare(tau_s=5.0)
-    rng = np.random.default_rng(17)
-    pattern = probe_pattern(W, H, cell_px=32)
-    usable = np.ones((H, W), bool)
-    t = learn(share, a, c, 10 * PERIOD_S, rng)
+    a, c, share, rng, pattern, usable, t = learned_share(17)
     crest = (np.floor(t / PERIOD_S) + 1.25) * PERIOD_S  # sin = 1: the probe at its full amplitude
     seeded = a + c + 0.35 * a * (probe_light(float(crest), pattern) - 1.0)  # the reference from then on
     factors = []
