@@ -77,6 +77,9 @@ STAGES = {  # (owner, attribute) timed with --profile, charged to the name
 }
 
 
+FINE = "predict (fine windows)"  # the fine windows' light, of one canvas or of a mix
+
+
 def _timed(fn: Callable[..., Any], name: str, sink: dict[str, float]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         start = time.thread_time()
@@ -166,30 +169,14 @@ def main() -> int:
         finally:
             cpu["predict"] += time.thread_time() - start
 
-    def predict_window(canvas: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
-        start = time.thread_time()
-        try:
-            assert window is not None
-            return window(canvas, rows, cols)
-        finally:
-            cpu["predict (fine windows)"] += time.thread_time() - start
-
-    def predict_mixed_window(parts: list[tuple[np.ndarray, float]], rows: slice, cols: slice) -> np.ndarray:
-        start = time.thread_time()
-        try:
-            assert mix_window is not None
-            return mix_window(parts, rows, cols)
-        finally:
-            cpu["predict (fine windows)"] += time.thread_time() - start
-
     if args.profile:
         _instrument(pipeline, cpu)
     if grids is None:
         exposure = ExposureLight(predict, config.touch)
         fine = {}
     else:
-        by_mix = {"mixed_window": predict_mixed_window} if mix_window is not None else {}  # as the daemon's service
-        exposure = ExposureLight(predict, config.touch, predict_window if window is not None else None, **by_mix)
+        by_mix = {"mixed_window": _timed(mix_window, FINE, cpu)} if mix_window is not None else {}  # as the daemon's service
+        exposure = ExposureLight(predict, config.touch, _timed(window, FINE, cpu) if window is not None else None, **by_mix)
         fine = {"fine_light": exposure.window}
     history = ProjectorHistory(history_window_s(config.touch))
     per_loop: list[dict[str, float]] = []
