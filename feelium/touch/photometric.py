@@ -96,12 +96,16 @@ class ProjectorResponse:
         shape = np.broadcast_shapes(frame.shape, part.shape)
         return np.add(frame, part, out=buf.get("compensated", shape, np.result_type(frame, part)))
 
-    def learn(self, t: float, frame: np.ndarray, light: np.ndarray, usable: np.ndarray) -> None:
+    def learn(self, t: float, frame: np.ndarray, light: np.ndarray, usable: np.ndarray) -> np.ndarray | None:
         """Add one hand-free frame (``usable``: unshadowed, unsaturated, finite pixels) to the sums; solve the slope
         when it is due.
 
         The solve is due on every frame until the projector's share is known (nothing is settled before), then
         every :data:`FIT_INTERVAL_S` of frame time, and on the first frame after :meth:`request_fit`.
+
+        Returns how much the solve moved each pixel's slope (new minus old; a scratch image valid until the next
+        call), or None when no solve ran: the compensation of every later frame moves by it times ``1 - light``,
+        and whatever was built on the old compensation (the reference) must move with it.
         """
         # Values outside what a camera and a prediction can give (NaN, inf, negative, absurdly large) teach nothing.
         buf = self._scratch
@@ -117,7 +121,7 @@ class ProjectorResponse:
             usable &= np.greater_equal(light, 0.0, out=check)
             usable &= np.less_equal(light, LIGHT_MAX, out=check)
         if not usable.any():
-            return
+            return None
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
         self._last_t = t
         keep = np.float32(math.exp(-dt / self.tau_s))
@@ -144,12 +148,14 @@ class ProjectorResponse:
                 cv2.scaleAdd(total, float(keep), add, dst=total)  # total * keep + add in one pass
         self.updates += 1
         due = self._last_fit_t is None or t - self._last_fit_t >= FIT_INTERVAL_S - 1e-6  # 6 / 30 s is 0.2 s too
-        if self.share is None or self._fit_due or due:
-            self._fit()
-            self.fits += 1
-            self._last_fit_t, self._fit_due = t, False
+        if not (self.share is None or self._fit_due or due):
+            return None
+        moved = self._fit()
+        self.fits += 1
+        self._last_fit_t, self._fit_due = t, False
+        return moved
 
-    def _fit(self) -> None:
+    def _fit(self) -> np.ndarray:
         """Ridge slope per pixel: (cov(light, frame) + prior_var * prior) / (var(light) + prior_var).
 
         The prior is what the pixel's mean says under the projector's share of the light, ``share``, pooled
@@ -157,6 +163,7 @@ class ProjectorResponse:
         (share * mean(light) + 1 - share)``. Pooling matters where the face stays dark: there
         ``mean(frame) / mean(light)`` (share = 1, the multiplicative model) would multiply every small
         prediction error by the room light over the projector's black. Pixels never seen keep their slope.
+        Returns each pixel's change of slope (0 where unseen), in the fit's last scratch image.
         """
         assert self._sums is not None and self.slope is not None
         n, sx, sxx, sf, sfx = self._sums
@@ -183,7 +190,10 @@ class ProjectorResponse:
         slope = np.add(cov, prior, out=cov)
         slope /= np.add(var, np.float32(self.prior_var), out=var)
         np.nan_to_num(slope, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        moved = np.subtract(slope, self.slope, out=tmp)  # ``under``'s buffer: free once the slope is solved
+        moved *= seen  # unseen pixels keep their slope: no change
         np.copyto(self.slope, slope, where=seen)
+        return moved
 
     def _pooled_share(
         self, var: np.ndarray, cov: np.ndarray, mx: np.ndarray, mf: np.ndarray, seen: np.ndarray

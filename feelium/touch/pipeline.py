@@ -422,7 +422,7 @@ class TouchPipeline:
             ref.hold(t)
         if learn_response:
             assert free is not None
-            self.response.learn(t, raw, light, free)
+            moved = self.response.learn(t, raw, light, free)
             share, based = self.response.share, self._reference_share
             if share is not None and (based is None or _rebases(abs(share - based), light)):
                 # The model of what the flat membrane looks like changed (first fit, a new room light):
@@ -434,6 +434,17 @@ class TouchPipeline:
                 ref.reset()
                 self.projector_share.rebase()  # the frames it divides will be by another reference
                 self._reference_share = share
+            elif moved is not None and ref.image is not None:
+                # Short of a new start, the reference moves with the compensation: each solve moves every later
+                # frame by ``moved * (1 - light)``. On a static skin the light is the same frame after frame, so that
+                # is exactly where the membrane now sits. A static skin's first solves, from a few frames of the
+                # probe, moved the compensation of its dark places by up to a fifth of the light while the pooled
+                # share moved less than the re-base's limit: left to the reference (4 s, frozen under what it read
+                # as shadow), that was a shadow over a tenth of the membrane for seconds, no frame was hand-free,
+                # and the share per place never learned (a press then read as a hover: session 17's known defect).
+                change = np.subtract(np.float32(1.0), light, out=buf.like("carry.change", light, np.float32))
+                change *= moved
+                ref.carry(change)
         self._shadow = frozen
         self._deep = (smooth > cfg.candidate_depth) if candidates else None
         deepest = max(observations, key=lambda o: o.depth, default=None)

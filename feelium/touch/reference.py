@@ -212,6 +212,16 @@ class AdaptiveReference:
             cv2.accumulateWeighted(target, image, alpha_forced, mask=forced.view(np.uint8))
         np.maximum(image, self._floor, out=image)
 
+    def carry(self, change: np.ndarray) -> None:
+        """The frames' compensation moved by ``change`` (working size, frame units: a new slope of the projector's
+        response times ``1 - light``); move the image with it, shadows included, so the next frame is compared
+        with what the membrane looks like under the new compensation, not read as a shadow or a brightening
+        until the reference has followed (seconds, and never under a shadow)."""
+        assert self.image is not None
+        step = np.divide(change, self.expected_gain(), out=self._scratch.like("carry.step", self.image))
+        self.image += step
+        np.maximum(self.image, self._floor, out=self.image)
+
     def hold(self, t: float) -> None:
         """Skip this frame (its prediction is uncertain): nothing is learned, the clock moves on."""
         self.last_t = t

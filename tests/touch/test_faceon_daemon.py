@@ -128,14 +128,6 @@ async def test_the_face_plays_no_phantom_touch_and_a_press_is_found() -> None:
     assert math.hypot(downs[0].x - (rx + rw * 0.4), downs[0].y - (ry + rh * 0.45)) <= 6.0
 
 
-@pytest.mark.xfail(
-    reason="a known defect, traced in session 17 (docs/touch.md, *The share's attenuation under timing error*): in "
-    "about one full-suite run in three the share per place, learned from the 3 % probe, drifts from 0.45 to 0.37 over "
-    "the quiet spell, and the press (core depth 0.63) then takes only -0.09 to 0.13 of the projector's light by it, "
-    "under the 0.20 gate: read as a hover. Likely errors in variables (the predicted probe light misaligned in time "
-    "with the light that lit the frame attenuates the fitted slope). Remove this mark with the fix",
-    strict=False,
-)
 async def test_a_static_skin_compensated_learns_its_share_from_the_probe_and_a_press_is_found() -> None:
     """Nobody inside: the skin is still, the projector lays its probe (``[projector] probe = "auto"``) and touch
     compensates the predicted light as on the blimp (a real camera with a calibration). The probe's few percent are

@@ -87,3 +87,19 @@ def test_a_million_updates_neither_drift_nor_denormalise():
     assert image[0, 1] == pytest.approx(37.25, abs=1e-3)
     assert image[1, 0] == REFERENCE_FLOOR  # decayed to the floor, not through denormals
     assert np.all(np.abs(image) >= np.finfo(np.float32).tiny)
+
+
+def test_carry_moves_the_image_by_the_change_in_gain_free_units_shadows_included_and_keeps_the_floor():
+    """The compensation moved every later frame by ``change``: a frame at gain 2 moves by it, the image (kept at gain
+    1) by half of it, under a shadow too; a change that would go below zero stops at the floor."""
+    ref = make()
+    ref.initialise(0.0, np.full((4, 4), 100.0, np.float32))
+    ref.gain = 2.0
+    change = np.zeros((4, 4), np.float32)
+    change[0] = -30.0
+    change[1] = 10.0
+    change[2] = -1000.0
+    ref.carry(change)
+    assert np.allclose(ref.image[0], 85.0) and np.allclose(ref.image[1], 105.0)
+    assert np.all(ref.image[2] == np.float32(REFERENCE_FLOOR))
+    assert np.all(ref.image[3] == 100.0)
