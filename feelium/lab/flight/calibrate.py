@@ -29,7 +29,7 @@ from feelium.flight.transport import ByteLink
 from feelium.lab.flight.calibration_pilot import CalibrationPilot
 from feelium.lab.flight.simulation import ManualClock
 
-MAX_FLIGHT_S = 360.0  # the script is 230-300 s (at its longest 340 s); a flight that runs past this is stopped
+MAX_FLIGHT_S = 360.0  # the script is 210-270 s (at its longest 327 s); a flight that runs past this is stopped
 
 
 @dataclass

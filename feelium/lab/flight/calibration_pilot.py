@@ -52,18 +52,26 @@ class Step:
     only_if_weak: bool = False  # surge: flown only if the pair before it changed the speed by less than that too
 
 
+# Surge steps at least this large are held on (``extend_s``) while they barely move the body. A smaller push
+# (+-0.25, +-0.45: 2-14 % of full thrust past the largest deadband) reaches a terminal speed of a few cm/s on a
+# light draggy plant within its 3 s, as small as the drafts; held on, it adds only samples at that speed, where
+# the fit ties the push to a drag it underestimates in drafts (the flow sees the ground speed, the drag acts on
+# the air speed), and the horizontal deadband came out 27-70 % high (docs/calibrate-flight.md, session 18).
+HELD_ON_FROM_LEVEL = 0.6
+
+
 def default_script() -> list[Step]:
-    """About four to five minutes: three sizes each way on surge (held on while they barely move the body:
-    ``extend_s``) and a fourth, +-0.85, only on a plant the +-0.65 pair barely moved (``only_if_weak``: on a
-    light plant it is a sub-second step cut short by the speed guard, and the light draggy corners' fitted
-    configs cruised 11 % slow with it), three on yaw; on heave steps around the hover command
-    (two of them long and gentle, for the drag at steadier speeds), then absolute commands through the
-    deadband and into reverse, short, from low down (the body rises fast: buoyancy helps them)."""
+    """About four to five minutes: three sizes each way on surge (the +-0.65 pair held on while it barely moves
+    the body: ``extend_s``, from ``HELD_ON_FROM_LEVEL``) and a fourth, +-0.85, only on a plant the +-0.65 pair
+    barely moved (``only_if_weak``: on a light plant it is a sub-second step cut short by the speed guard, and
+    the light draggy corners' fitted configs cruised 11 % slow with it), three on yaw; on heave steps around
+    the hover command (two of them long and gentle, for the drag at steadier speeds), then absolute commands
+    through the deadband and into reverse, short, from low down (the body rises fast: buoyancy helps them)."""
     steps: list[Step] = []
     for level in (0.25, 0.45, 0.65, 0.85):
-        weak_only = level > 0.7
-        steps += [Step("surge", level, 3.0, extend_s=3.0, only_if_weak=weak_only),
-                  Step("surge", -level, 3.0, extend_s=3.0, only_if_weak=weak_only)]
+        weak_only, extend = level > 0.7, 3.0 if level >= HELD_ON_FROM_LEVEL else 0.0
+        steps += [Step("surge", level, 3.0, extend_s=extend, only_if_weak=weak_only),
+                  Step("surge", -level, 3.0, extend_s=extend, only_if_weak=weak_only)]
     for level in (0.2, 0.35, 0.55):
         steps += [Step("yaw", level, 2.5), Step("yaw", -level, 2.5)]
     for delta, seconds in ((0.12, 2.5), (0.25, 2.0), (0.06, 4.0)):
