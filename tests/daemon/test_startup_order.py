@@ -66,8 +66,10 @@ class FlightWatch:
         return self.cycles()
 
 
-async def _run(config: Config, builders: Any, until: Any, stop: asyncio.Event | None = None) -> Supervisor:
-    stop = stop if stop is not None else asyncio.Event()
+async def _run(config: Config, builders: Any, until: Any) -> Supervisor:
+    """Run the daemon until the async ``until(supervisor)`` returns (at most ``PATIENCE_S`` after the start)."""
+    stop = asyncio.Event()
+    watching: list[asyncio.Future[None]] = []
 
     def started(hub: Hub, supervisor: Supervisor) -> None:
         async def watch() -> None:
@@ -76,7 +78,7 @@ async def _run(config: Config, builders: Any, until: Any, stop: asyncio.Event | 
             finally:
                 stop.set()
 
-        asyncio.ensure_future(watch())
+        watching.append(asyncio.ensure_future(watch()))
 
     return await run_daemon(config, stop=stop, hub=Hub(), builders=builders, notifier=Notifier({}), on_pi=False,
                             on_started=started)  # fmt: skip
