@@ -236,6 +236,11 @@ SERVICES: tuple[tuple[str, ServiceBuilder], ...] = (
     ("http", build_http),
 )
 
+# Built and started before every other part, which are then built off the event loop while these run: the flight
+# loop commands the motors (neutral until it has fresh telemetry) from the daemon's first moments, however long the
+# cameras, the projector's maps or the API take to build (seconds on a Pi: docs/performance.md, *Start-up*).
+STARTS_FIRST = frozenset({"flight"})
+
 
 @dataclass
 class Built:

@@ -25,7 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, get_args, get_type_hints
 
 from feelium.daemon.config import PI_BACKGROUND_NICE, Config
-from feelium.daemon.assembly import SERVICES, ServiceBuilder, build_services
+from feelium.daemon.assembly import SERVICES, STARTS_FIRST, Built, ServiceBuilder, build_services
 from feelium.daemon.backends import backend_names, on_raspberry_pi, resolve_auto, simulated_parts
 from feelium.daemon.eventloop import loop_kind, new_event_loop
 from feelium.daemon.memory import FreeMemoryReturner, tune_malloc
@@ -93,15 +93,18 @@ async def run_daemon(
 ) -> Supervisor:
     """Run every service until ``stop`` is set, then shut down within the configured budget.
 
-    ``on_pi`` says whether this is the blimp (``auto`` = hardware) or not
-    (``auto`` = sim); ``None`` asks the device tree.
+    The flight loop starts first (:data:`~feelium.daemon.assembly.STARTS_FIRST`); the other parts are built
+    in a worker thread meanwhile, so their imports, scenes and maps never hold the event loop, which every
+    control cycle passes through, and each starts once all are built. ``on_pi`` says whether this is the blimp
+    (``auto`` = hardware) or not (``auto`` = sim); ``None`` asks the device tree.
     """
     hub = hub if hub is not None else Hub()
     stop = stop if stop is not None else asyncio.Event()
     notifier = notifier if notifier is not None else Notifier()
     config = resolve_auto(config, on_raspberry_pi() if on_pi is None else on_pi)
-    built = build_services(config, hub, builders)
-    rebuilders = {part: _builder_for(build, config, hub) for part, build in builders if part in built.failures}
+    first = tuple(b for b in builders if b[0] in STARTS_FIRST)
+    rest = tuple(b for b in builders if b[0] not in STARTS_FIRST)
+    built = build_services(config, hub, first)  # on the loop: nothing runs yet (flight: its imports, then 0.1 ms)
     simulated = simulated_parts(config)
     loop_in_use = loop_kind(asyncio.get_running_loop())
     supervisor = Supervisor(
@@ -109,7 +112,7 @@ async def run_daemon(
         config.daemon,
         clock=hub.clock,
         build_failures=built.failures,
-        rebuilders=rebuilders,
+        rebuilders=_rebuilders(first, built, config, hub),
         simulated=simulated,
         extra_health=lambda: {
             "bus": hub.bus.health(),
@@ -119,25 +122,58 @@ async def run_daemon(
     )
     hub.health = supervisor.report
     supervisor.start()
-    names = ", ".join(sorted(supervisor.records)) or "none"
-    log.info("feelium running: %s", names)
-    backends = backend_names(config)
-    for part in sorted(set(supervisor.records) | set(built.failures)):
-        if part in simulated:
-            log.info("%s: simulated (%s)", part, simulated[part])
-        elif part in backends:
-            log.info("%s: %s backend", part, backends[part])
-    notifier.ready(f"starting: {names}")
-    if on_started is not None:
-        on_started(hub, supervisor)
     try:
-        await _watch(config, supervisor, notifier, stop, hub)
-    finally:  # an exception here must still leave the motors neutral: shutdown stops flight first
+        others = await _built_off_the_loop(config, hub, rest, stop)
+        if others is not None:
+            supervisor.add(others.services, others.failures, _rebuilders(rest, others, config, hub))
+            _log_started(config, supervisor, simulated)
+            notifier.ready(f"starting: {', '.join(sorted(supervisor.records)) or 'none'}")
+            if on_started is not None:
+                on_started(hub, supervisor)
+            await _watch(config, supervisor, notifier, stop, hub)
+    finally:  # an exception here (a config error found while building included) must still leave the motors neutral
         log.info("shutting down")
         notifier.stopping()
         await supervisor.shutdown()
     log.info("stopped: %s", status_line(supervisor.report()))
     return supervisor
+
+
+async def _built_off_the_loop(
+    config: Config, hub: Hub, builders: tuple[tuple[str, ServiceBuilder], ...], stop: asyncio.Event
+) -> Built | None:
+    """``build_services`` in a worker thread, while the loop flies; ``None`` when ``stop`` comes first (the build
+    cannot be interrupted: it finishes in its thread and what it built is dropped unstarted)."""
+    if not builders:
+        return Built()
+    building = asyncio.ensure_future(asyncio.to_thread(build_services, config, hub, builders))
+    stopped = asyncio.ensure_future(stop.wait())
+    try:
+        await asyncio.wait((building, stopped), return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        stopped.cancel()
+    if building.done():
+        return building.result()  # a ConfigError is raised here, after which the daemon stops, motors neutral
+    building.add_done_callback(lambda f: f.cancelled() or f.exception())  # retrieved: no "never retrieved" warning
+    return None
+
+
+def _rebuilders(
+    builders: tuple[tuple[str, ServiceBuilder], ...], built: Built, config: Config, hub: Hub
+) -> dict[str, Callable[[], Service | None]]:
+    """How to retry each part of ``builders`` that failed to build."""
+    return {part: _builder_for(build, config, hub) for part, build in builders if part in built.failures}
+
+
+def _log_started(config: Config, supervisor: Supervisor, simulated: dict[str, str]) -> None:
+    """One line naming every part, then one per part saying which backend (or simulator) it runs on."""
+    log.info("feelium running: %s", ", ".join(sorted(supervisor.records)) or "none")
+    backends = backend_names(config)
+    for part in sorted(set(supervisor.records) | set(supervisor.build_failures)):
+        if part in simulated:
+            log.info("%s: simulated (%s)", part, simulated[part])
+        elif part in backends:
+            log.info("%s: %s backend", part, backends[part])
 
 
 def _builder_for(build: ServiceBuilder, config: Config, hub: Hub) -> Callable[[], Service | None]:
@@ -222,7 +258,7 @@ def run_process(config: Config) -> int:
     try:
         supervisor = loop.run_until_complete(main())
     except ConfigError:
-        raise  # a wrong setting found while building: the CLI reports it in one line (nothing was flying yet)
+        raise  # a wrong setting found while building: the CLI reports it in one line (flight was stopped, neutral)
     except Exception:
         log.critical("the daemon failed; the motors were set neutral on the way out", exc_info=True)
         return 1

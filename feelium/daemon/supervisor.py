@@ -87,9 +87,29 @@ class Supervisor:
             self._launch(record)
         for part, build in self.rebuilders.items():
             if part in self.build_failures:
-                self._schedule_rebuild(part, 1)
-                self._rebuild_tasks.append(asyncio.create_task(self._rebuild(part, build), name=f"rebuild:{part}"))
+                self._start_rebuild(part, build)
         self.phase = "running"
+
+    def add(self, services: list[Service], build_failures: dict[str, str], rebuilders: dict[str, ServiceFactory]) -> None:
+        """Start parts built after :meth:`start` (the daemon starts the flight loop first and builds the rest
+        meanwhile); a part that failed to build is retried as at the start. Nothing starts once stopping."""
+        if self.phase != "running":
+            return
+        for service in services:
+            if service.name in self.records:
+                self.build_failures[service.name] = f"duplicate service name {service.name!r}"
+                log.warning("cannot add %s: duplicate service name", service.name)
+                continue
+            record = self.records[service.name] = ServiceRecord(service)
+            self._launch(record)
+        self.build_failures.update(build_failures)
+        for part, build in rebuilders.items():
+            if part in build_failures:
+                self._start_rebuild(part, build)
+
+    def _start_rebuild(self, part: str, build: ServiceFactory) -> None:
+        self._schedule_rebuild(part, 1)
+        self._rebuild_tasks.append(asyncio.create_task(self._rebuild(part, build), name=f"rebuild:{part}"))
 
     def _launch(self, record: ServiceRecord) -> None:
         record.task = asyncio.create_task(self._supervise(record), name=f"service:{record.service.name}")
