@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from feelium.events import TouchEvent
+from feelium.events import ContactShape, TouchEvent
 from feelium.lab.touch.evaluate import TrialData
 from feelium.lab.touch.ownership import tally_owners
 from feelium.recording import CONTACT_KINDS, Contact
@@ -42,7 +42,7 @@ def _trial(contacts: tuple[Contact, ...], events: list[TouchEvent], px_per_mm: f
     owner: dict[int, list[int]] = {}
     errors: list[list[float]] = [[] for _ in contacts]
     final: dict[int, str | None] = {}
-    footprints: list[tuple[str, Any]] = []  # (the true kind of the contact an `up` belongs to, its shape)
+    footprints: list[tuple[str, ContactShape]] = []  # (the true kind of the contact an `up` belongs to, its shape)
     for e in events:
         best, best_d = -1, math.inf
         for i, c in enumerate(contacts):
@@ -76,7 +76,7 @@ def _median(values: list[float | None]) -> float | None:
     return round(float(np.median(known)), 1) if known else None
 
 
-def _footprints(shapes: list[tuple[str, Any]]) -> dict[str, Any]:
+def _footprints(shapes: list[tuple[str, ContactShape]]) -> dict[str, Any]:
     """Per true kind: how many ``up`` footprints, and their median area, axes and elongation."""
     out: dict[str, Any] = {}
     for kind in CONTACT_KINDS:
