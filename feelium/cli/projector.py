@@ -22,6 +22,11 @@ def register(registry: CommandRegistry) -> None:
         "decoded from the recorded frames, the project's own sequence or binary patterns with their inverses)",
     )  # fmt: skip
     cal.add_argument("--record", metavar="DIR", help="also write the run as a calibration recording here (to fit again offline)")
+    cal.add_argument(
+        "--session", default="projector-calibration",
+        help="--record: the recording's session, that of the trials it calibrates (replay and eval prefer a calibration "
+        "recording of a trial's own session among those beside it)",
+    )  # fmt: skip
     cal.add_argument("--config", help="TOML config file; the map is saved beside it (projector.calibration.file)")
     cal.add_argument("--sim", action="store_true", help="run against the scene simulator's known warp and report the error to the truth")
     cal.add_argument("--json", action="store_true", help="print a machine-readable summary")
@@ -83,7 +88,7 @@ def _calibrate(args: argparse.Namespace) -> int:
             from feelium.lab.projector.from_recording import RecordingCapture
 
             recorder = live = RecordingCapture(
-                live, Path(args.record), size, config.rear_camera.fps, session="projector-calibration",
+                live, Path(args.record), size, config.rear_camera.fps, session=args.session,
                 source="synthetic" if device is None else "device",
             )
         try:

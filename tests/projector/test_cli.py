@@ -28,6 +28,19 @@ def test_calibrate_saves_beside_the_config_by_default(tmp_path, capsys, monkeypa
     assert "coverage of the sensitive patch" in text and (tmp_path / "cal.npz").exists()
 
 
+def test_calibrate_records_the_run_under_the_session_of_the_trials_it_calibrates(tmp_path, capsys):
+    """replay and eval prefer, among the calibration recordings beside a trial, one of the trial's session."""
+    from feelium.recording import Recording
+
+    config = tmp_path / "feelium.toml"
+    config.write_text("[projector.calibration]\nframes_per_pattern = 1\nsettle_frames = 0\n")
+    rec = tmp_path / "calibration-s2"
+    args = ["calibrate", "projector", "--sim", "--config", str(config), "--out", str(tmp_path / "m.npz")]
+    assert main([*args, "--record", str(rec), "--session", "s2"]) == 0
+    meta = Recording(rec).meta
+    assert meta.session == "s2" and meta.raw["purpose"] == "projector-calibration"
+
+
 def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     report_path = tmp_path / "bench.json"
     assert main(["bench", "projector", "--frames", "3", "--stream-seconds", "0.2", "--json", str(report_path)]) == 0

@@ -73,6 +73,19 @@ def test_a_tap_at_the_rim_of_the_whole_face_is_one_touch_on_the_face(tmp_path):
     assert report["localisation"]["error_px"]["median"] < 3.0
 
 
+def test_a_hover_at_the_rim_is_placed_in_its_zone_by_the_point_it_was_aimed_at(tmp_path):
+    """A hover has no contact; its prompted point is its target, so the zones can say whether the rim's hovers fire."""
+    trial = next(t for t in face_zones.plan(1) if t.zone == "edge" and t.label == "hover")
+    job = conditions.Job("face", "edge", f"face-edge/{trial.session}/{trial.name}", trial, frame=(640, 480))
+    path = conditions.write_job(job, tmp_path, seed=1, scale=0.01)
+    face = FaceModel.for_frame(640, 480)
+    target = Recording(path).labels.target
+    assert target is not None and face_zones.zone_of(*face.to_uv(*target)) == "edge"
+    report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
+    zones = report["zones"]
+    assert zones["unplaced"] == 0 and zones["edge"]["fp"] + zones["edge"]["tn"] == 1
+
+
 def test_a_tap_under_the_face_is_recorded_with_what_was_projected_and_scored_with_it(tmp_path, monkeypatch):
     """faceon/face: the projector stream and the calibration beside the trial; eval predicts the light from them."""
     monkeypatch.setattr(faceon, "WARMUP_S", 1.0)  # the experiment's 5 s warm-up, cut to keep the test short

@@ -47,3 +47,16 @@ def test_a_swap_a_split_a_phantom_a_miss_and_a_wrong_kind_are_each_counted():
 
 def test_trials_without_the_contact_key_are_the_specs_alone():
     assert score_contacts([_trial((_contact(100, None),), _touch(1, 100))]) is None
+
+
+def test_the_footprints_reported_on_up_are_summarised_per_true_kind():
+    """Issue 17 asks for a palm and a hug "with area and shape": the report gives each true kind's median
+    footprint from the `up` events of the ids on its contacts (a phantom's footprint belongs to no kind)."""
+    palm_up = TouchEvent(2, "up", None, 2.0, 300.0, 100.0, 0.5, 0.5, 0.6, 100, 0.5,  # type: ignore[arg-type]
+                         ContactShape("palm", 9500.0, 130.0, 90.0, 1.44, 10.0))  # type: ignore[arg-type]  # fmt: skip
+    events = _touch(1, 100) + [_event(2, "down", 1.05, 300.0), palm_up] + _touch(3, 900)
+    got = score_contacts([_trial((_contact(100), _contact(300, "palm")), events)])
+    assert got is not None
+    assert got["footprint"]["palm"] == {"n": 1, "area_mm2": 9500.0, "major_mm": 130.0, "minor_mm": 90.0, "elongation": 1.4}
+    assert got["footprint"]["finger"] == {"n": 1, "area_mm2": 200.0, "major_mm": 16.0, "minor_mm": 16.0, "elongation": 1.0}
+    assert "hug" not in got["footprint"]

@@ -62,3 +62,17 @@ def test_a_skin_point_round_trips_to_its_zone(u: float, v: float) -> None:
     back_u, back_v = FACE.to_uv(x, y)
     assert face_zone(float(back_u), float(back_v)) == face_zone(u, v)
     assert face_zone(u, v) == ("centre" if rho < 1 / 3 else "mid" if rho < 2 / 3 else "edge")
+
+
+def test_a_landing_is_measured_against_the_contact_it_landed_on_when_two_are_pressed_at_once() -> None:
+    """Two fingertips 100 px apart pressed together (multitouch two-hands-5cm): each touch overlaps both contacts
+    in time, and the one that lasts longer is not the one under the finger; the error is to the one under it."""
+    left = Contact(1.0, 1.6, np.array([[1.0, 270.0, 240.0], [1.6, 270.0, 240.0]]))
+    right = Contact(1.05, 1.4, np.array([[1.05, 370.0, 240.0], [1.4, 370.0, 240.0]]))
+    events = [
+        TouchEvent(1, "down", None, 1.1, 371.0, 240.0, 0.5, 0.5, 0.6, 100, 0.5),  # type: ignore[arg-type]
+        TouchEvent(1, "up", "tap", 1.4, 371.0, 240.0, 0.5, 0.5, 0.6, 100, 0.5),  # type: ignore[arg-type]
+    ]
+    trial = TrialData("two", Labels("tap", False, None, (left, right)), events, True, 100.0)
+    report = build_report("d", [trial], [], np.zeros(0), 320, 240)
+    assert report["localisation"]["error_px"]["median"] == 1.0  # not 101 px to the other hand's path

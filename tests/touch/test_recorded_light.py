@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
-from feelium.lab.touch.recorded_light import CALIBRATION_FILE, RecordedLight, find_calibration
+from feelium.lab.touch.recorded_light import CALIBRATION_FILE, RecordedLight, find_calibration, recorded_light
+from feelium.projector.config import ProjectorConfig
+from feelium.recording import Recording, RecordingError, RecordingWriter
+from feelium.skin.projector_map import ProjectorMap
 from feelium.touch.config import TouchConfig
 
 
@@ -61,3 +66,60 @@ def test_a_map_copied_from_the_blimp_under_its_own_name_is_found_too(tmp_path):
     trial.mkdir(parents=True)
     (tmp_path / "projector_calibration.npz").write_bytes(b"")
     assert find_calibration(trial, tmp_path) == (tmp_path / "projector_calibration.npz").resolve()
+
+
+def _calibration_recording(folder, session: str) -> None:
+    """A calibration recording as `find_calibration` sees it: its meta (the frames are only read to fit)."""
+    folder.mkdir(parents=True)
+    meta = {"format": "feelium.recording", "version": 1, "session": session, "purpose": "projector-calibration"}
+    (folder / "meta.json").write_text(json.dumps(meta))
+
+
+def test_a_calibration_recording_of_the_trials_own_session_is_chosen_over_the_first_by_name(tmp_path):
+    """The recording format fits the map of "the recordings beside it (same session)": a dataset laid out with
+    one calibration recording per session side by side gives each trial its own projector's map."""
+    _calibration_recording(tmp_path / "calibration-a", "monday")
+    _calibration_recording(tmp_path / "calibration-b", "tuesday")
+    trial = tmp_path / "tuesday" / "tap-001"
+    trial.mkdir(parents=True)
+    assert find_calibration(trial, tmp_path, "tuesday") == (tmp_path / "calibration-b").resolve()
+    assert find_calibration(trial, tmp_path, "monday") == (tmp_path / "calibration-a").resolve()
+    # No calibration of the trial's session: the first by name, as before (a calibration run names no session).
+    assert find_calibration(trial, tmp_path, "wednesday") == (tmp_path / "calibration-a").resolve()
+    assert find_calibration(trial, tmp_path) == (tmp_path / "calibration-a").resolve()
+
+
+def _uniform_map(projector_size: tuple[int, int], camera_size: tuple[int, int] = (64, 48)) -> ProjectorMap:
+    """Every camera pixel sees the projector's centre: enough for the light of a flat projector frame."""
+    w, h = camera_size
+    px, py = projector_size
+    return ProjectorMap(camera_size, projector_size, (0, 0, w, h), np.full((h, w), px / 2, np.float32),
+                        np.full((h, w), py / 2, np.float32), source="test")  # fmt: skip
+
+
+def _trial_with_stream(path, projector_size: tuple[int, int]) -> Recording:
+    with RecordingWriter(path, name=path.name, width=64, height=48, fps=15.0, session="s1") as writer:
+        writer.set_projector(*projector_size, 15.0)
+        writer.add_projector_frame(0.0, np.full(projector_size[::-1], 255, np.uint8))
+        for i in range(3):
+            writer.add_frame(0.1 + i / 15.0, np.full((48, 64), 120, np.uint8))
+    return Recording(path)
+
+
+def test_a_stream_from_a_projector_of_another_resolution_is_predicted_at_its_own_size(tmp_path):
+    """A recording made with another blimp's projector states its size in meta.projector; the configured
+    [projector] size (this blimp's 1280x720) used to refuse every one of its frames with a traceback."""
+    size = (960, 540)
+    trial = _trial_with_stream(tmp_path / "ds" / "tap-001", size)
+    _uniform_map(size).save(tmp_path / "ds" / CALIBRATION_FILE)
+    optics = ProjectorConfig()
+    assert (optics.width, optics.height) != size
+    light = recorded_light(trial, tmp_path / "ds", optics, TouchConfig())
+    assert light is not None
+    shown = light(0.1 + 2 / 15.0)["projected_light"]
+    assert float(shown.mean()) > 1.0  # full white is brighter than the flat grey the reference stands for
+    # A map of another projector than the stream's is not this recording's: one line naming both sizes.
+    wrong = tmp_path / "wrong.npz"
+    _uniform_map((1280, 720)).save(wrong)
+    with pytest.raises(RecordingError, match=r"960x540.*1280x720"):
+        recorded_light(trial, tmp_path / "ds", optics, TouchConfig(), wrong)

@@ -39,7 +39,7 @@ import cv2
 from feelium.lab.sim import protocol, take_faceon, take_litroom, take_multitouch
 from feelium.lab.touch import face_zones, litroom
 from feelium.lab.touch.recorded_light import CALIBRATION_FILE
-from feelium.recording import RecordingWriter
+from feelium.recording import Labels, RecordingWriter
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, exposure_samples
 from feelium.sim.camera import frame_times
 from feelium.sim.sessions import session_presets
@@ -156,7 +156,20 @@ def _face(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
         for t in frame_times(session.sensor, script.duration, rng):
             yield float(t), scene.frame(float(t), exposure_samples(script.state, float(t), session.sensor.exposure_s))
 
-    return frames(), script.labels(), job.frame, roi, {"face": face.to_json()}
+    return frames(), aimed_labels(script.labels(), face, (u, v)), job.frame, roi, {"face": face.to_json()}
+
+
+def aimed_labels(labels: Labels, face: FaceModel, uv: tuple[float, float]) -> Labels:
+    """``labels`` with a hover's prompted point as its ``target`` (camera px), the others as they are.
+
+    Why: the protocol's hovers carry no target (a hover has no landing), but on the whole face each is aimed at a
+    point drawn in its zone, and ``eval``'s zones place a trial without a contact by its target: without it every
+    hover was ``unplaced``, and no zone could say whether its hovers fire (the rim, where the back-light is
+    dimmest, above all)."""
+    if labels.label != "hover" or labels.target is not None:
+        return labels
+    x, y = face.to_camera(*uv)
+    return dataclasses.replace(labels, target=(float(x), float(y)))
 
 
 def _faceon(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.ProjectedTake]:

@@ -439,6 +439,11 @@ def _contact_rows(c: dict[str, Any] | None) -> list[tuple[str, str]]:
          f"split {c['split']}, id swaps {c['swaps']}, phantoms {c['phantoms']}"),
         ("  contact kind right", f"{c['kind_right']} of {c['kind_scored']} ({kinds})"),
         ("  error px (median/max)", "n/a" if err is None else f"{err['median']:.2f} / {err['max']:.2f}"),
+        *(
+            (f"  footprint on up, {kind}", f"n {f['n']}: {_fmt(f['area_mm2'], 1)} mm^2, {_fmt(f['major_mm'], 1)} x "
+             f"{_fmt(f['minor_mm'], 1)} mm, elongation {_fmt(f['elongation'], 1)} (medians)")
+            for kind, f in c.get("footprint", {}).items()
+        ),
     ]  # fmt: skip
 
 

@@ -15,6 +15,7 @@ beside the trials, fitted offline (:mod:`feelium.lab.projector.from_recording`).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 from collections.abc import Callable, Iterator
@@ -89,10 +90,13 @@ class RecordedLight:
         return {"projected_light": light, "projected_spread": spread, **self._fine}
 
 
-def find_calibration(recording: Path, root: Path) -> Path | None:
+def find_calibration(recording: Path, root: Path, session: str | None = None) -> Path | None:
     """The calibration beside the trials, in the recording's folder or the nearest folder above it up to the
     dataset ``root``: a saved map (:data:`CALIBRATION_FILE`), else a calibration recording (``meta.purpose``
-    ``"projector-calibration"``, the first by name) to fit the map from."""
+    ``"projector-calibration"``) to fit the map from: the first by name of the trial's own ``session`` when
+    that folder holds one, else the first by name. Why the session: the recording format fits the map of "the
+    recordings beside it (same ``session``)", so a dataset may lay one calibration recording per session (per
+    blimp, per day) side by side, and each trial must get its own projector's map."""
     here, top = recording.resolve(), root.resolve()
     for folder in (here, *here.parents):
         for name in CALIBRATION_FILES:
@@ -101,15 +105,17 @@ def find_calibration(recording: Path, root: Path) -> Path | None:
                 return candidate
         recordings = _calibration_recordings(folder)
         if recordings:
-            return recordings[0]
+            same = [path for path, their_session in recordings if session is not None and their_session == session]
+            return (same or [recordings[0][0]])[0]
         if folder == top or top not in folder.parents:
             break
     return None
 
 
 @functools.lru_cache(maxsize=256)
-def _calibration_recordings(folder: Path) -> tuple[Path, ...]:
-    """The calibration recordings directly in ``folder`` (cached: every trial of a dataset asks its folder)."""
+def _calibration_recordings(folder: Path) -> tuple[tuple[Path, str | None], ...]:
+    """The calibration recordings directly in ``folder``, by name, each with its ``meta.session`` (cached:
+    every trial of a dataset asks its folder)."""
     found = []
     for child in sorted(folder.iterdir()) if folder.is_dir() else ():
         try:
@@ -117,7 +123,8 @@ def _calibration_recordings(folder: Path) -> tuple[Path, ...]:
         except (OSError, ValueError):
             continue
         if isinstance(meta, dict) and meta.get("purpose") == PURPOSE:
-            found.append(child)
+            session = meta.get("session")
+            found.append((child, session if isinstance(session, str) else None))
     return tuple(found)
 
 
@@ -140,7 +147,7 @@ def recorded_light(
     """
     if not recording.has_projector:
         return None
-    path = calibration if calibration is not None else find_calibration(recording.path, root)
+    path = calibration if calibration is not None else find_calibration(recording.path, root, recording.meta.session)
     if path is None:
         raise RecordingError(
             recording.path, f"has a projector stream but no projector calibration ({CALIBRATION_FILE} or a calibration recording beside it, "
@@ -153,8 +160,29 @@ def recorded_light(
             cal = load_calibration(path)
         except CalibrationError as exc:
             raise RecordingError(path, str(exc)) from exc
+    projector = stream_optics(projector, recording, cal, path)
     camera = recording.meta.camera
     predictor = BacklightPredictor(projector, cal, (camera.width, camera.height))
     return RecordedLight(
         recording.projector_frames(), predictor, touch, lambda size, n: BacklightPredictor(projector, cal, size, average_of=n)
     )
+
+
+def stream_optics(projector: ProjectorConfig, recording: Recording, cal: ProjectorMap, source: Path) -> ProjectorConfig:
+    """``projector`` at the size of the projector the recording was made with (``meta.projector``).
+
+    Why: a recording from another blimp's projector has its own resolution, which its meta states and the map
+    fitted from its calibration recording shares; the configured ``[projector]`` size is only this blimp's, and
+    predicting with it refused every frame of such a stream. A map of another size than the stream is not that
+    projector's map: an error that names both."""
+    info = recording.meta.raw.get("projector")
+    try:
+        size = (int(info["width"]), int(info["height"]))  # type: ignore[index]
+    except (TypeError, KeyError, ValueError):
+        raise RecordingError(recording.path / "meta.json", "projector: expected an object with width and height") from None
+    mapped = (int(cal.projector_size[0]), int(cal.projector_size[1]))
+    if mapped != size:
+        raise RecordingError(
+            recording.path, f"its projector stream is {size[0]}x{size[1]}, but the calibration {source} maps a {mapped[0]}x{mapped[1]} projector"
+        )
+    return dataclasses.replace(projector, width=size[0], height=size[1])
