@@ -42,3 +42,8 @@ def test_a_recording_with_its_stream_is_replayed_with_the_predicted_light_and_sk
     default_calibration(DEFAULT_CAMERA_SIZE, DEFAULT_ROI, (config.width, config.height)).save(tmp_path / CALIBRATION_FILE)
     bench.run_variants(tmp_path, variants)
     assert len(lights) == len(variants) and all(light is not None for light in lights)
+    # The prediction is timed apart from the pipeline, and the Pi's frame rate counts both.
+    row = bench.summarise(tmp_path, variants, DEFAULT_CAMERA_SIZE)["variants"][1]
+    light_ms, cpu_ms = row["light_cpu_ms_per_frame"]["median"], row["cpu_ms_per_frame"]["median"]
+    assert light_ms > 0.0 and cpu_ms > 0.0
+    assert row["pi_fps_at_10x"] < 100.0 / cpu_ms

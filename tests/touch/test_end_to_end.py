@@ -129,6 +129,7 @@ def test_bench_by_condition_splits_the_same_frames_and_scores_by_the_datasets_fo
     for whole, *parts in zip(report["variants"], conditions["dim"]["variants"], conditions["lit"]["variants"]):
         assert whole["frames"] == sum(p["frames"] for p in parts) > 0  # every frame in exactly one condition
         median = whole["cpu_ms_per_frame"]["median"]
+        assert whole["light_cpu_ms_per_frame"]["median"] == 0.0  # no projector stream: nothing predicted
         assert whole["pi_fps_at_10x"] == pytest.approx(100.0 / median, abs=0.05)
     dim = conditions["dim"]["variants"][2]  # the daemon's 320x240
     lit = conditions["lit"]["variants"][2]
