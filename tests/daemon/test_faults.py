@@ -280,8 +280,11 @@ async def test_the_watchdog_is_fed_with_the_rear_camera_dead_and_stops_when_the_
     async def script(hub: Hub, supervisor: Supervisor) -> None:
         await _until(lambda: _state(hub, "touch") == "failed" and _state(hub, "flight") == "simulated", 20.0)
         dead = time.monotonic()
-        await asyncio.sleep(1.0)
-        assert watchdog.pings_since(dead) >= 10  # every ~0.05 s while the camera stays dead
+        # Fed on every tick (~0.05 s) while the camera stays dead; on a loaded machine (the suite's other worker
+        # on 2 cores) the loop ticks less often, so the count is waited for rather than timed (4 in 1 s seen twice
+        # in full suites, never alone), and no stall may have been logged meanwhile.
+        await _until(lambda: watchdog.pings_since(dead) >= 10, 5.0, "10 watchdog pings with the camera dead")
+        assert not [r for r in caplog.records if "flight loop stalled" in r.getMessage()]
         flight = supervisor.records["flight"].service
 
         async def stuck(events: Any, due: float) -> None:
