@@ -73,8 +73,8 @@ def test_a_sequence_without_switches_is_refused_not_guessed(tmp_path):
 
 
 def test_patterns_too_short_to_be_seen_alone_are_refused_not_guessed(tmp_path):
-    """Each pattern held 3-4 refreshes of 60 Hz (50-67 ms, under a 15 fps camera's frame): no pattern is seen
-    alone, so no share can be checked against its two patterns; the answer is a refusal, not a latency."""
+    """Each pattern held 3-6 refreshes of 60 Hz (50-100 ms, at most a 15 fps camera's frame and a half): too few
+    patterns are seen alone for a share to be checked against its two patterns; a refusal, not a latency."""
     path = write_latency_take(tmp_path / "short", _stripes(), 0.080, hold=3)
     with pytest.raises(LatencyError, match="too few to tell"):
         recording_latency(Recording(path), CONFIG.touch.camera_exposure_s)

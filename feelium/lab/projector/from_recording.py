@@ -5,8 +5,11 @@ showed and what the rear camera saw. A calibration recording (``meta.purpose`` `
 an empty scene, docs/recording-format.md) carries both, so the map is decoded from the recorded projector
 frames themselves, whatever the sequence was:
 
+- the projector's latency is measured from the recording first (:mod:`feelium.lab.projector.latency`; the
+  config's ``[touch] projector_latency_s`` when the sequence cannot tell it), and kept in the map;
 - each distinct projector frame is paired with the mean of the camera frames that saw only it (from its
-  display time plus the projector's latency to the next one's, after ``settle_frames``);
+  display time plus that latency to the next one's, after ``settle_frames``; a frame whose exposure
+  integrated a switch saw a mix, and pairs with neither);
 - a sequence that is this project's own (``feelium calibrate projector`` on the blimp: Gray-code blocks
   and phase fringes, recognised by comparing the recorded frames with the patterns the config would make)
   is decoded by that decoder, to a fraction of a pixel;
