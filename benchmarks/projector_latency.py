@@ -24,7 +24,7 @@ from feelium.lab.projector.latency import LatencyError
 from feelium.lab.sim.take_calibration import write_latency_take
 from feelium.recording import Recording
 
-TRUTHS_S = (0.0, 0.02, 0.033, 0.05, 0.08, 0.1, 0.133, 0.2)
+TRUTHS_S = (0.0, 0.02, 0.033, 0.05, 0.08, 0.1, 0.133, 0.2, 0.35, 0.5)
 EXPOSURE_S = 0.03  # the simulated sensor's
 
 

@@ -10,7 +10,9 @@ light. So:
 
 1. the latency is first found on a grid as the one whose exposure weights best explain every camera frame as a
    mix of per-pattern images (least squares over the images, the residual compared across latencies; frames
-   reduced to a coarse grid over the sensitive patch, which loses nothing of a pattern's mean light mix);
+   reduced to a coarse grid over the sensitive patch, which loses nothing of a pattern's mean light mix),
+   over the setting's whole range; a best that does not clearly beat every latency more than an exposure away
+   (free images let a latency a few patterns off fit too, only worse) is a refusal;
 2. at that latency, each camera frame whose exposure straddles exactly one switch gives its own estimate:
    its observed share ``f`` of the new pattern (projected on the line between the two patterns' fitted images)
    says where in the exposure the new light began, ``latency = t + exposure/2 - shown_b - f * exposure``;
@@ -37,9 +39,10 @@ from feelium.touch.config import TouchConfig
 from feelium.touch.settle import exposure_shares
 
 MIN_STRADDLES = 3  # camera frames integrating one pattern switch each, fewer cannot tell (nor give a spread)
-MAX_LATENCY_S = 0.3  # the search's range: 0 to nine 30 fps frames (a slow projector's pipeline and scan-out)
-COARSE_STEP_S = 0.001  # the grid, then refined around its best at FINE_STEP_S
+MAX_LATENCY_S = 1.0  # the search's range: the setting's own ([touch] projector_latency_s <= 1 s)
+COARSE_STEP_S = 0.002  # the grid, then refined around its best at FINE_STEP_S
 FINE_STEP_S = 0.0001
+AMBIGUOUS_RATIO = 2.0  # the best latency's residual against the best one more than an exposure away (simulator: 190-2800)
 SHARE_EDGE = 0.05  # a frame counts as straddling when both patterns have at least this share of its exposure
 GRID_PX = 48  # the coarse grid's width over the sensitive patch (height kept in proportion)
 MIN_STEP_DN = 2.0  # two patterns whose coarse images differ by less (RMS, DN) cannot time their switch
@@ -108,7 +111,23 @@ def measure_latency(
         return total - float(np.einsum("ki,kl,li->", q, gram, q))
 
     coarse = np.arange(0.0, MAX_LATENCY_S + COARSE_STEP_S / 2, COARSE_STEP_S)
-    best = float(coarse[int(np.argmin([residual(float(v)) for v in coarse]))])
+    residuals = np.asarray([residual(float(v)) for v in coarse])
+    best = float(coarse[int(np.argmin(residuals))])
+    if best >= MAX_LATENCY_S - COARSE_STEP_S / 2:
+        raise LatencyError(
+            f"the frames are best explained at the search's end ({MAX_LATENCY_S * 1e3:.0f} ms): the latency is longer "
+            "than it looks for, or the camera's times are not the projector stream's clock"
+        )
+    # Free per-pattern images let a latency a few patterns off explain the frames too, only worse (a sequence of
+    # similar holds aliases): the best must clearly beat every latency more than an exposure away from it.
+    far = np.abs(coarse - best) > exposure_s + COARSE_STEP_S
+    runner_up = float(residuals[far].min()) if far.any() else np.inf
+    if runner_up < AMBIGUOUS_RATIO * float(residuals.min()):
+        other = float(coarse[far][int(np.argmin(residuals[far]))])
+        raise LatencyError(
+            f"the frames fit {best * 1e3:.0f} ms and {other * 1e3:.0f} ms about as well (residuals within a factor "
+            f"{AMBIGUOUS_RATIO:g}): the sequence cannot tell them apart; hold the patterns for unequal times"
+        )
     fine = np.arange(max(0.0, best - COARSE_STEP_S), best + COARSE_STEP_S + FINE_STEP_S / 2, FINE_STEP_S)
     best = float(fine[int(np.argmin([residual(float(v)) for v in fine]))])
     estimates = _straddle_estimates(shown, times, frames, exposure_s, best)
@@ -124,7 +143,7 @@ def measure_latency(
     return LatencyEstimate(
         latency_s=median,
         spread_s=spread,
-        uncertainty_s=max(1.2533 * spread / np.sqrt(len(values)), FINE_STEP_S),  # the median's standard error
+        uncertainty_s=max(1.2533 * spread / float(np.sqrt(len(values))), FINE_STEP_S),  # the median's standard error
         straddles=len(values),
         switches=switches,
         exposure_s=exposure_s,
