@@ -65,6 +65,13 @@ def test_without_the_meta_exposure_the_configs_is_used(tmp_path):
     assert estimate.exposure_from == "config" and estimate.latency_s == pytest.approx(0.080, abs=0.005)
 
 
+def test_a_latency_of_several_patterns_is_found_not_aliased(tmp_path):
+    """350 ms: over two patterns late. Searched only to 300 ms this came out as 185 ms (free per-pattern images fit a
+    latency a few patterns off too, only worse); the whole range finds it."""
+    path = write_latency_take(tmp_path / "slow", _stripes(), 0.350, seed=1)
+    assert recording_latency(Recording(path), CONFIG.touch.camera_exposure_s).latency_s == pytest.approx(0.350, abs=0.005)
+
+
 def test_a_sequence_without_switches_is_refused_not_guessed(tmp_path):
     white = np.full(SIZE[::-1], 255, np.uint8)
     path = write_latency_take(tmp_path / "still", [white, white.copy()], 0.080)  # one pattern, held
