@@ -94,6 +94,9 @@ class CameraInfo:
     height: int
     fps: float
     pixel_format: str
+    # Optional ``camera.exposure_s``: the shutter time the frames were taken with, when the recorder knew it (what a
+    # calibration recording's latency is measured against, :mod:`feelium.lab.projector.latency`); None: not said.
+    exposure_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -142,7 +145,11 @@ def _parse_meta(path: Path) -> Meta:
     if not isinstance(cam, dict):
         raise _fail(path, "camera: expected an object with width, height, fps, pixel_format")
     try:
-        camera = CameraInfo(int(cam["width"]), int(cam["height"]), float(cam["fps"]), str(cam["pixel_format"]))
+        exposure = cam.get("exposure_s")
+        camera = CameraInfo(
+            int(cam["width"]), int(cam["height"]), float(cam["fps"]), str(cam["pixel_format"]),
+            None if exposure is None else float(exposure),
+        )  # fmt: skip
     except (KeyError, TypeError, ValueError) as exc:
         raise _fail(path, f"camera: missing or bad field {exc}") from exc
     if camera.pixel_format not in PIXEL_FORMATS:
@@ -151,6 +158,8 @@ def _parse_meta(path: Path) -> Meta:
         raise _fail(path, "camera width and height must be positive")
     if not (math.isfinite(camera.fps) and camera.fps > 0):
         raise _fail(path, f"camera.fps must be a positive number, got {cam['fps']!r}")
+    if camera.exposure_s is not None and not (math.isfinite(camera.exposure_s) and camera.exposure_s >= 0):
+        raise _fail(path, f"camera.exposure_s must be a number >= 0, got {cam['exposure_s']!r}")
     return Meta(
         name=str(obj.get("name", path.parent.name)),
         session=str(obj.get("session", "")),
@@ -562,6 +571,7 @@ class RecordingWriter:
         source: str = "synthetic",
         roi: tuple[int, int, int, int] | None = None,
         extra_meta: dict[str, Any] | None = None,
+        exposure_s: float | None = None,
         overwrite: bool = False,
         reserve_bytes: int = RESERVE_BYTES,
         set_aside_bytes: int = SET_ASIDE_BYTES,
@@ -593,6 +603,8 @@ class RecordingWriter:
             "roi": list(roi) if roi is not None else None,
             "thermal": None,
         }
+        if exposure_s is not None:  # the camera's shutter time, when the recorder knows it (optional key)
+            self._meta["camera"]["exposure_s"] = float(exposure_s)
         if extra_meta:
             self._meta.update(extra_meta)
         self._gray = pixel_format == "gray8"

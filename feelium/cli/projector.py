@@ -76,7 +76,9 @@ def _calibrate(args: argparse.Namespace) -> int:
         from feelium.recording import Recording, RecordingError
 
         try:
-            result = calibrate_recording(Recording(Path(args.recording)), projector.calibration, config.touch.projector_latency_s)
+            result = calibrate_recording(
+                Recording(Path(args.recording)), projector.calibration, config.touch.projector_latency_s, config.touch.camera_exposure_s
+            )
         except (RecordingError, ValueError) as exc:
             print(f"feelium calibrate projector: {exc}", file=sys.stderr)
             return 1
@@ -100,6 +102,14 @@ def _calibrate(args: argparse.Namespace) -> int:
                 device.close()
     summary = dict(result.summary)
     summary["source"] = result.calibration.source
+    if result.calibration.latency_s is not None:  # what to set on the blimp, by the rule replay and eval follow
+        from feelium.lab.projector.latency import touch_with_latency
+
+        touch = touch_with_latency(config.touch, result.calibration)
+        summary["latency"] = {**summary["latency"], "touch_keys": {
+            "projector_latency_s": round(touch.projector_latency_s, 4),
+            "projector_latency_sigma_s": round(touch.projector_latency_sigma_s, 4),
+        }}  # fmt: skip
     if truth is not None:
         summary["truth_error_px"] = truth_error(result.calibration, *truth)
     out = Path(args.out) if args.out else calibration_path(config.projector.calibration.file, args.config)
@@ -121,6 +131,16 @@ def _print_summary(summary: dict) -> None:
     if "truth_error_px" in summary:
         t = summary["truth_error_px"]
         print(stats("error to the simulator's true map (projector px)", t) + f", within 1 px: {t['within_1px'] * 100:.2f} %")
+    latency = summary.get("latency")
+    if latency is not None and latency["measured"]:
+        keys = ", ".join(f"{k} = {v}" for k, v in latency["touch_keys"].items())
+        print(
+            f"projector latency: {latency['latency_ms']} ms +- {latency['uncertainty_ms']} ms (spread {latency['spread_ms']} ms over "
+            f"{latency['straddling_frames']} frames straddling a switch, exposure {latency['exposure_ms']} ms from the "
+            f"{latency['exposure_from']}); kept in the map (replay and eval use it); on the blimp set in [touch]: {keys}"
+        )
+    elif latency is not None:
+        print(f"projector latency: not measured, {latency['reason']}; the map used the config's {latency['assumed_ms']} ms")
     print(f"saved {summary['saved']}")
 
 

@@ -57,6 +57,10 @@ class ProjectorMap:
     source: str = "default"
     black_level: float | None = None  # measured projector black relative to white (None: not measured)
     gamma: float | None = None  # measured projector gamma (None: not measured)
+    # Measured projector latency and its spread (s), from a calibration recording (None: not measured; replay and
+    # eval then keep [touch] projector_latency_s), :mod:`feelium.lab.projector.latency`.
+    latency_s: float | None = None
+    latency_sigma_s: float | None = None
 
     def __post_init__(self) -> None:
         w, h = self.camera_size
@@ -144,6 +148,9 @@ class ProjectorMap:
                 [np.nan if self.black_level is None else self.black_level, np.nan if self.gamma is None else self.gamma],
                 np.float64,
             ),
+            latency=np.asarray(
+                [np.nan if v is None else v for v in (self.latency_s, self.latency_sigma_s)], np.float64
+            ),
         )
         tmp.replace(path)
         return path
@@ -214,14 +221,17 @@ def load_calibration(path: str | Path) -> ProjectorMap:
             photo = data["photometric"] if "photometric" in data.files else np.array([np.nan, np.nan])
             black_level = float(photo[0]) if np.isfinite(photo[0]) else None
             gamma = float(photo[1]) if np.isfinite(photo[1]) else None
+            timing = data["latency"] if "latency" in data.files else np.array([np.nan, np.nan])  # maps saved before it
+            latency, sigma = (float(v) if np.isfinite(v) else None for v in timing)
     except CalibrationError:
         raise
     except (OSError, KeyError, ValueError) as exc:
         raise CalibrationError(f"{path}: not a projector calibration ({exc})") from exc
     try:
         return ProjectorMap(
-            (cw, ch), (pw, ph), roi, proj_x, proj_y, source=source, black_level=black_level, gamma=gamma  # type: ignore[arg-type]
-        )
+            (cw, ch), (pw, ph), roi, proj_x, proj_y, source=source, black_level=black_level, gamma=gamma,  # type: ignore[arg-type]
+            latency_s=latency, latency_sigma_s=sigma,
+        )  # fmt: skip
     except CalibrationError as exc:
         raise CalibrationError(f"{path}: {exc}") from exc
 

@@ -28,6 +28,7 @@ CONFIG = Config()
 FAST = replace(CONFIG.projector.calibration, settle_frames=0, frames_per_pattern=1)  # the simulator needs no settling
 SIZE = (CONFIG.projector.width, CONFIG.projector.height)
 LATENCY = CONFIG.touch.projector_latency_s
+EXPOSURE = CONFIG.touch.camera_exposure_s
 OPTICS = ProjectorOptics()
 
 
@@ -51,8 +52,12 @@ def test_the_projects_own_sequence_refits_offline_to_the_live_map(own_run):
     live, path = own_run
     recording = Recording(path)
     assert recording.meta.raw["purpose"] == PURPOSE and recording.has_projector
-    offline = calibrate_recording(recording, FAST, LATENCY)
+    offline = calibrate_recording(recording, FAST, LATENCY, EXPOSURE)
     assert offline.summary["decoder"] == "own sequence" and offline.summary["patterns_seen"] == live.summary["patterns"]
+    # each pattern stamped just after a frame and held past the next: no exposure straddles a switch, so the
+    # latency is not measured (refused, said why) and the map is fitted with the config's
+    assert offline.summary["latency"]["measured"] is False and "too few to tell" in offline.summary["latency"]["reason"]
+    assert offline.calibration.latency_s is None
     np.testing.assert_allclose(offline.calibration.proj_x, live.calibration.proj_x, atol=1e-4, equal_nan=True)
     np.testing.assert_allclose(offline.calibration.proj_y, live.calibration.proj_y, atol=1e-4, equal_nan=True)
 
@@ -124,7 +129,7 @@ def test_a_recording_without_inverse_pairs_or_without_a_projector_stream_is_one_
     with RecordingWriter(tmp_path / "camera-only", name="c", width=8, height=6, fps=15.0) as writer:
         writer.add_frame(0.0, np.zeros((6, 8), np.uint8))
     with pytest.raises(RecordingError, match="projector.mkv"):
-        calibrate_recording(Recording(tmp_path / "camera-only"), FAST, LATENCY)
+        calibrate_recording(Recording(tmp_path / "camera-only"), FAST, LATENCY, EXPOSURE)
 
 
 def test_eval_fits_the_map_from_the_calibration_recording_beside_the_trials(own_run):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -123,3 +124,24 @@ def test_a_stream_from_a_projector_of_another_resolution_is_predicted_at_its_own
     _uniform_map((1280, 720)).save(wrong)
     with pytest.raises(RecordingError, match=r"960x540.*1280x720"):
         recorded_light(trial, tmp_path / "ds", optics, TouchConfig(), wrong)
+
+
+def test_a_latency_measured_by_the_calibration_is_the_one_the_exposures_are_mixed_with(tmp_path):
+    """A projector 80 ms late (measured from its calibration recording, kept in the map): replay mixes each exposure
+    with that, not [touch] projector_latency_s (33 ms), so a switch reaches the prediction when it reached the skin."""
+    size = (128, 72)
+    trials = []
+    for name, latency in (("assumed", None), ("measured", 0.080)):
+        path = tmp_path / name / "tap-001"
+        with RecordingWriter(path, name=path.name, width=64, height=48, fps=15.0, session="s1") as writer:
+            writer.set_projector(*size, 30.0)
+            writer.add_projector_frame(0.0, np.zeros(size[::-1], np.uint8))
+            writer.add_projector_frame(1.0, np.full(size[::-1], 255, np.uint8))  # the switch
+            writer.add_frame(0.1, np.full((48, 64), 120, np.uint8))
+        dataclasses.replace(_uniform_map(size), latency_s=latency, latency_sigma_s=latency and 0.001).save(
+            tmp_path / name / CALIBRATION_FILE
+        )
+        trials.append(recorded_light(Recording(path), tmp_path / name, ProjectorConfig(), TouchConfig()))
+    # The exposure centred on 1.06 s (30 ms): lit 1.012-1.042 s at 33 ms, all white; 0.965-0.995 s at 80 ms, all black.
+    assumed, measured = (float(light(1.06)["projected_light"].mean()) for light in trials)  # type: ignore[misc]
+    assert assumed > 1.0 and measured < 0.1

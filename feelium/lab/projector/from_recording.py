@@ -5,8 +5,11 @@ showed and what the rear camera saw. A calibration recording (``meta.purpose`` `
 an empty scene, docs/recording-format.md) carries both, so the map is decoded from the recorded projector
 frames themselves, whatever the sequence was:
 
+- the projector's latency is measured from the recording first (:mod:`feelium.lab.projector.latency`; the
+  config's ``[touch] projector_latency_s`` when the sequence cannot tell it), and kept in the map;
 - each distinct projector frame is paired with the mean of the camera frames that saw only it (from its
-  display time plus the projector's latency to the next one's, after ``settle_frames``);
+  display time plus that latency to the next one's, after ``settle_frames``; a frame whose exposure
+  integrated a switch saw a mix, and pairs with neither);
 - a sequence that is this project's own (``feelium calibrate projector`` on the blimp: Gray-code blocks
   and phase fringes, recognised by comparing the recorded frames with the patterns the config would make)
   is decoded by that decoder, to a fraction of a pixel;
@@ -23,6 +26,7 @@ Both end in the same smoothing and summary as a live calibration (:func:`calibra
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,9 +34,11 @@ import numpy as np
 
 from feelium.lab.projector.calibrate import CalibrationResult, PatternCapture, calibrate, summarise_map
 from feelium.lab.projector.graycode import PatternPlan, flat_response, make_patterns, smooth_map
+from feelium.lab.projector.latency import LatencyError, LatencyEstimate, coarse_frame, measure_latency
 from feelium.projector.config import CalibrationConfig
 from feelium.recording import Recording, RecordingError, RecordingWriter
 from feelium.skin.projector_map import ProjectorMap
+from feelium.touch.settle import exposure_shares
 
 PURPOSE = "projector-calibration"
 OUTLIER_MIN_PX = 4.0  # generic decoding: raw points this far (projector px) from the local fit, and
@@ -48,13 +54,9 @@ class Shown:
     frames: int
 
 
-def shown_patterns(recording: Recording, latency_s: float, settle_frames: int) -> list[Shown]:
-    """Each distinct projector frame of the recording with the mean camera image of the frames that saw it.
-
-    A camera frame at ``t`` saw the projector frame shown last at or before ``t - latency_s``; the first
-    ``settle_frames`` of each are left out (the projector and the exposure settling). Consecutive equal
-    frames (a pattern held over several projector refreshes) are one.
-    """
+def distinct_frames(recording: Recording) -> tuple[list[float], list[np.ndarray]]:
+    """The recording's distinct projector frames in order, each with the time it went up: consecutive equal frames
+    (a pattern held over several projector refreshes) are one, shown from the first's time."""
     if not recording.has_projector:
         raise RecordingError(recording.path / "projector.mkv", "missing file: a calibration recording needs its projector stream")
     starts: list[float] = []
@@ -66,13 +68,24 @@ def shown_patterns(recording: Recording, latency_s: float, settle_frames: int) -
         patterns.append(frame)
     if not patterns:
         raise RecordingError(recording.path / "projector.mkv", "holds no frame")
+    return starts, patterns
+
+
+def shown_patterns(recording: Recording, latency_s: float, settle_frames: int, exposure_s: float = 0.0) -> list[Shown]:
+    """Each distinct projector frame of the recording with the mean camera image of the frames that saw it.
+
+    A camera frame at ``t`` saw the projector frame shown last at or before ``t - latency_s``; the first
+    ``settle_frames`` of each are left out (the projector and the exposure settling), and so is a frame whose
+    exposure (``exposure_s`` centred on ``t``) integrated a switch: it saw a mix of two patterns, not either.
+    """
+    starts, patterns = distinct_frames(recording)
     sums: list[np.ndarray | None] = [None] * len(patterns)
     counts = [0] * len(patterns)
     seen = [0] * len(patterns)
     order = np.asarray(starts)
     for t, frame in recording.frames(gray=True):
         index = int(np.searchsorted(order, t - latency_s, side="right")) - 1
-        if index < 0:
+        if index < 0 or len(exposure_shares(starts, t, exposure_s, latency_s)) > 1:
             continue
         seen[index] += 1
         if seen[index] <= settle_frames:
@@ -87,6 +100,29 @@ def shown_patterns(recording: Recording, latency_s: float, settle_frames: int) -
             f"no projector frame was seen by more than {settle_frames} camera frames (settle_frames): nothing to decode",
         )
     return shown
+
+
+def camera_exposure(recording: Recording, config_exposure_s: float) -> tuple[float, str]:
+    """The camera's exposure the recording was taken with, and where it came from: its meta's
+    ``camera.exposure_s`` when it says (the recorder knew), else the config's ``[touch] camera_exposure_s``."""
+    stated = recording.meta.camera.exposure_s
+    return (config_exposure_s, "config") if stated is None else (stated, "recording meta")
+
+
+def recording_latency(recording: Recording, config_exposure_s: float) -> LatencyEstimate:
+    """The projector's latency measured from the recording (:mod:`feelium.lab.projector.latency`), with the
+    camera's exposure from its meta (``camera.exposure_s``) when it says, else ``config_exposure_s``.
+
+    Raises :class:`~feelium.lab.projector.latency.LatencyError` when the sequence cannot tell."""
+    starts, _ = distinct_frames(recording)
+    exposure, origin = camera_exposure(recording, config_exposure_s)
+    times, frames = [], []
+    for t, frame in recording.frames(gray=True):
+        times.append(t)
+        frames.append(coarse_frame(frame, recording.meta.roi))
+    if not frames:
+        raise RecordingError(recording.path / "camera_ts.txt", "holds no camera frame")
+    return measure_latency(np.asarray(starts), np.asarray(times), np.stack(frames), exposure, origin)
 
 
 def own_plan(shown: list[Shown], config: CalibrationConfig) -> PatternPlan | None:
@@ -183,9 +219,34 @@ def flat_frames_response(shown: list[Shown], valid: np.ndarray) -> tuple[float |
         return None, None
 
 
-def calibrate_recording(recording: Recording, config: CalibrationConfig, latency_s: float) -> CalibrationResult:
-    """The map and its summary from one calibration recording (either decoder, see the module's docstring)."""
-    shown = shown_patterns(recording, latency_s, config.settle_frames)
+def calibrate_recording(recording: Recording, config: CalibrationConfig, latency_s: float, exposure_s: float) -> CalibrationResult:
+    """The map and its summary from one calibration recording (either decoder, see the module's docstring).
+
+    The projector's latency is measured first (:func:`recording_latency`) and, when the sequence can tell it,
+    pairs the camera frames with the patterns and is kept in the map (``latency_s``, ``latency_sigma_s``: what
+    replay and eval then use); when it cannot, ``latency_s`` (the config's) pairs them, the map carries no
+    latency and the summary says why (``latency.reason``). ``exposure_s``: the config's camera exposure, used
+    when the recording's meta does not state its own."""
+    measured: LatencyEstimate | None
+    try:
+        measured = recording_latency(recording, exposure_s)
+        timing = measured.summary()
+        latency_s = measured.latency_s
+    except LatencyError as exc:
+        measured, timing = None, {"measured": False, "reason": str(exc), "assumed_ms": round(latency_s * 1e3, 2)}
+    exposure = camera_exposure(recording, exposure_s)[0]
+    result = _fit_map(recording, config, shown_patterns(recording, latency_s, config.settle_frames, exposure))
+    timed = dataclasses.replace(
+        result.calibration,
+        latency_s=None if measured is None else measured.latency_s,
+        latency_sigma_s=None if measured is None else measured.spread_s,
+    )
+    return CalibrationResult(timed, {**result.summary, "latency": timing})
+
+
+def _fit_map(recording: Recording, config: CalibrationConfig, shown: list[Shown]) -> CalibrationResult:
+    """The map from the recording's shown patterns: the project's own decoder when it is the project's sequence,
+    else the generic one."""
     camera_size = (recording.meta.camera.width, recording.meta.camera.height)
     source = f"recording {recording.path.name}"
     plan = own_plan(shown, config)

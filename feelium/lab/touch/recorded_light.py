@@ -10,7 +10,9 @@ the source of a frame's light: the daemon predicts it from the grey skin canvas 
 (:mod:`feelium.projector.canvaslight`), a recording only holds the projector's frame, so the frame
 predictor (:class:`feelium.projector.backlight.BacklightPredictor`, the reference the canvas predictor is
 checked against) is used, through the camera-to-projector calibration found for the recording: a saved map, or a calibration recording
-beside the trials, fitted offline (:mod:`feelium.lab.projector.from_recording`).
+beside the trials, fitted offline (:mod:`feelium.lab.projector.from_recording`). When that calibration measured the
+projector's latency (:mod:`feelium.lab.projector.latency`), the exposures are mixed with it instead of ``[touch]
+projector_latency_s``: a projector slower than the blimp's is replayed as it lit the membrane, without hand-tuning.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from feelium.lab.projector.from_recording import PURPOSE, calibrate_recording
+from feelium.lab.projector.latency import touch_with_latency
 from feelium.projector.backlight import BacklightPredictor
 from feelium.projector.config import CalibrationConfig, ProjectorConfig
 from feelium.recording import Recording, RecordingError
@@ -129,10 +132,11 @@ def _calibration_recordings(folder: Path) -> tuple[tuple[Path, str | None], ...]
 
 
 @functools.lru_cache(maxsize=8)
-def fitted_calibration(path: Path, config: CalibrationConfig, latency_s: float) -> ProjectorMap:
-    """The map fitted from a calibration recording, once per recording however many trials use it."""
+def fitted_calibration(path: Path, config: CalibrationConfig, latency_s: float, exposure_s: float) -> ProjectorMap:
+    """The map fitted from a calibration recording (with the latency it measures, when it can), once per recording
+    however many trials use it."""
     try:
-        return calibrate_recording(Recording(path), config, latency_s).calibration
+        return calibrate_recording(Recording(path), config, latency_s, exposure_s).calibration
     except ValueError as exc:
         raise RecordingError(path, f"cannot fit the projector calibration from it: {exc}") from exc
 
@@ -154,13 +158,14 @@ def recorded_light(
             "or --projector-calibration)"
         )
     if path.is_dir():  # a calibration recording: fitted offline, as `feelium calibrate projector RECORDING` does
-        cal = fitted_calibration(path.resolve(), projector.calibration, touch.projector_latency_s)
+        cal = fitted_calibration(path.resolve(), projector.calibration, touch.projector_latency_s, touch.camera_exposure_s)
     else:
         try:
             cal = load_calibration(path)
         except CalibrationError as exc:
             raise RecordingError(path, str(exc)) from exc
     projector = stream_optics(projector, recording, cal, path)
+    touch = touch_with_latency(touch, cal)  # the projector's measured latency, not the assumed one, when it has one
     camera = recording.meta.camera
     predictor = BacklightPredictor(projector, cal, (camera.width, camera.height))
     return RecordedLight(
