@@ -103,7 +103,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     summary = dict(result.summary)
     summary["source"] = result.calibration.source
     if result.calibration.latency_s is not None:  # what to set on the blimp, by the rule replay and eval follow
-        from feelium.lab.projector.latency import touch_with_latency
+        from feelium.touch.projected import touch_with_latency
 
         touch = touch_with_latency(config.touch, result.calibration)
         summary["latency"] = {**summary["latency"], "touch_keys": {

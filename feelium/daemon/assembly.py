@@ -40,6 +40,7 @@ from feelium.skin.regions import Regions
 
 if TYPE_CHECKING:
     from feelium.projector.showloop import ShowLoop
+    from feelium.touch.config import TouchConfig
 
 log = logging.getLogger(__name__)
 
@@ -63,17 +64,42 @@ def build_touch(config: Config, hub: Hub) -> Service | None:
     if source is None:
         return None
     hub.rear_scene = source.scene  # the simulated scene, for the partner page's presses; None on hardware
+    touch = touch_config_with_measured_latency(config)
     if source.scene is not None:
-        light_scene_with_probe(source.scene, hub, config.touch.projector_latency_s)
+        light_scene_with_probe(source.scene, hub, touch.projector_latency_s)
     return TouchService(
         source,
         hub,
-        config.touch,
+        touch,
         debug_video_fps=config.rear_camera.debug_video_fps,
         annotation=load_projector_annotation(config),
         projected=load_projected_light(config, source.backend),
         stale_after_s=config.rear_camera.stale_after_s,
     )
+
+
+def touch_config_with_measured_latency(config: Config) -> TouchConfig:
+    """``[touch]`` with the projector's latency that ``feelium calibrate projector`` measured from a calibration
+    recording and saved with the map (``[projector.calibration] file``), when it did: the blimp's own projector's
+    latency, not the assumed 33 ms (50-100 ms more than assumed turned a face's cut edges into contact edges:
+    docs/touch.md, *A hostile review before closing issue 17*). Without a file or a measurement, ``[touch]`` as it
+    is; a file that does not load is the projector's and touch's to report (they read it too)."""
+    from feelium.touch.projected import touch_with_latency
+
+    path = calibration_path(config.projector.calibration.file)
+    if not path.exists():
+        return config.touch
+    try:
+        calibration = load_shared(path)
+    except Exception:  # noqa: BLE001 - reported where the map is used (the projector's build, the compensation)
+        return config.touch
+    touch = touch_with_latency(config.touch, calibration)
+    if touch is not config.touch:
+        log.info(
+            "touch: projector latency %.1f ms (sigma %.1f ms), measured with the calibration %s ([touch] says %.1f ms)",
+            1e3 * touch.projector_latency_s, 1e3 * touch.projector_latency_sigma_s, path, 1e3 * config.touch.projector_latency_s,
+        )
+    return touch
 
 
 def light_scene_with_probe(scene: Any, hub: Hub, latency_s: float) -> None:
@@ -169,6 +195,7 @@ def build_show_loop(
     from feelium.projector.display import open_display
     from feelium.projector.renderer import Renderer
     from feelium.projector.showloop import ShowLoop
+    from feelium.touch.config import TouchConfig
     from feelium.touch.face import face_for
 
     size = (config.projector.width, config.projector.height)

@@ -14,12 +14,14 @@ Data flows one way: the projector never hears from touch.
 
 from __future__ import annotations
 
+import dataclasses
 from collections import deque
 from collections.abc import Callable, Sequence
 
 import cv2
 import numpy as np
 
+from feelium.skin.projector_map import ProjectorMap
 from feelium.touch.buffers import Scratch
 from feelium.touch.config import TouchConfig
 from feelium.touch.settle import exposure_shares, predicted_exposure
@@ -30,6 +32,20 @@ WindowPredictor = Callable[[np.ndarray, slice, slice], np.ndarray]
 # The light of several grey canvases mixed with weights, over (rows, cols) of the finer box, in one go.
 MixWindowPredictor = Callable[[Sequence[tuple[np.ndarray, float]], slice, slice], np.ndarray]
 HISTORY_MAX = 16  # a bound whatever the projector's rate (0.2 MB canvases: 3.1 MB at most; 60 fps needs 11)
+
+
+def touch_with_latency(touch: TouchConfig, calibration: ProjectorMap) -> TouchConfig:
+    """``touch`` with the latency the calibration measured (``feelium calibrate projector`` from a calibration
+    recording, :mod:`feelium.lab.projector.latency`), when it did (else ``touch`` as it is): the daemon, replay and
+    eval then mix each exposure with the projector's own latency, not the one assumed in ``[touch]``.
+
+    The spread is kept at least the configured ``projector_latency_sigma_s``: that setting also stands for what one
+    latency for the whole patch cannot see (a scanning projector lights its rows at different times, half a frame
+    apart), so a recording whose switches agreed closely narrows nothing; a wider measured spread widens it."""
+    if calibration.latency_s is None:
+        return touch
+    sigma = max(touch.projector_latency_sigma_s, calibration.latency_sigma_s or 0.0)
+    return dataclasses.replace(touch, projector_latency_s=calibration.latency_s, projector_latency_sigma_s=sigma)
 
 
 def history_window_s(config: TouchConfig, late_s: float = LATE_S) -> float:

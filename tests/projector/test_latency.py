@@ -16,7 +16,8 @@ import pytest
 from feelium.cli import main
 from feelium.daemon.config import Config
 from feelium.lab.projector.from_recording import recording_latency
-from feelium.lab.projector.latency import LatencyError, touch_with_latency
+from feelium.lab.projector.latency import LatencyError
+from feelium.touch.projected import touch_with_latency
 from feelium.lab.sim.take_calibration import write_latency_take
 from feelium.recording import Recording
 from feelium.skin.projector_map import default_calibration, load_calibration

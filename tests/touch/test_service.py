@@ -367,6 +367,22 @@ def test_projection_compensation_only_for_frames_that_contain_the_projectors_lig
     assert load_projected_light(missing, "picamera2") is None
 
 
+def test_the_daemon_takes_the_projectors_latency_measured_with_its_calibration(tmp_path):
+    """A calibration that measured the projector's latency (``calibrate projector`` from a recording) sets touch's
+    latency in the daemon, its spread widened, never narrowed; one that did not, or no file, leaves ``[touch]``."""
+    from feelium.daemon.assembly import touch_config_with_measured_latency
+
+    measured = dataclasses.replace(_calibration(projector_size=(1280, 720)), latency_s=0.081, latency_sigma_s=0.002)
+    config = _config_with_calibration_file(measured.save(tmp_path / "measured.npz"))
+    touch = touch_config_with_measured_latency(config)
+    assert touch.projector_latency_s == 0.081 != config.touch.projector_latency_s
+    assert touch.projector_latency_sigma_s == config.touch.projector_latency_sigma_s  # 2 ms narrows nothing
+    unmeasured = _config_with_calibration_file(_calibration(projector_size=(1280, 720)).save(tmp_path / "plain.npz"))
+    assert touch_config_with_measured_latency(unmeasured) is unmeasured.touch
+    missing = _config_with_calibration_file(tmp_path / "none.npz")
+    assert touch_config_with_measured_latency(missing) is missing.touch
+
+
 async def test_a_failing_light_prediction_costs_only_the_compensation():
     def projected(size, box):
         def predict(frame, out=None):

@@ -28,14 +28,11 @@ the calibration's own photometric fit assumes.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from feelium.skin.projector_map import ProjectorMap
-from feelium.touch.config import TouchConfig
 from feelium.touch.settle import exposure_shares
 
 MIN_STRADDLES = 3  # camera frames integrating one pattern switch each, fewer cannot tell (nor give a spread)
@@ -186,15 +183,3 @@ def _straddle_estimates(
         if 0.0 < share < 1.0:
             out.append(float(t) + exposure_s / 2.0 - shown[parts[1]] - share * exposure_s)
     return out
-
-
-def touch_with_latency(touch: TouchConfig, calibration: ProjectorMap) -> TouchConfig:
-    """``touch`` with the latency the calibration measured, when it did (else ``touch`` as it is).
-
-    The spread is kept at least the configured ``projector_latency_sigma_s``: that setting also stands for what one
-    latency for the whole patch cannot see (a scanning projector lights its rows at different times, half a frame
-    apart), so a recording whose switches agreed closely narrows nothing; a wider measured spread widens it."""
-    if calibration.latency_s is None:
-        return touch
-    sigma = max(touch.projector_latency_sigma_s, calibration.latency_sigma_s or 0.0)
-    return dataclasses.replace(touch, projector_latency_s=calibration.latency_s, projector_latency_sigma_s=sigma)

@@ -26,14 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from feelium.lab.projector.from_recording import PURPOSE, calibrate_recording
-from feelium.lab.projector.latency import touch_with_latency
 from feelium.projector.backlight import BacklightPredictor
 from feelium.projector.config import CalibrationConfig, ProjectorConfig
 from feelium.recording import Recording, RecordingError
 from feelium.skin.projector_map import CalibrationError, ProjectorMap, load_calibration
 from feelium.touch.config import TouchConfig
 from feelium.touch.geometry import LightGrids
-from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
+from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s, touch_with_latency
 
 CALIBRATION_FILE = "projector-calibration.npz"  # a map saved by ProjectorMap.save, found beside the trials
 # The name `feelium calibrate projector` saves on the blimp (`[projector.calibration] file`): a map copied from
