@@ -137,7 +137,8 @@ def _print_summary(summary: dict) -> None:
         print(
             f"projector latency: {latency['latency_ms']} ms +- {latency['uncertainty_ms']} ms (spread {latency['spread_ms']} ms over "
             f"{latency['straddling_frames']} frames straddling a switch, exposure {latency['exposure_ms']} ms from the "
-            f"{latency['exposure_from']}); kept in the map (replay and eval use it); on the blimp set in [touch]: {keys}"
+            f"{latency['exposure_from']}); kept in the map, which the daemon, replay and eval use; a map kept elsewhere needs "
+            f"in [touch]: {keys}"
         )
     elif latency is not None:
         print(f"projector latency: not measured, {latency['reason']}; the map used the config's {latency['assumed_ms']} ms")
