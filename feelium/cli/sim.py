@@ -39,9 +39,10 @@ def register(registry: CommandRegistry) -> None:
     cond.add_argument("--out", required=True, help="dataset directory to write; one folder per variant, <condition>-<variant>")
     cond.add_argument(
         "--variants",
-        help="comma-separated variants (litroom: dim,lit,switch-on,switch-off,drift,passer-by; face: centre,mid,edge; faceon:"
+        help="comma-separated variants (litroom: dim,lit,switch-on,switch-off,drift,passer-by; face: centre,mid,edge, and per zone"
+        " ZONE-faceon, ZONE-lit, ZONE-faceon-lit (the wearer's face projected, the lit room, both); faceon:"
         " static,face,static-lit,face-lit; multitouch: one-finger,two-finger-v,two-hands-5cm,two-partners,swipe-cross,swipe-graze,palm,"
-        "palm-and-finger,hug); default all",
+        "palm-and-finger,hug); default all (face: centre,mid,edge)",
     )
     cond.add_argument("--seed", type=int, default=1, help="random seed; the same seed gives identical recordings")
     cond.add_argument("--scale", type=float, default=0.1, help="trials times F (0 < F <= 1; litroom, faceon: the protocol's 228 trials, face: 5 per label and zone, multitouch: 6 runs per scene)")

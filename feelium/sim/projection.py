@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
-from feelium.sim.scene import SceneRenderer, SceneState, Session
+from feelium.sim.scene import ROI, SceneRenderer, SceneState, Session
+from feelium.skin.face import FaceModel
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,12 @@ class FisheyeWarp:
         ux, uy = self.sx * dx * radial, self.sy * dy * radial
         c, s = math.cos(math.radians(self.rot_deg)), math.sin(math.radians(self.rot_deg))
         return self.pcx + c * ux - s * uy, self.pcy + s * ux + c * uy
+
+    def scaled(self, k: float) -> "FisheyeWarp":
+        """The same optics seen by a camera of ``k`` times this one's resolution (camera point ``(x, y)`` there is
+        ``(x / k, y / k)`` here). Why: the whole face's frame (1280x960) is the protocol's 640x480 camera at twice
+        the resolution, as the daemon's renderer assumes when it scales a calibration onto the face's frame."""
+        return replace(self, cx=self.cx * k, cy=self.cy * k, f=self.f * k)
 
     def truth_map(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
         """(H, W) float32 projector x and y of every camera pixel."""
@@ -172,10 +179,15 @@ class SimPatternCapture:
     by one frame period and renders an empty scene lit by it.
     """
 
-    def __init__(self, session: Session, light: ProjectedLight, rng: np.random.Generator, fps: float = 15.0) -> None:
+    def __init__(
+        self, session: Session, light: ProjectedLight, rng: np.random.Generator, fps: float = 15.0, face: FaceModel | None = None
+    ) -> None:
+        """``face``: the whole curved front face (its frame and box, the envelope black off it) instead of the
+        paper's patch; ``light`` must then be at the face's frame size."""
         self._light = light
         self._factor: np.ndarray | None = None
-        self._renderer = SceneRenderer(session, rng, projected=lambda t: self._factor)
+        roi = ROI if face is None else face.roi()
+        self._renderer = SceneRenderer(session, rng, roi=roi, projected=lambda t: self._factor, face=face)
         self._period = 1.0 / fps
         self._t = 0.0
         self.camera_size = (self._renderer.width, self._renderer.height)

@@ -42,6 +42,7 @@ from feelium.lab.sim import protocol
 from feelium.sim.sessions import session_presets
 from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics, SimPatternCapture, projected_hook
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, Session
+from feelium.skin.face import FaceModel
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import WIDEN_AFTER_S, WIDEN_BEFORE_S, TrialData, group_touches, score_trials
 from feelium.touch.pipeline import TouchPipeline
@@ -69,10 +70,16 @@ class FaceVideo:
         return self._cache[k]
 
 
-def sim_calibration(seed: int, projector: ProjectorConfig, warp: FisheyeWarp, optics: ProjectorOptics) -> tuple[ProjectorMap, dict]:
-    """The Gray-code calibration run against the simulator, as a user would run it (not the true warp)."""
-    light = ProjectedLight(warp, (WIDTH, HEIGHT), optics)
-    capture = SimPatternCapture(Session("face-video-calibration"), light, np.random.default_rng([seed, 0xCA1]))
+def sim_calibration(
+    seed: int, projector: ProjectorConfig, warp: FisheyeWarp, optics: ProjectorOptics, face: FaceModel | None = None
+) -> tuple[ProjectorMap, dict]:
+    """The Gray-code calibration run against the simulator, as a user would run it (not the true warp).
+
+    ``face``: decoded on the whole face's frame over its box (``warp`` must be that frame's), so the map covers
+    the whole face and not only the paper's rectangle."""
+    size = (WIDTH, HEIGHT) if face is None else (face.width, face.height)
+    light = ProjectedLight(warp, size, optics)
+    capture = SimPatternCapture(Session("face-video-calibration"), light, np.random.default_rng([seed, 0xCA1]), face=face)
     result = run_calibration(capture, projector.calibration, (projector.width, projector.height), source="sim")
     return result.calibration, result.summary
 

@@ -12,7 +12,10 @@ chosen from detector scores):
   starting light recorded as frames before 0 s, the static skin with the probe as the projector stream and the
   projector calibration beside the trials (:mod:`feelium.lab.sim.take_litroom`);
 - ``face``: taps, holds, swipes and hovers aimed at targets in each zone of the whole curved front face
-  (:mod:`feelium.lab.touch.face_zones`: ``centre``, ``mid``, ``edge``), 1280x960 frames with ``meta.face``;
+  (:mod:`feelium.lab.touch.face_zones`: ``centre``, ``mid``, ``edge``), 1280x960 frames with ``meta.face``; per
+  zone also under the wearer's face projected, the lit room, or both (``edge-faceon``, ``edge-lit``,
+  ``edge-faceon-lit``: :mod:`feelium.lab.sim.take_wholeface`), with the projector stream and the face's own
+  projector calibration beside the trials;
 - ``faceon``: the protocol's trials under the flat back-light (``static``) and with the wearer's face on the
   skin (``face``), each also in the lit room (``static-lit``, ``face-lit``), the face with the projector stream
   recorded and the projector calibration written beside the trials (:mod:`feelium.lab.sim.take_faceon`);
@@ -36,7 +39,7 @@ from typing import Any
 
 import cv2
 
-from feelium.lab.sim import protocol, take_faceon, take_litroom, take_multitouch
+from feelium.lab.sim import protocol, take_faceon, take_litroom, take_multitouch, take_wholeface
 from feelium.lab.touch import face_zones, litroom
 from feelium.lab.touch.recorded_light import CALIBRATION_FILE
 from feelium.recording import Labels, RecordingWriter
@@ -48,10 +51,13 @@ from feelium.skin.face import FaceModel
 
 CONDITIONS: dict[str, tuple[str, ...]] = {
     "litroom": litroom.CONDITIONS,
-    "face": face_zones.ZONES,
+    "face": take_wholeface.variants(),
     "faceon": take_faceon.VARIANTS,
     "multitouch": take_multitouch.VARIANTS,
 }
+# What ``simulate condition`` writes without ``--variants``: every variant, except the whole face's lights (each
+# several times the flat face's cost: ask for them, ``--variants edge-faceon,edge-lit``).
+DEFAULT_VARIANTS: dict[str, tuple[str, ...]] = {**CONDITIONS, "face": face_zones.ZONES}
 GENERATOR = "feelium.sim.conditions"
 GENERATOR_VERSION = 1
 
@@ -91,9 +97,13 @@ def plan(condition: str, variants: tuple[str, ...], scale: float, clips: bool = 
             ]
     else:
         per_cell = max(1, int(round(5 * scale)))  # the face bench's 5 trials per label and zone at scale 1
-        for trial in face_zones.plan(per_cell):
-            if trial.zone in variants:
-                jobs.append(Job(condition, trial.zone, f"{condition}-{trial.zone}/{trial.session}/{trial.name}", trial))
+        trials = face_zones.plan(per_cell)
+        for variant in variants:
+            zone, _ = take_wholeface.variant_light(variant)
+            jobs += [
+                Job(condition, variant, f"{condition}-{variant}/{trial.session}/{trial.name}", trial)
+                for trial in trials if trial.zone == zone
+            ]  # fmt: skip
     return jobs
 
 
@@ -111,7 +121,7 @@ def write_job(job: Job, out: Path, seed: int, scale: float, *, overwrite: bool =
     elif job.condition == "multitouch":
         frames, labels, size, roi, extra = _multitouch(job, seed, generator)
     else:
-        frames, labels, size, roi, extra = _face(job, seed, generator)
+        (frames, labels, size, roi, extra), take = _face(job, seed, generator)
     session = job.trial.session
     fps = session_presets(seed)[session].sensor.fps
     with RecordingWriter(
@@ -141,22 +151,36 @@ def _litroom(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, 
     return (take.frames, take.labels, (WIDTH, HEIGHT), ROI, {}), take
 
 
-def _face(job: Job, seed: int, generator: dict[str, Any]) -> Rendered:
+def _face(job: Job, seed: int, generator: dict[str, Any]) -> tuple[Rendered, take_faceon.ProjectedTake | None]:
     trial = job.trial
     assert isinstance(trial, face_zones.Trial)
     face = FaceModel.for_frame(*job.frame)
     script, (u, v) = face_zones.build_script(face, trial, seed)
     generator["target_uv"] = [u, v]
+    roi = face.roi()
+    labels = aimed_labels(script.labels(), face, (u, v))
+    extra = {"face": face.to_json()}
+    _, light = take_wholeface.variant_light(job.variant)
+    if light is not None:  # the face projected and/or the room lit: the take carries its projector stream
+        take = take_wholeface.render(trial, light, seed, script, face)
+        generator.update(
+            light=light, warmup_s=take_faceon.faceon.WARMUP_S if light.startswith("faceon") else litroom.WARMUP_S,
+            projector_latency_s=take_faceon.faceon.TRUE_LATENCY_S, room=None if take.room is None else dataclasses.asdict(take.room),
+        )  # fmt: skip
+        if light.startswith("faceon"):
+            generator["video_offset_s"] = take.offset_s
+        else:
+            generator["probe"] = {"amplitude": probe.AMPLITUDE, "period_s": probe.PERIOD_S}
+        return (take.frames, labels, job.frame, roi, extra), take
     session = session_presets(seed)[trial.session]
     rng = protocol.recording_rng(seed, trial.name, 1)
-    roi = face.roi()
     scene = SceneRenderer(session, rng, roi=roi, face=face)
 
     def frames() -> Iterator[tuple[float, Any]]:
         for t in frame_times(session.sensor, script.duration, rng):
             yield float(t), scene.frame(float(t), exposure_samples(script.state, float(t), session.sensor.exposure_s))
 
-    return frames(), aimed_labels(script.labels(), face, (u, v)), job.frame, roi, {"face": face.to_json()}
+    return (frames(), labels, job.frame, roi, extra), None
 
 
 def aimed_labels(labels: Labels, face: FaceModel, uv: tuple[float, float]) -> Labels:
@@ -232,7 +256,7 @@ def simulate_condition(
         raise ValueError(f"scale must be in (0, 1], got {scale}")
     if clips and condition not in ("litroom", "faceon"):
         raise ValueError(f"{condition}: only litroom and faceon have continuous clips")
-    todo = plan(condition, variants if variants else CONDITIONS.get(condition, ()), scale, clips)
+    todo = plan(condition, variants if variants else DEFAULT_VARIANTS.get(condition, ()), scale, clips)
     args = [(job, Path(out), seed, scale, overwrite) for job in todo]
     written: list[Path] = []
     if jobs <= 1:
@@ -248,9 +272,20 @@ def simulate_condition(
     finally:
         if jobs > 1:
             pool.shutdown()
-    # The map the daemon would use, beside the trials that carry a projector stream (`eval` finds it there).
-    projected = {job.variant for job in todo if condition == "litroom" or job.variant.startswith("face")}
-    if condition in ("faceon", "litroom"):
-        for variant in sorted(projected):
-            take_faceon.calibration(seed).save(Path(out) / f"{condition}-{variant}" / CALIBRATION_FILE)
+    # The map the daemon would use, beside the trials that carry a projector stream (`eval` finds it there): the
+    # whole face's own, decoded on its frame, for the face's variants.
+    for variant, frame in sorted({(job.variant, job.frame) for job in todo if carries_projector(condition, job.variant)}):
+        face_frame = frame if condition == "face" else None
+        take_faceon.calibration(seed, face_frame).save(Path(out) / f"{condition}-{variant}" / CALIBRATION_FILE)
     return sorted(written)
+
+
+def carries_projector(condition: str, variant: str) -> bool:
+    """Whether ``condition``'s ``variant`` records a projector stream (the map must then lie beside its trials)."""
+    if condition == "litroom":
+        return True
+    if condition == "faceon":
+        return variant.startswith("face")
+    if condition == "face":
+        return take_wholeface.variant_light(variant)[1] is not None
+    return False

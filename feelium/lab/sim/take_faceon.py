@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -38,8 +39,9 @@ from feelium.recording import Labels
 from feelium.sim.camera import frame_times
 from feelium.sim.projection import timed_hook
 from feelium.sim.room import RoomLight
-from feelium.sim.scene import ROI, SceneRenderer, SceneState, exposure_samples
+from feelium.sim.scene import ROI, SceneRenderer, SceneState, Session, exposure_samples
 from feelium.sim.sessions import session_presets
+from feelium.skin.face import FaceModel
 from feelium.skin.projector_map import ProjectorMap
 from feelium.touch.config import TouchConfig
 
@@ -61,14 +63,37 @@ class ProjectedTake:
 
 
 @functools.lru_cache(maxsize=2)
-def experiment(seed: int) -> faceon._Experiment:
-    """The experiment's world (the calibration decoded once per process and seed)."""
-    return faceon._Experiment(faceon._Setup(seed, ProjectorConfig(), TouchConfig(), faceon.FaceScript()))
+def experiment(seed: int, face_frame: tuple[int, int] | None = None) -> faceon._Experiment:
+    """The experiment's world (the calibration decoded once per process and seed); ``face_frame``: the same world
+    seen on the whole curved face filling a camera frame of that size (:meth:`FaceModel.for_frame`; the face
+    condition's is :data:`feelium.lab.touch.face_zones.FRAME`), its calibration decoded over the face."""
+    face = None if face_frame is None else FaceModel.for_frame(*face_frame)
+    return faceon._Experiment(faceon._Setup(seed, ProjectorConfig(), TouchConfig(), faceon.FaceScript(), face=face))
 
 
-def calibration(seed: int) -> ProjectorMap:
+def calibration(seed: int, face_frame: tuple[int, int] | None = None) -> ProjectorMap:
     """The camera-to-projector map decoded from the simulated Gray-code run (what a user's calibration gives)."""
-    return experiment(seed).calibration
+    return experiment(seed, face_frame).calibration
+
+
+def warmed_frames(
+    scene: SceneRenderer, script: Any, session: Session, rng: np.random.Generator, warmup_s: float
+) -> Iterator[tuple[float, np.ndarray]]:
+    """The camera's frames: ``warmup_s`` hand-free before 0 s (the membrane as it was before the trial), then the
+    trial's at the session's own times (jitter, drops), each integrated over the exposure."""
+    for t in np.arange(-warmup_s, -0.25, 1.0 / session.sensor.fps):
+        yield float(t), scene.frame(float(t), SceneState())
+    for t in frame_times(session.sensor, script.duration, rng):
+        yield float(t), scene.frame(float(t), exposure_samples(script.state, float(t), session.sensor.exposure_s))
+
+
+def stream(shown: Callable[[int], np.ndarray], fps: float, warmup_s: float, duration: float) -> Iterator[tuple[float, np.ndarray]]:
+    """The projector stream: frame ``k`` at its frame clock ``k / fps``, from before the warm-up to the trial's end.
+
+    ``shown`` is the same cache as the camera's light: written interleaved with the camera frames (``write_job``),
+    the stream runs a frame or two ahead of the light and each projector frame is rendered once."""
+    for k in range(math.floor(-warmup_s * fps) - 2, math.ceil(duration * fps) + 1):
+        yield k / fps, shown(k)
 
 
 def render(item: protocol.Item, variant: str, seed: int) -> ProjectedTake:
@@ -90,20 +115,7 @@ def render(item: protocol.Item, variant: str, seed: int) -> ProjectedTake:
     rng = protocol.recording_rng(seed, item.name, 1)
     scene = SceneRenderer(session, rng, roi=ROI, projected=hook, projected_share_only=True, room_light=room)
 
-    def frames() -> Iterator[tuple[float, np.ndarray]]:
-        for t in np.arange(-faceon.WARMUP_S, -0.25, 1.0 / session.sensor.fps):
-            yield float(t), scene.frame(float(t), SceneState())
-        for t in frame_times(session.sensor, script.duration, rng):
-            yield float(t), scene.frame(float(t), exposure_samples(script.state, float(t), session.sensor.exposure_s))
-
-    def projector() -> Iterator[tuple[float, np.ndarray]]:
-        # The same cache as the camera's light: written interleaved with the camera frames (write_job), the
-        # stream runs a frame or two ahead of the light and each projector frame is rendered once.
-        first = math.floor(-faceon.WARMUP_S * fps) - 2
-        for k in range(first, math.ceil(script.duration * fps) + 1):
-            yield k / fps, shown(k)
-
+    frames = warmed_frames(scene, script, session, rng, faceon.WARMUP_S)
+    projector = stream(shown, fps, faceon.WARMUP_S, script.duration) if face_on else None
     config = ex.setup.projector
-    return ProjectedTake(
-        frames(), labels, projector() if face_on else None, (config.width, config.height), fps, offset, room
-    )
+    return ProjectedTake(frames, labels, projector, (config.width, config.height), fps, offset, room)

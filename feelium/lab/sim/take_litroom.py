@@ -17,8 +17,7 @@ route differs), the projector world the face-on take's (:func:`feelium.lab.sim.t
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterator
+from collections.abc import Callable
 
 import numpy as np
 
@@ -38,9 +37,7 @@ def render(item: protocol.Item, variant: str, seed: int) -> take_faceon.Projecte
     ex = take_faceon.experiment(seed)
     config = ex.setup.projector
     fps = ex.setup.script.fps
-    overlay = ProbeOverlay(config, ex.calibration)
-    flat = np.full((config.height, config.width), int(round(config.flat_level * 255.0)), np.uint8)
-    shown = faceon._Cache(lambda k: overlay.lay(flat, probe_level(k / fps))[0])
+    shown = probe_frames(ex)
     script = protocol.build_script(item, seed)
     session = session_presets(seed)[item.session]
     labels = script.labels()
@@ -48,9 +45,15 @@ def render(item: protocol.Item, variant: str, seed: int) -> take_faceon.Projecte
     room = litroom.room_for(variant, item, seed, script.duration, first)
     hook = timed_hook(ex.light, shown, fps, faceon.TRUE_LATENCY_S, session.sensor.exposure_s)
     frames = litroom.render(script, session, item, seed, room, projected=hook)
+    projector = take_faceon.stream(shown, fps, litroom.WARMUP_S, script.duration)
+    return take_faceon.ProjectedTake(iter(frames), labels, projector, (config.width, config.height), fps, 0.0, room)
 
-    def projector() -> Iterator[tuple[float, np.ndarray]]:
-        for k in range(math.floor(-litroom.WARMUP_S * fps) - 2, math.ceil(script.duration * fps) + 1):
-            yield k / fps, shown(k)
 
-    return take_faceon.ProjectedTake(iter(frames), labels, projector(), (config.width, config.height), fps, 0.0, room)
+def probe_frames(ex: faceon._Experiment) -> Callable[[int], np.ndarray]:
+    """Projector frame ``k`` of the static skin: the flat grey with the probe laid over it through ``ex``'s decoded
+    map at the level of ``k``'s frame clock (8-bit, as the daemon lays it), each frame made once."""
+    config = ex.setup.projector
+    fps = ex.setup.script.fps
+    overlay = ProbeOverlay(config, ex.calibration)
+    flat = np.full((config.height, config.width), int(round(config.flat_level * 255.0)), np.uint8)
+    return faceon._Cache(lambda k: overlay.lay(flat, probe_level(k / fps))[0])

@@ -61,6 +61,7 @@ from feelium.sim.projection import FisheyeWarp, ProjectedLight, ProjectorOptics,
 from feelium.sim.room import RoomLight
 from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, Session, exposure_samples
 from feelium.sim.sessions import session_presets
+from feelium.skin.face import FaceModel
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
 from feelium.touch.settle import predicted_exposure
@@ -176,18 +177,24 @@ class _Setup:
     touch: TouchConfig
     script: FaceScript
     conditions: tuple[str, ...] = CONDITIONS
+    # The whole curved front face (its frame, e.g. 1280x960) instead of the paper's 640x480 patch: the same
+    # optics seen at the face's resolution (:meth:`FisheyeWarp.scaled`), the calibration decoded over the face's
+    # box, and the renderer drawing the canvas over the face's u, v as the daemon does with a face model.
+    face: FaceModel | None = None
 
 
 class _Experiment:
     def __init__(self, setup: _Setup) -> None:
         self.setup = setup
-        warp = FisheyeWarp()
+        face = setup.face
+        size = (WIDTH, HEIGHT) if face is None else (face.width, face.height)
+        warp = FisheyeWarp().scaled(size[0] / WIDTH)
         optics = ProjectorOptics(flat_level=setup.projector.flat_level)
-        self.calibration, _ = sim_calibration(setup.seed, setup.projector, warp, optics)
-        self.renderer = Renderer(setup.projector, self.calibration)
-        self.source = Renderer(replace(setup.projector, sensing_floor=0.0, fade_floor=0.0), self.calibration)
-        self.light = ProjectedLight(warp, (WIDTH, HEIGHT), optics)
-        self.predictor = CanvasLightPredictor(setup.projector, self.calibration, (WIDTH, HEIGHT))
+        self.calibration, _ = sim_calibration(setup.seed, setup.projector, warp, optics, face)
+        self.renderer = Renderer(setup.projector, self.calibration, face)
+        self.source = Renderer(replace(setup.projector, sensing_floor=0.0, fade_floor=0.0), self.calibration, face)
+        self.light = ProjectedLight(warp, size, optics)
+        self.predictor = CanvasLightPredictor(setup.projector, self.calibration, size, face)
 
     def trial(self, item: protocol.Item) -> dict[str, TrialRun]:
         seed, fps = self.setup.seed, self.setup.script.fps

@@ -49,7 +49,7 @@ import multiprocessing
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -69,6 +69,9 @@ from feelium.sim.scene import HEIGHT, ROI, WIDTH, SceneRenderer, SceneState, exp
 from feelium.sim.sessions import session_presets
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
+
+if TYPE_CHECKING:
+    from feelium.lab.touch import face_zones
 
 CONDITIONS = ("dim", "lit", "switch-on", "switch-off", "drift", "passer-by")
 SWITCHES = ("switch-on", "switch-off")
@@ -94,8 +97,11 @@ PROBE = True
 AMPLITUDE = probe.AMPLITUDE  # the probe's amplitude (the experiment of docs/projector.md, *The probe*, varies it)
 
 
-def room_for(condition: str, item: protocol.Item, seed: int, duration: float, first_contact: float | None) -> RoomLight | None:
-    """The room light of one trial under ``condition`` (times drawn from the trial's own RNG stream)."""
+def room_for(
+    condition: str, item: protocol.Item | face_zones.Trial, seed: int, duration: float, first_contact: float | None
+) -> RoomLight | None:
+    """The room light of one trial under ``condition`` (times drawn from the trial's own RNG stream, keyed by its
+    name: a protocol item or a whole-face trial)."""
     rng = protocol.recording_rng(seed, item.name, 11)
     angle = float(rng.uniform(0.0, 360.0))
     if condition == "dim":
