@@ -17,7 +17,7 @@ from feelium.lab.plot import Series, line_plot
 from feelium.recording import NEGATIVE_LABELS, Recording, RecordingError, find_recordings
 from feelium.lab.touch.skips import Skips
 from feelium.lab.touch.zones import ZONES
-from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
+from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates, fit_projected
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
 from feelium.lab.touch.margins import GateSeries, GateThresholds
@@ -120,7 +120,9 @@ def _clip_series(result: ReplayResult) -> ClipSeries:
     contact = np.zeros(t.size, bool)
     for c in labels.contacts:
         contact |= (t >= c.t_on) & (t < c.t_off)
-    return ClipSeries(labels.label, t, result.anchor[keep], result.core_depth[keep], result.edge[keep], contact)
+    return ClipSeries(
+        labels.label, t, result.anchor[keep], result.core_depth[keep], result.edge[keep], contact, result.projected_depth[keep]
+    )
 
 
 def fit_on_clips(
@@ -132,7 +134,8 @@ def fit_on_clips(
     projector: ProjectorConfig | None = None,
     calibration: Path | None = None,
 ) -> Fit:
-    """Fit the contact edge first, then replay the clips with it and fit the depth thresholds.
+    """Fit the landing gates first (the contact edge and the projected-light gate: neither score depends on a
+    threshold), then replay the clips with them and fit the depth thresholds.
 
     A clip recorded with its projector stream (``feelium record --projector``) is replayed with the light the
     daemon would predict, as ``eval`` does (the map from ``calibration``, else the one beside it under
@@ -153,9 +156,11 @@ def fit_on_clips(
                 first.append((r, result))
     if not first:
         raise ValueError("no continuous contact/hover clips in this dataset (labels with \"clip\": true)")
-    edge = fit_edge([_clip_series(result) for _, result in first], held_frames=config.down_frames)
-    with_edge = replace(config, contact_edge=edge.threshold)
-    return fit_gates([_clip_series(replay(r, with_edge)) for r, _ in first], edge)
+    series = [_clip_series(result) for _, result in first]
+    edge = fit_edge(series, held_frames=config.down_frames)
+    projected = fit_projected(series, config.contact_projected_depth, held_frames=config.down_frames)
+    landing = replace(config, contact_edge=edge.threshold, contact_projected_depth=projected.threshold)
+    return fit_gates([_clip_series(replay(r, landing)) for r, _ in first], edge, projected)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
@@ -329,6 +334,7 @@ def run_eval(args: argparse.Namespace) -> int:
     root = Path(args.dataset)
     fitted: dict[str, float] | None = None
     fit_warnings: list[str] = []
+    fit_notes: list[str] = []
     if args.fit_on_clips:
         try:
             # quiet: the scoring pass below meets the same bad recordings and reports them once
@@ -340,7 +346,9 @@ def run_eval(args: argparse.Namespace) -> int:
             return 1
         fitted = fit.values()
         config = replace(config, **fitted)
-        fit_warnings = fit.warnings
+        fit_warnings, fit_notes = fit.warnings, fit.notes
+        for note in fit_notes:
+            print(f"feelium eval: --fit-on-clips: {note}", file=sys.stderr)
         for warning in fit_warnings:
             print(f"feelium eval: --fit-on-clips: warning: {warning}", file=sys.stderr)
     skips = Skips("eval", scores_labels=True)
@@ -351,7 +359,9 @@ def run_eval(args: argparse.Namespace) -> int:
     report["touch_config"] = {
         "fitted_on_clips": fitted is not None,
         "fit_warnings": fit_warnings,
+        "fit_notes": fit_notes,
         "contact_edge": config.contact_edge,
+        "contact_projected_depth": config.contact_projected_depth,
         "instant_depth": config.instant_depth,
         "anchor_threshold": config.anchor_threshold,
         "anchor_window_s": config.anchor_window_s,
