@@ -82,7 +82,11 @@ def rear_camera_source(
         from feelium.cameras.replay import ReplayCamera
 
         return CameraSource(
-            "replay", lambda: ReplayCamera(cfg.replay_path, realtime=cfg.replay_realtime, loop=cfg.replay_loop)
+            "replay",
+            lambda: ReplayCamera(
+                cfg.replay_path, realtime=cfg.replay_realtime, loop=cfg.replay_loop,
+                projector_stream=cfg.projection_compensation != "off", calibration=cfg.replay_projector_calibration or None,
+            ),  # fmt: skip
         )
     from feelium.cameras.base import Roi
     from feelium.cameras.config import check_roi

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from feelium.cli import CommandRegistry
 
@@ -12,7 +13,15 @@ def register(registry: CommandRegistry) -> None:
     run.add_argument("--config", help="TOML config file (default: built-in defaults)")
     source = run.add_mutually_exclusive_group()
     source.add_argument("--sim", action="store_true", help="run every part on its simulator, whatever the hardware")
-    source.add_argument("--replay", metavar="PATH", help="rear camera replays this recording or dataset; the rest simulated")
+    source.add_argument(
+        "--replay", metavar="PATH",
+        help="rear camera replays this recording or dataset, with its projector stream when it has one (touch predicts "
+        "the light from the recorded frames and the map beside them, as replay and eval do); the rest simulated",
+    )  # fmt: skip
+    run.add_argument(
+        "--projector-calibration", metavar="FILE",
+        help="with --replay: the projector map of the replayed streams (default: projector-calibration.npz beside them)",
+    )
     run.add_argument("-v", "--verbose", action="count", default=0, help="debug logging (overrides [daemon] log_level)")
 
     bench = registry.subcommand(
@@ -68,7 +77,12 @@ def _run(args: argparse.Namespace) -> int:
     from feelium.daemon.journal import effective_level, setup_logging
     from feelium.daemon.runner import run_process, with_overrides
 
-    config = with_overrides(load_config(args.config), sim=args.sim, replay=args.replay)
+    if args.projector_calibration and not args.replay:
+        print("feelium run: --projector-calibration goes with --replay", file=sys.stderr)
+        return 2
+    config = with_overrides(
+        load_config(args.config), sim=args.sim, replay=args.replay, projector_calibration=args.projector_calibration
+    )
     setup_logging(effective_level(config.daemon.log_level, args.verbose))
     return run_process(config)
 
