@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
+from pathlib import Path
+from typing import Any
 
 from feelium.cli import CommandRegistry
 
@@ -84,7 +87,35 @@ def _run(args: argparse.Namespace) -> int:
         load_config(args.config), sim=args.sim, replay=args.replay, projector_calibration=args.projector_calibration
     )
     setup_logging(effective_level(config.daemon.log_level, args.verbose))
-    return run_process(config)
+    with tempfile.TemporaryDirectory(prefix="feelium-replay-map-") as scratch:
+        if args.replay and not args.projector_calibration and config.rear_camera.projection_compensation != "off":
+            try:
+                config = _with_fitted_replay_map(config, Path(args.replay), Path(scratch))
+            except (ValueError, OSError) as exc:
+                print(f"feelium run: --replay: {exc}", file=sys.stderr)
+                return 1
+        return run_process(config)
+
+
+def _with_fitted_replay_map(config: Any, root: Path, scratch: Path) -> Any:
+    """``config`` replaying with the map fitted from the calibration recording beside the replayed streams, when
+    that is what they find (the daemon loads saved maps only: fitting is lab code, which this command may load)."""
+    import dataclasses
+    import logging
+
+    from feelium.lab.touch.recorded_light import replay_map
+    from feelium.recording import RecordingError
+
+    try:
+        saved = replay_map(root, config.projector, config.touch, scratch)
+    except RecordingError as exc:  # a bad recording: the replay camera skips it and says so
+        logging.getLogger(__name__).warning("replay: %s", exc)
+        return config
+    if saved is None:
+        return config
+    logging.getLogger(__name__).info("replay: the projector map fitted from the calibration recording beside the streams")
+    rear = dataclasses.replace(config.rear_camera, replay_projector_calibration=str(saved))
+    return dataclasses.replace(config, rear_camera=rear)
 
 
 def _bench(args: argparse.Namespace) -> int:

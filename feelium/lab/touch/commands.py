@@ -557,7 +557,8 @@ def format_report(report: dict[str, Any]) -> str:
             (
                 "gates used" + (" (fitted on clips)" if cfg["fitted_on_clips"] else ""),
                 f"contact_edge {cfg['contact_edge']:.4f}, instant_depth {cfg['instant_depth']:.3f}, "
-                f"anchor_threshold {cfg['anchor_threshold']:.3f}",
+                f"anchor_threshold {cfg['anchor_threshold']:.3f}"
+                + (f", contact_projected_depth {cfg['contact_projected_depth']:.3f}" if "contact_projected_depth" in cfg else ""),
             )
         )
     width = max(len(r[0]) for r in rows)

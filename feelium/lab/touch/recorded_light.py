@@ -26,7 +26,7 @@ import numpy as np
 from feelium.lab.projector.from_recording import calibrate_recording
 from feelium.projector.config import CalibrationConfig, ProjectorConfig
 from feelium.projector.recorded import StreamLight, stream_light, stream_optics
-from feelium.recording import CALIBRATION_FILE, Recording, RecordingError, find_calibration
+from feelium.recording import CALIBRATION_FILE, CALIBRATION_PURPOSE, Recording, RecordingError, find_calibration, find_recordings
 from feelium.skin.projector_map import CalibrationError, ProjectorMap, load_calibration
 from feelium.touch.config import TouchConfig
 from feelium.touch.geometry import LightGrids
@@ -116,3 +116,31 @@ def recorded_light(
     touch = touch_with_latency(touch, cal)  # the projector's measured latency, not the assumed one, when it has one
     camera = recording.meta.camera
     return RecordedLight(recording.projector_frames(), light((camera.width, camera.height)), touch, light)
+
+
+def replay_map(root: Path, projector: ProjectorConfig, touch: TouchConfig, out: Path) -> Path | None:
+    """For ``feelium run --replay ROOT``: the calibration recording the replayed streams find beside them, fitted
+    and saved as a map file under ``out`` (the daemon loads saved maps; it does not load the lab code that fits
+    them). None when no stream's lookup finds a calibration recording (each has a saved map, or none: the touch
+    service names that one in health).
+
+    ValueError when the streams find several calibration recordings, or some a recording and some a saved map: one
+    map for the whole replay would give some recordings another projector's map."""
+    found: set[Path | None] = set()
+    for path in find_recordings(root):
+        recording = Recording(path)
+        if recording.has_projector and recording.meta.raw.get("purpose") != CALIBRATION_PURPOSE:
+            found.add(find_calibration(path, root, recording.meta.session))
+    fitted = sorted(path for path in found if path is not None and path.is_dir())
+    if not fitted:
+        return None
+    if len(found) > 1:
+        names = ", ".join(sorted(str(path) for path in found if path is not None))
+        raise ValueError(
+            f"the replayed streams find {len(found)} different projector calibrations ({names}): fit each with "
+            "`feelium calibrate projector` and replay each set of recordings with its map (--projector-calibration)"
+        )
+    cal = fitted_calibration(fitted[0].resolve(), projector.calibration, touch.projector_latency_s, touch.camera_exposure_s)
+    saved = out / CALIBRATION_FILE
+    cal.save(saved)
+    return saved
