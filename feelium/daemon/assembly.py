@@ -91,7 +91,8 @@ def replay_stream_light(config: Config, touch: TouchConfig) -> StreamLightFactor
     ``eval`` do (:mod:`feelium.projector.recorded`), with the latency the map measured when it did. The map is
     loaded per recording when its first frame comes; one that is missing or unusable is an error the touch service
     reports in health and replays that recording uncompensated. A calibration *recording* beside it is not fitted
-    here (the daemon does not load lab code): ``feelium calibrate projector`` fits and saves it."""
+    here (the daemon does not load lab code): ``feelium run --replay`` fits it before the daemon starts and passes
+    the map as ``replay_projector_calibration`` (``feelium.cli.daemon``)."""
     if config.rear_camera.projection_compensation == "off":
         return None
 
