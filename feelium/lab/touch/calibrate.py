@@ -16,7 +16,8 @@ from the contact clip's contact frames (positives) and the hover clip's frames
   frames where the projector's share of the light was known: its scores are the
   largest projected depth of a shadow (the share of the projector's own light
   it took: a hover none, a contact 0.4-0.5), the hardest press's being the
-  largest it holds for ``down_frames`` consecutive frames. Where the share was
+  largest it holds for ``down_frames`` consecutive frames, the hardest hover
+  never taken below 0 (:data:`HOVER_PROJECTED_BOUND`). Where the share was
   never known (no projector stream, a static back-light replayed without its
   probe) or the gate is off, it has nothing to measure: the configured value is
   kept and the fit says why (:func:`fit_projected`). It is fitted with the edge,
@@ -259,9 +260,10 @@ def fit_projected(clips: list[ClipSeries], configured: float, held_frames: int =
     one that comes as close as a hover can scores about 0 (more only through
     an error of the share); a minute of hover clips far from that (seed 32's
     lit room: -0.62) would otherwise put the gate below 0, where any hover
-    whose share is a little off lands. Only frames whose share was known count (NaN: unknown; the pipeline then
-    lets the shadow land, so the gate was not in play there). When the rule
-    cannot hold, the per-frame centred balanced-accuracy fit, with a warning.
+    whose share is a little off lands. Only frames whose share was known count
+    (NaN: unknown; the pipeline then lets the shadow land, so the gate was not
+    in play there). When the rule cannot hold, the per-frame centred
+    balanced-accuracy fit, with a warning.
 
     Kept at ``configured`` (:class:`ProjectedKept`) when the gate is off, or when
     the hover clip or the contact clip's presses never had the share known: a
