@@ -76,6 +76,12 @@ class FrontCameraConfig:
     width: int = setting(640, "Frame width delivered to the headset.", min=32, max=4096)
     height: int = setting(480, "Frame height delivered to the headset.", min=24, max=4096)
     fps: float = setting(15.0, "Frame rate.", min=1.0, max=120.0)
+    jpeg: Literal["auto", "hardware", "software"] = setting(
+        "auto",
+        "Who encodes the headset's JPEGs of the picamera2 camera: hardware = the VideoCore's encoder (almost no ARM"
+        " CPU; fails where there is none, e.g. a Pi 5); software = the daemon (OpenCV); auto = hardware where"
+        " picamera2 offers it. Other backends always encode in software.",
+    )
     lens_file: str = setting(
         "front_lens.json",
         "The fisheye's lens model (OpenCV fisheye K, D) written by `feelium calibrate lens` and served at GET /lens;"
