@@ -463,6 +463,9 @@ def _contact_rows(c: dict[str, Any] | None) -> list[tuple[str, str]]:
         ("contacts (several per trial)", f"{c['contacts']} in {c['trials']} trials: {c['touches']} touches, missed {c['missed']}, "
          f"split {c['split']}, id swaps {c['swaps']}, phantoms {c['phantoms']}"),
         ("  contact kind right", f"{c['kind_right']} of {c['kind_scored']} ({kinds})"),
+        ("  gesture right (per contact)", f"{c['gesture_right']} of {c['gesture_scored']} ("
+         + "; ".join(f"{k}: " + ", ".join(f"{n} {got}" for got, n in v.items() if n) for k, v in c["gestures"].items())
+         + ")"),
         ("  error px (median/max)", "n/a" if err is None else f"{err['median']:.2f} / {err['max']:.2f}"),
         *(
             (f"  footprint on up, {kind}", f"n {f['n']}: {_fmt(f['area_mm2'], 1)} mm^2, {_fmt(f['major_mm'], 1)} x "
@@ -537,7 +540,9 @@ def format_report(report: dict[str, Any]) -> str:
         rows.append((f"  {label}", f"{entry[key]} of {entry['n']} {key}"))
     rows += [
         ("kind accuracy", _fmt(t["kind_accuracy"])),
-        ("single-event rate", _fmt(t["single_event_rate"])),
+        ("single-event rate", _fmt(t["single_event_rate"])
+         + (f" (one-contact trials: {_fmt(t['single_event_rate_one_contact'])}; {t['multi_contact_detected']} detected "
+            "trials have several contacts: see contacts)" if t.get("multi_contact_detected") else "")),
         ("activity (hand present)", f"{a['registered']} of {a['hand_present']}"),
         ("activity (empty scenes)", f"{a['empty_fired']} of {a['empty']}"),
         ("area-only baseline", f"threshold {_fmt(ab['threshold'], 0)} px: precision {_fmt(ab['precision'])}, recall {_fmt(ab['recall'])}"),
