@@ -12,6 +12,7 @@ from feelium.cli import main
 from feelium.lab.sim import conditions, protocol, take_faceon, take_multitouch
 from feelium.lab.touch import face_zones, faceon, litroom
 from feelium.lab.touch.commands import evaluate_dataset
+from feelium.lab.touch.contact_score import gesture_of
 from feelium.lab.touch.recorded_light import CALIBRATION_FILE, recorded_light
 from feelium.lab.touch.replay import replay_recording
 from feelium.projector.config import ProjectorConfig
@@ -181,8 +182,11 @@ def test_two_hands_and_a_palm_are_labelled_contact_by_contact_and_eval_scores_ea
     path = conditions.write_job(job, tmp_path, seed=1, scale=0.1)
     labels = Recording(path).labels
     assert labels is not None and [c.contact for c in labels.contacts] == ["palm", "finger"]
+    # the trial's label is the gesture of its longest contact (the palm, 1.6 s: a hold), each contact's its own
+    assert labels.label == "hold" and [gesture_of(c) for c in labels.contacts] == ["hold", "hold"]
     report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
     got = report["conditions"]["multitouch/palm-and-finger"]["contacts"]
+    assert (got["gesture_right"], got["gesture_scored"]) == (2, 2)
     assert (got["contacts"], got["touches"], got["missed"], got["split"], got["swaps"], got["phantoms"]) == (2, 2, 0, 0, 0, 0)
     assert got["kinds"] == {"finger": {"finger": 1, "palm": 0, "hug": 0, "none": 0}, "palm": {"finger": 0, "palm": 1, "hug": 0, "none": 0}}
 
