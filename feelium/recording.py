@@ -69,6 +69,10 @@ class Labels:
     clip: bool
     target: tuple[float, float] | None
     contacts: tuple[Contact, ...]
+    # Optional (docs/recording-format.md, proposed): when the room's light was switched (on or off), seconds on the
+    # camera clock. Why a label: a switch is what recovery after a switch is measured from (``eval``), and only the
+    # person (or simulator) making the take knows it; the frames alone do not say what was switched.
+    light_switches: tuple[float, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         obj: dict[str, Any] = {
@@ -86,6 +90,8 @@ class Labels:
         }
         if self.clip:
             obj["clip"] = True
+        if self.light_switches:
+            obj["light_switches"] = [round(float(t), 4) for t in self.light_switches]
         return obj
 
 
@@ -262,7 +268,14 @@ def _parse_labels(path: Path) -> Labels:
         if kind is not None and kind not in CONTACT_KINDS:
             raise _fail(path, f"contacts[{i}].contact: {kind!r} is not one of {CONTACT_KINDS}")
         contacts.append(Contact(t_on, t_off, _parse_path(path, i, c.get("path")), kind))
-    return Labels(label=label, clip=clip, target=target, contacts=tuple(contacts))
+    raw_switches = obj.get("light_switches", [])
+    switches = [_number(v) for v in raw_switches] if isinstance(raw_switches, list) else [None]
+    if None in switches:
+        raise _fail(path, f"light_switches: expected a list of times in seconds, got {raw_switches!r}")
+    return Labels(
+        label=label, clip=clip, target=target, contacts=tuple(contacts),
+        light_switches=tuple(sorted(float(t) for t in switches)),  # type: ignore[arg-type]
+    )  # fmt: skip
 
 
 def check_labels_fit(recording: "Recording") -> None:

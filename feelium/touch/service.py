@@ -50,7 +50,7 @@ from feelium.skin.annotation import ProjectorAnnotation
 from feelium.skin.probe import ProbeLevels, light_at, pattern_on_grid, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
-from feelium.touch.sensing import SensingMonitor, SensingSample
+from feelium.touch.sensing import SensingMonitor, SensingSample, sample_of, share_taught
 
 log = logging.getLogger(__name__)
 
@@ -466,25 +466,13 @@ class TouchService:
 
     def _sample(self, t: float) -> SensingSample | None:
         """What the light monitor needs from the pipeline that just ran (read on its thread, used on the loop's)."""
-        pipeline = self._pipeline
-        masked, geometry = getattr(pipeline, "masked", None), getattr(pipeline, "geometry", None)
-        if masked is None or geometry is None:
-            return None
-        response = getattr(pipeline, "response", None)
-        width, height = geometry.work_size
-        return SensingSample(
-            t=t, pixels=int(width * height), dark=masked.dark, saturated=masked.saturated,
-            projector_share=None if response is None else response.share,
-            room_dominated=getattr(pipeline, "room_dominated", None),
-            share_taught=self._share_taught(),
-        )  # fmt: skip
+        return sample_of(self._pipeline, t, self._share_taught())
 
     def _share_taught(self) -> bool:
         """Whether something teaches the pipeline the projector's share of the light (the probe, or projected
         content it compensates) for a hover gate that is on: its share must then become known."""
-        if self.touch_config.contact_projected_depth <= 0.0:
-            return False
-        return self.probe_levels.active() or self._exposure_light is not None
+        fed = self.probe_levels.active() or self._exposure_light is not None
+        return share_taught(self.touch_config.contact_projected_depth, fed)
 
     def _flush(self) -> Released:
         """Release contacts still down when a segment ends, so no consumer waits for an ``up`` forever."""
