@@ -9,6 +9,7 @@ and what is wrong, before a single frame is handed downstream.
 from __future__ import annotations
 
 import errno
+import functools
 import io
 import json
 import math
@@ -68,6 +69,10 @@ class Labels:
     clip: bool
     target: tuple[float, float] | None
     contacts: tuple[Contact, ...]
+    # Optional (docs/recording-format.md, proposed): when the room's light was switched (on or off), seconds on the
+    # camera clock. Why a label: a switch is what recovery after a switch is measured from (``eval``), and only the
+    # person (or simulator) making the take knows it; the frames alone do not say what was switched.
+    light_switches: tuple[float, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         obj: dict[str, Any] = {
@@ -85,6 +90,8 @@ class Labels:
         }
         if self.clip:
             obj["clip"] = True
+        if self.light_switches:
+            obj["light_switches"] = [round(float(t), 4) for t in self.light_switches]
         return obj
 
 
@@ -261,7 +268,14 @@ def _parse_labels(path: Path) -> Labels:
         if kind is not None and kind not in CONTACT_KINDS:
             raise _fail(path, f"contacts[{i}].contact: {kind!r} is not one of {CONTACT_KINDS}")
         contacts.append(Contact(t_on, t_off, _parse_path(path, i, c.get("path")), kind))
-    return Labels(label=label, clip=clip, target=target, contacts=tuple(contacts))
+    raw_switches = obj.get("light_switches", [])
+    switches = [_number(v) for v in raw_switches] if isinstance(raw_switches, list) else [None]
+    if None in switches:
+        raise _fail(path, f"light_switches: expected a list of times in seconds, got {raw_switches!r}")
+    return Labels(
+        label=label, clip=clip, target=target, contacts=tuple(contacts),
+        light_switches=tuple(sorted(float(t) for t in switches)),  # type: ignore[arg-type]
+    )  # fmt: skip
 
 
 def check_labels_fit(recording: "Recording") -> None:
@@ -447,6 +461,53 @@ def find_recordings(root: str | Path) -> list[Path]:
     if not found:
         raise RecordingError(root, "holds no recording (no meta.json below it)")
     return found
+
+
+# -- the projector calibration of a recording with a projector stream (docs/recording-format.md) ---------------------
+
+CALIBRATION_PURPOSE = "projector-calibration"  # meta.purpose of a calibration recording (structured light, no hand)
+CALIBRATION_FILE = "projector-calibration.npz"  # a map saved by ProjectorMap.save, found beside the trials
+# The name `feelium calibrate projector` saves on the blimp (`[projector.calibration] file`): a map copied from
+# the blimp beside the trials is found under it too.
+CALIBRATION_FILES = (CALIBRATION_FILE, "projector_calibration.npz")
+
+
+def find_calibration(recording: Path, root: Path, session: str | None = None) -> Path | None:
+    """The calibration beside the trials, in the recording's folder or the nearest folder above it up to the
+    dataset ``root``: a saved map (:data:`CALIBRATION_FILE`), else a calibration recording (``meta.purpose``
+    ``"projector-calibration"``) to fit the map from: the first by name of the trial's own ``session`` when
+    that folder holds one, else the first by name. Why the session: the recording format fits the map of "the
+    recordings beside it (same ``session``)", so a dataset may lay one calibration recording per session (per
+    blimp, per day) side by side, and each trial must get its own projector's map."""
+    here, top = recording.resolve(), root.resolve()
+    for folder in (here, *here.parents):
+        for name in CALIBRATION_FILES:
+            candidate = folder / name
+            if candidate.is_file():
+                return candidate
+        recordings = _calibration_recordings(folder)
+        if recordings:
+            same = [path for path, their_session in recordings if session is not None and their_session == session]
+            return (same or [recordings[0][0]])[0]
+        if folder == top or top not in folder.parents:
+            break
+    return None
+
+
+@functools.lru_cache(maxsize=256)
+def _calibration_recordings(folder: Path) -> tuple[tuple[Path, str | None], ...]:
+    """The calibration recordings directly in ``folder``, by name, each with its ``meta.session`` (cached:
+    every trial of a dataset asks its folder)."""
+    found = []
+    for child in sorted(folder.iterdir()) if folder.is_dir() else ():
+        try:
+            meta = json.loads((child / "meta.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(meta, dict) and meta.get("purpose") == CALIBRATION_PURPOSE:
+            session = meta.get("session")
+            found.append((child, session if isinstance(session, str) else None))
+    return tuple(found)
 
 
 RESERVE_BYTES = 32 * 1024 * 1024

@@ -10,6 +10,7 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -22,6 +23,24 @@ class CameraUnavailable(RuntimeError):
 
 
 @dataclass(frozen=True)
+class Jpeg:
+    """A frame the camera's hardware encoder already compressed (the Pi's VideoCore, through picamera2).
+
+    Why: the front camera's frames go only to the headset, as JPEG. Encoding them in software costs the board's
+    ARM cores a few milliseconds a frame; the VideoCore's encoder costs them almost nothing. The daemon forwards
+    these bytes as they are and never decodes them.
+    """
+
+    data: bytes
+    width: int
+    height: int
+
+    def looks_valid(self) -> bool:
+        """Starts with a JPEG's start-of-image marker and is not empty (what the headset can at least try to show)."""
+        return len(self.data) > 4 and self.data[:2] == b"\xff\xd8"
+
+
+@dataclass(frozen=True)
 class Frame:
     """One captured frame.
 
@@ -30,12 +49,28 @@ class Frame:
     jumps (a replay moves to its next recording or loops), so consumers can
     reset what they learned about the scene; ``roi`` is the sensitive patch in
     this frame's pixels (``None`` = whole frame).
+
+    A replayed recording that carries its projector stream says so in
+    ``stream``, and each frame brings the projector frames ``shown`` since the
+    previous one (``(t, frame)``, display times on the same clock as ``t``):
+    what lit the membrane the replayed camera saw, which the live projector's
+    output is not.
     """
 
     t: float
-    image: np.ndarray
+    image: np.ndarray | Jpeg  # a Jpeg only from a front camera that encodes in hardware
     segment: int = 0
     roi: Roi | None = None
+    stream: ProjectorStream | None = None
+    shown: tuple[tuple[float, np.ndarray], ...] = ()
+
+
+@dataclass(frozen=True)
+class ProjectorStream:
+    """The projector stream of a replayed recording: where it is and the projector map found for it."""
+
+    recording: Path
+    calibration: Path | None  # a saved map or a calibration recording (feelium.recording.find_calibration); None: none
 
 
 @runtime_checkable

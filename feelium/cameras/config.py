@@ -29,6 +29,11 @@ class RearCameraConfig:
     replay_path: str = setting("", "Recording (or dataset directory) for the replay backend.")
     replay_realtime: bool = setting(True, "Replay at the recording's own pace; false = as fast as the pipeline runs.")
     replay_loop: bool = setting(True, "Start the replay again when it ends (a demo that keeps going).")
+    replay_projector_calibration: str = setting(
+        "",
+        "Projector map (a file saved by `feelium calibrate projector`) for replayed recordings that carry their"
+        " projector stream; \"\" = the one beside each recording (projector-calibration.npz), as replay and eval find it.",
+    )
     camera_index: int = setting(0, "picamera2 camera number of the rear (IMX500) camera.", min=0, max=7)
     fps: float = setting(15.0, "Frame rate asked of the camera (and of the simulator).", min=1.0, max=120.0)
     roi: tuple[int, ...] = setting(
@@ -48,8 +53,9 @@ class RearCameraConfig:
     projection_compensation: Literal["auto", "on", "off"] = setting(
         "auto",
         "Divide the predicted back-light of what the projector shows out of each frame, so a moving face is not a"
-        " touch; auto = on with the real camera (picamera2) when a projector calibration exists. Simulated and"
-        " replayed frames do not contain the projector's light.",
+        " touch; auto = on with the real camera (picamera2) when a projector calibration exists, and for a replayed"
+        " recording that carries its projector stream (predicted from the recorded frames, not the live projector's)."
+        " Simulated frames and replays without a stream do not contain the projector's light; off = never.",
     )
 
     def __post_init__(self) -> None:
@@ -70,6 +76,12 @@ class FrontCameraConfig:
     width: int = setting(640, "Frame width delivered to the headset.", min=32, max=4096)
     height: int = setting(480, "Frame height delivered to the headset.", min=24, max=4096)
     fps: float = setting(15.0, "Frame rate.", min=1.0, max=120.0)
+    jpeg: Literal["auto", "hardware", "software"] = setting(
+        "auto",
+        "Who encodes the headset's JPEGs of the picamera2 camera: hardware = the VideoCore's encoder (almost no ARM"
+        " CPU; fails where there is none, e.g. a Pi 5); software = the daemon (OpenCV); auto = hardware where"
+        " picamera2 offers it. Other backends always encode in software.",
+    )
     lens_file: str = setting(
         "front_lens.json",
         "The fisheye's lens model (OpenCV fisheye K, D) written by `feelium calibrate lens` and served at GET /lens;"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import logging
+import queue
 import time
 from collections.abc import Callable
 from types import ModuleType
@@ -19,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from feelium.cameras.base import CameraUnavailable, ClosableReader, Frame, Roi
+from feelium.cameras.base import CameraUnavailable, ClosableReader, Frame, Jpeg, Roi
 
 log = logging.getLogger(__name__)
 
@@ -189,39 +190,136 @@ def _capture(camera: Any, stream: str) -> tuple[dict[str, Any], np.ndarray]:
         request.release()
 
 
+# The hardware encoder's bits per pixel and frame, set explicitly (picamera2 would otherwise pick a bit rate from its
+# quality table, which changed between versions): its current MEDIUM, 30 Mb/s at 1080p30, about 18 KB a 640x480
+# frame, near the 20 KB the software path's frames of the simulated room take at [http] jpeg_quality 80.
+HARDWARE_JPEG_BITS_PER_PIXEL = 30e6 / (1920 * 1080 * 30)
+ENCODE_TIMEOUT_S = 1.0  # a frame not encoded in this long: the encoder is stuck, and the camera is reopened
+
+
+def _submodule(module: ModuleType, name: str) -> Any:
+    """picamera2's ``encoders`` or ``outputs``: the attribute once the package loaded it, else imported."""
+    found = getattr(module, name, None)
+    return found if found is not None else importlib.import_module(f"{module.__name__}.{name}")
+
+
+def hardware_jpeg_available(module: ModuleType) -> bool:
+    """Whether picamera2 offers the VideoCore's MJPEG encoder here (the Pi Zero 2 W to the Pi 4 do; the Pi 5 has none)."""
+    try:
+        _submodule(module, "encoders").MJPEGEncoder()
+    except Exception:
+        return False
+    return True
+
+
+class _EncodedFrames:
+    """The hardware encoder's JPEGs in the order the frames were queued: the V4L2 memory-to-memory encoder keeps
+    the order, so the n-th JPEG is the n-th frame handed to it."""
+
+    def __init__(self) -> None:
+        self._ready: queue.Queue[bytes] = queue.Queue()
+
+    def put(self, frame: Any) -> None:
+        self._ready.put(bytes(frame))
+
+    def next(self, timeout: float) -> bytes | None:
+        try:
+            return self._ready.get(timeout=timeout)
+        except queue.Empty:
+            return None
+
+
+def _as_picamera2_output(module: ModuleType, frames: _EncodedFrames) -> Any:
+    """An instance of picamera2's ``Output`` (its encoders refuse anything else) that hands each JPEG to ``frames``;
+    picamera2 calls it from its encoder thread."""
+    outputs = _submodule(module, "outputs")
+
+    class EncodedFramesOutput(outputs.Output):  # type: ignore[misc, name-defined]
+        def outputframe(self, frame: Any, *_args: Any, **_kwargs: Any) -> None:  # later versions pass more arguments
+            frames.put(frame)
+
+    return EncodedFramesOutput()
+
+
 class Picamera2FrontCamera:
-    """BGR frames of the fisheye camera (picamera2's "RGB888" is BGR in memory, as OpenCV wants)."""
+    """The fisheye camera's frames: JPEGs from the VideoCore's encoder (``jpeg="hardware"``), else BGR frames
+    (picamera2's "RGB888" is BGR in memory, as OpenCV wants) for the daemon to encode in software.
+
+    Why the hardware path: the front frames only go to the headset, as JPEG; on a Pi Zero 2 W encoding 640x480 at
+    15 fps in software takes the ARM cores ~0.07 of a core (docs/performance.md), the VideoCore's encoder almost
+    none. Each frame is handed to the encoder by hand and its JPEG awaited, so it keeps its own SensorTimestamp.
+    """
 
     name = "picamera2"
     realtime = True
 
     def __init__(
-        self, *, index: int, width: int, height: int, fps: float, module: ModuleType | None = None,
-        boottime_ahead: Callable[[], float] = boottime_ahead_s,
-    ) -> None:
+        self, *, index: int, width: int, height: int, fps: float, jpeg: str = "software",
+        module: ModuleType | None = None, boottime_ahead: Callable[[], float] = boottime_ahead_s,
+    ) -> None:  # fmt: skip
+        if jpeg not in ("hardware", "software"):
+            raise ValueError(f"jpeg must be 'hardware' or 'software', got {jpeg!r}")
         module = module if module is not None else load_picamera2()
         self._boottime_ahead = boottime_ahead()
+        self.size = (width, height)
+        self.jpeg = jpeg
         self._camera = _open(module, index)
+        pixels = "YUV420" if jpeg == "hardware" else "RGB888"  # what the encoder takes; what OpenCV takes
         config = self._camera.create_video_configuration(
-            main={"size": (width, height), "format": "RGB888"}, controls={"FrameRate": float(fps)}, buffer_count=3
+            main={"size": (width, height), "format": pixels}, controls={"FrameRate": float(fps)}, buffer_count=3
         )
         self._camera.configure(config)
+        self._encoded: _EncodedFrames | None = None
+        self._encoder: Any = None
+        if jpeg == "hardware":
+            self._start_encoder(module, width, height, fps)
         self._camera.start()
         self._guard = ClosableReader()
+
+    def _start_encoder(self, module: ModuleType, width: int, height: int, fps: float) -> None:
+        try:
+            encoder = _submodule(module, "encoders").MJPEGEncoder(bitrate=int(HARDWARE_JPEG_BITS_PER_PIXEL * width * height * fps))
+        except RuntimeError as exc:  # "Hardware MJPEG not available on this platform" (a Pi 5)
+            self._camera.close()
+            raise CameraUnavailable(f"front camera: no hardware JPEG encoder ({exc}); set front_camera.jpeg = \"software\"") from exc
+        encoder.size = (width, height)
+        encoder.format = "YUV420"
+        encoder.stride = int(self._camera.stream_configuration("main")["stride"])
+        self._encoded = _EncodedFrames()
+        encoder.output = _as_picamera2_output(module, self._encoded)
+        encoder.start()
+        self._encoder = encoder
 
     def read(self) -> Frame | None:
         with self._guard:
             if self._guard.closed:
                 return None
-            metadata, image = _capture(self._camera, "main")
+            if self._encoder is None:
+                metadata, image = _capture(self._camera, "main")
+                stamp = int(metadata["SensorTimestamp"])
+                return Frame(t=sensor_time_s(stamp, self._boottime_ahead), image=np.ascontiguousarray(image[:, :, :3]))
+            request = self._camera.capture_request()
+            try:
+                metadata = request.get_metadata()
+                self._encoder.encode("main", request)  # the encoder holds the buffer until its JPEG is out
+            finally:
+                request.release()
+            assert self._encoded is not None
+            data = self._encoded.next(ENCODE_TIMEOUT_S)
+            if data is None:
+                raise OSError(f"the hardware JPEG encoder returned nothing in {ENCODE_TIMEOUT_S:.0f} s")
             stamp = int(metadata["SensorTimestamp"])
-            return Frame(t=sensor_time_s(stamp, self._boottime_ahead), image=np.ascontiguousarray(image[:, :, :3]))
+            return Frame(t=sensor_time_s(stamp, self._boottime_ahead), image=Jpeg(data, *self.size))
 
     def close(self) -> None:
         def release() -> None:
             try:
-                self._camera.stop()
+                if self._encoder is not None:
+                    self._encoder.stop()
             finally:
-                self._camera.close()
+                try:
+                    self._camera.stop()
+                finally:
+                    self._camera.close()
 
         self._guard.close(release)

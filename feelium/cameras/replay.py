@@ -10,6 +10,13 @@ pace and stamp each frame with the time it was due on ``clock`` (the
 daemon's, so a replaying daemon's API times mean what a live one's do);
 otherwise frames come as fast as the consumer asks (nothing dropped), on
 the recordings' clock.
+
+With ``projector_stream`` (the rear camera's replay), a recording that carries
+what the projector showed (``projector.mkv``) brings it along: each frame has
+the projector frames shown since the previous one, their display times moved
+exactly as the camera's, and names the projector map found for the recording
+(``calibration`` if given, else the one beside it:
+:func:`feelium.recording.find_calibration`, as ``replay``/``eval`` look).
 """
 
 from __future__ import annotations
@@ -19,8 +26,10 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from feelium.cameras.base import ClosableReader, Frame
-from feelium.recording import Recording, RecordingError, find_recordings
+import numpy as np
+
+from feelium.cameras.base import ClosableReader, Frame, ProjectorStream
+from feelium.recording import Recording, RecordingError, find_calibration, find_recordings
 
 log = logging.getLogger(__name__)
 
@@ -39,9 +48,12 @@ class ReplayCamera:
         gray: bool = True,
         clock: Callable[[], float] = time.monotonic,
         sleep: Callable[[float], None] = time.sleep,
+        projector_stream: bool = False,
+        calibration: str | Path | None = None,
     ) -> None:
         if not str(path):
             raise ValueError("the replay backend needs a recording path (rear_camera.replay_path or --replay PATH)")
+        self.root = Path(path)
         self.paths = find_recordings(path)
         self.skipped: list[RecordingError] = []
         self.recordings: list[Recording] = []
@@ -57,6 +69,8 @@ class ReplayCamera:
         self._gray = gray
         self._clock = clock
         self._sleep = sleep
+        self._projector_stream = projector_stream
+        self._calibration = Path(calibration) if calibration else None
         self._frames = self._generate()
         self._guard = ClosableReader()
 
@@ -76,6 +90,7 @@ class ReplayCamera:
                 period = float(ts[-1] - ts[0]) / max(len(ts) - 1, 1) if len(ts) > 1 else 1.0 / recording.meta.camera.fps
                 shift = offset - float(ts[0]) if segment else 0.0  # the first recording keeps its own clock
                 try:
+                    stream, shown = self._stream_of(recording)
                     for t, image in recording.frames(gray=self._gray):
                         t_out = t + shift
                         stamp = t_out
@@ -86,14 +101,25 @@ class ReplayCamera:
                             stamp = wall_start + t_out  # when it is due, on the clock: like a live camera's frame
                             if stamp > now:
                                 self._sleep(stamp - now)
-                        yield Frame(t=stamp, image=image, segment=segment, roi=recording.meta.roi)
-                except RecordingError as exc:  # its video ended early: the frames it gave stand, it plays no more
+                        moved = stamp - t  # the projector's display times move as the camera's
+                        yield Frame(
+                            t=stamp, image=image, segment=segment, roi=recording.meta.roi, stream=stream,
+                            shown=tuple((shown_t + moved, projected) for shown_t, projected in shown.until(t)),
+                        )  # fmt: skip
+                except RecordingError as exc:  # a video ended early: the frames it gave stand, it plays no more
                     self.recordings.remove(recording)
                     self._skip(exc)
                 offset = float(ts[-1]) + shift + period
                 segment += 1
             if not self.loop:
                 return
+
+    def _stream_of(self, recording: Recording) -> tuple[ProjectorStream | None, _Shown]:
+        """The recording's projector stream and its frames, when it has one and the stream is asked for."""
+        if not (self._projector_stream and recording.has_projector):
+            return None, _Shown(iter(()))
+        found = self._calibration or find_calibration(recording.path, self.root, recording.meta.session)
+        return ProjectorStream(recording.path, found), _Shown(recording.projector_frames(gray=True))
 
     def read(self) -> Frame | None:
         with self._guard:
@@ -103,3 +129,18 @@ class ReplayCamera:
 
     def close(self) -> None:
         self._guard.close(self._frames.close)
+
+
+class _Shown:
+    """A recording's projector frames handed out in display order, up to each camera frame's time."""
+
+    def __init__(self, frames: Iterator[tuple[float, np.ndarray]]) -> None:
+        self._frames = frames
+        self._next = next(frames, None)
+
+    def until(self, t: float) -> list[tuple[float, np.ndarray]]:
+        out = []
+        while self._next is not None and self._next[0] <= t:
+            out.append(self._next)
+            self._next = next(self._frames, None)
+        return out

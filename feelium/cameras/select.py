@@ -6,11 +6,12 @@ import importlib
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 from feelium.cameras.base import Camera, CameraUnavailable
 from feelium.cameras.lens import FisheyeLens, LensError, load_lens
-from feelium.cameras.picamera2_backend import camera_count
+from feelium.cameras.picamera2_backend import camera_count, hardware_jpeg_available, load_picamera2
 
 if TYPE_CHECKING:
     from feelium.cameras.config import FrontCameraConfig, RearCameraConfig
@@ -82,7 +83,11 @@ def rear_camera_source(
         from feelium.cameras.replay import ReplayCamera
 
         return CameraSource(
-            "replay", lambda: ReplayCamera(cfg.replay_path, realtime=cfg.replay_realtime, loop=cfg.replay_loop)
+            "replay",
+            lambda: ReplayCamera(
+                cfg.replay_path, realtime=cfg.replay_realtime, loop=cfg.replay_loop,
+                projector_stream=cfg.projection_compensation != "off", calibration=cfg.replay_projector_calibration or None,
+            ),  # fmt: skip
         )
     from feelium.cameras.base import Roi
     from feelium.cameras.config import check_roi
@@ -143,6 +148,18 @@ def front_camera_source(cfg: "FrontCameraConfig", sim_seed: int) -> CameraSource
 
     return CameraSource(
         "picamera2",
-        lambda: Picamera2FrontCamera(index=cfg.camera_index, width=cfg.width, height=cfg.height, fps=cfg.fps),
+        lambda: Picamera2FrontCamera(
+            index=cfg.camera_index, width=cfg.width, height=cfg.height, fps=cfg.fps, jpeg=front_jpeg_encoder(cfg)
+        ),
         lens=lens,
     )
+
+
+def front_jpeg_encoder(cfg: "FrontCameraConfig", module: ModuleType | None = None) -> str:
+    """``hardware`` or ``software``: who encodes the picamera2 front camera's JPEGs (``auto`` asks picamera2)."""
+    if cfg.jpeg != "auto":
+        return cfg.jpeg
+    found = hardware_jpeg_available(module if module is not None else load_picamera2())
+    if not found:
+        log.info("front camera: picamera2 offers no hardware JPEG encoder here; the daemon encodes in software")
+    return "hardware" if found else "software"

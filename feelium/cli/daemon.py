@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
 
 from feelium.cli import CommandRegistry
 
@@ -12,7 +16,15 @@ def register(registry: CommandRegistry) -> None:
     run.add_argument("--config", help="TOML config file (default: built-in defaults)")
     source = run.add_mutually_exclusive_group()
     source.add_argument("--sim", action="store_true", help="run every part on its simulator, whatever the hardware")
-    source.add_argument("--replay", metavar="PATH", help="rear camera replays this recording or dataset; the rest simulated")
+    source.add_argument(
+        "--replay", metavar="PATH",
+        help="rear camera replays this recording or dataset, with its projector stream when it has one (touch predicts "
+        "the light from the recorded frames and the map beside them, as replay and eval do); the rest simulated",
+    )  # fmt: skip
+    run.add_argument(
+        "--projector-calibration", metavar="FILE",
+        help="with --replay: the projector map of the replayed streams (default: projector-calibration.npz beside them)",
+    )
     run.add_argument("-v", "--verbose", action="count", default=0, help="debug logging (overrides [daemon] log_level)")
 
     bench = registry.subcommand(
@@ -68,9 +80,42 @@ def _run(args: argparse.Namespace) -> int:
     from feelium.daemon.journal import effective_level, setup_logging
     from feelium.daemon.runner import run_process, with_overrides
 
-    config = with_overrides(load_config(args.config), sim=args.sim, replay=args.replay)
+    if args.projector_calibration and not args.replay:
+        print("feelium run: --projector-calibration goes with --replay", file=sys.stderr)
+        return 2
+    config = with_overrides(
+        load_config(args.config), sim=args.sim, replay=args.replay, projector_calibration=args.projector_calibration
+    )
     setup_logging(effective_level(config.daemon.log_level, args.verbose))
-    return run_process(config)
+    with tempfile.TemporaryDirectory(prefix="feelium-replay-map-") as scratch:
+        if args.replay and not args.projector_calibration and config.rear_camera.projection_compensation != "off":
+            try:
+                config = _with_fitted_replay_map(config, Path(args.replay), Path(scratch))
+            except (ValueError, OSError) as exc:
+                print(f"feelium run: --replay: {exc}", file=sys.stderr)
+                return 1
+        return run_process(config)
+
+
+def _with_fitted_replay_map(config: Any, root: Path, scratch: Path) -> Any:
+    """``config`` replaying with the map fitted from the calibration recording beside the replayed streams, when
+    that is what they find (the daemon loads saved maps only: fitting is lab code, which this command may load)."""
+    import dataclasses
+    import logging
+
+    from feelium.lab.touch.recorded_light import replay_map
+    from feelium.recording import RecordingError
+
+    try:
+        saved = replay_map(root, config.projector, config.touch, scratch)
+    except RecordingError as exc:  # a bad recording: the replay camera skips it and says so
+        logging.getLogger(__name__).warning("replay: %s", exc)
+        return config
+    if saved is None:
+        return config
+    logging.getLogger(__name__).info("replay: the projector map fitted from the calibration recording beside the streams")
+    rear = dataclasses.replace(config.rear_camera, replay_projector_calibration=str(saved))
+    return dataclasses.replace(config, rear_camera=rear)
 
 
 def _bench(args: argparse.Namespace) -> int:

@@ -39,8 +39,8 @@ def register(registry: CommandRegistry) -> None:
     cond.add_argument("--out", required=True, help="dataset directory to write; one folder per variant, <condition>-<variant>")
     cond.add_argument(
         "--variants",
-        help="comma-separated variants (litroom: dim,lit,switch-on,switch-off,drift,passer-by; face: centre,mid,edge, and per zone"
-        " ZONE-faceon, ZONE-lit, ZONE-faceon-lit (the wearer's face projected, the lit room, both); faceon:"
+        help="comma-separated variants (litroom: dim,lit,switch-on,switch-off,drift,passer-by,too-bright; face: centre,mid,edge, and per"
+        " zone ZONE-faceon, ZONE-lit, ZONE-faceon-lit (the wearer's face projected, the lit room, both); faceon:"
         " static,face,static-lit,face-lit; multitouch: one-finger,two-finger-v,two-hands-5cm,two-partners,swipe-cross,swipe-graze,palm,"
         "palm-and-finger,hug); default all (face: centre,mid,edge)",
     )

@@ -39,6 +39,7 @@ from feelium.skin.projector_map import DEFAULT_CAMERA_SIZE, DEFAULT_ROI
 from feelium.skin.regions import Regions
 
 if TYPE_CHECKING:
+    from feelium.cameras.base import ProjectorStream
     from feelium.projector.showloop import ShowLoop
     from feelium.touch.config import TouchConfig
 
@@ -46,6 +47,8 @@ log = logging.getLogger(__name__)
 
 ServiceBuilder = Callable[[Config, Hub], "Service | None"]
 ProjectedFactory = Callable[..., Callable[[np.ndarray, np.ndarray | None], np.ndarray]]  # feelium.touch.service
+# A replayed recording's projector stream -> its light's predictor and the touch config its exposures are mixed with.
+StreamLightFactory = Callable[["ProjectorStream"], "tuple[ProjectedFactory, TouchConfig]"]
 
 
 # --- sensing: cameras and the thermal camera feed the bus -------------------------------------------------------
@@ -67,15 +70,54 @@ def build_touch(config: Config, hub: Hub) -> Service | None:
     touch = touch_config_with_measured_latency(config)
     if source.scene is not None:
         light_scene_with_probe(source.scene, hub, touch.projector_latency_s)
+    replayed = source.backend == "replay"  # lit by what the recording's projector showed, not by this one
     return TouchService(
         source,
         hub,
         touch,
         debug_video_fps=config.rear_camera.debug_video_fps,
         annotation=load_projector_annotation(config),
-        projected=load_projected_light(config, source.backend),
+        projected=None if replayed else load_projected_light(config, source.backend),
+        stream_light=replay_stream_light(config, config.touch) if replayed else None,
         stale_after_s=config.rear_camera.stale_after_s,
     )
+
+
+def replay_stream_light(config: Config, touch: TouchConfig) -> StreamLightFactory | None:
+    """How touch predicts the light of a replayed recording's projector stream, or ``None`` when compensation is off.
+
+    The frames were lit by the projector of the recording, so touch predicts from its recorded frames through its
+    map (a saved map beside it, or ``[rear_camera] replay_projector_calibration``), exactly as ``feelium replay`` and
+    ``eval`` do (:mod:`feelium.projector.recorded`), with the latency the map measured when it did. The map is
+    loaded per recording when its first frame comes; one that is missing or unusable is an error the touch service
+    reports in health and replays that recording uncompensated. A calibration *recording* beside it is not fitted
+    here (the daemon does not load lab code): ``feelium run --replay`` fits it before the daemon starts and passes
+    the map as ``replay_projector_calibration`` (``feelium.cli.daemon``)."""
+    if config.rear_camera.projection_compensation == "off":
+        return None
+
+    def for_stream(stream: ProjectorStream) -> tuple[ProjectedFactory, TouchConfig]:
+        from feelium.projector.recorded import stream_light, stream_optics
+        from feelium.recording import Recording
+        from feelium.skin.projector_map import load_calibration
+        from feelium.touch.projected import touch_with_latency
+
+        path = stream.calibration
+        if path is None:
+            raise ValueError(
+                f"{stream.recording} has a projector stream but no projector calibration beside it "
+                "(projector-calibration.npz) and none was given (--projector-calibration)"
+            )
+        if path.is_dir():
+            raise ValueError(
+                f"the projector calibration of {stream.recording} is a calibration recording ({path}), which the daemon "
+                "does not fit: `feelium calibrate projector` fits and saves its map; pass it with --projector-calibration"
+            )
+        calibration = load_calibration(path)
+        optics = stream_optics(config.projector, Recording(stream.recording), calibration, path)
+        return stream_light(optics, calibration), touch_with_latency(touch, calibration)
+
+    return for_stream
 
 
 def touch_config_with_measured_latency(config: Config) -> TouchConfig:

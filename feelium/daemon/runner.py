@@ -49,8 +49,11 @@ def _has_sim_backend(section: Any) -> bool:
     return "backend" in hints and SIM_BACKEND in get_args(hints["backend"])
 
 
-def with_overrides(config: Config, *, sim: bool = False, replay: str | None = None) -> Config:
-    """``--sim``: every part on its simulated backend. ``--replay PATH``: the rear camera replays PATH, the rest simulated.
+def with_overrides(
+    config: Config, *, sim: bool = False, replay: str | None = None, projector_calibration: str | None = None
+) -> Config:
+    """``--sim``: every part on its simulated backend. ``--replay PATH``: the rear camera replays PATH, the rest simulated;
+    ``--projector-calibration FILE``: the map of the replayed recordings' projector streams.
 
     Parts switched off in the config stay off.
     """
@@ -62,7 +65,10 @@ def with_overrides(config: Config, *, sim: bool = False, replay: str | None = No
         if _has_sim_backend(section) and section.backend != "off":
             changes[field.name] = dataclasses.replace(section, backend=SIM_BACKEND)
     if replay:
-        changes["rear_camera"] = dataclasses.replace(config.rear_camera, backend="replay", replay_path=str(replay))
+        rear = dataclasses.replace(config.rear_camera, backend="replay", replay_path=str(replay))
+        if projector_calibration:
+            rear = dataclasses.replace(rear, replay_projector_calibration=str(projector_calibration))
+        changes["rear_camera"] = rear
     return dataclasses.replace(config, **changes)
 
 

@@ -12,7 +12,7 @@ import logging
 import threading
 from typing import Any
 
-from feelium.cameras.base import Camera, Frame
+from feelium.cameras.base import Camera, Frame, Jpeg
 from feelium.cameras.handoff import LoopInbox
 from feelium.cameras.reader import RateMeter, Worker, close_camera, frame_condition
 from feelium.cameras.select import CameraSource
@@ -22,7 +22,8 @@ log = logging.getLogger(__name__)
 
 
 class FrontCameraService:
-    """Publishes every frame (BGR) the front camera delivers; the ``Latest`` slot makes the newest win."""
+    """Publishes every frame the front camera delivers (BGR, or a :class:`Jpeg` its hardware encoder made); the
+    ``Latest`` slot makes the newest win."""
 
     name = "front_camera"
     stop_order = 50
@@ -35,6 +36,7 @@ class FrontCameraService:
         self.bad_frames = 0
         self.opens = 0
         self.last_frame_at: float | None = None
+        self.jpeg_by: str | None = None  # who encodes the headset's JPEGs: "camera" (its hardware) or "daemon"
         self._rate = RateMeter()
         self._inbox: LoopInbox[Frame | None] | None = None
         self._past_wakeups = 0
@@ -68,8 +70,11 @@ class FrontCameraService:
             if frame is None:
                 return True
             image = frame.image
-            ok = image.ndim == 3 and image.shape[2] == 3 and image.dtype.name == "uint8"
-            inbox.post(frame if ok else None)  # a BGR uint8 frame is what the headset stream encodes
+            if isinstance(image, Jpeg):  # the camera's hardware encoder made it: forwarded as it is
+                ok = image.looks_valid()
+            else:  # a BGR uint8 frame is what the headset stream encodes
+                ok = image.ndim == 3 and image.shape[2] == 3 and image.dtype.name == "uint8"
+            inbox.post(frame if ok else None)
         return False
 
     def _publish(self, frames: list[Frame | None]) -> None:
@@ -80,6 +85,7 @@ class FrontCameraService:
                 continue
             now = self.hub.clock()
             self.hub.front_video.publish(frame.t, frame.image)
+            self.jpeg_by = "camera" if isinstance(frame.image, Jpeg) else "daemon"
             self.frames += 1
             self.last_frame_at = now
             self._rate.tick(now)
@@ -96,6 +102,7 @@ class FrontCameraService:
             "frames": self.frames,
             "fps": round(self._rate.rate(now), 2),
             "bad_frames": self.bad_frames,
+            "jpeg_by": self.jpeg_by,
             "loop_wakeups": self._past_wakeups + (self._inbox.wakeups if self._inbox is not None else 0),
             "opens": self.opens,
             "last_frame_at": self.last_frame_at,

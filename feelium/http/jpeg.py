@@ -3,7 +3,9 @@
 The Pi has four slow cores: encoding per client would multiply the cost by
 the number of headsets and debug pages. A :class:`JpegFeed` encodes lazily
 (only while someone asks), at most once per frame, in a worker thread, and
-every client waiting for that frame gets the same bytes.
+every client waiting for that frame gets the same bytes. A frame the camera's
+hardware encoder already made (:class:`~feelium.cameras.base.Jpeg`, the blimp's
+front camera) is forwarded as it is.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from feelium.cameras.base import Jpeg
 from feelium.hub import Latest, Stamped
 
 
@@ -45,6 +48,7 @@ class JpegFeed:
         self._cached: Stamped[bytes] | None = None
         self._lock = asyncio.Lock()
         self.encoded = 0
+        self.forwarded = 0  # frames that came already encoded (:class:`~feelium.cameras.base.Jpeg`)
         self.bad_frames = 0
         self.clients = 0
 
@@ -54,6 +58,10 @@ class JpegFeed:
             if cached is not None and cached.seq >= item.seq:
                 return cached
             newest = self.slot.get() or item  # a newer frame may have arrived while we waited
+            if isinstance(newest.value, Jpeg):  # the camera's hardware encoder made it: no thread, no work
+                self.forwarded += 1
+                self._cached = Stamped(newest.seq, newest.t, newest.value.data)
+                return self._cached
             try:
                 data = await asyncio.to_thread(encode_jpeg, newest.value, self.quality)
             except FrameError:
@@ -76,4 +84,4 @@ class JpegFeed:
         return await self._jpeg_of(item)
 
     def health(self) -> dict[str, int]:
-        return {"clients": self.clients, "encoded": self.encoded, "bad_frames": self.bad_frames}
+        return {"clients": self.clients, "encoded": self.encoded, "forwarded": self.forwarded, "bad_frames": self.bad_frames}

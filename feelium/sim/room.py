@@ -76,6 +76,10 @@ class RoomLight:
     gradient_angle_deg: float = 0.0
     passer: Passer | None = None
     ae_tau_s: float = 0.3  # camera auto-exposure time constant (about 5 frames at 15 fps)
+    # The shortest exposure the camera reaches, as a factor of the dim room's (0: no floor). 1.0 is a camera that
+    # cannot shorten its exposure below the dim room's: the daemon locks the rear camera's exposure after its
+    # settling period (feelium.cameras.picamera2_backend), so light that comes after the lock is not followed at all.
+    ae_floor: float = 0.0
 
     def level_at(self, t: float) -> float:
         """Room light through the membrane at ``t`` (before any passer's shadow)."""
@@ -101,7 +105,8 @@ class RoomLight:
 
 
 class AutoExposure:
-    """The camera's auto-exposure: ``1 / (1 + mean level)`` followed with the light's ``ae_tau_s`` lag.
+    """The camera's auto-exposure: ``1 / (1 + mean level)`` (never under ``ae_floor``) followed with the light's
+    ``ae_tau_s`` lag.
 
     Stateful because a lag is: settled in the light of the first time asked
     (the camera has been running in it), then integrated exactly for
@@ -115,7 +120,7 @@ class AutoExposure:
         self._e = 1.0
 
     def _target(self, t: float) -> float:
-        return 1.0 / (1.0 + self.light.mean_at(t, self.width))
+        return max(1.0 / (1.0 + self.light.mean_at(t, self.width)), self.light.ae_floor)
 
     def at(self, t: float) -> float:
         """Exposure factor at ``t`` (times must not go backwards)."""

@@ -40,6 +40,7 @@ Pure: counts and times in, a condition out.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 BLIND_SHARE = 0.5  # more than half the membrane masked: most touches would fall where nothing can be seen
 HOLD_S = 2.0  # a condition reported only once it has lasted this long
@@ -48,6 +49,14 @@ HOLD_S = 2.0  # a condition reported only once it has lasted this long
 MIN_PROJECTOR_SHARE = 1.0 / 3.0
 # A quarter of the membrane where a contact cannot be told from a hover: one touch in four would be lost unannounced.
 ROOM_DOMINATED_SHARE = 0.25
+# Each condition's name in short, for reports that count them (``feelium eval``); health's reasons say more.
+PROBLEMS = {
+    "saturated": "too bright",
+    "dark": "too dark",
+    "room_light": "room light outshines the projector",
+    "room_local": "room light outshines the projector in places",
+    "share_unknown": "projector's share not learned",
+}
 
 
 @dataclass(frozen=True)
@@ -79,6 +88,17 @@ class SensingMonitor:
             else:
                 self._since.pop(problem, None)
 
+    def present(self) -> set[str]:
+        """The conditions of the last frame, lasting or not (keys of :data:`PROBLEMS`)."""
+        return set(self._since) if self.last is not None else set()
+
+    def lasting(self) -> set[str]:
+        """The conditions that have lasted ``hold_s``: what health reports as ``degraded``."""
+        s = self.last
+        if s is None:
+            return set()
+        return {p for p, since in self._since.items() if s.t - since >= self.hold_s}
+
     @staticmethod
     def _problems(s: SensingSample) -> dict[str, bool]:
         share = s.projector_share
@@ -95,7 +115,7 @@ class SensingMonitor:
         s = self.last
         if s is None:
             return []
-        lasting = [p for p, since in self._since.items() if s.t - since >= self.hold_s]
+        lasting = self.lasting()
         out = []
         if "saturated" in lasting:
             out.append(f"too bright to see shadows: {100 * s.saturated / s.pixels:.0f} % of the membrane is saturated")
@@ -133,3 +153,26 @@ class SensingMonitor:
             "room_dominated_pct": None if s.room_dominated is None else round(100.0 * s.room_dominated, 1),
             "share_learned": s.room_dominated is not None,
         }
+
+
+def share_taught(contact_projected_depth: float, light_fed: bool) -> bool:
+    """Whether something teaches the pipeline the projector's share of the light (the probe, or projected content it
+    compensates: ``light_fed``) for a hover gate that is on (``contact_projected_depth`` > 0): its share must then
+    become known."""
+    return contact_projected_depth > 0.0 and light_fed
+
+
+def sample_of(pipeline: Any, t: float, share_taught: bool) -> SensingSample | None:
+    """What the monitor needs from a pipeline that just processed the frame of time ``t`` (None for a pipeline that
+    does not count its masked pixels). Shared by the touch service and ``eval``'s replay, so both judge the same."""
+    masked, geometry = getattr(pipeline, "masked", None), getattr(pipeline, "geometry", None)
+    if masked is None or geometry is None:
+        return None
+    response = getattr(pipeline, "response", None)
+    width, height = geometry.work_size
+    return SensingSample(
+        t=t, pixels=int(width * height), dark=masked.dark, saturated=masked.saturated,
+        projector_share=None if response is None else response.share,
+        room_dominated=getattr(pipeline, "room_dominated", None),
+        share_taught=share_taught,
+    )  # fmt: skip

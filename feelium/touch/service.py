@@ -17,6 +17,14 @@ compensated) and the level of the probe it laid over a static skin
 camera frame as ``probe_light``, mixed over that frame's exposure with the
 projector's latency, so the pipeline learns the projector's share of the light
 per place (the lit room's hover gate).
+
+A replayed rear camera was lit by the projector of its recording, not by this
+one: touch then listens to neither the canvases nor the probe of the live
+projector (mixing two light sources would compensate light the frames never
+had), and a recording that carries its projector stream brings its shown frames
+with each camera frame (``Frame.shown``), predicted through the recording's map
+(``stream_light``) exactly as ``feelium replay`` does. Health says which light
+source touch compensates (``light_source``).
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from feelium.cameras.base import Frame
+from feelium.cameras.base import Frame, ProjectorStream
 from feelium.cameras.handoff import LoopInbox, ThreadSlot, read_into
 from feelium.cameras.reader import RateMeter, Worker, close_camera, frame_condition
 from feelium.cameras.select import CameraSource
@@ -42,7 +50,7 @@ from feelium.skin.annotation import ProjectorAnnotation
 from feelium.skin.probe import ProbeLevels, light_at, pattern_on_grid, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s
-from feelium.touch.sensing import SensingMonitor, SensingSample
+from feelium.touch.sensing import SensingMonitor, SensingSample, sample_of, share_taught
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +61,9 @@ PipelineFactory = Callable[[TouchConfig, tuple[int, int], "tuple[int, int, int, 
 # two more arguments, ``average_of`` (LightGrids) and the working grid's predictor (asked for first), and uses that
 # one's ``window(canvas, rows, cols)`` when it has one.
 ProjectedFactory = Callable[..., Callable[[np.ndarray, np.ndarray | None], np.ndarray]]
+# A replayed recording's projector stream -> how to predict its frames' light, and the touch config (the latency its
+# map measured) each exposure is mixed with. Raises when the stream cannot be predicted (no map, a map of another size).
+StreamLight = Callable[[ProjectorStream], tuple[ProjectedFactory, TouchConfig]]
 Overlay = Callable[[np.ndarray, Any, "tuple[int, int, int, int] | None"], np.ndarray]
 
 
@@ -139,13 +150,15 @@ class TouchService:
         overlay: Overlay = _default_overlay,
         annotation: ProjectorAnnotation | None = None,
         projected: ProjectedFactory | None = None,
+        stream_light: StreamLight | None = None,
         stale_after_s: float = 2.0,
     ) -> None:
         """``projected``: how to predict the light of each projector frame from its grey canvas
         (``hub.projector_canvas``), which then
         goes with every camera frame as ``projected_light`` (see :mod:`feelium.touch.projected`); ``None`` when
         the camera's frames hold no projection. Camera frames are stamped on the daemon's clock, the projector's
-        frames too."""
+        frames too. ``stream_light``: for a replayed camera, how to predict a recording's own projector stream
+        (None: replays are not compensated)."""
         self.source = source
         self.hub = hub
         self.touch_config = touch_config
@@ -154,6 +167,12 @@ class TouchService:
         self.overlay = overlay
         self.annotation = annotation
         self.projected = projected
+        self.stream_light = stream_light
+        self.replayed = source.backend == "replay"  # lit by the recording's projector: the live one is not listened to
+        self._active: ProjectedFactory | None = None if self.replayed else projected  # what this segment predicts from
+        self._active_config = touch_config  # ... and mixes each exposure with
+        self.light_source = self._live_light_source()
+        self._shown_seq = 0  # the replayed projector frames, numbered as the projector numbers its own
         self.stale_after_s = stale_after_s
         self.projector_history = ProjectorHistory(history_window_s(touch_config))
         self.probe_levels = ProbeLevels(history_window_s(touch_config))
@@ -204,8 +223,9 @@ class TouchService:
         log.info("touch: rear camera on the %s backend", self.source.backend)
         slot = self._slot = ThreadSlot()
         inbox = self._inbox = LoopInbox(asyncio.get_running_loop(), self._deliver)
-        unlisten = self.hub.projector_canvas.listen(self._record_projector) if self.projected else None
-        unlisten_probe = self.hub.projector_probe.listen(self._record_probe)
+        live = not self.replayed
+        unlisten = self.hub.projector_canvas.listen(self._record_projector) if self.projected and live else None
+        unlisten_probe = self.hub.projector_probe.listen(self._record_probe) if live else None
         # Each thread runs one job for the whole run: frames go camera -> pipeline thread to thread, and the
         # results reach the loop through the inbox, one wake-up per frame (fewer when the loop lags).
         reading = asyncio.ensure_future(camera_worker.call(read_into, camera, slot))
@@ -225,7 +245,8 @@ class TouchService:
             self._slot = self._inbox = None
             if unlisten is not None:
                 unlisten()
-            unlisten_probe()
+            if unlisten_probe is not None:
+                unlisten_probe()
             pipeline_worker.shutdown()
             await close_camera(camera, camera_worker)  # after the read loop, which ends with the slot
             with contextlib.suppress(Exception):
@@ -247,6 +268,7 @@ class TouchService:
             pipeline, flushed = self._pipeline_for(frame)
             if flushed is not None and flushed.events:
                 inbox.post(flushed)
+            self._record_shown(frame)
             want_debug = self.debug_period is not None and (
                 self._last_debug is None or frame.t - self._last_debug >= self.debug_period or frame.t < self._last_debug
             )
@@ -283,6 +305,44 @@ class TouchService:
     def _record_projector(self, item: Stamped[Any]) -> None:
         """Record the canvas of every frame the projector service shows (called on the loop as it publishes)."""
         self.projector_history.record(item.t, item.seq, item.value)
+
+    def _record_shown(self, frame: Frame) -> None:
+        """Record the projector frames a replayed recording showed up to this camera frame (on the pipeline thread,
+        which alone reads the history while replaying)."""
+        if self._active is None:
+            return
+        for t, shown in frame.shown:
+            self.projector_history.record(t, self._shown_seq, shown)
+            self._shown_seq += 1
+
+    def _live_light_source(self) -> str:
+        """What the live projector's light is, for health (a replay says its own per recording)."""
+        if self.projected is not None:
+            return "the projector's own frames, compensated"
+        if self.replayed:
+            return "replay: no frame yet"
+        return "not compensated (this camera's frames hold no projected light to predict); the probe when laid"
+
+    def _replay_light(self, stream: ProjectorStream | None) -> None:
+        """Choose what the replayed recording now starting is compensated with: its own projector stream through its
+        map, else nothing (a stream that cannot be predicted is reported in health, not guessed)."""
+        self._active, self._active_config = None, self.touch_config
+        if stream is None:
+            self.light_source = "replay without a projector stream: the projected light is not compensated"
+            return
+        if self.stream_light is None:
+            self.light_source = f"replay of {stream.recording}: its projector stream is not used (compensation off)"
+            return
+        try:
+            self._active, self._active_config = self.stream_light(stream)
+        except Exception as exc:  # the recording plays on, blind to its face: health says so
+            self.projected_errors += 1
+            self.last_projected_error = f"{type(exc).__name__}: {exc}"
+            self.light_source = f"replay of {stream.recording}: its projector stream is NOT compensated ({exc})"
+            log.warning("touch: %s", self.light_source)
+            return
+        self.light_source = f"replay of {stream.recording}: its recorded projector stream, map {stream.calibration}"
+        log.info("touch: %s", self.light_source)
 
     def _record_probe(self, item: Stamped[Any]) -> None:
         """Record the probe's level in every frame the projector service shows (None: a frame without it)."""
@@ -347,16 +407,17 @@ class TouchService:
         detects at a coarser size (``light_grids``), on that grid, with the working resolution's light predicted in
         the fine pass's windows only (by the predictor's ``window``, when it has one)."""
         self._windowed = False
-        if self.projected is None:
+        projected, config = self._active, self._active_config
+        if projected is None:
             return None
         grids = getattr(self._pipeline, "light_grids", None)
         if grids is None:
-            return ExposureLight(self.projected(size, box), self.touch_config)
-        fine = None if grids.fine is None else self.projected(*grids.fine)
-        coarse = self.projected(*grids.coarse, grids.average_of, fine)  # the fine one shares its canvas light
+            return ExposureLight(projected(size, box), config)
+        fine = None if grids.fine is None else projected(*grids.fine)
+        coarse = projected(*grids.coarse, grids.average_of, fine)  # the fine one shares its canvas light
         self._windowed = True
         return ExposureLight(
-            coarse, self.touch_config, getattr(fine, "window", None), mixed_window=getattr(fine, "window_of_mix", None)
+            coarse, config, getattr(fine, "window", None), mixed_window=getattr(fine, "window_of_mix", None)
         )
 
     def _probe_level_at(self, t: float) -> float | None:
@@ -393,6 +454,9 @@ class TouchService:
             self._pipeline = self.pipeline_factory(self.touch_config, size, frame.roi)
             self._pipeline_key = key
             self._frame_size = size
+            if self.replayed:  # each recording was lit by its own projector: its frames only, from its start
+                self._replay_light(frame.stream)
+                self.projector_history = ProjectorHistory(history_window_s(self._active_config))
             # Predicted only over the ROI the pipeline cuts (it takes light of the ROI's size or of the frame's).
             box = getattr(self._pipeline, "roi", None)
             self._exposure_light = self._exposure_light_for(size, box)
@@ -402,25 +466,13 @@ class TouchService:
 
     def _sample(self, t: float) -> SensingSample | None:
         """What the light monitor needs from the pipeline that just ran (read on its thread, used on the loop's)."""
-        pipeline = self._pipeline
-        masked, geometry = getattr(pipeline, "masked", None), getattr(pipeline, "geometry", None)
-        if masked is None or geometry is None:
-            return None
-        response = getattr(pipeline, "response", None)
-        width, height = geometry.work_size
-        return SensingSample(
-            t=t, pixels=int(width * height), dark=masked.dark, saturated=masked.saturated,
-            projector_share=None if response is None else response.share,
-            room_dominated=getattr(pipeline, "room_dominated", None),
-            share_taught=self._share_taught(),
-        )  # fmt: skip
+        return sample_of(self._pipeline, t, self._share_taught())
 
     def _share_taught(self) -> bool:
         """Whether something teaches the pipeline the projector's share of the light (the probe, or projected
         content it compensates) for a hover gate that is on: its share must then become known."""
-        if self.touch_config.contact_projected_depth <= 0.0:
-            return False
-        return self.probe_levels.active() or self._exposure_light is not None
+        fed = self.probe_levels.active() or self._exposure_light is not None
+        return share_taught(self.touch_config.contact_projected_depth, fed)
 
     def _flush(self) -> Released:
         """Release contacts still down when a segment ends, so no consumer waits for an ``up`` forever."""
@@ -489,7 +541,8 @@ class TouchService:
             "last_overlay_error": self.last_overlay_error,
             "ms_per_frame": round(1000.0 * self.cpu_s / self.frames, 2) if self.frames else None,
             "last_frame_at": self.last_frame_at,
-            "projection_compensation": self.projected is not None,
+            "projection_compensation": self._active is not None,
+            "light_source": self.light_source,
             "projector_frames": self.projector_history.recorded,
             "probe": self.probe_levels.active(),
             "probe_frames": self.probe_frames,

@@ -342,9 +342,8 @@ class Tracker:
         track.max_depth = max(track.max_depth, obs.depth)
         if track.widest is None or obs.reach > track.widest.reach:
             track.widest = obs
-        ax, ay = track.path_anchor
-        step = math.hypot(obs.x - ax, obs.y - ay)
-        if step >= cfg.path_deadband_px:
+        step = path_step(track.path_anchor, (obs.x, obs.y), cfg.path_deadband_px)
+        if step is not None:
             track.path_len += step
             track.path_anchor = (obs.x, obs.y)
         rx, ry = track.reported
@@ -361,11 +360,7 @@ class Tracker:
         return event
 
     def _kind_so_far(self, track: Track, t: float) -> TouchKind | None:
-        if track.path_len >= self.config.swipe_min_path_px:
-            return "swipe"
-        if t - track.down_t >= self.config.hold_min_s:
-            return "hold"
-        return None
+        return kind_so_far(t - track.down_t, track.path_len, self.config)
 
     def _final_kind(self, track: Track, end_t: float) -> TouchKind:
         return self._kind_so_far(track, end_t) or "tap"
@@ -393,3 +388,20 @@ class Tracker:
             shape=track.contact,
         )
 
+
+def path_step(anchor: tuple[float, float], point: tuple[float, float], deadband_px: float) -> float | None:
+    """What a fingertip moving from ``anchor`` (where its path last grew) to ``point`` adds to its path: the
+    distance, or None within the jitter deadband (the anchor then stays). Shared with the labelling of simulated
+    scenes (:mod:`feelium.lab.sim.take_multitouch`), so a true path is measured as the tracker measures one."""
+    step = math.hypot(point[0] - anchor[0], point[1] - anchor[1])
+    return step if step >= deadband_px else None
+
+
+def kind_so_far(duration_s: float, path_px: float, config: TouchConfig) -> TouchKind | None:
+    """The kind of a contact down ``duration_s`` with a fingertip path of ``path_px``: a swipe when the path is long,
+    else a hold when it lasted long, else not known yet (a tap, once released)."""
+    if path_px >= config.swipe_min_path_px:
+        return "swipe"
+    if duration_s >= config.hold_min_s:
+        return "hold"
+    return None

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from feelium.cameras.base import Frame
+from feelium.cameras.base import Frame, Jpeg
 from feelium.cameras.select import CameraSource
 from feelium.front_camera.service import FrontCameraService
 from feelium.hub import Hub
@@ -40,6 +40,7 @@ async def test_publishes_bgr_frames_and_skips_others():
     assert hub.front_video.get().t == pytest.approx(0.3)
     health = service.health()
     assert health["frames"] == 2 and health["bad_frames"] == 2 and health["backend"] == "scripted"
+    assert health["jpeg_by"] == "daemon"  # BGR frames: the headset stream encodes them
     assert camera.closed
 
 
@@ -62,3 +63,15 @@ async def test_each_frame_wakes_the_event_loop_at_most_once_and_stop_ends_the_ru
     await asyncio.wait_for(task, 2.0)
     health = service.health()
     assert health["frames"] >= health["loop_wakeups"] >= 1 and camera.closed
+
+
+async def test_jpegs_from_the_cameras_encoder_are_published_as_they_are_and_broken_ones_counted():
+    good = Jpeg(b"\xff\xd8\xff\xe0 a jpeg", 6, 4)
+    camera = ScriptedCamera([good, Jpeg(b"", 6, 4), Jpeg(b"GIF89a....", 6, 4), good])
+    hub = Hub()
+    service = FrontCameraService(CameraSource("scripted", lambda: camera), hub)
+    assert service.health()["jpeg_by"] is None  # nothing seen yet
+    await service.run()
+    assert hub.front_video.published == 2 and hub.front_video.get().value is good
+    health = service.health()
+    assert health["frames"] == 2 and health["bad_frames"] == 2 and health["jpeg_by"] == "camera"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 import types
 
@@ -10,8 +11,16 @@ import numpy as np
 import pytest
 
 from feelium.cameras import picamera2_backend
-from feelium.cameras.base import CameraUnavailable
-from feelium.cameras.picamera2_backend import Picamera2FrontCamera, Picamera2RearCamera, camera_count, load_picamera2
+from feelium.cameras.base import CameraUnavailable, Jpeg
+from feelium.cameras.config import FrontCameraConfig
+from feelium.cameras.picamera2_backend import (
+    Picamera2FrontCamera,
+    Picamera2RearCamera,
+    camera_count,
+    hardware_jpeg_available,
+    load_picamera2,
+)
+from feelium.cameras.select import front_jpeg_encoder
 
 W, H = 64, 48
 STRIDE = 80  # libcamera pads rows; the luma must be cut out of the padded plane
@@ -51,6 +60,7 @@ class FakePicamera2:
         self.controls_set = []
         self.n = 0
         self.released = 0
+        self.held = 0  # requests an encoder still holds
         self.started = self.closed = False
 
     @classmethod
@@ -76,15 +86,69 @@ class FakePicamera2:
     def set_controls(self, controls):
         self.controls_set.append(controls)
 
+    def stream_configuration(self, name):
+        return {"stride": 96, **self.configured[name]}
+
     def capture_request(self):
         request = FakeRequest(self, self.n)
         self.n += 1
         return request
 
 
+class FakeOutput:
+    """picamera2.outputs.Output: the encoders take nothing else."""
+
+
+class FakeMJPEGEncoder:
+    """The VideoCore's MJPEG encoder as picamera2 drives it by hand: ``encode`` takes a reference on the request
+    and the JPEG comes later, from another thread, in the order the frames were queued."""
+
+    available = True
+    emit = True  # False: a stuck encoder that never returns a JPEG
+
+    def __init__(self, bitrate=None):
+        if not self.available:
+            raise RuntimeError("Hardware MJPEG not available on this platform")
+        self.bitrate = bitrate
+        self.running = False
+        self.queued = []
+
+    @property
+    def output(self):
+        return self._output
+
+    @output.setter
+    def output(self, value):
+        if not isinstance(value, FakeOutput):
+            raise RuntimeError("Must pass Output")
+        self._output = value
+
+    def start(self):
+        self.running = True
+
+    def stop(self):
+        self.running = False
+
+    def encode(self, stream, request):
+        assert self.running and stream == "main"
+        request.camera.held += 1  # the encoder's own reference, dropped once the JPEG is out
+        self.queued.append(request.n)
+        if self.emit:
+            def finish(n=request.n):
+                self._output.outputframe(b"\xff\xd8jpeg-%d" % n, True, 1000 * n, None, False)
+                request.camera.held -= 1
+
+            threading.Timer(0.005, finish).start()
+
+
 @pytest.fixture
 def module():
-    return types.SimpleNamespace(Picamera2=FakePicamera2)
+    FakeMJPEGEncoder.available, FakeMJPEGEncoder.emit = True, True
+    return types.SimpleNamespace(
+        Picamera2=FakePicamera2,
+        encoders=types.SimpleNamespace(MJPEGEncoder=FakeMJPEGEncoder),
+        outputs=types.SimpleNamespace(Output=FakeOutput),
+    )
 
 
 def test_rear_camera_locks_exposure_after_settling_and_delivers_luma_on_the_sensor_clock(module):
@@ -118,6 +182,43 @@ def test_front_camera_delivers_bgr(module):
     frame = camera.read()
     assert frame.image.shape == (H, W, 3) and frame.t == pytest.approx(4.5)
     assert camera.read().t == pytest.approx(4.5 + PERIOD_NS / 1e9)
+
+
+def test_front_camera_hands_over_the_hardware_encoders_jpegs_each_with_its_own_sensor_time(module):
+    camera = Picamera2FrontCamera(index=1, width=W, height=H, fps=15.0, jpeg="hardware", module=module, boottime_ahead=lambda: 0.5)
+    cam, encoder = camera._camera, camera._encoder
+    assert cam.configured["main"]["format"] == "YUV420"  # what the encoder takes, not RGB for OpenCV
+    assert encoder.running and (encoder.size, encoder.format, encoder.stride) == ((W, H), "YUV420", 96)
+    assert encoder.bitrate == round(picamera2_backend.HARDWARE_JPEG_BITS_PER_PIXEL * W * H * 15.0)
+    frames = [camera.read() for _ in range(3)]
+    assert [f.image.data for f in frames] == [b"\xff\xd8jpeg-0", b"\xff\xd8jpeg-1", b"\xff\xd8jpeg-2"]
+    assert all(isinstance(f.image, Jpeg) and f.image.looks_valid() and (f.image.width, f.image.height) == (W, H) for f in frames)
+    assert [f.t for f in frames] == pytest.approx([4.5 + n * PERIOD_NS / 1e9 for n in range(3)])
+    assert cam.released == 3  # our reference goes back at once; the encoder drops its own when the JPEG is out
+    camera.close()
+    assert not encoder.running and cam.closed and camera.read() is None
+
+
+def test_a_stuck_hardware_encoder_is_an_error_the_service_restarts_on(module, monkeypatch):
+    monkeypatch.setattr(picamera2_backend, "ENCODE_TIMEOUT_S", 0.05)
+    camera = Picamera2FrontCamera(index=1, width=W, height=H, fps=15.0, jpeg="hardware", module=module)
+    FakeMJPEGEncoder.emit = False
+    with pytest.raises(OSError, match="hardware JPEG encoder returned nothing"):
+        camera.read()
+    camera.close()
+
+
+def test_no_hardware_encoder_says_so_and_auto_falls_back_to_software(module):
+    assert hardware_jpeg_available(module)
+    FakeMJPEGEncoder.available = False
+    assert not hardware_jpeg_available(module)
+    with pytest.raises(CameraUnavailable, match="no hardware JPEG encoder.*jpeg = \"software\""):
+        Picamera2FrontCamera(index=1, width=W, height=H, fps=15.0, jpeg="hardware", module=module)
+    assert front_jpeg_encoder(FrontCameraConfig(jpeg="auto"), module) == "software"
+    assert front_jpeg_encoder(FrontCameraConfig(jpeg="hardware"), module) == "hardware"  # asked for: fails loudly at open
+    FakeMJPEGEncoder.available = True
+    assert front_jpeg_encoder(FrontCameraConfig(jpeg="auto"), module) == "hardware"
+    assert front_jpeg_encoder(FrontCameraConfig(jpeg="software"), module) == "software"
 
 
 def test_a_missing_camera_says_what_to_check(module):

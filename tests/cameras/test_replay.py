@@ -107,3 +107,33 @@ def test_a_dataset_with_no_usable_recording_fails_naming_the_problem(tmp_path):
     (bad / "camera_ts.txt").write_text("0.1\n0.0\n")
     with pytest.raises(RecordingError, match="no usable recording"):
         ReplayCamera(tmp_path, realtime=False)
+
+
+def _write_with_stream(path, times, shown):
+    """A recording with a projector stream of 16x12 frames, each of grey level 10 x its index."""
+    with RecordingWriter(path, name=path.name, width=8, height=6, fps=10.0) as writer:
+        writer.set_projector(16, 12, 20.0)
+        for k, t in enumerate(shown):
+            writer.add_projector_frame(t, np.full((12, 16), 10 * k, np.uint8))
+        for t in times:
+            writer.add_frame(t, np.full((6, 8), 100, np.uint8))
+    return path
+
+
+def test_the_rear_replay_brings_each_recordings_projector_frames_on_the_cameras_clock(tmp_path):
+    """`run --replay`: each frame carries the projector frames shown since the previous one, their times moved as
+    the camera's (a later recording of a dataset is shifted), with the map beside the recording named."""
+    _write_with_stream(tmp_path / "set" / "r1", [0.0, 0.1, 0.2], [-0.05, 0.0, 0.05, 0.1, 0.15, 0.25])
+    _write_with_stream(tmp_path / "set" / "r2", [5.0, 5.1], [4.98, 5.03, 5.08])
+    (tmp_path / "set" / "projector-calibration.npz").write_bytes(b"")  # only found here, not loaded
+    frames = _drain(ReplayCamera(tmp_path / "set", realtime=False, projector_stream=True))
+    shown = [[(round(t, 3), int(image[0, 0])) for t, image in f.shown] for f in frames]
+    assert shown[:3] == [[(-0.05, 0), (0.0, 10)], [(0.05, 20), (0.1, 30)], [(0.15, 40)]]  # 0.25: after the last frame
+    shift = frames[3].t - 5.0
+    assert shown[3:] == [[(round(4.98 + shift, 3), 0)], [(round(5.03 + shift, 3), 10), (round(5.08 + shift, 3), 20)]]
+    assert {f.stream.recording.name for f in frames} == {"r1", "r2"}
+    assert all(f.stream.calibration == (tmp_path / "set" / "projector-calibration.npz").resolve() for f in frames)
+    given = ReplayCamera(tmp_path / "set", realtime=False, projector_stream=True, calibration=tmp_path / "map.npz")
+    assert _drain(given)[0].stream.calibration == tmp_path / "map.npz"
+    plain = _drain(ReplayCamera(tmp_path / "set", realtime=False))  # the front camera's replay: no stream
+    assert all(f.stream is None and f.shown == () for f in plain)

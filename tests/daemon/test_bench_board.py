@@ -174,5 +174,7 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
     shares = result["numeric_split"]["shares"]  # a second, profiled run: each part's numpy/OpenCV share
     assert 0 < shares["touch"]["thread"] <= 1 and 0 < shares["projector"]["pool"] <= 1
     assert result["pi_cores_at_6x"] <= result["pi_cores"] <= result["pi_cores_at_10x"]
+    assert result["front"]["jpeg_by"] == "camera"  # the blimp's front camera encodes in hardware: JPEGs handed over
+    assert result["headset"]["mjpeg"]["frames"] > 0  # ...and forwarded to the headset as they came
     device = result["services"][SIM_DEVICES]  # the MLX90640 simulation, out of thermal
     assert device["cpu_ms_per_s"] > 0 and device["pi_ms_per_s"] == 0.0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -277,3 +278,19 @@ def test_a_finished_take_is_shared_as_the_umask_says_not_left_0700(tmp_path):
     finally:
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "r").stat().st_mode) == 0o750
+
+
+def test_labels_may_say_when_the_light_was_switched(tmp_path):
+    """The optional ``light_switches`` (seconds on the camera clock) round-trips, sorted; anything but numbers is
+    named. ``eval`` measures recovery after a switch from it."""
+    _write(tmp_path / "r")
+    labels = {"label": "empty", "target": None, "contacts": [], "light_switches": [1.5, 0.25]}
+    (tmp_path / "r" / "labels.json").write_text(json.dumps(labels))
+    got = Recording(tmp_path / "r").labels
+    assert got is not None and got.light_switches == (0.25, 1.5)
+    assert got.to_json()["light_switches"] == [0.25, 1.5]
+    assert "light_switches" not in dataclasses.replace(got, light_switches=()).to_json()
+    labels["light_switches"] = ["at noon"]
+    (tmp_path / "r" / "labels.json").write_text(json.dumps(labels))
+    with pytest.raises(RecordingError, match="light_switches: expected a list of times"):
+        Recording(tmp_path / "r")

@@ -324,6 +324,25 @@ async def test_jpeg_is_encoded_once_per_frame(client, hub):
     assert client.link.videos["rear"].encoded == 1
 
 
+async def test_a_jpeg_the_camera_encoded_is_forwarded_byte_for_byte_never_encoded_again(client, hub):
+    from feelium.cameras.base import Jpeg
+
+    data = cv2.imencode(".jpg", np.full((48, 64, 3), 120, np.uint8))[1].tobytes()  # as the VideoCore made it
+    hub.front_video.publish(1.0, Jpeg(data, 64, 48))
+    resp = await client.get("/api/v1/video/front.jpg", headers=AUTH)
+    assert resp.status == 200 and resp.content_type == "image/jpeg" and await resp.read() == data
+    stream = await client.get(f"/api/v1/video/front.mjpeg?token={TOKEN}")
+    assert (await stream.content.readline()) == b"--feeliumframe\r\n"
+    headers = {}
+    while (line := await stream.content.readline()) != b"\r\n":
+        key, _, val = line.decode().partition(":")
+        headers[key] = val.strip()
+    assert await stream.content.readexactly(int(headers["Content-Length"])) == data
+    stream.close()
+    feed = client.link.videos["front"]
+    assert (feed.encoded, feed.forwarded, feed.bad_frames) == (0, 1, 0)
+
+
 async def test_unknown_camera_and_bad_frame(client, hub):
     await assert_error(await client.get("/api/v1/video/back.jpg", headers=AUTH), 404, "no camera")
     hub.projector_video.publish(1.0, "not an image")

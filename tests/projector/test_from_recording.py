@@ -7,6 +7,7 @@ wrapped in :class:`RecordingCapture`) against the simulator, whose true map is k
 from __future__ import annotations
 
 import json
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -149,3 +150,36 @@ def test_eval_fits_the_map_from_the_calibration_recording_beside_the_trials(own_
     assert light is not None
     lit = light(0.1 + 2 / 15.0)["projected_light"]
     assert lit.shape == (480, 640) and float(np.nanmax(lit)) > 0.5  # the skin lit at 200 where the map covers it
+
+
+def test_run_replay_gets_the_map_fitted_from_the_calibration_recording_beside_the_streams(own_run, tmp_path):
+    """`feelium run --replay`: the daemon loads saved maps only, so the command fits the calibration recording the
+    streams find beside them (the same lookup as eval) and hands the daemon that map; never one map for streams
+    that find different calibrations."""
+    from feelium.lab.touch.recorded_light import replay_map
+    from feelium.recording import CALIBRATION_FILE
+
+    dataset = tmp_path / "ds"
+    shutil.copytree(own_run[1], dataset / "calibration")
+    trial = dataset / "trial-001"
+    with RecordingWriter(trial, name="t", width=640, height=480, fps=15.0, session="s") as writer:
+        writer.set_projector(*SIZE, 15.0)
+        writer.add_projector_frame(0.0, np.full(SIZE[::-1], 200, np.uint8))
+        writer.add_frame(0.1, np.full((480, 640), 90, np.uint8))
+    projector = replace(CONFIG.projector, calibration=FAST)
+    saved = replay_map(dataset, projector, CONFIG.touch, tmp_path)
+    assert saved == tmp_path / CALIBRATION_FILE
+    offline = calibrate_recording(Recording(dataset / "calibration"), FAST, LATENCY, EXPOSURE).calibration
+    loaded = load_calibration(saved)
+    for axis in ("proj_x", "proj_y"):
+        assert np.array_equal(getattr(loaded, axis), getattr(offline, axis), equal_nan=True)
+    (dataset / "other").mkdir()
+    shutil.move(trial, dataset / "other" / "trial-001")
+    (dataset / "other" / CALIBRATION_FILE).write_bytes(saved.read_bytes())  # this trial's own saved map ...
+    assert replay_map(dataset, projector, CONFIG.touch, tmp_path / "none") is None  # ... needs no fitting
+    with RecordingWriter(dataset / "trial-002", name="t2", width=640, height=480, fps=15.0, session="s") as writer:
+        writer.set_projector(*SIZE, 15.0)
+        writer.add_projector_frame(0.0, np.full(SIZE[::-1], 200, np.uint8))
+        writer.add_frame(0.1, np.full((480, 640), 90, np.uint8))
+    with pytest.raises(ValueError, match="2 different projector calibrations"):
+        replay_map(dataset, projector, CONFIG.touch, tmp_path)

@@ -12,12 +12,15 @@ from feelium.cli import main
 from feelium.lab.sim import conditions, protocol, take_faceon, take_multitouch
 from feelium.lab.touch import face_zones, faceon, litroom
 from feelium.lab.touch.commands import evaluate_dataset
+from feelium.lab.touch.contact_score import gesture_of
 from feelium.lab.touch.recorded_light import CALIBRATION_FILE, recorded_light
 from feelium.lab.touch.replay import replay_recording
 from feelium.projector.config import ProjectorConfig
 from feelium.recording import Recording, RecordingError
 from feelium.skin.face import FaceModel
+from feelium.touch import pipeline as pipeline_module
 from feelium.touch.config import TouchConfig
+from feelium.touch.reference import AdaptiveReference
 
 pytestmark = pytest.mark.slow
 
@@ -41,9 +44,13 @@ def test_a_tap_through_a_lamp_switched_on_is_one_touch_of_its_condition(tmp_path
     assert generator["condition"] == "litroom/switch-on"
     assert generator["room"]["level"] == 0.0 and generator["room"]["steps"][0][1] == 1.0  # the lamp comes on
     assert recording.frames().__next__()[0] < 0.0  # the hand-free warm-up is recorded before 0 s
+    assert recording.labels is not None and recording.labels.light_switches == (generator["room"]["steps"][0][0],)
     report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
     trials = report["conditions"]["litroom/switch-on"]["trials"]
     assert (trials["tp"], trials["fp"], trials["fn"]) == (1, 0, 0)
+    # a switch with a hand on the membrane: recovery is not read from it (the hand would be read), but counted
+    recovery = report["conditions"]["litroom/switch-on"]["switch_recovery"]
+    assert (recovery["n"], recovery["not_measurable"], recovery["within_goal"]) == (0, 1, None)
 
 
 def test_a_hold_through_a_lamp_switched_off_is_scored_with_the_probe_it_was_lit_by(tmp_path, monkeypatch):
@@ -59,6 +66,47 @@ def test_a_hold_through_a_lamp_switched_off_is_scored_with_the_probe_it_was_lit_
     report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
     trials = report["conditions"]["litroom/switch-off"]["trials"]
     assert (trials["tp"], trials["fp"], trials["fn"]) == (1, 0, 0)
+
+
+def test_recovery_after_a_labelled_switch_is_read_from_a_hand_free_recording_and_can_fail(tmp_path, monkeypatch):
+    """litroom/switch-off, an empty trial: eval reads the lab's sensitivity measure after the labelled switch, within
+    the 1 s goal. With the reference not allowed to follow the switch (no re-seed, no re-baseline, no update after
+    it: the lab's own check) the known contact never reads as in steady light again, and the goal fails."""
+    recording = _litroom_trial(tmp_path, monkeypatch, "empty", "switch-off")
+    assert recording.labels is not None
+    (switch,) = recording.labels.light_switches
+    report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
+    got = report["conditions"]["litroom/switch-off"]
+    recovery = got["switch_recovery"]
+    assert (recovery["n"], recovery["never"], recovery["not_measurable"]) == (1, 0, 0)
+    assert recovery["within_goal"] and recovery["recovery_s"]["max"] <= 1.0
+    assert recovery["switch_times_from"] == {"label": 1}
+    assert got["light"]["recordings_degraded_by_reason"]["too bright"] == 0
+
+    update = AdaptiveReference.update
+    monkeypatch.setattr(pipeline_module, "illumination_change", lambda *a, **k: None)
+    monkeypatch.setattr(AdaptiveReference, "observe_gain", lambda self, gain, *a, **k: setattr(self, "gain", gain) or False)
+    monkeypatch.setattr(AdaptiveReference, "update", lambda self, t, *a, **k: None if t > switch else update(self, t, *a, **k))
+    frozen, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
+    recovery = frozen["conditions"]["litroom/switch-off"]["switch_recovery"]
+    assert (recovery["n"], recovery["never"], recovery["within_goal"]) == (1, 1, False)
+    assert recovery["recovery_s"]["max"] is None  # never: no number
+
+
+def test_a_membrane_too_bright_to_see_is_reported_as_health_would_say_it(tmp_path, monkeypatch, capsys):
+    """litroom/too-bright (daylight 8x the projector, the camera's exposure at its floor): health's own judge, fed
+    during eval's replay, says "too bright" on the frames and would have reported touch degraded; the table says
+    what the detector did beside it."""
+    _litroom_trial(tmp_path, monkeypatch, "tap", "too-bright")
+    report_path = tmp_path / "report.json"
+    assert main(["eval", str(tmp_path), "--by-condition", "--json", str(report_path), "--figure", str(tmp_path / "f.png")]) == 0
+    got = json.loads(report_path.read_text())["conditions"]["litroom/too-bright"]
+    light = got["light"]
+    assert light["present_share"]["too bright"] > 0.5 and light["degraded_share"]["too bright"] > 0.0
+    assert light["recordings_degraded"] == 1 and light["recordings_degraded_by_reason"]["too bright"] == 1
+    assert got["trials"]["n"] == 1 and got["switch_recovery"] is None  # no switch: no recovery to report
+    out = capsys.readouterr().out
+    assert "health degraded" in out and "too bright 1" in out
 
 
 def test_a_tap_at_the_rim_of_the_whole_face_is_one_touch_on_the_face(tmp_path):
@@ -134,8 +182,11 @@ def test_two_hands_and_a_palm_are_labelled_contact_by_contact_and_eval_scores_ea
     path = conditions.write_job(job, tmp_path, seed=1, scale=0.1)
     labels = Recording(path).labels
     assert labels is not None and [c.contact for c in labels.contacts] == ["palm", "finger"]
+    # the trial's label is the gesture of its longest contact (the palm, 1.6 s: a hold), each contact's its own
+    assert labels.label == "hold" and [gesture_of(c) for c in labels.contacts] == ["hold", "hold"]
     report, _ = evaluate_dataset(tmp_path, TouchConfig(), by_condition=True)
     got = report["conditions"]["multitouch/palm-and-finger"]["contacts"]
+    assert (got["gesture_right"], got["gesture_scored"]) == (2, 2)
     assert (got["contacts"], got["touches"], got["missed"], got["split"], got["swaps"], got["phantoms"]) == (2, 2, 0, 0, 0, 0)
     assert got["kinds"] == {"finger": {"finger": 1, "palm": 0, "hug": 0, "none": 0}, "palm": {"finger": 0, "palm": 1, "hug": 0, "none": 0}}
 

@@ -1,11 +1,15 @@
 """Fitting the gates on clip series: the contact edge in the middle of the gap, depth thresholds after it."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from feelium.lab.touch.calibrate import ClipSeries, _fit_samples, fit_centred_threshold, fit_edge, fit_gates, margin_threshold
+from feelium.lab.touch.calibrate import (
+    ClipSeries, GateFit, ProjectedKept, _fit_samples, fit_centred_threshold, fit_edge, fit_gates, fit_projected, margin_threshold,
+)  # fmt: skip
 from feelium.lab.touch.evaluate import fit_threshold, split_clip
 
 
@@ -181,3 +185,96 @@ def test_a_clips_recorded_warm_up_before_0_s_is_neither_its_hover_nor_part_of_it
     keep = clip_frames(t)
     assert t[keep][0] == 0.0 and keep.sum() == 12
     assert clip_frames(np.array([0.5, 1.0])).all() and clip_frames(np.array([-2.0, -1.0])).all()  # no 0 s: all of it
+
+
+def _projected_clips(seed: int, hover_peak: float = 0.18, press_level: float = 0.45):
+    """Projected depths (the share of the projector's own light a shadow took) as a lit room gives them: presses of
+    1.5 s at about ``press_level`` with one-frame dips, a hover mostly well below 0 that now and then comes up to
+    ``hover_peak`` (a close hover whose share was misread), NaN where no shadow or no share was known (seeded)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 60.0, 1 / 15)
+    contact = (t % 2.5 >= 0.5) & (t % 2.5 < 2.0)
+    press = np.where(contact, press_level * (1.0 - 0.2 * rng.random(t.size)), np.nan)
+    press[contact & (rng.random(t.size) < 0.05)] *= 0.4  # single-frame dips: not what a press holds
+    press[contact & (rng.random(t.size) < 0.05)] = np.nan  # the share unknown for a frame
+    hover = -0.3 + 0.3 * rng.random(t.size)
+    close = rng.random(t.size) < 0.05
+    hover[close] = hover_peak * (0.8 + 0.2 * rng.random(int(close.sum())))
+    hover[rng.random(t.size) < 0.3] = np.nan  # no shadow on the frame
+    hover[rng.integers(0, int(0.5 * t.size))] = hover_peak  # the hardest hover, inside the fitted 60 %
+    zeros = np.zeros(t.size)
+    return [
+        ClipSeries("contact", t, anchor=zeros, core_depth=zeros, edge=zeros, contact=contact, projected=press),
+        ClipSeries("hover", t, anchor=zeros, core_depth=zeros, edge=zeros, contact=np.zeros(t.size, bool), projected=hover),
+    ]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_projected_gate_moves_away_from_a_hover_close_to_the_default(seed):
+    """Issue 17 point 5 for the gate that holds the lit room's hovers: a hover whose projected score sits 0.02 under
+    the default 0.2 gets the gate moved up to keep the margin rule, and a hover 10 % closer stays under it."""
+    contact, hover = _projected_clips(seed)
+    fit = fit_projected([contact, hover], configured=0.2, held_frames=2)
+    assert isinstance(fit, GateFit) and fit.warning is None
+    fitted_part = hover.projected[split_clip(hover.t)]
+    n = float(np.nanmax(fitted_part))
+    assert fit.hardest_negative == pytest.approx(n) == pytest.approx(0.18)
+    assert fit.threshold == pytest.approx(margin_threshold(n, fit.hardest_positive, fit.sigma))
+    assert 0.2 - n < 0.03 and fit.threshold - n > 0.05  # the default's margin was thin; the fit's is not
+    assert n * 1.10 < fit.threshold  # a hover 10 % closer does not land ...
+    held = ~split_clip(contact.t) & contact.contact  # ... and every held-out press holds it for two frames
+    starts = np.flatnonzero(np.diff(np.concatenate([[0], held.astype(int)])) == 1)
+    for a in starts:
+        b = a + int(np.argmin(held[a:])) if not held[a:].all() else held.size
+        assert np.nanmax(_held_twice(contact.projected[a:b])) >= fit.threshold  # NaN pairs: the share unknown
+    gates = fit_gates([contact, hover], 0.05, fit)
+    assert gates.values()["contact_projected_depth"] == pytest.approx(fit.threshold, abs=1e-4)
+    assert "contact_projected_depth" in gates.to_toml() and not gates.notes
+
+
+@pytest.mark.parametrize("projected", [None, "nan"])
+def test_clips_without_the_projectors_share_keep_the_configured_gate_and_say_why(projected):
+    """No projector stream (no series) or a static back-light whose share was never learned (all NaN): nothing to
+    measure, so the configured value stays, out of the fitted values, with the reason in the fragment."""
+    contact, hover = _projected_clips(0)
+    blank = None if projected is None else np.full(contact.t.size, np.nan)
+    clips = [replace(contact, projected=blank), replace(hover, projected=blank)]
+    fit = fit_projected(clips, configured=0.2)
+    assert isinstance(fit, ProjectedKept) and fit.threshold == 0.2 and "never known" in fit.reason
+    gates = fit_gates(clips, 0.05, fit)
+    assert "contact_projected_depth" not in gates.values()
+    assert "# contact_projected_depth 0.2 kept as configured: no hover frame" in gates.to_toml()
+    assert "contact_projected_depth = " not in gates.to_toml()
+
+
+def test_a_projected_gate_that_is_off_stays_off():
+    fit = fit_projected(_projected_clips(0), configured=0.0)
+    assert isinstance(fit, ProjectedKept) and fit.threshold == 0.0 and "off" in fit.reason
+
+
+def test_presses_never_scored_keep_the_gate_even_when_the_hover_was():
+    contact, hover = _projected_clips(0)
+    clips = [replace(contact, projected=np.full(contact.t.size, np.nan)), hover]
+    fit = fit_projected(clips, configured=0.2)
+    assert isinstance(fit, ProjectedKept) and "no press" in fit.reason
+
+
+def test_a_projected_gap_too_small_warns_and_falls_back_to_the_centred_fit():
+    contact, hover = _projected_clips(0, hover_peak=0.30, press_level=0.34)
+    fit = fit_projected([contact, hover], configured=0.2)
+    assert isinstance(fit, GateFit) and fit.warning is not None and "contact_projected_depth" in fit.warning
+    gates = fit_gates([contact, hover], 0.05, fit)
+    assert any("contact_projected_depth" in w for w in gates.warnings)
+
+
+def test_hovers_far_from_the_membrane_do_not_pull_the_projected_gate_below_what_a_hover_can_take():
+    """A minute of hovers that never came close (projected depth -0.3 and below) says nothing of the next close one,
+    which takes about 0 of the projector's light: the gate is placed from that bound, half-way to the weakest press,
+    not below 0 where any hover with its share a little off would land."""
+    contact, hover = _projected_clips(0, hover_peak=-0.3)
+    hover = replace(hover, projected=np.minimum(hover.projected, -0.3))
+    fit = fit_projected([contact, hover], configured=0.2)
+    assert isinstance(fit, GateFit) and fit.warning is None
+    assert fit.observed_negative == pytest.approx(-0.3) and fit.hardest_negative == 0.0
+    assert fit.threshold == pytest.approx(margin_threshold(0.0, fit.hardest_positive, fit.sigma)) and fit.threshold > 0.1
+    assert "the bound; the clips' -0.3000" in fit_gates([contact, hover], 0.05, fit).to_toml()

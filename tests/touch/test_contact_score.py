@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from feelium.events import ContactShape, TouchEvent
-from feelium.lab.touch.contact_score import score_contacts
-from feelium.lab.touch.evaluate import TrialData
+from feelium.lab.touch.contact_score import gesture_of, score_contacts
+from feelium.lab.touch.evaluate import TrialData, score_trials
 from feelium.recording import Contact, Labels
 
 
@@ -60,3 +60,45 @@ def test_the_footprints_reported_on_up_are_summarised_per_true_kind():
     assert got["footprint"]["palm"] == {"n": 1, "area_mm2": 9500.0, "major_mm": 130.0, "minor_mm": 90.0, "elongation": 1.4}
     assert got["footprint"]["finger"] == {"n": 1, "area_mm2": 200.0, "major_mm": 16.0, "minor_mm": 16.0, "elongation": 1.0}
     assert "hug" not in got["footprint"]
+
+
+def _moving(x0: float, x1: float, on: float, off: float, jitter: float = 0.0) -> Contact:
+    """A fingertip from ``x0`` to ``x1`` over [on, off), sampled at 15 fps, ``jitter`` px of alternating tremor."""
+    ts = np.arange(on, off, 1.0 / 15.0)
+    xs = np.linspace(x0, x1, ts.size) + jitter * (-1.0) ** np.arange(ts.size)
+    return Contact(on, off, np.column_stack([ts, xs, np.full(ts.size, 100.0)]), "finger")
+
+
+def test_the_gesture_of_a_labelled_contact_is_the_trackers_rule_on_the_truth():
+    """Held still 0.6 s (the tracker's hold_min_s) is a hold, to the millisecond; shorter a tap; a path of 40 px a
+    swipe; a tremor under the tracker's 3 px deadband adds no path, however long."""
+    assert gesture_of(_moving(100, 100, 1.0, 1.6)) == "hold"  # 1.6 - 1.0 is 0.6000000000000001, and 0.6 either way
+    assert gesture_of(_moving(100, 100, 1.0, 1.0 + 0.599)) == "tap"
+    assert gesture_of(_moving(100, 160, 1.0, 1.3)) == "swipe"
+    assert gesture_of(_moving(100, 100, 1.0, 3.0, jitter=1.0)) == "hold"
+    assert gesture_of(Contact(1.0, 1.2, None)) == "tap"  # no path: only its duration can say
+
+
+def test_each_contacts_gesture_is_scored_against_its_own_id():
+    """Two contacts with one trial label: a held fingertip and a swipe past it. Each id's ``up`` kind is scored
+    against the gesture its own contact performed (the spec's one label per trial cannot)."""
+    held, swipe = _moving(100, 100, 0.8, 3.4), _moving(40, 360, 1.3, 2.7)
+
+    def up(eid: int, x: float, kind: str) -> TouchEvent:
+        return TouchEvent(eid, "up", kind, 2.7, x, 100.0, 0.5, 0.5, 0.6, 100, 0.5, None)  # type: ignore[arg-type]
+
+    events = [_event(1, "down", 0.9, 100.0), up(1, 100.0, "hold"), _event(2, "down", 1.4, 50.0), up(2, 360.0, "tap")]
+    got = score_contacts([_trial((held, swipe), events)])
+    assert got is not None
+    assert got["gestures"] == {"hold": {"tap": 0, "hold": 1, "swipe": 0, "none": 0}, "swipe": {"tap": 1, "hold": 0, "swipe": 0, "none": 0}}
+    assert (got["gesture_right"], got["gesture_scored"]) == (1, 2)
+
+
+def test_the_single_event_rate_is_also_given_over_the_trials_with_one_contact():
+    """Two hands are two events, which the spec's single-event rate counts against them; the added rate over the
+    trials with one labelled contact keeps the spec's meaning, and the multi-contact trials are counted apart."""
+    two = _trial((_contact(100), _contact(200)), _touch(1, 100) + _touch(2, 200))
+    one = _trial((_contact(100),), _touch(1, 100))
+    trials = score_trials([two, one])["trials"]
+    assert trials["single_event_rate"] == 0.5
+    assert trials["single_event_rate_one_contact"] == 1.0 and trials["multi_contact_detected"] == 1

@@ -89,6 +89,10 @@ def test_calibrate_writes_a_fragment_that_eval_accepts(dataset, tmp_path, capsys
     assert fitted["fitted_on_clips"] is True
     assert fitted["anchor_threshold"] == pytest.approx(config.anchor_threshold, abs=1e-4)
     assert fitted["contact_edge"] == pytest.approx(config.contact_edge, abs=1e-4)
+    # Clips under the flat back-light (no projector stream) teach the projected-light gate nothing: kept, and said.
+    assert "contact_projected_depth = " not in fragment.read_text() and config.contact_projected_depth == 0.2
+    assert "# contact_projected_depth 0.2 kept as configured" in fragment.read_text()
+    assert fitted["contact_projected_depth"] == 0.2 and "kept as configured" in fitted["fit_notes"][0]
 
 
 def test_replay_prints_events_with_the_recording_name(dataset, capsys):

@@ -35,7 +35,7 @@ def _stream(step_t: float, fps: float = 30.0, end: float = 2.0):
 def test_each_exposure_sees_only_what_was_shown_before_it_and_the_latency():
     config = TouchConfig()
     predictor = _Grey()
-    light = RecordedLight(_stream(1.0), predictor, config)  # type: ignore[arg-type]
+    light = RecordedLight(_stream(1.0), predictor.gain, config)
     assert light(-0.5) == {}  # nothing shown yet
     steady = light(0.5)
     assert steady["projected_light"] == pytest.approx(np.ones((6, 8)), abs=1e-6)

@@ -59,7 +59,7 @@ from feelium.lab.daemon.attribution import (
 from feelium.lab.daemon.bench import memory_mb
 from feelium.lab.daemon.host import host_reference
 from feelium.lab.daemon.numeric import NumericProfiler, numeric_shares
-from feelium.lab.daemon.preloaded import PreloadedSource, front_frames, rear_frames
+from feelium.lab.daemon.preloaded import PreloadedSource, encoded_once, front_frames, rear_frames
 from feelium.lab.daemon.projection import project
 from feelium.lab.daemon.quota import join
 from feelium.lab.daemon.samples import SampleBlock
@@ -107,10 +107,18 @@ def prepare(config: Config, front_fps: float) -> Cameras:
         size = (config.touch.width, config.touch.height)
         rear, roi = rear_frames(config.sim, size, config.rear_camera.fps, REAR_LOOP_S)
         front = front_frames((config.front_camera.width, config.front_camera.height), front_fps, FRONT_LOOP_S, config.sim.seed)
+        if front_jpeg_by(config) == "camera":
+            front = encoded_once(front, config.http.jpeg_quality)
         return Cameras(PreloadedSource(rear, config.rear_camera.fps, roi), PreloadedSource(front, front_fps))
 
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="bench-prepare") as passing:
         return passing.submit(render).result()
+
+
+def front_jpeg_by(config: Config) -> str:
+    """Who makes the headset's JPEGs on the blimp this config describes: ``camera`` (the picamera2 front camera's
+    hardware encoder, ``[front_camera] jpeg`` auto or hardware on a Pi Zero 2 W) or ``daemon`` (software)."""
+    return "daemon" if config.front_camera.jpeg == "software" else "camera"
 
 
 def builders(cameras: Cameras) -> tuple[tuple[str, Any], ...]:
@@ -426,7 +434,7 @@ def bench_board(
         "malloc": malloc or "glibc defaults",
         "background_nice": background_nice(),
         "rear": {"size": [config.touch.width, config.touch.height], "fps": config.rear_camera.fps},
-        "front": {"size": [config.front_camera.width, config.front_camera.height], "fps": front_fps},
+        "front": {"size": [config.front_camera.width, config.front_camera.height], "fps": front_fps, "jpeg_by": front_jpeg_by(config)},
         "process_cpu_ms_per_s": round(1000.0 * measured["cpu_s"] / wall, 1),
         "loop_thread_ms_per_s": round(1000.0 * measured["loop_thread_s"] / wall, 1),
         "loop_callbacks_per_s": round(measured["callbacks"] / wall),

@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from feelium.cameras.base import Frame, Pacer, Roi
+from feelium.cameras.base import Frame, Jpeg, Pacer, Roi
 from feelium.cameras.select import CameraSource
 from feelium.sim.config import SimConfig
 
@@ -30,7 +30,7 @@ class PreloadedCamera:
     realtime = True
 
     def __init__(
-        self, images: list[np.ndarray], fps: float, roi: Roi | None = None, clock: Callable[[], float] = time.monotonic
+        self, images: list[np.ndarray] | list[Jpeg], fps: float, roi: Roi | None = None, clock: Callable[[], float] = time.monotonic
     ) -> None:
         if not images:
             raise ValueError("a preloaded camera needs at least one frame")
@@ -56,7 +56,7 @@ class PreloadedCamera:
 class PreloadedSource:
     """A camera source whose every (re)open plays the same frames; keeps the last camera for its late count."""
 
-    images: list[np.ndarray]
+    images: list[np.ndarray] | list[Jpeg]
     fps: float
     roi: Roi | None = None
     camera: PreloadedCamera | None = None
@@ -70,7 +70,7 @@ class PreloadedSource:
 
     @property
     def nbytes(self) -> int:
-        return sum(image.nbytes for image in self.images)
+        return sum(len(image.data) if isinstance(image, Jpeg) else image.nbytes for image in self.images)
 
     @property
     def late(self) -> int:
@@ -92,3 +92,13 @@ def front_frames(size: tuple[int, int], fps: float, seconds: float, seed: int) -
 
     room = SimFisheyeRoom(size[0], size[1], seed=seed)
     return [room.frame(i / fps) for i in range(max(1, round(seconds * fps)))]
+
+
+def encoded_once(images: list[np.ndarray], quality: int) -> list[Jpeg]:
+    """``images`` as the JPEGs a camera with a hardware encoder hands over (the blimp's front camera with
+    ``[front_camera] jpeg`` hardware): encoded here once, before the run, since on the Pi the VideoCore encodes
+    them and the ARM cores only pass the bytes on. At the headset stream's own quality, so the bytes sent are
+    those the daemon's software encoder would send."""
+    from feelium.http.jpeg import encode_jpeg
+
+    return [Jpeg(encode_jpeg(image, quality), int(image.shape[1]), int(image.shape[0])) for image in images]

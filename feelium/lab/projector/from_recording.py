@@ -36,11 +36,11 @@ from feelium.lab.projector.calibrate import CalibrationResult, PatternCapture, c
 from feelium.lab.projector.graycode import PatternPlan, flat_response, make_patterns, smooth_map
 from feelium.lab.projector.latency import LatencyError, LatencyEstimate, coarse_frame, measure_latency
 from feelium.projector.config import CalibrationConfig
-from feelium.recording import Recording, RecordingError, RecordingWriter
+from feelium.recording import CALIBRATION_PURPOSE, Recording, RecordingError, RecordingWriter
 from feelium.skin.projector_map import ProjectorMap
 from feelium.touch.settle import exposure_shares
 
-PURPOSE = "projector-calibration"
+PURPOSE = CALIBRATION_PURPOSE  # meta.purpose of a calibration recording
 OUTLIER_MIN_PX = 4.0  # generic decoding: raw points this far (projector px) from the local fit, and
 OUTLIER_FACTOR = 5.0  # this many times the typical distance, are misread codes, refitted without
 

@@ -17,6 +17,7 @@ route differs), the projector world the face-on take's (:func:`feelium.lab.sim.t
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -43,6 +44,8 @@ def render(item: protocol.Item, variant: str, seed: int) -> take_faceon.Projecte
     labels = script.labels()
     first = labels.contacts[0].t_on if labels.contacts else None
     room = litroom.room_for(variant, item, seed, script.duration, first)
+    if room is not None and room.steps:  # the switch, labelled as a person making the take would (eval's recovery)
+        labels = dataclasses.replace(labels, light_switches=tuple(step[0] for step in room.steps))
     hook = timed_hook(ex.light, shown, fps, faceon.TRUE_LATENCY_S, session.sensor.exposure_s)
     frames = litroom.render(script, session, item, seed, room, projected=hook)
     projector = take_faceon.stream(shown, fps, litroom.WARMUP_S, script.duration)

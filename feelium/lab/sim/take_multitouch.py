@@ -6,8 +6,10 @@ place jittered by up to 15 px), rendered the same way (a hand-free warm-up, reco
 Each true contact becomes one entry of ``labels.json``'s ``contacts`` with its ``path`` (the true footprint's
 centre every camera frame, area-weighted over its ellipses) and the optional ``"contact"`` kind
 (``finger``/``palm``/``hug``), which ``feelium eval`` scores contact by contact
-(:mod:`feelium.lab.touch.contact_score`). The trial's ``label`` is ``hold`` (a pressed, held contact: the
-spec's trial label for what each scene starts with), its ``target`` null.
+(:mod:`feelium.lab.touch.contact_score`). The trial's ``label`` is the gesture its longest contact performs
+(:func:`feelium.lab.touch.contact_score.gesture_of`: the tracker's own rule applied to the true contact), its ``target`` null. Why the longest:
+the spec scores a trial's kind by the event that overlaps its contacts longest, which is that contact's. Before
+session 19 every scene was labelled ``hold``; recordings written then keep that label.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feelium.lab.touch import multitouch
+from feelium.lab.touch.contact_score import gesture_of
 from feelium.recording import Contact, Labels
 from feelium.sim.camera import frame_times
 from feelium.sim.scene import ROI, SceneRenderer, SceneState, exposure_samples
@@ -67,7 +70,8 @@ def render(run: Run, seed: int) -> tuple[Iterator[tuple[float, np.ndarray]], Lab
         ts = [t for t in times if truth.on <= t < truth.off] or [truth.on]
         path = [[t, *scene.centre(truth, t, px_per_mm)[:2]] for t in ts]
         contacts.append(Contact(truth.on, truth.off, np.asarray(path, float), truth.kind))
-    labels = Labels("hold", False, None, tuple(contacts))
+    longest = max(contacts, key=lambda c: c.t_off - c.t_on)  # the first of equals
+    labels = Labels(gesture_of(longest), False, None, tuple(contacts))
 
     def frames() -> Iterator[tuple[float, np.ndarray]]:
         yield from warmup

@@ -11,6 +11,17 @@ from the contact clip's contact frames (positives) and the hover clip's frames
   middle of the range of thresholds with the best per-frame balanced accuracy,
   with a warning. The clips are then replayed with it, because the anchoring
   score counts from each landing on a contact edge;
+- ``contact_projected_depth`` (the projected-light gate, which a shadow must
+  pass on every frame to land, like the edge) by the same margin rule, on the
+  frames where the projector's share of the light was known: its scores are the
+  largest projected depth of a shadow (the share of the projector's own light
+  it took: a hover none, a contact 0.4-0.5), the hardest press's being the
+  largest it holds for ``down_frames`` consecutive frames, the hardest hover
+  never taken below 0 (:data:`HOVER_PROJECTED_BOUND`). Where the share was
+  never known (no projector stream, a static back-light replayed without its
+  probe) or the gate is off, it has nothing to measure: the configured value is
+  kept and the fit says why (:func:`fit_projected`). It is fitted with the edge,
+  from the first replay: neither score depends on any threshold;
 - ``anchor_threshold`` and ``instant_depth`` by the margin rule below, the
   instant gate kept at least as high as the anchor threshold.
 
@@ -54,6 +65,9 @@ from feelium.lab.touch.evaluate import balanced_accuracy_curve, fit_threshold, s
 MARGIN_FRACTION = 0.5  # the threshold sits this far into the gap from the hardest hover to the hardest press
 MARGIN_SIGMAS = 2.0  # ... and at least this many hover spreads above the hardest hover
 CLOSEST_SHARE = 0.1  # the hover spread is that of its closest approaches: this top share of its nonzero scores
+# A hand above the membrane takes none of the projector's own light (feelium.touch.roomshare.projected_depth): the
+# hardest hover the projected-light gate is placed from is never below this, whatever the clips' hovers showed.
+HOVER_PROJECTED_BOUND = 0.0
 
 
 @dataclass(frozen=True)
@@ -66,6 +80,7 @@ class ClipSeries:
     core_depth: np.ndarray
     edge: np.ndarray
     contact: np.ndarray  # bool: labelled contact at this frame
+    projected: np.ndarray | None = None  # the projected-light gate's score (NaN where the share was unknown)
 
 
 @dataclass(frozen=True)
@@ -77,6 +92,8 @@ class GateFit:
     hardest_positive: float
     sigma: float
     warning: str | None  # set when the margin rule could not hold and the balanced-accuracy fit was used
+    # The clips' own hardest hover when a bound stood in for it (hardest_negative is then the bound).
+    observed_negative: float | None = None
 
     def margins(self) -> dict[str, float]:
         return {
@@ -88,6 +105,14 @@ class GateFit:
 
 
 @dataclass(frozen=True)
+class ProjectedKept:
+    """The projected-light gate left at its configured value, and why (it had nothing to measure)."""
+
+    threshold: float
+    reason: str
+
+
+@dataclass(frozen=True)
 class Fit:
     contact_edge: float
     anchor: GateFit
@@ -95,6 +120,7 @@ class Fit:
     positives: int
     negatives: int
     edge: GateFit | None = None  # how contact_edge was placed (None: given, not fitted)
+    projected: GateFit | ProjectedKept | None = None  # contact_projected_depth (None: not asked for)
 
     @property
     def anchor_threshold(self) -> float:
@@ -106,29 +132,49 @@ class Fit:
 
     @property
     def warnings(self) -> list[str]:
-        return [g.warning for g in (self.edge, self.anchor, self.instant) if g is not None and g.warning]
+        gates = (self.edge, self.anchor, self.instant, self._projected_fit)
+        return [g.warning for g in gates if g is not None and g.warning]
+
+    @property
+    def notes(self) -> list[str]:
+        """What was not fitted and why (a gate kept at its configured value)."""
+        if isinstance(self.projected, ProjectedKept):
+            return [f"contact_projected_depth {self.projected.threshold:g} kept as configured: {self.projected.reason}"]
+        return []
+
+    @property
+    def _projected_fit(self) -> GateFit | None:
+        return self.projected if isinstance(self.projected, GateFit) else None
 
     def values(self) -> dict[str, float]:
-        return {
+        """The fitted values (a gate kept at its configured value is not among them: the fragment leaves it be)."""
+        values = {
             "contact_edge": round(self.contact_edge, 4),
             "anchor_threshold": round(self.anchor_threshold, 4),
             "instant_depth": round(self.instant_depth, 4),
         }
+        if self._projected_fit is not None:
+            values["contact_projected_depth"] = round(self._projected_fit.threshold, 4)
+        return values
 
     def summary(self) -> list[str]:
-        """One line per depth gate: threshold, hardest hover and press, margins; then the warnings."""
+        """One line per gate: threshold, hardest hover and press, margins (or why it was kept); then the warnings."""
         lines = []
-        gates = (("contact_edge", self.edge), ("anchor_threshold", self.anchor), ("instant_depth", self.instant))
+        gates = (
+            ("contact_edge", self.edge), ("contact_projected_depth", self._projected_fit),
+            ("anchor_threshold", self.anchor), ("instant_depth", self.instant),
+        )  # fmt: skip
         for name, gate in gates:
             if gate is None:
                 continue
             m = gate.margins()
+            bound = "" if gate.observed_negative is None else f", the bound; the clips' {gate.observed_negative:.4f}"
             lines.append(
                 f"{name} {gate.threshold:.4f}: hardest hover {m['hardest_negative']:.4f} "
-                f"(margin {m['negative_margin']:+.4f}), hardest press {m['hardest_positive']:.4f} "
+                f"(margin {m['negative_margin']:+.4f}{bound}), hardest press {m['hardest_positive']:.4f} "
                 f"(margin {m['positive_margin']:+.4f}), hover spread {gate.sigma:.4f}"
             )
-        return lines + [f"warning: {w}" for w in self.warnings]
+        return lines + self.notes + [f"warning: {w}" for w in self.warnings]
 
     def to_toml(self) -> str:
         lines = [
@@ -203,8 +249,51 @@ def fit_edge(clips: list[ClipSeries], held_frames: int = 2) -> GateFit:
     return _gate_fit("contact_edge", pos_frames, hover, _press_maxima(held, "edge"), fit_centred_threshold)
 
 
+def fit_projected(clips: list[ClipSeries], configured: float, held_frames: int = 2) -> GateFit | ProjectedKept:
+    """``contact_projected_depth`` by the margin rule where the projector's share was known, else kept (with why).
+
+    Like the edge, the gate is a landing condition a shadow must pass on every
+    frame: a hover's score is each frame's projected depth, a press's the
+    largest it holds for ``held_frames`` consecutive frames (``down_frames``).
+    The hardest hover is the clips' hardest or :data:`HOVER_PROJECTED_BOUND`,
+    whichever is higher: a hover takes none of the projector's own light, so
+    one that comes as close as a hover can scores about 0 (more only through
+    an error of the share); a minute of hover clips far from that (seed 32's
+    lit room: -0.62) would otherwise put the gate below 0, where any hover
+    whose share is a little off lands. Only frames whose share was known count
+    (NaN: unknown; the pipeline then lets the shadow land, so the gate was not
+    in play there). When the rule cannot hold, the per-frame centred
+    balanced-accuracy fit, with a warning.
+
+    Kept at ``configured`` (:class:`ProjectedKept`) when the gate is off, or when
+    the hover clip or the contact clip's presses never had the share known: a
+    recording without a projector stream, or a static back-light replayed
+    without its probe, shows nothing this gate decides on, and a value fitted
+    from nothing would only look measured.
+    """
+    if configured <= 0.0:
+        return ProjectedKept(configured, "the gate is off ([touch] contact_projected_depth = 0): nothing to fit")
+    known = [replace(c, projected=c.projected if c.projected is not None else np.full(c.t.size, np.nan)) for c in clips]
+    pos_frames, hover = (values[np.isfinite(values)] for values in _fit_samples(known, "projected"))
+    unknown = (
+        "the projector's share of the light was never known on the clips' shadows "
+        "(no projector stream, or a static back-light replayed without the probe)"
+    )
+    if hover.size == 0:
+        return ProjectedKept(configured, f"no hover frame in the first 60 % has a score: {unknown}")
+    held = [replace(c, projected=_held(c.projected, held_frames)) for c in known]  # type: ignore[arg-type]
+    presses = _press_maxima(held, "projected")
+    if presses.size == 0 or pos_frames.size == 0:
+        return ProjectedKept(configured, f"no press in the first 60 % held a score for {held_frames} frames: {unknown}")
+    return _gate_fit(
+        "contact_projected_depth", pos_frames, hover, presses, fit_centred_threshold,
+        zero_unscored=False, hover_bound=HOVER_PROJECTED_BOUND,
+    )  # fmt: skip
+
+
 def _held(values: np.ndarray, frames: int) -> np.ndarray:
-    """Per frame, the smallest of the last ``frames`` values (the value held that long up to this frame)."""
+    """Per frame, the smallest of the last ``frames`` values (the value held that long up to this frame; NaN
+    when any of them is)."""
     if frames <= 1 or values.size == 0:
         return values
     padded = np.concatenate([np.full(frames - 1, values[0]), values])
@@ -216,7 +305,8 @@ def _press_maxima(clips: list[ClipSeries], series: str) -> np.ndarray:
 
     Only presses that end inside the first 60 % count (one cut by the split is
     not a shallower press, only a shorter look at one), unless none does: then
-    the contact runs inside the first 60 %, cut or not.
+    the contact runs inside the first 60 %, cut or not. NaN frames have no
+    score; a press with none is left out.
     """
     whole: list[float] = []
     cut: list[float] = []
@@ -225,9 +315,19 @@ def _press_maxima(clips: list[ClipSeries], series: str) -> np.ndarray:
             continue
         fit = split_clip(clip.t)
         values = getattr(clip, series)
-        whole += [float(values[a:b].max()) for a, b in _runs(clip.contact) if b < fit.size and fit[b]]
-        cut += [float(values[a:b].max()) for a, b in _runs(clip.contact & fit)]
+        whole += _largest(values, [(a, b) for a, b in _runs(clip.contact) if b < fit.size and fit[b]])
+        cut += _largest(values, _runs(clip.contact & fit))
     return np.asarray(whole or cut, float)
+
+
+def _largest(values: np.ndarray, runs: list[tuple[int, int]]) -> list[float]:
+    """The largest finite value in each run that has one."""
+    out = []
+    for a, b in runs:
+        scored = values[a:b][np.isfinite(values[a:b])]
+        if scored.size:
+            out.append(float(scored.max()))
+    return out
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -236,9 +336,12 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
-def hardest_cases(press_maxima: np.ndarray, hover: np.ndarray) -> tuple[float, float, float]:
-    """(hardest hover n, hardest press p, hover spread sigma) as the margin rule defines them."""
-    seen = hover[hover > 0.0]
+def hardest_cases(press_maxima: np.ndarray, hover: np.ndarray, zero_unscored: bool = True) -> tuple[float, float, float]:
+    """(hardest hover n, hardest press p, hover spread sigma) as the margin rule defines them.
+
+    ``zero_unscored``: a hover frame scoring 0 had nothing to score (no landing, no shadow) and is left out of
+    the spread; off for a gate whose scores are all measured, negative ones included (the projected depth)."""
+    seen = hover[hover > 0.0] if zero_unscored else hover
     closest = seen[seen >= np.quantile(seen, 1.0 - CLOSEST_SHARE)] if seen.size else seen
     return float(hover.max()), float(press_maxima.min()), float(closest.std()) if closest.size > 1 else 0.0
 
@@ -255,12 +358,20 @@ def _gate_fit(
     hover: np.ndarray,
     press_maxima: np.ndarray,
     balanced: Callable[[np.ndarray, np.ndarray], float | None] = fit_threshold,
+    *,
+    zero_unscored: bool = True,
+    hover_bound: float | None = None,
 ) -> GateFit:
-    """One gate by the margin rule, else by ``balanced`` accuracy with a warning naming the gate and the gap."""
-    n, p, sigma = hardest_cases(press_maxima, hover)
+    """One gate by the margin rule, else by ``balanced`` accuracy with a warning naming the gate and the gap.
+
+    ``hover_bound``: how hard a hover can be whatever the clips showed; the hardest hover is never below it."""
+    n, p, sigma = hardest_cases(press_maxima, hover, zero_unscored)
+    observed = None
+    if hover_bound is not None and n < hover_bound:
+        observed, n = n, hover_bound
     ruled = margin_threshold(n, p, sigma)
     if ruled is not None:
-        return GateFit(ruled, n, p, sigma, None)
+        return GateFit(ruled, n, p, sigma, None, observed)
     fallback = balanced(pos_frames, hover)
     assert fallback is not None
     warning = (
@@ -268,11 +379,14 @@ def _gate_fit(
         f"above the hardest hover ({n:.4f}); fitted by balanced accuracy instead ({fallback:.4f}): "
         "a hover a little closer than these clips' may fire; record more or closer hovers, or check the setup"
     )
-    return GateFit(float(fallback), n, p, sigma, warning)
+    return GateFit(float(fallback), n, p, sigma, warning, observed)
 
 
-def fit_gates(clips: list[ClipSeries], contact_edge: float | GateFit) -> Fit:
-    """Fit the depth thresholds on clips replayed with ``contact_edge`` (a value, or :func:`fit_edge`'s fit).
+def fit_gates(
+    clips: list[ClipSeries], contact_edge: float | GateFit, projected: GateFit | ProjectedKept | None = None
+) -> Fit:
+    """Fit the depth thresholds on clips replayed with ``contact_edge`` (a value, or :func:`fit_edge`'s fit) and
+    the projected-light gate ``projected`` (:func:`fit_projected`'s fit, carried into the result; None: not asked).
 
     ValueError naming what is missing.
     """
@@ -285,5 +399,6 @@ def fit_gates(clips: list[ClipSeries], contact_edge: float | GateFit) -> Fit:
     if instant.threshold < anchor.threshold:  # a press deep enough for the sustained gate is never refused at once
         instant = replace(instant, threshold=anchor.threshold)
     return Fit(
-        contact_edge=edge_value, anchor=anchor, instant=instant, positives=int(pos.size), negatives=int(neg.size), edge=edge
-    )
+        contact_edge=edge_value, anchor=anchor, instant=instant, positives=int(pos.size), negatives=int(neg.size),
+        edge=edge, projected=projected,
+    )  # fmt: skip

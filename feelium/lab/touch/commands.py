@@ -17,12 +17,14 @@ from feelium.lab.plot import Series, line_plot
 from feelium.recording import NEGATIVE_LABELS, Recording, RecordingError, find_recordings
 from feelium.lab.touch.skips import Skips
 from feelium.lab.touch.zones import ZONES
-from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates
+from feelium.lab.touch.calibrate import ClipSeries, Fit, fit_edge, fit_gates, fit_projected
 from feelium.touch.config import TouchConfig
 from feelium.lab.touch.evaluate import ClipData, TrialData, build_report
 from feelium.lab.touch.margins import GateSeries, GateThresholds
 from feelium.lab.touch.contact_score import score_contacts
+from feelium.lab.touch.light_report import LightRecord, SwitchRecord, light_rows, light_summary, switch_summary
 from feelium.lab.touch.recorded_light import recorded_light
+from feelium.lab.touch.switch_recovery import recoveries
 from feelium.lab.touch.replay import ReplayResult, face_of, relative_name, replay_recording
 from feelium.projector.config import ProjectorConfig
 
@@ -120,7 +122,9 @@ def _clip_series(result: ReplayResult) -> ClipSeries:
     contact = np.zeros(t.size, bool)
     for c in labels.contacts:
         contact |= (t >= c.t_on) & (t < c.t_off)
-    return ClipSeries(labels.label, t, result.anchor[keep], result.core_depth[keep], result.edge[keep], contact)
+    return ClipSeries(
+        labels.label, t, result.anchor[keep], result.core_depth[keep], result.edge[keep], contact, result.projected_depth[keep]
+    )
 
 
 def fit_on_clips(
@@ -132,7 +136,8 @@ def fit_on_clips(
     projector: ProjectorConfig | None = None,
     calibration: Path | None = None,
 ) -> Fit:
-    """Fit the contact edge first, then replay the clips with it and fit the depth thresholds.
+    """Fit the landing gates first (the contact edge and the projected-light gate: neither score depends on a
+    threshold), then replay the clips with them and fit the depth thresholds.
 
     A clip recorded with its projector stream (``feelium record --projector``) is replayed with the light the
     daemon would predict, as ``eval`` does (the map from ``calibration``, else the one beside it under
@@ -153,9 +158,11 @@ def fit_on_clips(
                 first.append((r, result))
     if not first:
         raise ValueError("no continuous contact/hover clips in this dataset (labels with \"clip\": true)")
-    edge = fit_edge([_clip_series(result) for _, result in first], held_frames=config.down_frames)
-    with_edge = replace(config, contact_edge=edge.threshold)
-    return fit_gates([_clip_series(replay(r, with_edge)) for r, _ in first], edge)
+    series = [_clip_series(result) for _, result in first]
+    edge = fit_edge(series, held_frames=config.down_frames)
+    projected = fit_projected(series, config.contact_projected_depth, held_frames=config.down_frames)
+    landing = replace(config, contact_edge=edge.threshold, contact_projected_depth=projected.threshold)
+    return fit_gates([_clip_series(replay(r, landing)) for r, _ in first], edge, projected)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
@@ -264,7 +271,12 @@ def evaluate_dataset(
         if result is None:
             continue
         condition = condition_of(root, recording) if by_condition else "."
-        ours.add(condition, root, result)
+        switch = SwitchRecord(
+            *recoveries(
+                recording, config, lambda: recorded_light(recording, root, projector or ProjectorConfig(), config, calibration)
+            )
+        )  # it replayed above: its light and frames are good
+        ours.add(condition, root, result, switch)
         blind = skips.attempt(lambda: replay_recording(recording, paper_cfg, plain=plain)) if paper_gates else None
         if blind is not None:
             paper.add(condition, root, blind)
@@ -291,17 +303,31 @@ def paper_config(config: TouchConfig) -> TouchConfig:
     return replace(config, contact_edge=0.0)
 
 
+class _Group:
+    """One condition's scoring inputs: trials, clips, timings, and the light's records (added keys)."""
+
+    def __init__(self) -> None:
+        self.trials: list[TrialData] = []
+        self.clips: list[ClipData] = []
+        self.timings: list[np.ndarray] = []
+        self.light: list[LightRecord] = []
+        self.switches: list[SwitchRecord] = []
+
+
 class _Groups:
     """Scoring inputs grouped by condition, and the report built from them."""
 
     def __init__(self) -> None:
-        self.groups: dict[str, tuple[list[TrialData], list[ClipData], list[np.ndarray]]] = {}
+        self.groups: dict[str, _Group] = {}
 
-    def add(self, condition: str, root: Path, result: ReplayResult) -> None:
-        trials, clips, timings = self.groups.setdefault(condition, ([], [], []))
-        timings.append(result.seconds_per_frame)
+    def add(self, condition: str, root: Path, result: ReplayResult, switch: SwitchRecord | None = None) -> None:
+        group = self.groups.setdefault(condition, _Group())
+        group.timings.append(result.seconds_per_frame)
+        group.light.append(LightRecord.of(result))
+        if switch is not None and switch.switches.times:
+            group.switches.append(switch)
         item = scoring_input(root, result)
-        (clips if isinstance(item, ClipData) else trials).append(item)  # type: ignore[arg-type]
+        (group.clips if isinstance(item, ClipData) else group.trials).append(item)  # type: ignore[arg-type]
 
     def report(self, name: str, config: TouchConfig, by_condition: bool) -> tuple[dict[str, Any], list[ClipData]]:
         gates = GateThresholds(
@@ -309,18 +335,22 @@ class _Groups:
             config.contact_projected_depth,
         )
 
-        def report_of(title: str, trials: list[TrialData], clips: list[ClipData], timings: list[np.ndarray]) -> dict[str, Any]:
-            seconds = np.concatenate(timings) if timings else np.zeros(0)
-            report = build_report(title, trials, clips, seconds, config.width, config.height, gates)
-            report["contacts"] = score_contacts(trials, config.px_per_mm or 2.0)  # added key: several contacts
+        def report_of(title: str, group: _Group) -> dict[str, Any]:
+            seconds = np.concatenate(group.timings) if group.timings else np.zeros(0)
+            report = build_report(title, group.trials, group.clips, seconds, config.width, config.height, gates)
+            report["contacts"] = score_contacts(group.trials, config.px_per_mm or 2.0)  # added key: several contacts
+            report["light"] = light_summary(group.light)  # added keys: health's verdict, recovery after a switch
+            report["switch_recovery"] = switch_summary(group.switches)
             return report
 
-        every = list(self.groups.values())
-        all_clips = [c for g in every for c in g[1]]
-        report = report_of(name, [t for g in every for t in g[0]], all_clips, [s for g in every for s in g[2]])
+        every = _Group()
+        for group in self.groups.values():
+            for key, values in vars(group).items():
+                getattr(every, key).extend(values)
+        report = report_of(name, every)
         if by_condition:
-            report["conditions"] = {title: report_of(title, *self.groups[title]) for title in sorted(self.groups)}
-        return report, all_clips
+            report["conditions"] = {title: report_of(title, self.groups[title]) for title in sorted(self.groups)}
+        return report, every.clips
 
 
 def run_eval(args: argparse.Namespace) -> int:
@@ -329,6 +359,7 @@ def run_eval(args: argparse.Namespace) -> int:
     root = Path(args.dataset)
     fitted: dict[str, float] | None = None
     fit_warnings: list[str] = []
+    fit_notes: list[str] = []
     if args.fit_on_clips:
         try:
             # quiet: the scoring pass below meets the same bad recordings and reports them once
@@ -340,7 +371,9 @@ def run_eval(args: argparse.Namespace) -> int:
             return 1
         fitted = fit.values()
         config = replace(config, **fitted)
-        fit_warnings = fit.warnings
+        fit_warnings, fit_notes = fit.warnings, fit.notes
+        for note in fit_notes:
+            print(f"feelium eval: --fit-on-clips: {note}", file=sys.stderr)
         for warning in fit_warnings:
             print(f"feelium eval: --fit-on-clips: warning: {warning}", file=sys.stderr)
     skips = Skips("eval", scores_labels=True)
@@ -351,7 +384,9 @@ def run_eval(args: argparse.Namespace) -> int:
     report["touch_config"] = {
         "fitted_on_clips": fitted is not None,
         "fit_warnings": fit_warnings,
+        "fit_notes": fit_notes,
         "contact_edge": config.contact_edge,
+        "contact_projected_depth": config.contact_projected_depth,
         "instant_depth": config.instant_depth,
         "anchor_threshold": config.anchor_threshold,
         "anchor_window_s": config.anchor_window_s,
@@ -438,6 +473,9 @@ def _contact_rows(c: dict[str, Any] | None) -> list[tuple[str, str]]:
         ("contacts (several per trial)", f"{c['contacts']} in {c['trials']} trials: {c['touches']} touches, missed {c['missed']}, "
          f"split {c['split']}, id swaps {c['swaps']}, phantoms {c['phantoms']}"),
         ("  contact kind right", f"{c['kind_right']} of {c['kind_scored']} ({kinds})"),
+        ("  gesture right (per contact)", f"{c['gesture_right']} of {c['gesture_scored']} ("
+         + "; ".join(f"{k}: " + ", ".join(f"{n} {got}" for got, n in v.items() if n) for k, v in c["gestures"].items())
+         + ")"),
         ("  error px (median/max)", "n/a" if err is None else f"{err['median']:.2f} / {err['max']:.2f}"),
         *(
             (f"  footprint on up, {kind}", f"n {f['n']}: {_fmt(f['area_mm2'], 1)} mm^2, {_fmt(f['major_mm'], 1)} x "
@@ -512,7 +550,9 @@ def format_report(report: dict[str, Any]) -> str:
         rows.append((f"  {label}", f"{entry[key]} of {entry['n']} {key}"))
     rows += [
         ("kind accuracy", _fmt(t["kind_accuracy"])),
-        ("single-event rate", _fmt(t["single_event_rate"])),
+        ("single-event rate", _fmt(t["single_event_rate"])
+         + (f" (one-contact trials: {_fmt(t['single_event_rate_one_contact'])}; {t['multi_contact_detected']} detected "
+            "trials have several contacts: see contacts)" if t.get("multi_contact_detected") else "")),
         ("activity (hand present)", f"{a['registered']} of {a['hand_present']}"),
         ("activity (empty scenes)", f"{a['empty_fired']} of {a['empty']}"),
         ("area-only baseline", f"threshold {_fmt(ab['threshold'], 0)} px: precision {_fmt(ab['precision'])}, recall {_fmt(ab['recall'])}"),
@@ -541,13 +581,15 @@ def format_report(report: dict[str, Any]) -> str:
     rows += _margin_rows(report.get("margins"))
     rows += _zone_rows(report.get("zones"))
     rows += _contact_rows(report.get("contacts"))
+    rows += light_rows(report.get("light"), report.get("switch_recovery"))
     cfg = report.get("touch_config")
     if cfg:
         rows.append(
             (
                 "gates used" + (" (fitted on clips)" if cfg["fitted_on_clips"] else ""),
                 f"contact_edge {cfg['contact_edge']:.4f}, instant_depth {cfg['instant_depth']:.3f}, "
-                f"anchor_threshold {cfg['anchor_threshold']:.3f}",
+                f"anchor_threshold {cfg['anchor_threshold']:.3f}"
+                + (f", contact_projected_depth {cfg['contact_projected_depth']:.3f}" if "contact_projected_depth" in cfg else ""),
             )
         )
     width = max(len(r[0]) for r in rows)

@@ -16,7 +16,10 @@ are stated here, from rooms and lamps, never from detector scores:
 - ``drift``: daylight at :data:`DRIFT_LEVEL` varying +-:data:`DRIFT_AMP` over
   :data:`DRIFT_PERIOD_S` (clouds: up to 9 % of the back-light per second);
 - ``passer-by``: the lit room while a person walks between the lamp and the
-  blimp (:class:`feelium.sim.room.Passer`) at a drawn time in the trial.
+  blimp (:class:`feelium.sim.room.Passer`) at a drawn time in the trial;
+- ``too-bright``: daylight at :data:`TOO_BRIGHT_LEVEL` with the camera's exposure
+  at its floor (:data:`TOO_BRIGHT_AE_FLOOR`): a saturated membrane, where the
+  touch service must say so in health rather than go silent unannounced.
 
 Per condition: trial recall, negatives fired, false touches (touches outside
 every widened contact, in any trial), localisation error median; for the
@@ -46,7 +49,7 @@ from __future__ import annotations
 
 import copy
 import multiprocessing
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -73,7 +76,7 @@ from feelium.touch.pipeline import TouchPipeline
 if TYPE_CHECKING:
     from feelium.lab.touch import face_zones
 
-CONDITIONS = ("dim", "lit", "switch-on", "switch-off", "drift", "passer-by")
+CONDITIONS = ("dim", "lit", "switch-on", "switch-off", "drift", "passer-by", "too-bright")
 SWITCHES = ("switch-on", "switch-off")
 WARMUP_S = 3.0  # hand-free frames in the trial's starting light before it begins
 LIT = 1.0  # a lit living room: room light through the membrane as bright as the projector's
@@ -81,6 +84,14 @@ ON_RAMP_S = 0.1
 OFF_RAMP_S = 0.05
 SWITCH_BEFORE_S = (0.5, 1.5)  # a touch trial's switch comes this long before its first contact
 DRIFT_LEVEL, DRIFT_AMP, DRIFT_PERIOD_S = 0.6, 0.5, 20.0
+# Too bright to see: daylight on the membrane, about ten times a lamp-lit room (a window's 1000-3000 lux against a
+# living room's 100-300), so 8 times the projector's light (the highest level of docs/touch.md's *Too bright*
+# table), with the camera's exposure at its floor, the dim room's (``RoomLight.ae_floor`` 1: the daemon locks the
+# rear camera's exposure after settling, so the daylight that came after is not followed). The membrane then gets 9
+# times its dim level, whose ROI mean is about half of the session's peak of 125-238 DN: every pixel of the ROI
+# would read over 255. Not chosen from detector scores; what it must show is health saying "too bright".
+TOO_BRIGHT_LEVEL = 8.0
+TOO_BRIGHT_AE_FLOOR = 1.0
 RECOVERY_PERCENTILE = 99.0
 # The known contact of the sensitivity measure: the frustrated reflection's share of a pressed fingertip in the dim
 # room (0.4-0.5, docs/touch.md, the sessions' contact_depth), over a fingertip's pad (12 camera px across at 640 x 480).
@@ -121,6 +132,8 @@ def room_for(
             level=DRIFT_LEVEL, drift_amp=DRIFT_AMP, drift_period_s=DRIFT_PERIOD_S,
             drift_phase=float(rng.uniform(0.0, 2 * np.pi)), gradient_angle_deg=angle,
         )  # fmt: skip
+    if condition == "too-bright":
+        return RoomLight(level=TOO_BRIGHT_LEVEL, gradient_angle_deg=angle, ae_floor=TOO_BRIGHT_AE_FLOOR)
     if condition == "passer-by":
         return RoomLight(level=LIT, gradient_angle_deg=angle, passer=Passer(t0=float(rng.uniform(0.1, 0.7)) * duration))
     raise ValueError(f"unknown condition {condition!r}; expected one of {', '.join(CONDITIONS)}")
@@ -192,10 +205,10 @@ def recovery(frames: list[tuple[float, np.ndarray]], config: TouchConfig, switch
         err = depth_error(pipeline, frame)
         pipeline.process(t, frame, probe_light=_probe(t, pattern))
         bad.append((t, t >= switch_at and err is not None and err > config.candidate_depth))
-    return _recovered(bad, switch_at)
+    return recovered(bad, switch_at)
 
 
-def _recovered(bad: list[tuple[float, bool]], switch_at: float) -> float:
+def recovered(bad: list[tuple[float, bool]], switch_at: float) -> float:
     """Seconds from ``switch_at`` to the first frame after the last bad one (0.0: none was bad; inf: bad to the end)."""
     last_bad = max((t for t, b in bad if b), default=None)
     if last_bad is None:
@@ -204,10 +217,10 @@ def _recovered(bad: list[tuple[float, bool]], switch_at: float) -> float:
     return after[0] - switch_at if after else float("inf")
 
 
-def _pressed(frame: np.ndarray, place: tuple[float, float]) -> np.ndarray:
-    """``frame`` with a fingertip's shadow of :data:`SENSE_DEPTH` at ``place`` (fractions of the ROI), its edge
+def _pressed(frame: np.ndarray, place: tuple[float, float], roi: tuple[int, int, int, int] = ROI) -> np.ndarray:
+    """``frame`` with a fingertip's shadow of :data:`SENSE_DEPTH` at ``place`` (fractions of ``roi``), its edge
     blurred by 1 px."""
-    x0, y0, w, h = ROI
+    x0, y0, w, h = roi
     cx, cy = x0 + place[0] * w, y0 + place[1] * h
     ys, xs = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]].astype(np.float32)
     disc = cv2.GaussianBlur(((xs - cx) ** 2 + (ys - cy) ** 2 <= SENSE_RADIUS_PX**2).astype(np.float32), (0, 0), 1.0)
@@ -215,37 +228,62 @@ def _pressed(frame: np.ndarray, place: tuple[float, float]) -> np.ndarray:
 
 
 def sensed(
-    frames: list[tuple[float, np.ndarray]], config: TouchConfig, since: float, every: int = 1
+    frames: Iterable[tuple[float, np.ndarray]],
+    config: TouchConfig,
+    since: float,
+    every: int = 1,
+    *,
+    pipeline: TouchPipeline | None = None,
+    light: Callable[[float], dict[str, Any]] | None = None,
+    roi: tuple[int, int, int, int] = ROI,
 ) -> list[tuple[float, list[float]]]:
     """Per ``every``-th frame from ``since``: the core depth a copy of the pipeline reads for the known contact at each
     of :data:`SENSE_PLACES` pressed on that frame (0 where it finds no shadow); the pipeline itself sees every frame as
-    it is."""
-    pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
-    pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
+    it is.
+
+    ``pipeline``, ``light`` (per frame time, the keyword arguments the pipeline is handed with the frame) and ``roi``
+    default to the experiment's (its frame and ROI, the ideal probe); a recording's replay passes its own
+    (:mod:`feelium.lab.touch.switch_recovery`), so both measure with this one function."""
+    if pipeline is None:
+        pipeline = TouchPipeline(config, (WIDTH, HEIGHT), ROI)
+    if light is None:
+        pattern = probe_pattern(WIDTH, HEIGHT) if PROBE else None
+        light = lambda t: {"probe_light": _probe(t, pattern)}  # noqa: E731
     out = []
     for n, (t, frame) in enumerate(frames):
-        light = _probe(t, pattern)
+        extra = light(t)
         if t >= since and pipeline.reference.image is not None and n % every == 0:
-            pressed = (copy.deepcopy(pipeline).process(t, _pressed(frame, p), probe_light=light) for p in SENSE_PLACES)
+            pressed = (copy.deepcopy(pipeline).process(t, _pressed(frame, p, roi), **extra) for p in SENSE_PLACES)
             out.append((t, [result.core_depth for result in pressed]))
-        pipeline.process(t, frame, probe_light=light)
+        pipeline.process(t, frame, **extra)
     return out
 
 
+def off_steady(depths: list[float], steady: np.ndarray) -> bool:
+    """Whether a frame's readings of the known contact are not yet those of steady light: a place not found, or one
+    reading more than :data:`SENSE_TOLERANCE` from ``steady`` (per place). The one definition of "not recovered"."""
+    d = np.asarray(depths, float)
+    return bool(np.any(d <= 0.0) or np.any(np.abs(d - steady) > SENSE_TOLERANCE))
+
+
 def sensitivity_recovery(
-    frames: list[tuple[float, np.ndarray]],
-    steady: list[tuple[float, np.ndarray]],
+    frames: Iterable[tuple[float, np.ndarray]],
+    steady: Iterable[tuple[float, np.ndarray]],
     config: TouchConfig,
     switch_at: float,
+    *,
+    reader: Callable[[], dict[str, Any]] | None = None,
 ) -> float:
     """Seconds from ``switch_at`` until the known contact reads as in ``steady`` (the final light held) at every place,
-    from then on (inf: never): see the module's docstring."""
-    reference = np.median(np.array([d for _, d in sensed(steady, config, 0.0, every=STEADY_EVERY)]), axis=0)
-    bad = []
-    for t, depths in sensed(frames, config, switch_at):
-        d = np.array(depths)
-        bad.append((t, bool(np.any(d <= 0.0) or np.any(np.abs(d - reference) > SENSE_TOLERANCE))))
-    return _recovered(bad, switch_at)
+    from then on (inf: never): see the module's docstring.
+
+    ``reader()``: a new pipeline, its light and ROI for :func:`sensed` (one per reading: a pipeline and a light
+    feed follow their own time), for frames that are not the experiment's (a recording's, in ``eval``)."""
+    own = reader if reader is not None else dict
+    reference = np.median(np.array([d for _, d in sensed(steady, config, 0.0, every=STEADY_EVERY, **own())]), axis=0)
+    return recovered(
+        [(t, off_steady(depths, reference)) for t, depths in sensed(frames, config, switch_at, **own())], switch_at
+    )
 
 
 def _probe(t: float, pattern: np.ndarray | None) -> np.ndarray | None:

@@ -17,27 +17,20 @@ projector_latency_s``: a projector slower than the blimp's is replayed as it lit
 
 from __future__ import annotations
 
-import dataclasses
 import functools
-import json
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 
-from feelium.lab.projector.from_recording import PURPOSE, calibrate_recording
-from feelium.projector.backlight import BacklightPredictor
+from feelium.lab.projector.from_recording import calibrate_recording
 from feelium.projector.config import CalibrationConfig, ProjectorConfig
-from feelium.recording import Recording, RecordingError
+from feelium.projector.recorded import StreamLight, stream_light, stream_optics
+from feelium.recording import CALIBRATION_FILE, CALIBRATION_PURPOSE, Recording, RecordingError, find_calibration, find_recordings
 from feelium.skin.projector_map import CalibrationError, ProjectorMap, load_calibration
 from feelium.touch.config import TouchConfig
 from feelium.touch.geometry import LightGrids
 from feelium.touch.projected import ExposureLight, ProjectorHistory, history_window_s, touch_with_latency
-
-CALIBRATION_FILE = "projector-calibration.npz"  # a map saved by ProjectorMap.save, found beside the trials
-# The name `feelium calibrate projector` saves on the blimp (`[projector.calibration] file`): a map copied from
-# the blimp beside the trials is found under it too.
-CALIBRATION_FILES = (CALIBRATION_FILE, "projector_calibration.npz")
 
 
 class RecordedLight:
@@ -46,18 +39,20 @@ class RecordedLight:
     def __init__(
         self,
         frames: Iterator[tuple[float, np.ndarray]],
-        predictor: BacklightPredictor,
+        predict: Callable[[np.ndarray], np.ndarray],
         config: TouchConfig,
-        predictor_for: Callable[[tuple[int, int], int], BacklightPredictor] | None = None,
+        predictor_for: StreamLight | None = None,
     ) -> None:
-        """``predictor_for(frame size, average_of)``: the same predictor at another size, for :meth:`use_grids`."""
+        """``predict(frame)``: a projector frame's light at the camera frame's size.
+        ``predictor_for(frame size, box, average_of)``: the same predictor at another size over a box, for
+        :meth:`use_grids` (:func:`feelium.projector.recorded.stream_light`)."""
         self._frames = frames
         self._next: tuple[float, np.ndarray] | None = next(frames, None)
         self._seq = 0
         self._config = config
         self._predictor_for = predictor_for
         self._history = ProjectorHistory(history_window_s(config))
-        self._light = ExposureLight(lambda frame, _out: predictor.gain(frame), config)  # allocates: lab replay
+        self._light = ExposureLight(lambda frame, _out: predict(frame), config)  # allocates: lab replay
         self._fine: dict[str, object] = {}
 
     def use_grids(self, grids: LightGrids | None) -> None:
@@ -66,17 +61,9 @@ class RecordedLight:
         predictor has no window of its own: the lab predicts the whole box and cuts the window (the same values)."""
         if grids is None or self._predictor_for is None:
             return
-        size, (x, y, w, h) = grids.coarse
-        coarse = self._predictor_for(size, grids.average_of)
-        window = None
-        if grids.fine is not None:
-            fine_size, (fx, fy, fw, fh) = grids.fine
-            full = self._predictor_for(fine_size, 1)
-
-            def window(frame: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
-                return full.gain(frame)[fy : fy + fh, fx : fx + fw][rows, cols]
-
-        self._light = ExposureLight(lambda frame, _out: coarse.gain(frame)[y : y + h, x : x + w], self._config, window)
+        fine = None if grids.fine is None else self._predictor_for(*grids.fine)
+        coarse = self._predictor_for(*grids.coarse, grids.average_of)
+        self._light = ExposureLight(lambda frame, _out: coarse(frame), self._config, None if fine is None else fine.window)
         self._fine = {"fine_light": self._light.window}
 
     def __call__(self, t: float) -> dict[str, np.ndarray]:
@@ -90,44 +77,6 @@ class RecordedLight:
             return {}
         light, spread = mixed  # reused by the next call: the pipeline reads them within this frame
         return {"projected_light": light, "projected_spread": spread, **self._fine}
-
-
-def find_calibration(recording: Path, root: Path, session: str | None = None) -> Path | None:
-    """The calibration beside the trials, in the recording's folder or the nearest folder above it up to the
-    dataset ``root``: a saved map (:data:`CALIBRATION_FILE`), else a calibration recording (``meta.purpose``
-    ``"projector-calibration"``) to fit the map from: the first by name of the trial's own ``session`` when
-    that folder holds one, else the first by name. Why the session: the recording format fits the map of "the
-    recordings beside it (same ``session``)", so a dataset may lay one calibration recording per session (per
-    blimp, per day) side by side, and each trial must get its own projector's map."""
-    here, top = recording.resolve(), root.resolve()
-    for folder in (here, *here.parents):
-        for name in CALIBRATION_FILES:
-            candidate = folder / name
-            if candidate.is_file():
-                return candidate
-        recordings = _calibration_recordings(folder)
-        if recordings:
-            same = [path for path, their_session in recordings if session is not None and their_session == session]
-            return (same or [recordings[0][0]])[0]
-        if folder == top or top not in folder.parents:
-            break
-    return None
-
-
-@functools.lru_cache(maxsize=256)
-def _calibration_recordings(folder: Path) -> tuple[tuple[Path, str | None], ...]:
-    """The calibration recordings directly in ``folder``, by name, each with its ``meta.session`` (cached:
-    every trial of a dataset asks its folder)."""
-    found = []
-    for child in sorted(folder.iterdir()) if folder.is_dir() else ():
-        try:
-            meta = json.loads((child / "meta.json").read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
-        if isinstance(meta, dict) and meta.get("purpose") == PURPOSE:
-            session = meta.get("session")
-            found.append((child, session if isinstance(session, str) else None))
-    return tuple(found)
 
 
 @functools.lru_cache(maxsize=8)
@@ -163,30 +112,35 @@ def recorded_light(
             cal = load_calibration(path)
         except CalibrationError as exc:
             raise RecordingError(path, str(exc)) from exc
-    projector = stream_optics(projector, recording, cal, path)
+    light = stream_light(stream_optics(projector, recording, cal, path), cal)
     touch = touch_with_latency(touch, cal)  # the projector's measured latency, not the assumed one, when it has one
     camera = recording.meta.camera
-    predictor = BacklightPredictor(projector, cal, (camera.width, camera.height))
-    return RecordedLight(
-        recording.projector_frames(), predictor, touch, lambda size, n: BacklightPredictor(projector, cal, size, average_of=n)
-    )
+    return RecordedLight(recording.projector_frames(), light((camera.width, camera.height)), touch, light)
 
 
-def stream_optics(projector: ProjectorConfig, recording: Recording, cal: ProjectorMap, source: Path) -> ProjectorConfig:
-    """``projector`` at the size of the projector the recording was made with (``meta.projector``).
+def replay_map(root: Path, projector: ProjectorConfig, touch: TouchConfig, out: Path) -> Path | None:
+    """For ``feelium run --replay ROOT``: the calibration recording the replayed streams find beside them, fitted
+    and saved as a map file under ``out`` (the daemon loads saved maps; it does not load the lab code that fits
+    them). None when no stream's lookup finds a calibration recording (each has a saved map, or none: the touch
+    service names that one in health).
 
-    Why: a recording from another blimp's projector has its own resolution, which its meta states and the map
-    fitted from its calibration recording shares; the configured ``[projector]`` size is only this blimp's, and
-    predicting with it refused every frame of such a stream. A map of another size than the stream is not that
-    projector's map: an error that names both."""
-    info = recording.meta.raw.get("projector")
-    try:
-        size = (int(info["width"]), int(info["height"]))  # type: ignore[index]
-    except (TypeError, KeyError, ValueError):
-        raise RecordingError(recording.path / "meta.json", "projector: expected an object with width and height") from None
-    mapped = (int(cal.projector_size[0]), int(cal.projector_size[1]))
-    if mapped != size:
-        raise RecordingError(
-            recording.path, f"its projector stream is {size[0]}x{size[1]}, but the calibration {source} maps a {mapped[0]}x{mapped[1]} projector"
+    ValueError when the streams find several calibration recordings, or some a recording and some a saved map: one
+    map for the whole replay would give some recordings another projector's map."""
+    found: set[Path | None] = set()
+    for path in find_recordings(root):
+        recording = Recording(path)
+        if recording.has_projector and recording.meta.raw.get("purpose") != CALIBRATION_PURPOSE:
+            found.add(find_calibration(path, root, recording.meta.session))
+    fitted = sorted(path for path in found if path is not None and path.is_dir())
+    if not fitted:
+        return None
+    if len(found) > 1:
+        names = ", ".join(sorted(str(path) for path in found if path is not None))
+        raise ValueError(
+            f"the replayed streams find {len(found)} different projector calibrations ({names}): fit each with "
+            "`feelium calibrate projector` and replay each set of recordings with its map (--projector-calibration)"
         )
-    return dataclasses.replace(projector, width=size[0], height=size[1])
+    cal = fitted_calibration(fitted[0].resolve(), projector.calibration, touch.projector_latency_s, touch.camera_exposure_s)
+    saved = out / CALIBRATION_FILE
+    cal.save(saved)
+    return saved

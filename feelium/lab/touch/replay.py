@@ -21,6 +21,7 @@ from feelium.recording import Recording, RecordingError
 from feelium.skin.face import FaceModel
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import FrameResult, TouchPipeline
+from feelium.touch.sensing import PROBLEMS, SensingMonitor, sample_of, share_taught
 
 
 @dataclass
@@ -43,6 +44,10 @@ class ReplayResult:
     # The CPU time of each frame's predicted light (0 without a projector stream), timed apart from the pipeline's.
     light_cpu_seconds_per_frame: np.ndarray = field(default_factory=lambda: np.zeros(0))
     work_size: tuple[int, int] = (0, 0)
+    # Per frame, the touch service's verdict on its own light (:mod:`feelium.touch.sensing`): each condition
+    # present on the frame, and each that had lasted long enough for health to say ``degraded`` (keys of PROBLEMS).
+    light_present: dict[str, np.ndarray] = field(default_factory=dict)
+    light_degraded: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def face_of(recording: Recording) -> FaceModel | None:
@@ -66,6 +71,24 @@ def face_of(recording: Recording) -> FaceModel | None:
     return face
 
 
+def new_pipeline(
+    recording: Recording,
+    config: TouchConfig,
+    light: Callable[[float], dict[str, np.ndarray]] | None = None,
+    *,
+    plain: bool = False,
+) -> TouchPipeline:
+    """A fresh pipeline for ``recording``'s frames (its size, ROI and face), as the daemon builds one, with ``light``
+    (a recording's predicted light) told where the pipeline reads it."""
+    meta = recording.meta
+    size = (meta.camera.width, meta.camera.height)
+    pipeline = TouchPipeline(config, size, meta.roi, plain=plain, face=face_of(recording))
+    use_grids = getattr(light, "use_grids", None)
+    if use_grids is not None:  # a recording's light, predicted where the pipeline reads it (the daemon's way)
+        use_grids(pipeline.light_grids)
+    return pipeline
+
+
 def replay_recording(
     recording: Recording,
     config: TouchConfig,
@@ -80,13 +103,12 @@ def replay_recording(
     ``light``: per frame time, the projected light the daemon would pass with the frame
     (:class:`feelium.lab.touch.recorded_light.RecordedLight` for a recording with a projector stream).
     """
-    meta = recording.meta
-    size = (meta.camera.width, meta.camera.height)
-    pipeline = TouchPipeline(config, size, meta.roi, plain=plain, face=face_of(recording))
-    use_grids = getattr(light, "use_grids", None)
-    if use_grids is not None:  # a recording's light, predicted where the pipeline reads it (the daemon's way)
-        use_grids(pipeline.light_grids)
+    pipeline = new_pipeline(recording, config, light, plain=plain)
     out = ReplayResult(recording=recording)
+    monitor = SensingMonitor()  # fed as the touch service feeds it: the same judge, its own hold
+    taught = share_taught(config.contact_projected_depth, light is not None)
+    present: dict[str, list[bool]] = {p: [] for p in PROBLEMS}
+    degraded: dict[str, list[bool]] = {p: [] for p in PROBLEMS}
     ts, act, anc, area, dmax, core, edge, proj, spf, cpu, light_cpu = [], [], [], [], [], [], [], [], [], [], []
     for t, frame in frames if frames is not None else recording.frames(gray=True):
         extra: dict[str, Any] = {}
@@ -109,6 +131,13 @@ def replay_recording(
         core.append(result.core_depth)
         edge.append(result.edge)
         proj.append(math.nan if result.projected_depth is None else result.projected_depth)
+        sample = sample_of(pipeline, t, taught)
+        if sample is not None:
+            monitor.update(sample)
+        now, lasting = monitor.present(), monitor.lasting()
+        for problem in PROBLEMS:
+            present[problem].append(problem in now)
+            degraded[problem].append(problem in lasting)
         if on_frame is not None:
             on_frame(t, frame, result)
     out.events.extend(pipeline.finish())
@@ -124,6 +153,8 @@ def replay_recording(
     out.cpu_seconds_per_frame = np.asarray(cpu, float)
     out.light_cpu_seconds_per_frame = np.asarray(light_cpu, float)
     out.work_size = pipeline.geometry.work_size
+    out.light_present = {p: np.asarray(v, bool) for p, v in present.items()}
+    out.light_degraded = {p: np.asarray(v, bool) for p, v in degraded.items()}
     return out
 
 
