@@ -135,7 +135,7 @@ class TouchPipeline:
         self.masked = MaskCounts()
         self.frames = 0
         self.light_changes = 0  # frames on which a membrane-wide change of light re-seeded the reference
-        # Share of the membrane where the room outshines the projector too much for the projected-light gate
+        # Share of the membrane where the room outshines the projector beyond anything measured to work
         # (:func:`feelium.touch.roomshare.room_dominated`); None while the projector's share is not known.
         self.room_dominated: float | None = None
         self._room_judged_t: float | None = None  # when room_dominated was last judged
@@ -350,12 +350,11 @@ class TouchPipeline:
         if coarse is not None and judge:
             self._room_judged_t = t
             grid = (coarse.shape[1], coarse.shape[0])
-            noise = cv2.resize(floor, grid, interpolation=cv2.INTER_AREA) * np.float32(1.0 / max(cfg.noise_sigmas, 1.0))
             if unusable is None:
                 considered = np.ones(coarse.shape, bool)
             else:
                 considered = cv2.resize((~unusable).astype(np.float32), grid, interpolation=cv2.INTER_AREA) >= 0.5
-            self.room_dominated = room_dominated(coarse, noise, cfg.contact_projected_depth, considered)
+            self.room_dominated = room_dominated(coarse, considered)
         most_projected: float | None = None
         for cand in candidates:
             cx, cy = geometry.to_camera(cand.x, cand.y)

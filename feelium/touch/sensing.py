@@ -16,17 +16,17 @@ from what the pipeline already computes:
   (``photometric.ProjectorResponse.share``). A contact's own contrast (the
   frustrated reflection of the projector's light in the film) scales with
   that share, while a hovering hand's shadow of the room light deepens with
-  the room; below ``MIN_PROJECTOR_SHARE`` the two cannot be told apart
-  reliably and touch says so instead of firing or going quiet unannounced.
+  the room. Measured, touch holds down to the share of a room 8x the
+  projector's (``MIN_PROJECTOR_SHARE``, where the share reaches its floor);
+  below it nothing vouches for touch, and it says so instead of firing or
+  going quiet unannounced.
 - **Room light that outshines the projector in places**: the membrane's mean
-  share can hide a corner lit two to one by the room (a dim corner of the
+  share can hide a corner lit far more by the room (a dim corner of the
   back-light near the lamp). Where the projector's share of the light is
   known per place (:mod:`feelium.touch.roomshare`), the pipeline counts the
-  membrane where that share is too small for a contact's loss of projected
-  light to stand out of the share's error and the noise
+  membrane whose share is under the same measured floor
   (:func:`feelium.touch.roomshare.room_dominated`); over
-  ``ROOM_DOMINATED_SHARE`` of the membrane, touches there would be dropped as
-  hovers, and touch says so.
+  ``ROOM_DOMINATED_SHARE`` of the membrane, touch says so.
 - **The share not learned**: while the projector's probe (or compensated
   content) should teach the share and it is still unknown, the hover gate
   cannot act and a close hover in a lit room may fire; touch says so until
@@ -42,12 +42,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from feelium.touch.roomshare import MEASURED_SHARE_FLOOR
+
 BLIND_SHARE = 0.5  # more than half the membrane masked: most touches would fall where nothing can be seen
 HOLD_S = 2.0  # a condition reported only once it has lasted this long
-# Room light at most twice the projector's (share 1/3): the brightest lit room measured with no false touch
-# (docs/touch.md, "Too bright to see": room level 2 fired nothing, level 3 fired a hover; 13 trials per level).
-MIN_PROJECTOR_SHARE = 1.0 / 3.0
-# A quarter of the membrane where a contact cannot be told from a hover: one touch in four would be lost unannounced.
+# The learned share at the brightest room measured to work (8x the projector's light): below it, nothing vouches for
+# touch (roomshare.MEASURED_SHARE_FLOOR; until session 19 1/3, set on another quantity, which called every lit
+# living room degraded where touch found every press and fired no hover).
+MIN_PROJECTOR_SHARE = MEASURED_SHARE_FLOOR
+# A quarter of the membrane beyond anything measured: one touch in four would land where nothing vouches for it.
 ROOM_DOMINATED_SHARE = 0.25
 # Each condition's name in short, for reports that count them (``feelium eval``); health's reasons say more.
 PROBLEMS = {
@@ -123,13 +126,15 @@ class SensingMonitor:
             out.append(f"too dark to see shadows: {100 * s.dark / s.pixels:.0f} % of the membrane is unlit")
         if "room_light" in lasting and s.projector_share is not None:
             out.append(
-                f"room light outshines the projector ({100 * s.projector_share:.0f} % of the membrane's light is "
-                f"projected, under {100 * MIN_PROJECTOR_SHARE:.0f} %): contacts and close hovers look alike"
+                f"room light outshines the projector ({100 * s.projector_share:.1f} % of the membrane's light is "
+                f"projected, under {100 * MIN_PROJECTOR_SHARE:.1f} %, the brightest room measured to work): contacts "
+                "and close hovers may look alike"
             )
         if "room_local" in lasting and s.room_dominated is not None:
             out.append(
-                f"room light outshines the projector on {100 * s.room_dominated:.0f} % of the membrane (over "
-                f"{100 * ROOM_DOMINATED_SHARE:.0f} %): contacts there cannot be told from close hovers and are not reported"
+                f"room light outshines the projector beyond the brightest room measured to work on "
+                f"{100 * s.room_dominated:.0f} % of the membrane (over {100 * ROOM_DOMINATED_SHARE:.0f} %): contacts there "
+                "may be lost or close hovers fire"
             )
         if "share_unknown" in lasting:
             out.append(

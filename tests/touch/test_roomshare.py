@@ -13,7 +13,13 @@ from hypothesis import strategies as st
 from feelium.skin.probe import PERIOD_S, probe_light, probe_pattern
 from feelium.touch.config import TouchConfig
 from feelium.touch.pipeline import TouchPipeline
-from feelium.touch.roomshare import ProjectorShare, _solve_room_scale, projected_depth, room_dominated
+from feelium.touch.roomshare import (
+    MEASURED_SHARE_FLOOR,
+    ProjectorShare,
+    _solve_room_scale,
+    projected_depth,
+    room_dominated,
+)
 from tests.touch.synth import H as SH, ROI as SROI, W as SW, backlight
 
 H, W = 240, 320  # the default working size: 20 x 15 coarse tiles
@@ -111,13 +117,12 @@ def test_a_hand_above_takes_no_projector_light_and_a_contact_its_frustrated_refl
     assert abs(projected_depth(contact, share) - frustrated) <= 1e-9
 
 
-def test_room_dominated_counts_where_the_gate_is_within_the_error() -> None:
-    share = np.array([[0.05, 0.1, 0.3, 0.6]], np.float32)
-    noise = np.full(share.shape, 0.02, np.float32)
-    considered = np.array([[True, True, True, False]])
-    # gate 0.2: share * 0.2 < 0.02 + 0.02 where share < 0.2: the first two of the three considered
-    assert room_dominated(share, noise, 0.2, considered) == 2 / 3
-    assert room_dominated(share, noise, 0.2, np.zeros(share.shape, bool)) == 0.0
+def test_room_dominated_counts_the_considered_places_under_the_measured_floor() -> None:
+    share = np.array([[0.01, MEASURED_SHARE_FLOOR - 1e-4, MEASURED_SHARE_FLOOR, 0.3, 0.0]], np.float32)
+    considered = np.array([[True, True, True, True, False]])
+    # under the floor: the first two of the four considered (the last is not considered, the third is at the floor)
+    assert room_dominated(share, considered) == 2 / 4
+    assert room_dominated(share, np.zeros(share.shape, bool)) == 0.0
 
 
 def _disc(shape: tuple[int, int], x: float, y: float, radius: float) -> np.ndarray:
