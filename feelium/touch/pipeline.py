@@ -362,10 +362,11 @@ class TouchPipeline:
             point = (cand.x, cand.y) if geometry is self.geometry else self.geometry.from_camera(cx, cy)
             projected = True  # took the projector's own light away (unknown: assumed, as before the share)
             share = None
+            gate_at = self._gate_point(cand, geometry, point)
             if coarse is not None:
-                share = self.projector_share.share_at(*self._gate_point(cand, geometry, point))
+                share = self.projector_share.share_at(*gate_at)
             if share is not None:
-                taken = projected_depth(cand.peak, share)
+                taken = projected_depth(cand.peak, share) / _present_light(light, gate_at)
                 most_projected = taken if most_projected is None else max(most_projected, taken)
                 projected = taken >= cfg.contact_projected_depth  # else all its depth is light from outside
             if self.face is not None:
@@ -820,3 +821,27 @@ def _regions_containing(mask: np.ndarray, seeds: list[tuple[float, float]]) -> n
     for label in wanted:
         box |= labels == label
     return out
+
+
+# The darkest content the projected-light gate reads a press over as over the flat skin (relative to flat grey).
+# Why a floor: dividing by the light present also multiplies a hover's noise by 1 / light, so over darker content
+# the gate keeps at most twice the noise it was fitted against, and a press there reads ``f * light / 0.5``.
+PRESENT_LIGHT_FLOOR = 0.5
+
+
+def _present_light(light: np.ndarray | None, point: tuple[float, float]) -> float:
+    """The projector's light present at ``point`` (detection image) relative to the flat skin's, in
+    [:data:`PRESENT_LIGHT_FLOOR`, 1]; 1 without a predicted light (a static skin, the probe only).
+
+    Why: the projector's share per place is learned against flat grey, so a press, which takes a fraction ``f`` of
+    the projector's light *present*, takes ``f * light`` of the flat skin's: over the face's dark background
+    (0.57 of flat) a press read 0.26 against the 0.2 gate and two taps of the whole face under a lit room were
+    lost (docs/touch.md, *The whole face with the face on and the room lit*). A hand above the membrane takes
+    none of the projector's light, at any light, so its reading stays at or under 0 (plus noise) either way."""
+    if light is None:
+        return 1.0
+    h, w = light.shape[:2]
+    x = min(max(int(round(point[0])), 0), w - 1)
+    y = min(max(int(round(point[1])), 0), h - 1)
+    value = float(light[y, x])
+    return min(max(value, PRESENT_LIGHT_FLOOR), 1.0) if np.isfinite(value) else 1.0

@@ -47,6 +47,12 @@ about their own means and start new means (``ProjectorShare.rebase``: the re-see
 pattern is a new intercept, not slope). Checked before re-pinning: with ``rebase`` a no-op all five projected digests
 are the old pins to the bit (the moments now computed by ``roomshare._centred`` change no result); the static ones
 did not move.
+
+The projected digests were re-pinned on branch i17lightgate (2026-11-27, session 19), deliberately: the projected-light
+gate reads a candidate's take of the projector's light against the light present at its point
+(``pipeline._present_light``: over content at ``L`` of flat grey a press takes ``f * L`` of the flat skin's light).
+Checked before re-pinning: with ``PRESENT_LIGHT_FLOOR = 1`` (the light present always read as 1) every digest is the
+old pin to the bit; the static ones did not move.
 """
 
 from __future__ import annotations
@@ -154,7 +160,7 @@ def _rounded(value: object) -> object:
     ("projected", "expected"),
     [
         (False, "f94933c4d9d82e272ecf03605844effbc7be420787d9772698e9c3840f50c75a"),
-        (True, "49754148c869c2c7b0d2a0b401109121f3ca65518ac810a5f966dfc1ea783f7b"),
+        (True, "e35d05e9314e47354ab4c44153acae7e1f2a0b8c38799598e9b6e45f8a994d1a"),
     ],
 )
 def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expected: str) -> None:
@@ -168,7 +174,7 @@ def test_results_match_the_pipeline_before_buffer_reuse(projected: bool, expecte
 
 def test_light_cut_to_the_roi_gives_the_whole_frames_results() -> None:
     """The daemon predicts the projected light only over the ROI (it is all the pipeline reads): same digest."""
-    assert _digest(True, cut=True) == "49754148c869c2c7b0d2a0b401109121f3ca65518ac810a5f966dfc1ea783f7b"
+    assert _digest(True, cut=True) == "e35d05e9314e47354ab4c44153acae7e1f2a0b8c38799598e9b6e45f8a994d1a"
 
 
 def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(monkeypatch) -> None:
@@ -185,7 +191,7 @@ def test_the_bound_only_around_a_nonzero_spread_gives_the_whole_frames_results(m
     ("projected", "expected"),
     [
         (False, "3e0a8316300532c3e8f88600e21f0877c90a4a97c268c5ed60660a858c19594b"),
-        (True, "9d91640be45aeb86ae258c806f26d9029de1ad6940615921d21a68be99f3eb1b"),
+        (True, "99b4a54e95c8d415928eead39c9eb6513116b41fe31843fbd95d006c77124274"),
     ],
 )
 def test_half_scale_detection_is_pinned_on_its_own(projected: bool, expected: str) -> None:
@@ -209,7 +215,7 @@ def test_half_scale_light_on_the_detection_grid_with_fine_windows_gives_the_same
     light only in the fine pass's windows (``fine_light``). Handed the same values (the working light area-averaged,
     and its windows), the pipeline computes what it computes from the whole frame's light: the pinned digest (the
     projected one of the test above, re-pinned there at the merge of i16coarse with i17probe's share)."""
-    expected = "9d91640be45aeb86ae258c806f26d9029de1ad6940615921d21a68be99f3eb1b"
+    expected = "99b4a54e95c8d415928eead39c9eb6513116b41fe31843fbd95d006c77124274"
     assert _digest(True, detect_scale=0.5, grids=True) == expected
 
 
@@ -220,5 +226,5 @@ def test_learning_on_every_frame_gives_the_previous_pin(monkeypatch) -> None:
     import feelium.touch.pipeline as pipeline_module
 
     monkeypatch.setattr(pipeline_module, "RESPONSE_LEARN_INTERVAL_S", 0.0)
-    expected = "ae215d8c20d1e04527dd4c80b9efd450c149f1cd5e0a5b140c7988502db89dc0"
+    expected = "406e4f5892091dfbb6cae3700c249277068bf5170ad2357eea5941ae6a248041"
     assert _digest(True, detect_scale=0.5, grids=True) == expected
