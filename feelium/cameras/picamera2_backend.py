@@ -301,7 +301,9 @@ class Picamera2FrontCamera:
             request = self._camera.capture_request()
             try:
                 metadata = request.get_metadata()
-                self._encoder.encode("main", request)  # the encoder holds the buffer until its JPEG is out
+                # The stream object, not its name: some picamera2 versions' V4L2 encoder reads ``stream.configuration``
+                # without looking the name up. The encoder holds the buffer until its JPEG is out.
+                self._encoder.encode(getattr(request, "stream_map", {}).get("main", "main"), request)
             finally:
                 request.release()
             assert self._encoded is not None

@@ -30,6 +30,7 @@ PERIOD_NS = 66_666_667
 class FakeRequest:
     def __init__(self, camera, n):
         self.camera, self.n = camera, n
+        self.stream_map = {"main": ("stream", "main"), "lores": ("stream", "lores")}  # libcamera's stream objects
         self.released = False
 
     def get_metadata(self):
@@ -130,7 +131,7 @@ class FakeMJPEGEncoder:
         self.running = False
 
     def encode(self, stream, request):
-        assert self.running and stream == "main"
+        assert self.running and stream == ("stream", "main")  # the object: some versions do not look a name up
         request.camera.held += 1  # the encoder's own reference, dropped once the JPEG is out
         self.queued.append(request.n)
         if self.emit:
