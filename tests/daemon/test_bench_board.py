@@ -171,6 +171,7 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
     assert "pi_cores" in format_table(result)
     host = result["host"]  # the machine's speed on two fixed workloads, to compare reports across machines
     assert host["cpu_model"] and host["python_ms"] > 0 and host["numeric_ms"] > 0
+    assert result["host_after"]["python_ms"] > 0 and result["host_after"]["numeric_ms"] > 0  # did the host slow down?
     shares = result["numeric_split"]["shares"]  # a second, profiled run: each part's numpy/OpenCV share
     assert 0 < shares["touch"]["thread"] <= 1 and 0 < shares["projector"]["pool"] <= 1
     assert result["pi_cores_at_6x"] <= result["pi_cores"] <= result["pi_cores_at_10x"]

@@ -414,6 +414,9 @@ def bench_board(
             load_before = os.getloadavg()[0]
             measured = run_on_daemon_loop(config, _measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
             load_after = os.getloadavg()[0]
+        # Again once the daemon has stopped: a VM's host can slow down between runs or during one (the same code
+        # read 1.9 and 2.1 Pi cores on the same machine), and the two readings say whether it did.
+        host_after = host_reference()
         if numeric_split_s > 0:
             with _board_process() as port:
                 profiler = NumericProfiler()
@@ -430,6 +433,7 @@ def bench_board(
         "seconds": round(wall, 2),
         "cpus": os.cpu_count(),
         "host": host,
+        "host_after": {key: host_after[key] for key in ("python_ms", "numeric_ms")},
         "load_average_1min_before_after": [round(load_before, 2), round(load_after, 2)],
         "malloc": malloc or "glibc defaults",
         "background_nice": background_nice(),
@@ -496,7 +500,8 @@ def format_table(result: dict[str, Any]) -> str:
     quota = result["cpu_quota"]
     lines = [
         f"feelium bench board: {result['seconds']} s on {result['cpus']} CPUs of {result['host']['cpu_model']} (reference "
-        f"workloads: Python {result['host']['python_ms']} ms, numeric {result['host']['numeric_ms']} ms; 1 min load before / after "
+        f"workloads before / after the run: Python {result['host']['python_ms']} / {result['host_after']['python_ms']} ms, "
+        f"numeric {result['host']['numeric_ms']} / {result['host_after']['numeric_ms']} ms; 1 min load before / after "
         f"{result['load_average_1min_before_after']}); rear {result['rear']}, front {result['front']}"
         + (f"; CPU quota {quota['quota_period_us']} us in {quota['cgroup']}" if quota else "")
         + f"; projected light compensated: {result['projected_light_compensation']}; motion over {result['motion_transport']}"
