@@ -24,20 +24,17 @@ class CameraUnavailable(RuntimeError):
 
 @dataclass(frozen=True)
 class Jpeg:
-    """A frame the camera's hardware encoder already compressed (the Pi's VideoCore, through picamera2).
+    """A frame the camera's own encoder already compressed: the Pi's VideoCore (picamera2) or a USB camera's MJPEG.
 
     Why: the front camera's frames go only to the headset, as JPEG. Encoding them in software costs the board's
-    ARM cores a few milliseconds a frame; the VideoCore's encoder costs them almost nothing. The daemon forwards
-    these bytes as they are and never decodes them.
+    ARM cores a few milliseconds a frame; the camera's encoder costs them almost nothing. The daemon forwards
+    these bytes without decoding them (with the standard Huffman tables inserted when a USB camera left them
+    out: :mod:`feelium.cameras.mjpeg`).
     """
 
     data: bytes
     width: int
     height: int
-
-    def looks_valid(self) -> bool:
-        """Starts with a JPEG's start-of-image marker and is not empty (what the headset can at least try to show)."""
-        return len(self.data) > 4 and self.data[:2] == b"\xff\xd8"
 
 
 @dataclass(frozen=True)
@@ -58,7 +55,7 @@ class Frame:
     """
 
     t: float
-    image: np.ndarray | Jpeg  # a Jpeg only from a front camera that encodes in hardware
+    image: np.ndarray | Jpeg  # a Jpeg only from a front camera that encodes its frames itself
     segment: int = 0
     roi: Roi | None = None
     stream: ProjectorStream | None = None

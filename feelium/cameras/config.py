@@ -78,9 +78,11 @@ class FrontCameraConfig:
     fps: float = setting(15.0, "Frame rate.", min=1.0, max=120.0)
     jpeg: Literal["auto", "hardware", "software"] = setting(
         "auto",
-        "Who encodes the headset's JPEGs of the picamera2 camera: hardware = the VideoCore's encoder (almost no ARM"
-        " CPU; fails where there is none, e.g. a Pi 5); software = the daemon (OpenCV); auto = hardware where"
-        " picamera2 offers it. Other backends always encode in software.",
+        "Who encodes the headset's JPEGs: hardware = the camera's own encoder, forwarded without decoding (almost"
+        " no ARM CPU): on picamera2 the VideoCore's (fails where there is none, e.g. a Pi 5), on a USB (v4l2) camera"
+        " its MJPEG, Huffman tables inserted where it leaves them out (fails when it gives no MJPEG at width x"
+        " height); software = the daemon (OpenCV); auto = hardware where the camera offers it, else software (logged"
+        " once). replay and sim always encode in software.",
     )
     lens_file: str = setting(
         "front_lens.json",

@@ -139,7 +139,7 @@ def front_camera_source(cfg: "FrontCameraConfig", sim_seed: int) -> CameraSource
     if backend == "v4l2":
         from feelium.cameras.v4l2 import V4l2Camera
 
-        return CameraSource("v4l2", lambda: V4l2Camera(device, cfg.width, cfg.height, cfg.fps), lens=lens)
+        return CameraSource("v4l2", lambda: V4l2Camera(device, cfg.width, cfg.height, cfg.fps, jpeg=cfg.jpeg), lens=lens)
     if backend == "replay":
         from feelium.cameras.replay import ReplayCamera
 

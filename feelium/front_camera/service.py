@@ -10,10 +10,12 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
+from dataclasses import replace
 from typing import Any
 
 from feelium.cameras.base import Camera, Frame, Jpeg
 from feelium.cameras.handoff import LoopInbox
+from feelium.cameras.mjpeg import MjpegError, with_huffman_tables
 from feelium.cameras.reader import RateMeter, Worker, close_camera, frame_condition
 from feelium.cameras.select import CameraSource
 from feelium.hub import Hub
@@ -22,8 +24,8 @@ log = logging.getLogger(__name__)
 
 
 class FrontCameraService:
-    """Publishes every frame the front camera delivers (BGR, or a :class:`Jpeg` its hardware encoder made); the
-    ``Latest`` slot makes the newest win."""
+    """Publishes every frame the front camera delivers (BGR, or a :class:`Jpeg` its own encoder made: the
+    VideoCore's, a USB camera's MJPEG); the ``Latest`` slot makes the newest win."""
 
     name = "front_camera"
     stop_order = 50
@@ -41,6 +43,7 @@ class FrontCameraService:
         self._inbox: LoopInbox[Frame | None] | None = None
         self._past_wakeups = 0
         self._ending: threading.Event | None = None
+        self._told_bad_jpeg = False
 
     async def run(self) -> None:
         worker = Worker("front-camera")
@@ -70,12 +73,24 @@ class FrontCameraService:
             if frame is None:
                 return True
             image = frame.image
-            if isinstance(image, Jpeg):  # the camera's hardware encoder made it: forwarded as it is
-                ok = image.looks_valid()
+            if isinstance(image, Jpeg):  # the camera's encoder made it: forwarded, with Huffman tables if it had none
+                inbox.post(self._forwardable(frame, image))
             else:  # a BGR uint8 frame is what the headset stream encodes
                 ok = image.ndim == 3 and image.shape[2] == 3 and image.dtype.name == "uint8"
-            inbox.post(frame if ok else None)
+                inbox.post(frame if ok else None)
         return False
+
+    def _forwardable(self, frame: Frame, image: Jpeg) -> Frame | None:
+        """The frame with Huffman tables a browser can decode, or ``None`` (a bad frame) when it is not a whole JPEG;
+        the first such frame is logged with what was wrong (a camera that sends many would flood the log)."""
+        try:
+            data = with_huffman_tables(image.data)
+        except MjpegError as exc:
+            if not self._told_bad_jpeg:
+                self._told_bad_jpeg = True
+                log.warning("front camera: a JPEG from the camera skipped (counted in bad_frames): %s", exc)
+            return None
+        return frame if data is image.data else replace(frame, image=replace(image, data=data))
 
     def _publish(self, frames: list[Frame | None]) -> None:
         """On the loop: each good frame of a batch to the hub, in order; the others counted."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -66,12 +67,14 @@ async def test_each_frame_wakes_the_event_loop_at_most_once_and_stop_ends_the_ru
 
 
 async def test_jpegs_from_the_cameras_encoder_are_published_as_they_are_and_broken_ones_counted():
-    good = Jpeg(b"\xff\xd8\xff\xe0 a jpeg", 6, 4)
-    camera = ScriptedCamera([good, Jpeg(b"", 6, 4), Jpeg(b"GIF89a....", 6, 4), good])
+    data = cv2.imencode(".jpg", np.zeros((4, 6, 3), np.uint8))[1].tobytes()
+    good = Jpeg(data, 6, 4)  # with its Huffman tables, as the VideoCore's: the very object is published
+    broken = [Jpeg(b"", 6, 4), Jpeg(b"GIF89a....", 6, 4), Jpeg(data[:-40], 6, 4)]  # nothing, not a JPEG, cut short
+    camera = ScriptedCamera([good, *broken, good])
     hub = Hub()
     service = FrontCameraService(CameraSource("scripted", lambda: camera), hub)
     assert service.health()["jpeg_by"] is None  # nothing seen yet
     await service.run()
     assert hub.front_video.published == 2 and hub.front_video.get().value is good
     health = service.health()
-    assert health["frames"] == 2 and health["bad_frames"] == 2 and health["jpeg_by"] == "camera"
+    assert health["frames"] == 2 and health["bad_frames"] == 3 and health["jpeg_by"] == "camera"

@@ -193,7 +193,7 @@ def test_front_camera_hands_over_the_hardware_encoders_jpegs_each_with_its_own_s
     assert encoder.bitrate == round(picamera2_backend.HARDWARE_JPEG_BITS_PER_PIXEL * W * H * 15.0)
     frames = [camera.read() for _ in range(3)]
     assert [f.image.data for f in frames] == [b"\xff\xd8jpeg-0", b"\xff\xd8jpeg-1", b"\xff\xd8jpeg-2"]
-    assert all(isinstance(f.image, Jpeg) and f.image.looks_valid() and (f.image.width, f.image.height) == (W, H) for f in frames)
+    assert all(isinstance(f.image, Jpeg) and (f.image.width, f.image.height) == (W, H) for f in frames)
     assert [f.t for f in frames] == pytest.approx([4.5 + n * PERIOD_NS / 1e9 for n in range(3)])
     assert cam.released == 3  # our reference goes back at once; the encoder drops its own when the JPEG is out
     camera.close()

@@ -117,7 +117,8 @@ def prepare(config: Config, front_fps: float) -> Cameras:
 
 def front_jpeg_by(config: Config) -> str:
     """Who makes the headset's JPEGs on the blimp this config describes: ``camera`` (the picamera2 front camera's
-    hardware encoder, ``[front_camera] jpeg`` auto or hardware on a Pi Zero 2 W) or ``daemon`` (software)."""
+    hardware encoder on a Pi Zero 2 W, or a USB camera's own MJPEG; ``[front_camera] jpeg`` auto or hardware) or
+    ``daemon`` (software)."""
     return "daemon" if config.front_camera.jpeg == "software" else "camera"
 
 
