@@ -42,6 +42,7 @@ def open_v4l2(device: str) -> Any:
 
 
 def _fourcc_text(code: float) -> str:
+    """A FOURCC as OpenCV returns it (a float) in its four characters, for the log: ``YUYV``, ``MJPG``."""
     value = int(code)
     return "".join(chr(value >> shift & 0xFF) for shift in (0, 8, 16, 24)).strip("\0") or "none"
 
