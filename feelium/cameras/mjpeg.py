@@ -102,7 +102,10 @@ def with_huffman_tables(data: bytes) -> bytes:
     sos, seen_tables = _first_scan(data)
     if sos + 4 > len(data):
         raise MjpegError(f"cut short in the scan header at byte {sos}")
-    scan = sos + 2 + (data[sos + 2] << 8 | data[sos + 3])  # where the entropy-coded data starts
+    length = data[sos + 2] << 8 | data[sos + 3]
+    scan = sos + 2 + length  # where the entropy-coded data starts
+    if length < 8 or scan > len(data):  # Ls = 6 + 2 x Ns, at least one component (T.81 B.2.3)
+        raise MjpegError(f"the scan header at byte {sos} claims {length} bytes ({len(data) - sos - 2} are left)")
     if data.rfind(b"\xff\xd9", scan) < 0:  # entropy-coded data never holds ff d9 (ff is stuffed, T.81 F.1.2.3)
         raise MjpegError(f"no end-of-image after the scan at byte {sos}: the frame is cut short ({len(data)} bytes)")
     if seen_tables:

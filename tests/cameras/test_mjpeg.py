@@ -85,6 +85,8 @@ def test_fill_bytes_standalone_markers_and_trailing_padding_are_accepted(frame):
         (b"\xff\xd8\x00\x00", "where a marker"),
         (b"\xff\xd8\xff\xd9", "before any scan"),
         (b"\xff\xd8\xff\xda\x00", "scan header"),
+        (b"\xff\xd8\xff\xda\x00\x02\xff\xd9", "scan header at byte 2 claims 2 bytes"),
+        (b"\xff\xd8\xff\xda\x00\x20\x01\x01\x00\xff\xd9", "scan header at byte 2 claims 32 bytes"),
         (b"\xff\xd8\xff\xda\x00\x08\x01\x01\x00\x00\x3f\x00\x12\x34", "no end-of-image"),
     ],
 )
