@@ -72,7 +72,11 @@ TOKEN = "bench-board-token"
 T = TypeVar("T")
 WARMUP_S = 3.0  # devices open, caches warm, the headset clients connect
 FIRST_TOUCH_FRAME_S = 30.0  # the longest the window waits for the touch pipeline's first frame
-LAG_PROBE_S = 0.01
+# The lag probe is the bench's own sleeper, not the daemon's: each wake-up costs the loop's thread what any timer
+# does. At 10 ms it cost that thread ~5 ms/s (2 interleaved pairs, 1 min, session 20: 51.2 / 52.3 against 47.3 /
+# 46.2 ms/s at 50 ms), 0.05 of a projected Pi core charged to the daemon. How late a sleeper wakes does not
+# depend on its period; 20 samples a second still give 1 200 a minute for the p99.
+LAG_PROBE_S = 0.05
 RSS_EVERY_S = 0.5
 REAR_LOOP_S = 6.0  # seconds of rear frames preloaded (touches every ~1.5 s); longer only costs memory
 FRONT_LOOP_S = 1.0
