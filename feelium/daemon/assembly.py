@@ -40,6 +40,7 @@ from feelium.skin.regions import Regions
 
 if TYPE_CHECKING:
     from feelium.cameras.base import ProjectorStream
+    from feelium.projector.display import Display
     from feelium.projector.showloop import ShowLoop
     from feelium.touch.config import TouchConfig
 
@@ -205,8 +206,11 @@ def build_audio(config: Config, hub: Hub) -> Service | None:
 # --- answering: the skin -------------------------------------------------------------------------------------------
 
 
-def build_projector(config: Config, hub: Hub) -> Service | None:
-    """Bus (touch, wearer actions) -> interaction rules -> answers and the face on the skin; ``hub.projector_video``."""
+def build_projector(config: Config, hub: Hub, display: Display | None = None) -> Service | None:
+    """Bus (touch, wearer actions) -> interaction rules -> answers and the face on the skin; ``hub.projector_video``.
+
+    ``display``: where the frames go; by default the configured backend (``feelium bench board`` passes a
+    framebuffer of its own, so the writes are measured as on the blimp)."""
     from feelium.projector.display import open_display
     from feelium.projector.service import ProjectorService
 
@@ -217,7 +221,8 @@ def build_projector(config: Config, hub: Hub) -> Service | None:
     except CalibrationError as exc:
         log.error("projector calibration unusable (%s); using the uncalibrated map", exc)
         calibration = default_calibration(DEFAULT_CAMERA_SIZE, rear_roi or DEFAULT_ROI, size)  # type: ignore[arg-type]
-    display = open_display(config.projector.backend, config.projector.fb_device)
+    if display is None:
+        display = open_display(config.projector.backend, config.projector.fb_device)
     from feelium.touch.face import face_for
 
     face = face_for(config.touch, calibration.camera_size)  # the touch side's u, v, for the canvas

@@ -226,6 +226,7 @@ class ProjectorService:
     def health(self) -> dict[str, Any]:
         report = dict(self.counters)
         report["display"] = self.display.name
+        report["display_writes"] = self.display.frames  # the framebuffer skips a frame it already holds; sim counts each
         report["calibration"] = self.calibration.source
         report["rendered"] = self.renderer.rendered  # the rest of "frames" showed the previous frame again
         report["faces_decoded"] = self._faces.misses  # the rest of "faces" came from the decoded faces kept

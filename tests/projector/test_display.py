@@ -5,17 +5,7 @@ import pytest
 
 import cv2
 
-from feelium.projector.display import DisplayUnavailable, FbdevDisplay, SimDisplay, open_display, to_bgr565, to_xrgb8888
-
-
-def test_bgr565_packs_red_high_and_blue_low():
-    frame = np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 255]]], np.uint8)  # blue, green, red, white
-    assert to_bgr565(frame).tolist() == [[0x001F, 0x07E0, 0xF800, 0xFFFF]]
-
-
-def test_xrgb8888_byte_order_is_b_g_r_x():
-    frame = np.array([[[1, 2, 3]]], np.uint8)
-    assert to_xrgb8888(frame)[0, 0, :3].tolist() == [1, 2, 3]
+from feelium.projector.display import DisplayUnavailable, FbdevDisplay, SimDisplay, open_display
 
 
 def _fake_fb(tmp_path, size="8,4", bpp="16", stride=None):
@@ -26,7 +16,8 @@ def _fake_fb(tmp_path, size="8,4", bpp="16", stride=None):
     if stride:
         (sysfs / "stride").write_text(stride)
     device = tmp_path / "fb0"
-    device.write_bytes(b"")
+    w, h = (int(v) for v in size.split(","))
+    device.write_bytes(bytes(int(stride) * h if stride else w * h * int(bpp) // 8))  # a device's fixed size
     return str(device), str(tmp_path / "sys")
 
 
@@ -82,9 +73,57 @@ def test_fbdev_writes_the_same_frame_once_and_a_new_array_again(tmp_path):
     display = FbdevDisplay(device, sysfs)
     frame = np.full((4, 8, 3), 255, np.uint8)
     display.show(frame)
-    open(device, "wb").close()  # forget what was written: a repeat must not write again
+    assert open(device, "rb").read() == b"\xff" * 64
+    with open(device, "r+b") as fb:
+        fb.write(bytes(64))  # forget what was written: a repeat must not write again
     display.show(frame)
-    assert open(device, "rb").read() == b"" and (display.frames, display.repeats) == (1, 1)
+    assert open(device, "rb").read() == bytes(64) and (display.frames, display.repeats) == (1, 1)
     display.show(frame.copy())
-    assert len(open(device, "rb").read()) == 4 * 8 * 2 and display.frames == 2
+    assert open(device, "rb").read() == b"\xff" * 64 and display.frames == 2
     display.close()
+
+
+def test_fbdev_clears_the_letterbox_bars_when_the_frame_size_changes(tmp_path):
+    device, sysfs = _fake_fb(tmp_path, "8,4", "32")
+    display = FbdevDisplay(device, sysfs)
+    display.show(np.full((4, 8, 3), 255, np.uint8))  # the whole screen white
+    display.show(np.full((2, 2, 3), 255, np.uint8))  # a square: scaled to 4x4, centred, bars black
+    pixels = np.frombuffer(open(device, "rb").read(), np.uint8).reshape(4, 8, 4)
+    assert (pixels[:, :2] == 0).all() and (pixels[:, 6:] == 0).all() and (pixels[:, 2:6, :3] == 255).all()
+    display.close()
+
+
+def test_fbdev_refuses_a_device_too_small_for_its_geometry_and_a_closed_display(tmp_path):
+    device, sysfs = _fake_fb(tmp_path, "8,4", "16")
+    open(device, "wb").close()  # 0 bytes: nothing to map
+    with pytest.raises(DisplayUnavailable, match="cannot map"):
+        FbdevDisplay(device, sysfs)
+    device, sysfs = _fake_fb(tmp_path / "b", "8,4", "16")
+    display = FbdevDisplay(device, sysfs)
+    display.close()
+    display.close()  # twice is harmless
+    with pytest.raises(DisplayUnavailable, match="closed"):
+        display.show(np.zeros((4, 8, 3), np.uint8))
+
+
+def _shown(tmp_path, frame, bpp):
+    h, w = frame.shape[:2]
+    device, sysfs = _fake_fb(tmp_path / bpp, f"{w},{h}", bpp)
+    display = FbdevDisplay(device, sysfs)
+    display.show(frame)
+    display.close()
+    return open(device, "rb").read()
+
+
+def test_16_bits_are_rgb565_little_endian_red_high_blue_low(tmp_path):
+    frame = np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 255]]], np.uint8)  # blue, green, red, white
+    assert np.frombuffer(_shown(tmp_path, frame, "16"), "<u2").tolist() == [0x001F, 0x07E0, 0xF800, 0xFFFF]
+    frame = np.random.default_rng(3).integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    b, g, r = (frame[:, :, i].astype(np.uint16) for i in range(3))
+    expected = ((r >> 3) << 11) | ((g >> 2) << 5) | (b >> 3)
+    assert np.array_equal(np.frombuffer(_shown(tmp_path / "random", frame, "16"), "<u2").reshape(5, 7), expected)
+
+
+def test_32_bits_are_bytes_b_g_r_x(tmp_path):
+    frame = np.random.default_rng(4).integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    assert np.array_equal(np.frombuffer(_shown(tmp_path, frame, "32"), np.uint8).reshape(5, 7, 4)[:, :, :3], frame)

@@ -33,12 +33,12 @@ import time
 from collections.abc import Coroutine, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
 from feelium.audio.backends import SimMicrophone
-from feelium.daemon.assembly import SERVICES, load_projected_light, load_projector_annotation
+from feelium.daemon.assembly import SERVICES, build_projector, load_projected_light, load_projector_annotation
 from feelium.daemon.config import Config, load_config
 from feelium.daemon.eventloop import loop_kind, new_event_loop
 from feelium.daemon.memory import tune_malloc
@@ -80,6 +80,15 @@ LAG_PROBE_S = 0.05
 RSS_EVERY_S = 0.5
 REAR_LOOP_S = 6.0  # seconds of rear frames preloaded (touches every ~1.5 s); longer only costs memory
 FRONT_LOOP_S = 1.0
+# The projector writes into a framebuffer laid out as the blimp's: the Pi's KMS framebuffer (vc4's fbdev
+# emulation) is 16 bits per pixel unless configured otherwise (Linux commit "drm/vc4: Use 16bpp by default for
+# the fbdev buffer", 2019). Until session 20 the bench's display was the sim one, which writes nothing.
+FRAMEBUFFER_BPP = 16
+
+
+class Framebuffer(NamedTuple):
+    device: str
+    sysfs_root: str
 # A simulated device's own work inside a service's call, charged apart (:func:`sim_devices_apart`): the device's
 # class, its method, the service that calls it.
 SIM_DEVICE_CALLS: tuple[tuple[type, str, str], ...] = (
@@ -126,8 +135,23 @@ def front_jpeg_by(config: Config) -> str:
     return "daemon" if config.front_camera.jpeg == "software" else "camera"
 
 
-def builders(cameras: Cameras) -> tuple[tuple[str, Any], ...]:
-    """The daemon's assembly with both cameras on the preloaded frames; every other part as ``feelium run`` builds it."""
+def fake_framebuffer(directory: Path, size: tuple[int, int], bpp: int = FRAMEBUFFER_BPP) -> Framebuffer:
+    """A file the size of a ``size`` framebuffer at ``bpp`` and the sysfs entries that describe it, in ``directory``
+    (memory-backed where /dev/shm exists, as a framebuffer is: the kernel writes nothing back to a disk)."""
+    sysfs = directory / "sys"
+    (sysfs / "fb0").mkdir(parents=True)
+    (sysfs / "fb0" / "virtual_size").write_text(f"{size[0]},{size[1]}\n")
+    (sysfs / "fb0" / "bits_per_pixel").write_text(f"{bpp}\n")
+    device = directory / "fb0"
+    with open(device, "wb") as fb:
+        fb.truncate(size[0] * size[1] * bpp // 8)
+    return Framebuffer(str(device), str(sysfs))
+
+
+def builders(cameras: Cameras, framebuffer: Framebuffer) -> tuple[tuple[str, Any], ...]:
+    """The daemon's assembly with both cameras on the preloaded frames and the projector writing into
+    ``framebuffer`` (a file laid out as the Pi's, so the writes cost what they cost on the blimp);
+    every other part as ``feelium run`` builds it."""
 
     def touch(config: Config, hub: Hub) -> Service:
         from feelium.touch.service import TouchService
@@ -144,7 +168,12 @@ def builders(cameras: Cameras) -> tuple[tuple[str, Any], ...]:
 
         return FrontCameraService(cameras.front.source(), hub)
 
-    replaced = {"touch": touch, "front_camera": front_camera}
+    def projector(config: Config, hub: Hub) -> Service | None:
+        from feelium.projector.display import FbdevDisplay
+
+        return build_projector(config, hub, FbdevDisplay(framebuffer.device, framebuffer.sysfs_root))
+
+    replaced = {"touch": touch, "front_camera": front_camera, "projector": projector}
     return tuple((name, replaced.get(name, build)) for name, build in SERVICES)
 
 
@@ -182,7 +211,7 @@ def sim_devices_apart(ledger: Ledger) -> Iterator[None]:
 
 
 async def _lag_probe(lags_ms: SampleBlock, stop: asyncio.Event) -> None:
-    """How late the loop wakes a 10 ms sleeper: what any callback waits behind the others."""
+    """How late the loop wakes a sleeper of ``LAG_PROBE_S``: what any callback waits behind the others."""
     while not stop.is_set():
         due = time.perf_counter() + LAG_PROBE_S
         await asyncio.sleep(LAG_PROBE_S)
@@ -199,6 +228,7 @@ def _start_headset(port: int, seconds: float, motion_transport: str) -> subproce
 async def _measure(
     config: Config,
     cameras: Cameras,
+    framebuffer: Framebuffer,
     seconds: float,
     warmup_s: float,
     cgroup: Path | None,
@@ -282,7 +312,7 @@ async def _measure(
     apart = sim_devices_apart(ledger) if profiler is None else contextlib.nullcontext()
     try:
         with apart:
-            await run_daemon(config, stop=stop, hub=hub, notifier=Notifier({}), builders=builders(cameras),
+            await run_daemon(config, stop=stop, hub=hub, notifier=Notifier({}), builders=builders(cameras, framebuffer),
                              on_started=lambda h, s: started.set())
     finally:
         if not tasks[0].done():
@@ -407,8 +437,10 @@ def bench_board(
     0 projects everything at 10x."""
     host = host_reference()  # before anything else runs in this process
     scratch = tempfile.TemporaryDirectory(prefix="feelium-bench-")
+    memory = tempfile.TemporaryDirectory(prefix="feelium-bench-fb-", dir="/dev/shm" if os.path.isdir("/dev/shm") else None)
     split: dict[str, Any] | None = None
     try:
+        framebuffer = fake_framebuffer(Path(memory.name), (config.projector.width, config.projector.height))
         with _board_process() as port:
             calibration = simulated_calibration(config, Path(scratch.name)) if projected_light else None
             config = bench_config(config, rear_fps, port, calibration)
@@ -417,7 +449,7 @@ def bench_board(
             set_background_nice(background_nice_here(config.daemon.background_nice, on_pi=True))  # as `feelium run` does on the Pi
             cameras = prepare(config, front_fps)
             load_before = os.getloadavg()[0]
-            measured = run_on_daemon_loop(config, _measure(config, cameras, 60.0 * minutes, warmup_s, cgroup, motion_transport))
+            measured = run_on_daemon_loop(config, _measure(config, cameras, framebuffer, 60.0 * minutes, warmup_s, cgroup, motion_transport))
             load_after = os.getloadavg()[0]
         # Again once the daemon has stopped: a VM's host can slow down between runs or during one (the same code
         # read 1.9 and 2.1 Pi cores on the same machine), and the two readings say whether it did.
@@ -426,10 +458,11 @@ def bench_board(
             with _board_process() as port:
                 profiler = NumericProfiler()
                 profiled = dataclasses.replace(config, flight=dataclasses.replace(config.flight, port=port))
-                run = run_on_daemon_loop(profiled, _measure(profiled, cameras, numeric_split_s, warmup_s, None, motion_transport, profiler))
+                run = run_on_daemon_loop(profiled, _measure(profiled, cameras, framebuffer, numeric_split_s, warmup_s, None, motion_transport, profiler))
                 split = {"seconds": round(run["wall"], 2), "shares": numeric_shares(profiler.seconds, run["charged"])}
     finally:
         scratch.cleanup()
+        memory.cleanup()
     wall = measured["wall"]
     preload_mb = cameras.nbytes / 2**20
     window = measured["rss"]
