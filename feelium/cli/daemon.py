@@ -58,6 +58,11 @@ def register(registry: CommandRegistry) -> None:
         "10x); 0 = everything at 10x (default 20)",
     )
     board.add_argument(
+        "--numeric-split-by", choices=("auto", "perf", "hook"), default="auto",
+        help="how the share is measured: perf samples the process (needs Linux perf), hook times numpy's and "
+        "OpenCV's calls (a lower bound); auto = perf where usable (default)",
+    )
+    board.add_argument(
         "--projected-light", choices=("on", "off"), default="on",
         help="touch compensates the projector's light with a simulated calibration, as on the blimp (default on)",
     )

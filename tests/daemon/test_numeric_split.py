@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import cv2
 import numpy as np
@@ -108,3 +109,86 @@ def test_the_simulated_devices_are_measured_but_not_projected():
     split = project(result, {"thermal": {"pool": 0.0}})
     assert services[SIM_DEVICES]["pi_ms_per_s"] == 0.0
     assert split["pi_cores"] == pytest.approx((5.0 + 55.0) * PI_FACTOR / 1000.0)  # thermal, and the rest unaccounted
+
+
+# ---------------------------------------------------------------- the share sampled by perf
+PID = 100
+SCRIPT = [  # ``perf script -F comm,tid,ip,dso`` as this machine's perf 6.1 writes it
+    " touch-pipeline_   101      7f3479b646b8 (/usr/lib/libpython3.11.so.1.0)",
+    " touch-pipeline_   101      7f346b623bb1 (/venv/site-packages/cv2/cv2.abi3.so)",
+    " touch-pipeline_   101      7f346b623bb2 (/venv/site-packages/numpy/_core/_multiarray_umath.cpython-311-x86_64-linux-gnu.so)",
+    " touch-pipeline_   101      7f34798b6a9a (/usr/lib/x86_64-linux-gnu/libc.so.6)",
+    " projector-rende   102      7f346b623bb1 (/venv/site-packages/cv2/cv2.abi3.so)",
+    "          python   100      7f346b623bb1 (/venv/site-packages/cv2/cv2.abi3.so)",
+    "          python   100      ffffffff8100 ([kernel.kallsyms])",
+    "          python   103      7f346b623bb1 (/venv/site-packages/cv2/cv2.abi3.so)",
+    "          python   103      ffffffff8100 ([kernel.kallsyms])",
+    "    bench-pool_0   104      7f3479b646b8 (/usr/lib/libpython3.11.so.1.0)",
+    "    bench-pool_1   105      7f346b623bb3 (/venv/numpy.libs/libscipy_openblas64_-32a4b2a6.so)",
+    "a name with spaces 106      7f3479b646b8 (/usr/lib/libpython3.11.so.1.0)",
+    "garbage",
+]
+
+
+def test_perf_samples_give_each_threads_numeric_share_by_the_object_they_fell_in():
+    from feelium.lab.daemon.perfsplit import shares_from_script
+
+    shares, samples = shares_from_script(SCRIPT, PID)
+    assert shares["touch"]["thread"] == 0.5  # cv2 and numpy count; the interpreter and libc do not
+    assert shares["projector"]["thread"] == 1.0  # "projector-render", cut to the kernel's 15 bytes
+    assert shares[OTHER_THREADS]["thread"] == pytest.approx(1 / 3, abs=1e-3)  # OpenCV's threads and the stray one
+    assert shares["bench-pool"]["pool"] == 0.5  # the pool as one group: the BLAS numpy calls counts
+    assert "MainThread" not in shares and samples["MainThread/loop"] == 2  # the loop stays at 10x whole
+    assert sum(samples.values()) == len(SCRIPT) - 1
+
+
+def test_the_pools_sampled_share_goes_to_every_service_that_ran_pool_jobs():
+    from feelium.lab.daemon.perfsplit import pooled_shares
+
+    shares = {"touch": {"thread": 0.5}, "bench-pool": {"pool": 0.25}}
+    charged = {"thermal": {"pool": 0.1}, "projector": {"pool": 0.02, "thread": 1.0}, "flight": {"thread": 1.0}}
+    assert pooled_shares(shares, charged) == {"touch": {"thread": 0.5}, "thermal": {"pool": 0.25}, "projector": {"pool": 0.25}}
+
+
+def test_a_sampled_share_of_opencvs_own_threads_replaces_the_assumed_numeric_only():
+    services = {OTHER_THREADS: {"rate_hz": None, "target_hz": None, "miss_pct": None, "cpu_ms_per_s": 30.0,
+                                "cpu_ms_per_s_by_kind": {"native-1": 30.0}}}  # fmt: skip
+    result = {"process_cpu_ms_per_s": 30.0, "loop_thread_ms_per_s": 0.0, "rss_mb": 1.0, "rss_peak_mb": 1.0,
+              "loop_lag_p99_ms": 1.0, "services": services}  # fmt: skip
+    project(result, {})
+    assert services[OTHER_THREADS]["pi_ms_per_s"] == 30.0 * PI_FACTOR_NUMERIC
+    project(result, {OTHER_THREADS: {"thread": 0.75}})
+    assert services[OTHER_THREADS]["pi_ms_per_s"] == pytest.approx(30.0 * part_factor(0.75))
+
+
+def _perf_usable() -> bool:
+    from feelium.lab.daemon.perfsplit import perf_usable
+
+    return perf_usable()
+
+
+@pytest.mark.skipif(not _perf_usable(), reason="Linux perf is not installed or not permitted here")
+def test_perf_samples_a_named_threads_opencv_work_as_numeric(tmp_path):
+    from feelium.lab.daemon.perfsplit import PerfSampler
+    from feelium.priority import name_current_thread
+
+    done = threading.Event()
+
+    def blur() -> None:
+        name_current_thread()
+        image = np.random.default_rng(2).random((480, 640)).astype(np.float32)
+        out = np.empty_like(image)
+        while not done.is_set():
+            cv2.GaussianBlur(image, (0, 0), 3.0, dst=out)
+
+    sampler = PerfSampler(tmp_path)
+    sampler.counting = True
+    time.sleep(1.0)  # perf attaches to the running process (slower on a loaded machine)
+    worker = threading.Thread(target=blur, name="touch-pipeline_9")
+    worker.start()
+    time.sleep(1.5)
+    sampler.counting = False
+    done.set()
+    worker.join()
+    shares, samples = sampler.shares()
+    assert samples["touch/thread"] > 20 and shares["touch"]["thread"] > 0.8

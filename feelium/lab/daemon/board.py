@@ -59,6 +59,7 @@ from feelium.lab.daemon.attribution import (
 from feelium.lab.daemon.bench import memory_mb
 from feelium.lab.daemon.host import host_reference
 from feelium.lab.daemon.numeric import NumericProfiler, numeric_shares
+from feelium.lab.daemon.perfsplit import PerfSampler, perf_usable, pooled_shares
 from feelium.lab.daemon.preloaded import PreloadedSource, encoded_once, front_frames, rear_frames
 from feelium.lab.daemon.projection import project
 from feelium.lab.daemon.quota import join
@@ -233,12 +234,12 @@ async def _measure(
     warmup_s: float,
     cgroup: Path | None,
     motion_transport: str = "websocket",
-    profiler: NumericProfiler | None = None,
+    profiler: NumericProfiler | PerfSampler | None = None,
 ) -> dict[str, Any]:
     """Run the daemon; measure over ``seconds`` after the warm-up while the headset process drives it.
 
-    ``profiler``: installed before any service thread starts, counting over the same window (its hook slows
-    the profiled threads: such a run gives shares, not figures)."""
+    ``profiler``: installed before any service thread starts, counting over the same window (a hook slows the
+    profiled threads, a sampler the whole process a little: such a run gives shares, not figures)."""
     if profiler is not None:
         profiler.install()
     ledger = Ledger()
@@ -425,6 +426,7 @@ def bench_board(
     motion_transport: str = "websocket",
     projected_light: bool = True,
     numeric_split_s: float = 0.0,
+    numeric_split_by: str = "auto",
 ) -> dict[str, Any]:
     """Start the board process, run and measure the daemon for ``minutes``, project; every number in one dict.
 
@@ -434,7 +436,9 @@ def bench_board(
 
     ``numeric_split_s``: then run the daemon again, this long, with the numeric profiler
     (:mod:`feelium.lab.daemon.numeric`), and project each service's parts by their measured numeric share;
-    0 projects everything at 10x."""
+    0 projects everything at 10x. ``numeric_split_by``: ``perf`` samples the process from outside
+    (:mod:`feelium.lab.daemon.perfsplit`), ``hook`` times numpy's and OpenCV's calls inside it (a lower bound of
+    the share), ``auto`` the first where ``perf`` is usable."""
     host = host_reference()  # before anything else runs in this process
     scratch = tempfile.TemporaryDirectory(prefix="feelium-bench-")
     memory = tempfile.TemporaryDirectory(prefix="feelium-bench-fb-", dir="/dev/shm" if os.path.isdir("/dev/shm") else None)
@@ -455,11 +459,17 @@ def bench_board(
         # read 1.9 and 2.1 Pi cores on the same machine), and the two readings say whether it did.
         host_after = host_reference()
         if numeric_split_s > 0:
+            method = numeric_split_by if numeric_split_by != "auto" else ("perf" if perf_usable() else "hook")
             with _board_process() as port:
-                profiler = NumericProfiler()
+                profiler: NumericProfiler | PerfSampler = NumericProfiler() if method == "hook" else PerfSampler(Path(scratch.name))
                 profiled = dataclasses.replace(config, flight=dataclasses.replace(config.flight, port=port))
                 run = run_on_daemon_loop(profiled, _measure(profiled, cameras, framebuffer, numeric_split_s, warmup_s, None, motion_transport, profiler))
-                split = {"seconds": round(run["wall"], 2), "shares": numeric_shares(profiler.seconds, run["charged"])}
+                split = {"seconds": round(run["wall"], 2), "method": method}
+                if isinstance(profiler, PerfSampler):
+                    shares, split["samples"] = profiler.shares()
+                    split["shares"] = pooled_shares(shares, run["charged"])
+                else:
+                    split["shares"] = numeric_shares(profiler.seconds, run["charged"])
     finally:
         scratch.cleanup()
         memory.cleanup()
@@ -567,7 +577,8 @@ def format_table(result: dict[str, Any]) -> str:
     ]
     if result.get("numeric_split"):
         shares = result["numeric_split"]["shares"]
-        lines.insert(-2, f"  numeric share (lower bound, {result['numeric_split']['seconds']} s profiled): "
+        bound = "sampled by perf" if result["numeric_split"].get("method") == "perf" else "lower bound, profile hook"
+        lines.insert(-2, f"  numeric share ({bound}, {result['numeric_split']['seconds']} s): "
                      + ", ".join(f"{name} {kind} {share:.2f}" for name, kinds in sorted(shares.items()) for kind, share in sorted(kinds.items())))
     return "\n".join(lines)
 
@@ -590,6 +601,6 @@ def bench_board_command(args: argparse.Namespace) -> int:
         config = dataclasses.replace(config, daemon=dataclasses.replace(config.daemon, event_loop=args.event_loop))
     result = bench_board(config, args.minutes, front_fps=args.front_fps, cgroup=cgroup,
                          motion_transport=args.motion_transport, projected_light=args.projected_light == "on",
-                         numeric_split_s=args.numeric_split_seconds)
+                         numeric_split_s=args.numeric_split_seconds, numeric_split_by=args.numeric_split_by)
     emit_report(format_table(result), result, args.json)
     return 0

@@ -14,7 +14,8 @@ ufunc calls (``a + b``, ``np.maximum(a, b)``) raise no profile event and are
 counted as Python-level work, and the hook's own cost inflates the Python
 side. The event loop's thread is not profiled (it runs Python-level work:
 projected at 10x whole). Threads Python did not start (OpenCV's worker pool)
-run nothing but native numeric code.
+run nothing but native numeric code. Where Linux ``perf`` is usable ``bench board`` samples the share instead
+(:mod:`feelium.lab.daemon.perfsplit`), which needs no such lower bound.
 """
 
 from __future__ import annotations

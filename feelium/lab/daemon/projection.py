@@ -67,8 +67,9 @@ def part_factor(share: float) -> float:
 
 def _pi_ms(name: str, row: dict[str, Any], shares: dict[str, dict[str, float]]) -> float:
     """One service's projected ms per second: each part at its measured factor (the loop's at 10x)."""
-    if name == OTHER_THREADS:
-        return PI_FACTOR_NUMERIC * row["cpu_ms_per_s"]  # OpenCV's worker pool: native numeric code only
+    if name == OTHER_THREADS:  # OpenCV's worker pool: native numeric code only, unless a sampler measured it
+        measured = shares.get(OTHER_THREADS, {}).get("thread")
+        return (PI_FACTOR_NUMERIC if measured is None else part_factor(measured)) * row["cpu_ms_per_s"]
     by_kind = row.get("cpu_ms_per_s_by_kind") or {"loop": row["cpu_ms_per_s"]}
     return sum(ms * (PI_FACTOR if kind == "loop" else part_factor(shares.get(name, {}).get(kind, 0.0))) for kind, ms in by_kind.items())
 
