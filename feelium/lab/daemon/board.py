@@ -466,8 +466,13 @@ def bench_board(
                 run = run_on_daemon_loop(profiled, _measure(profiled, cameras, framebuffer, numeric_split_s, warmup_s, None, motion_transport, profiler))
                 split = {"seconds": round(run["wall"], 2), "method": method}
                 if isinstance(profiler, PerfSampler):
-                    shares, split["samples"] = profiler.shares()
-                    split["shares"] = pooled_shares(shares, run["charged"])
+                    try:
+                        shares, split["samples"] = profiler.shares()
+                    except (OSError, subprocess.SubprocessError) as exc:  # the measured run stands; only its split is lost
+                        print(f"feelium bench board: perf's samples unreadable ({exc}): everything projected at 10x", file=sys.stderr)
+                        split = None
+                    else:
+                        split["shares"] = pooled_shares(shares, run["charged"])
                 else:
                     split["shares"] = numeric_shares(profiler.seconds, run["charged"])
     finally:
