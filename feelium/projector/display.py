@@ -12,6 +12,7 @@ clear message.
 
 from __future__ import annotations
 
+import logging
 import mmap
 import os
 from pathlib import Path
@@ -19,6 +20,8 @@ from typing import Protocol, runtime_checkable
 
 import cv2
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 
 class DisplayUnavailable(RuntimeError):
@@ -118,8 +121,13 @@ class FbdevDisplay:
         if self._fitted_from != (fw, fh):
             pixels[:] = 0
             self._fitted_from = (fw, fh)
+            log.warning(
+                "projector: frames are %dx%d but the framebuffer is %dx%d: every frame is scaled on the CPU; set the "
+                "HDMI mode to the frame size (video= in cmdline.txt, docs/deploy.md)", fw, fh, w, h,
+            )
         x0, y0 = (w - nw) // 2, (h - nh) // 2
-        return cv2.resize(frame, (nw, nh), interpolation=cv2.INTER_AREA), pixels[y0 : y0 + nh, x0 : x0 + nw]
+        shrink = cv2.INTER_AREA if scale < 1.0 else cv2.INTER_LINEAR  # area averaging only pays when shrinking
+        return cv2.resize(frame, (nw, nh), interpolation=shrink), pixels[y0 : y0 + nh, x0 : x0 + nw]
 
     def show(self, frame: np.ndarray) -> None:
         """Convert ``frame`` into the framebuffer, unless it is the very array written last: the framebuffer still

@@ -83,11 +83,14 @@ def test_fbdev_writes_the_same_frame_once_and_a_new_array_again(tmp_path):
     display.close()
 
 
-def test_fbdev_clears_the_letterbox_bars_when_the_frame_size_changes(tmp_path):
+def test_fbdev_clears_the_letterbox_bars_when_the_frame_size_changes(tmp_path, caplog):
     device, sysfs = _fake_fb(tmp_path, "8,4", "32")
     display = FbdevDisplay(device, sysfs)
     display.show(np.full((4, 8, 3), 255, np.uint8))  # the whole screen white
+    assert not caplog.records
     display.show(np.full((2, 2, 3), 255, np.uint8))  # a square: scaled to 4x4, centred, bars black
+    display.show(np.full((2, 2, 3), 255, np.uint8))
+    assert len(caplog.records) == 1 and "scaled on the CPU" in caplog.records[0].getMessage()  # once, not per frame
     pixels = np.frombuffer(open(device, "rb").read(), np.uint8).reshape(4, 8, 4)
     assert (pixels[:, :2] == 0).all() and (pixels[:, 6:] == 0).all() and (pixels[:, 2:6, :3] == 255).all()
     display.close()
