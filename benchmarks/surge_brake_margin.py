@@ -22,33 +22,11 @@ from dataclasses import replace
 
 import feelium.flight.estimators as estimators
 from feelium.daemon.config import Config
-from feelium.flight.blimp_model import BlimpParams, BlimpState, step
 from feelium.flight.loops import BRAKE_SHARE
 from feelium.lab.flight.calibrate import calibrate_sim, tight_goals
 from feelium.lab.flight.plants import Plant, plant_set
 from feelium.lab.flight.safety import safety_flight
-
-STOPPED_M_S, WITHIN_S = 0.05, 1.0
-
-
-def stop_time(blimp: BlimpParams, speed: float, command: float, dt: float = 0.001) -> float:
-    """Seconds from a steady cruise at ``speed`` to under 5 cm/s with both horizontal motors at ``command``."""
-    drag = blimp.linear_drag_n_per_m_s * speed + blimp.quadratic_drag * speed * speed
-    hover = blimp.net_buoyancy_n / 2.0
-    state, t = BlimpState(z=1.5, u=speed, thrust_n=(drag / 2.0, drag / 2.0, hover, hover)), 0.0
-    while state.u >= STOPPED_M_S and t < 10.0:
-        state = replace(step(blimp, state, (command, command, 0.0, 0.0), dt), z=1.5, w=0.0)
-        t += dt
-    return t
-
-
-def fastest_stoppable(blimp: BlimpParams, command: float) -> float:
-    lo, hi = STOPPED_M_S, 0.5
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if stop_time(blimp, mid, command) <= WITHIN_S else (lo, mid)
-    return lo
-
+from feelium.lab.flight.stoppable import fastest_stoppable, stop_time
 
 SHARES = {"point": lambda u: 1.0, "brake_share_box": lambda u: min(1.0, 1.0 / (BRAKE_SHARE * u**3)), "inverse_u": lambda u: 1.0 / u}
 
@@ -88,8 +66,8 @@ def main() -> None:
         return
     for plant in plant_set(args.count):
         b = plant.blimp
-        print(json.dumps({"plant": plant.name, "stop_from_0.15_s": [round(stop_time(b, 0.15, c), 3) for c in (-0.9, -1.0)],
-                          "fastest_stoppable_m_s": [round(fastest_stoppable(b, c), 3) for c in (-0.9, -1.0)]}))
+        print(json.dumps({"plant": plant.name, "stop_from_0.15_s": [round(stop_time(b, 0.15, c, dt=0.001), 3) for c in (-0.9, -1.0)],
+                          "fastest_stoppable_m_s": [round(fastest_stoppable(b, c, dt=0.001, high_m_s=0.5, iterations=30), 3) for c in (-0.9, -1.0)]}))
 
 
 if __name__ == "__main__":

@@ -348,11 +348,18 @@ def calibrate_board(config: FlightConfig, port: str) -> Calibration:
 
 def tight_goals(config: FlightConfig, blimp: Any, seed: int = 1) -> dict[str, float]:
     """The nominal controller's tight figures flown with ``config`` on ``blimp``: hold in still air (altitude
-    and heading RMS) and the cruise speed of a held ``forward`` as a fraction of the commanded one."""
+    and heading RMS) and the cruise speed of a held ``forward`` as a fraction of the commanded one and of its
+    target, the commanded speed or, if lower, the fastest ``blimp`` can stop from within the stop goal
+    (``stoppable.cruise_target``: the cruise goal as decided in docs/calibrate-flight.md)."""
     from feelium.lab.flight import scenarios as sc
+    from feelium.lab.flight.stoppable import cruise_target
 
     held = sc.hold(config, drafts=False, seed=seed, seconds=15.0, blimp=blimp)
     forward = sc.motion(config, "forward", hold_s=5.0, seed=seed, blimp=blimp)
     cruising = (forward.t >= forward.expired_s - 0.5 - 2.0) & (forward.t <= forward.expired_s - 0.5)
+    cruise = float(np.mean(forward.fraction[cruising]))
+    target = cruise_target(forward.commanded, blimp, config.max_output)
     return {"altitude_rms_m": held.altitude_rms_m, "heading_rms_deg": held.heading_rms_deg,
-            "cruise_fraction": float(np.mean(forward.fraction[cruising])), "forward_latency_s": forward.latency_s}
+            "cruise_fraction": cruise, "forward_latency_s": forward.latency_s, "v_stop_m_s": target["v_stop_m_s"],
+            "cruise_target_m_s": target["cruise_target_m_s"],
+            "cruise_fraction_of_target": cruise * target["commanded_m_s"] / target["cruise_target_m_s"]}
