@@ -100,7 +100,7 @@ class FlightConfig:
     )
     surge_brake_shown: float = setting(
         0.0, "What the calibration's own reverse surge steps measured of the reverse thrust per surge mass, at its low"
-        " end (the fit less 3 standard errors), as a share of the model above (horizontal_thrust_n x"
+        " end (divided by 1 + 3 x its relative standard error), as a share of the model above (horizontal_thrust_n x"
         " horizontal_reverse_ratio / mass_kg); `feelium calibrate flight` sets it when its flight braked. 0: not measured."
         " Before the first brake in flight the speed cap counts on this share of the modelled brake, and on 0.8 of its"
         " reverse authority instead of 0.55 (docs/calibrate-flight.md, session 20).", min=0.0, max=4.0

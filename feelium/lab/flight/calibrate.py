@@ -167,9 +167,10 @@ def brake_shown(fit: PlantFit, config: FlightConfig) -> float:
     what ``config`` models (its reverse thrust over its surge mass), rounded down: what the speed cap may count on.
 
     3 standard errors low as the fit's boxes count them (:func:`axis_uncertainties`): the value divided by
-    ``1 + 3 x`` its relative error. The surge fit measures it directly (its ``reverse_thrust_per_mass`` column, what a brake decelerates by), where
-    the config's model multiplies the thrust per mass by the reverse ratio averaged with the yaw fit's: on the heavy
-    weak corners (seeds 1-2) the direct value was within -4..+11 % of the truth, the model's within -25..+7 %.
+    ``1 + 3 x`` its relative error. The surge fit measures it directly (its ``reverse_thrust_per_mass`` column,
+    what a brake decelerates by), where the config's model multiplies the thrust per mass by the reverse ratio
+    averaged with the yaw fit's: on the heavy weak corners (seeds 1-2) the direct value was within -4..+11 % of
+    the truth, the model's within -25..+7 % (docs/calibrate-flight.md, session 20).
     """
     measured = fit.values["surge_reverse_thrust_per_mass"]
     modelled = config.horizontal_thrust_n * config.horizontal_reverse_ratio / config.mass_kg
@@ -221,7 +222,7 @@ DERIVED_NOTES = {"quadratic_drag": "the fitted drag at 0.15 m/s as this model's 
                  "yaw_uncertainty": "the box holding 3 sigma of the yaw torque per inertia and horizontal reverse ratio",
                  "net_buoyancy_n": "weighed, not fitted: the fit's scale",
                  "braking_shown": "the flight flew reverse surge steps: the speed cap counts on the fitted reverse thrust",
-                 "surge_brake_shown": "the surge fit's reverse thrust per mass less 3 standard errors, over the model's"}
+                 "surge_brake_shown": "the surge fit's reverse thrust per mass, 3 sigma low (/ (1 + 3 x relative error)), over the model's"}
 
 
 def render_calibrated(full_config: Any, calibration: Calibration) -> str:
