@@ -48,7 +48,6 @@ class Effectiveness:
         self.assuring_change = assuring_change
         self.assuring_samples = [0, 0]
         self.confirming_change = confirming_change
-        self.shown = shown
         self.shown_by_side = [shown if reverse_shown is None else reverse_shown, shown]
         self.confirming_samples = [0, 0]
         self.values = [high, high]  # [push < 0, push > 0]
