@@ -35,9 +35,9 @@ STOPPED_SPEED_M_S = 0.05  # the stop goal's thresholds (docs/flight-robustness.m
 STOPPED_YAW_DPS = 3.0
 BRAKE_SHARE = 0.55  # of the full reverse authority a stop may count on (the rest: drag, the other loop, slew)
 # ...and while it counts on a brake the calibration measured, at 3 standard errors low (``surge_brake_shown``): the
-# uncertainty is then in the brake counted on, not in the share. 0.8 stopped the heavy weak corners (seeds 1-2)
-# within 0.62 s on their true plants and 0.94 s on plants as weak in reverse as that low end; 1.0 took 1.00 s
-# (docs/calibrate-flight.md, session 20).
+# uncertainty is then in the brake counted on, not in the share. 0.8 stopped the heavy weak corners (seeds 1-4)
+# within 0.62 s on their true plants and 0.94 s on plants as weak in reverse as that low end; a share of 1.0 (on
+# the larger of 1/U and that low end) took 1.00 s (docs/calibrate-flight.md, session 20).
 MEASURED_BRAKE_SHARE = 0.8
 HOVER_SPEED_BAND_M_S = 0.02  # in hover the surge loop rests below this measured speed (acts above 0.03)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
