@@ -11,7 +11,9 @@ both horizontal motors at full reverse (-0.9, the mixer's ``max_output``, and -1
 ``weak-reverse``: calibrate each named plant of ``plant_set(50)``, then fly the safety flight with the fitted config
 on the plant made as weak in reverse as the fit's 3-sigma box allows (true reverse thrust per surge mass = fitted
 / U^3), for three shares of the fitted brake the speed cap may count on before a brake in flight: 1 (the point
-estimate), min(1, 1 / (BRAKE_SHARE U^3)) and 1/U (shipped); and the cruise on the true plant. About 60 s of CPU a plant.
+estimate), min(1, 1 / (BRAKE_SHARE U^3)) and 1/U (session 17), each on ``BRAKE_SHARE``, then the rule shipped since
+session 20 (``measured_brake``: the calibration's measured brake, 3 sigma low, on ``MEASURED_BRAKE_SHARE``); and the
+cruise on the true plant. About 70 s of CPU a plant.
 """
 
 from __future__ import annotations
@@ -22,40 +24,19 @@ from dataclasses import replace
 
 import feelium.flight.estimators as estimators
 from feelium.daemon.config import Config
-from feelium.flight.blimp_model import BlimpParams, BlimpState, step
 from feelium.flight.loops import BRAKE_SHARE
 from feelium.lab.flight.calibrate import calibrate_sim, tight_goals
 from feelium.lab.flight.plants import Plant, plant_set
 from feelium.lab.flight.safety import safety_flight
-
-STOPPED_M_S, WITHIN_S = 0.05, 1.0
-
-
-def stop_time(blimp: BlimpParams, speed: float, command: float, dt: float = 0.001) -> float:
-    """Seconds from a steady cruise at ``speed`` to under 5 cm/s with both horizontal motors at ``command``."""
-    drag = blimp.linear_drag_n_per_m_s * speed + blimp.quadratic_drag * speed * speed
-    hover = blimp.net_buoyancy_n / 2.0
-    state, t = BlimpState(z=1.5, u=speed, thrust_n=(drag / 2.0, drag / 2.0, hover, hover)), 0.0
-    while state.u >= STOPPED_M_S and t < 10.0:
-        state = replace(step(blimp, state, (command, command, 0.0, 0.0), dt), z=1.5, w=0.0)
-        t += dt
-    return t
-
-
-def fastest_stoppable(blimp: BlimpParams, command: float) -> float:
-    lo, hi = STOPPED_M_S, 0.5
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if stop_time(blimp, mid, command) <= WITHIN_S else (lo, mid)
-    return lo
-
+from feelium.lab.flight.stoppable import fastest_stoppable, stop_time
 
 SHARES = {"point": lambda u: 1.0, "brake_share_box": lambda u: min(1.0, 1.0 / (BRAKE_SHARE * u**3)), "inverse_u": lambda u: 1.0 / u}
 
 
 def weak_reverse(name: str) -> dict[str, object]:
     plant = {p.name: p for p in plant_set(50)}[name]
-    fitted, blimp = calibrate_sim(Config().flight, plant.blimp).config, plant.blimp
+    measured, blimp = calibrate_sim(Config().flight, plant.blimp).config, plant.blimp
+    fitted = replace(measured, surge_brake_shown=0.0)  # the shares below replace the calibration's measured brake
     u = fitted.surge_uncertainty
     reverse_per_mass = fitted.horizontal_thrust_n * fitted.horizontal_reverse_ratio / fitted.mass_kg / u**3
     ratio = reverse_per_mass * blimp.inertial_mass_kg * blimp.surge_mass_factor / blimp.horizontal_motor.max_thrust_n
@@ -65,7 +46,7 @@ def weak_reverse(name: str) -> dict[str, object]:
     for label, share in SHARES.items():
         def init(self: estimators.SurgeEstimate, config: object, share=share) -> None:  # type: ignore[no-untyped-def]
             shipped(self, config)
-            self.effectiveness.shown = share(u)
+            self.effectiveness.shown_by_side = [share(u), share(u)]
         estimators.SurgeEstimate.__init__ = init  # type: ignore[method-assign]
         try:
             result = safety_flight(fitted, weak)
@@ -73,6 +54,9 @@ def weak_reverse(name: str) -> dict[str, object]:
                           "cruise_true_plant": round(tight_goals(fitted, blimp)["cruise_fraction"], 3)}
         finally:
             estimators.SurgeEstimate.__init__ = shipped  # type: ignore[method-assign]
+    result = safety_flight(measured, weak)  # session 20: the measured brake, 3 sigma low, on 0.8 of the authority
+    row["measured_brake"] = {"surge_brake_shown": measured.surge_brake_shown, "stop_s": round(result.stop_s, 3),
+                             "failures": result.failures(), "cruise_true_plant": round(tight_goals(measured, blimp)["cruise_fraction"], 3)}
     return row
 
 
@@ -88,8 +72,8 @@ def main() -> None:
         return
     for plant in plant_set(args.count):
         b = plant.blimp
-        print(json.dumps({"plant": plant.name, "stop_from_0.15_s": [round(stop_time(b, 0.15, c), 3) for c in (-0.9, -1.0)],
-                          "fastest_stoppable_m_s": [round(fastest_stoppable(b, c), 3) for c in (-0.9, -1.0)]}))
+        print(json.dumps({"plant": plant.name, "stop_from_0.15_s": [round(stop_time(b, 0.15, c, dt=0.001), 3) for c in (-0.9, -1.0)],
+                          "fastest_stoppable_m_s": [round(fastest_stoppable(b, c, dt=0.001, high_m_s=0.5, iterations=30), 3) for c in (-0.9, -1.0)]}))
 
 
 if __name__ == "__main__":

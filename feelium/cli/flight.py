@@ -34,7 +34,7 @@ def register(registry: CommandRegistry) -> None:
     calibrate.add_argument("--seed", type=int, default=1, help="with --sim: simulation seed")
     bench = registry.subcommand("bench", "flight", "Fly the simulator: hold, climb, commands, quietness against an untuned PID.", _bench)
     bench.add_argument("--out", default="bench-out/flight", help="directory for the JSON and PNG plots")
-    bench.add_argument("--seed", type=int, default=1, help="simulation seed")
+    bench.add_argument("--seed", type=int, default=1, help="simulation seed (with --plants: of every flight and calibration)")
     bench.add_argument("--config", help="TOML config file (its [flight] section is used)")
     bench.add_argument("--plants", type=int, help="instead: the safety goals across N randomised plants (corners first), median and worst")
     bench.add_argument("--json", help="with --plants: write the report here (default: print it)")
@@ -42,6 +42,7 @@ def register(registry: CommandRegistry) -> None:
     bench.add_argument("--no-flow", action="store_true", help="with --plants: a board without the optical-flow sensor")
     bench.add_argument("--calibrated", action="store_true",
                        help="with --plants: also calibrate each plant (calibrate flight) and fly it with the fitted config: before and after")
+    bench.add_argument("--only", help="with --plants: these indices of the set alone, e.g. 8-11 (the heavy weak corners) or 0,3,8")
     bench.add_argument("--command-delay-ms", type=float, default=0.0,
                        help="with --plants: the simulated board's motors act this long after a command arrives (a phase sweep: 0, 2.5, 5, 7.5)")
 
@@ -85,6 +86,17 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 1 if calibration.pilot.aborted else 0
 
 
+def _indices(text: str | None) -> list[int] | None:
+    """``8-11`` or ``0,3,8-11``: plant indices, in order."""
+    if text is None:
+        return None
+    out: list[int] = []
+    for part in text.split(","):
+        first, _, last = part.partition("-")
+        out += range(int(first), int(last or first) + 1)
+    return out
+
+
 def _bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -97,7 +109,7 @@ def _bench(args: argparse.Namespace) -> int:
         from feelium.lab.report import emit_report
 
         report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow, calibrated=args.calibrated,
-                                 command_delay_s=args.command_delay_ms / 1000.0)
+                                 command_delay_s=args.command_delay_ms / 1000.0, only=_indices(args.only), flight_seed=args.seed)
         emit_report(format_plant_table(report), report, args.json)
         return 0
     results = run_bench(config, Path(args.out), seed=args.seed)

@@ -98,6 +98,13 @@ class FlightConfig:
         " then capped at what the fitted model, its reverse thrust less one factor surge_uncertainty, can stop from,"
         " not at the box's weakest reverse thrust."
     )
+    surge_brake_shown: float = setting(
+        0.0, "What the calibration's own reverse surge steps measured of the reverse thrust per surge mass, at its low"
+        " end (divided by 1 + 3 x its relative standard error), as a share of the model above (horizontal_thrust_n x"
+        " horizontal_reverse_ratio / mass_kg); `feelium calibrate flight` sets it when its flight braked. 0: not measured."
+        " Before the first brake in flight the speed cap counts on this share of the modelled brake, and on 0.8 of its"
+        " reverse authority instead of 0.55 (docs/calibrate-flight.md, session 20).", min=0.0, max=4.0
+    )
 
     # Gains (accelerations per unit error, so they do not change with mass).
     altitude_kp: float = setting(2.2, "Altitude stiffness, (m/s^2) per m.", min=0.0, max=50.0)

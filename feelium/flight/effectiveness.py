@@ -26,7 +26,7 @@ class Effectiveness:
 
     def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
-                 confirming_change: float = 0.0, shown: float | None = None) -> None:
+                 confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -37,7 +37,8 @@ class Effectiveness:
         push and is credited to it), so a margin waits for a real push, such as a brake;
         ``shown``: the effectiveness a calibration flight's own pushes showed (1: the fitted model's), which a
         safety margin counts on until a real push in flight teaches it (``None``: nothing shown, the box's
-        lower bound)."""
+        lower bound); ``reverse_shown``: the same for negative pushes, when the calibration measured them apart
+        (``None``: ``shown``)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -47,7 +48,7 @@ class Effectiveness:
         self.assuring_change = assuring_change
         self.assuring_samples = [0, 0]
         self.confirming_change = confirming_change
-        self.shown = shown
+        self.shown_by_side = [shown if reverse_shown is None else reverse_shown, shown]
         self.confirming_samples = [0, 0]
         self.values = [high, high]  # [push < 0, push > 0]
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
@@ -78,9 +79,15 @@ class Effectiveness:
         the one a calibration showed (within the box), else the box's lower bound. A calibration's brakes
         taught a point estimate as an in-flight brake does, from more and longer steps."""
         side = 1 if push > 0.0 else 0
+        shown = self.shown_by_side[side]
         if self.assuring_samples[side]:
             return self.values[side]
-        return self.lows[side] if self.shown is None else min(max(self.shown, self.lows[side]), self.high)
+        return self.lows[side] if shown is None else min(max(shown, self.lows[side]), self.high)
+
+    def counts_on_shown(self, push: float) -> bool:
+        """Whether :meth:`assured` is the calibration's value: nothing in flight has taught it yet."""
+        side = 1 if push > 0.0 else 0
+        return self.shown_by_side[side] is not None and not self.assuring_samples[side]
 
     def lowest(self, push: float) -> float:
         """The box's lower bound for a push of this sign: what a push must be scaled by to act on every plant."""

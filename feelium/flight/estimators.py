@@ -367,9 +367,12 @@ class SurgeEstimate:
         # command on the box's weakest, 1.11^-3 = 0.73, and 0.98 on this). The point estimate itself (1) let
         # corner-MtdL's fitted config take 1.14 s to stop on a plant as weak in reverse as the fit's 3-sigma
         # box allows; 1/U stopped it in 0.90 s (docs/calibrate-flight.md, session 17, branch i13heavy).
+        # A calibration that measured its reverse brake directly says how much of the modelled one it showed at 3
+        # standard errors low (``surge_brake_shown``): that, not 1/U, is counted on for a forward speed (session 20).
         self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005,
                                            assuring_change=SURGE_ASSURING_CHANGE_M_S,
-                                           shown=1.0 / config.uncertainty("surge") if config.braking_shown else None)
+                                           shown=1.0 / config.uncertainty("surge") if config.braking_shown else None,
+                                           reverse_shown=config.surge_brake_shown or None)
 
     def measured(self, t: float) -> bool:
         return self.last_flow_t is not None and t - self.last_flow_t <= FLOW_FRESH_S

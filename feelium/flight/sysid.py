@@ -420,6 +420,7 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     # The ratios the controller's dynamics depend on: every surge and yaw value above scales with the surge
     # mass (poorly determined: the heave drag), these do not.
     values["surge_thrust_per_mass"] = thrust_per_mass
+    values["surge_reverse_thrust_per_mass"] = surge.estimate("reverse_thrust_per_mass")  # what a brake decelerates by
     values["yaw_torque_per_inertia"] = torque_per_inertia
     values["heave_thrust_per_mass"] = heave.estimate("thrust_per_mass")
     values["motor_lag_s"] = Estimate(fits.lag_s, _curvature_stderr(sig, fits, "motor_lag_s"))

@@ -136,6 +136,49 @@ def test_a_calibration_that_braked_lets_the_cap_count_on_its_reverse_thrust_less
     assert unshown < shown < point < fitted.forward_speed_m_s
 
 
+def test_a_calibration_that_measured_its_brake_lets_a_forward_speed_count_on_more_of_it_until_a_brake_in_flight() -> None:
+    """``surge_brake_shown`` (session 20): the reverse brake the calibration's steps measured, at 3 standard errors low,
+    as a share of the model's. Before the first brake in flight a forward speed counts on that share of the modelled
+    brake and on ``MEASURED_BRAKE_SHARE`` of the authority; a backward speed (braked by forward thrust) is as before,
+    and so is everything once a brake in flight has taught the reverse side."""
+    from feelium.flight.controller import FlightController
+    from feelium.flight.loops import BRAKE_SHARE, MEASURED_BRAKE_SHARE
+
+    fitted = replace(Config().flight, mass_kg=1.9651, horizontal_thrust_n=0.183, horizontal_reverse_ratio=0.439, quadratic_drag=0.0,
+                     motor_lag_s=0.1248, surge_uncertainty=1.26, braking_shown=True)  # corner-MtdL's fit, as above
+    measured = replace(fitted, surge_brake_shown=0.79)
+    controller = FlightController(measured)
+    assert controller.surge.effectiveness.assured(-1.0) == pytest.approx(0.79)
+    assert controller.surge.effectiveness.assured(1.0) == pytest.approx(1.0 / 1.26)  # the forward thrust: as before
+    before, after = _speed_cap(fitted), _speed_cap(measured)
+    # The cap is 0.035 m/s plus the planned brake over the time left: the brake grows by the share and the shown value.
+    grown = (after - 0.035) / (before - 0.035)
+    assert grown == pytest.approx(MEASURED_BRAKE_SHARE / BRAKE_SHARE * 0.79 * 1.26, rel=1e-6)
+    assert after < measured.forward_speed_m_s
+    controller.surge.last_flow_t = 0.0
+    backward = controller.surge_loop._stoppable_speed(0.0, controller.surge, -measured.forward_speed_m_s)
+    assert backward == pytest.approx(FlightController(fitted).surge_loop._stoppable_speed(0.0, _flowing(fitted), -fitted.forward_speed_m_s))
+    # A brake in flight teaches the reverse side: the learned value, on the ordinary share.
+    effectiveness = controller.surge.effectiveness
+    effectiveness.assuring_samples[0], effectiveness.values[0] = 1, 0.79
+    assert not effectiveness.counts_on_shown(-1.0)
+    taught = controller.surge_loop._stoppable_speed(0.0, controller.surge, measured.forward_speed_m_s)
+    assert taught == pytest.approx(0.035 + (before - 0.035) * 0.79 * 1.26, rel=1e-6)
+
+
+def _flowing(config):  # type: ignore[no-untyped-def]
+    estimate = SurgeEstimate(config)
+    estimate.last_flow_t = 0.0
+    return estimate
+
+
+def test_a_shipped_or_hand_written_config_counts_on_no_measured_brake() -> None:
+    shipped = Config().flight
+    assert shipped.surge_brake_shown == 0.0
+    assert SurgeEstimate(shipped).effectiveness.shown_by_side == [None, None]
+    assert not SurgeEstimate(shipped).effectiveness.counts_on_shown(-1.0)
+
+
 def test_a_steady_push_against_a_draft_does_not_make_a_large_push_count_on_a_low_value() -> None:
     """The loop holds a steady push against a steady draft (no rate change) and now and then turns hard."""
     estimator = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035)

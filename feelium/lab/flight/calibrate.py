@@ -140,7 +140,7 @@ def fitted_config(config: FlightConfig, fit: PlantFit, braking_shown: bool = Fal
         return float(fit.value(name))
 
     axes = axis_uncertainties(fit)
-    return replace(
+    fitted = replace(
         config,
         mass_kg=round(v("surge_mass_kg"), 4),
         heave_mass_kg=round(v("heave_mass_kg"), 4),
@@ -159,6 +159,25 @@ def fitted_config(config: FlightConfig, fit: PlantFit, braking_shown: bool = Fal
         yaw_uncertainty=axes["yaw"],
         braking_shown=braking_shown,
     )
+    return replace(fitted, surge_brake_shown=brake_shown(fit, fitted) if braking_shown else 0.0)
+
+
+def brake_shown(fit: PlantFit, config: FlightConfig) -> float:
+    """The reverse thrust per surge mass the flight's reverse steps measured, at 3 standard errors low, as a share of
+    what ``config`` models (its reverse thrust over its surge mass), rounded down: what the speed cap may count on.
+
+    3 standard errors low as the fit's boxes count them (:func:`axis_uncertainties`): the value divided by
+    ``1 + 3 x`` its relative error. The surge fit measures it directly (its ``reverse_thrust_per_mass`` column,
+    what a brake decelerates by), where the config's model multiplies the thrust per mass by the reverse ratio
+    averaged with the yaw fit's: on the heavy weak corners (seeds 1-2) the direct value was within -4..+11 % of
+    the truth, the model's within -25..+7 % (docs/calibrate-flight.md, session 20).
+    """
+    measured = fit.values["surge_reverse_thrust_per_mass"]
+    modelled = config.horizontal_thrust_n * config.horizontal_reverse_ratio / config.mass_kg
+    low = measured.value / (1.0 + 3.0 * measured.relative)
+    if not (modelled > 0.0 and math.isfinite(low) and low > 0.0):
+        return 0.0
+    return min(math.floor(1000.0 * low / modelled) / 1000.0, 4.0)  # the key's range
 
 
 # How far the fitted model may still be off, per axis, in the units the loops' learning box uses
@@ -202,7 +221,8 @@ DERIVED_NOTES = {"quadratic_drag": "the fitted drag at 0.15 m/s as this model's 
                  "surge_uncertainty": "the box holding 3 sigma of the surge thrust per mass and horizontal reverse ratio",
                  "yaw_uncertainty": "the box holding 3 sigma of the yaw torque per inertia and horizontal reverse ratio",
                  "net_buoyancy_n": "weighed, not fitted: the fit's scale",
-                 "braking_shown": "the flight flew reverse surge steps: the speed cap counts on the fitted reverse thrust"}
+                 "braking_shown": "the flight flew reverse surge steps: the speed cap counts on the fitted reverse thrust",
+                 "surge_brake_shown": "the surge fit's reverse thrust per mass, 3 sigma low (/ (1 + 3 x relative error)), over the model's"}
 
 
 def render_calibrated(full_config: Any, calibration: Calibration) -> str:
@@ -348,11 +368,18 @@ def calibrate_board(config: FlightConfig, port: str) -> Calibration:
 
 def tight_goals(config: FlightConfig, blimp: Any, seed: int = 1) -> dict[str, float]:
     """The nominal controller's tight figures flown with ``config`` on ``blimp``: hold in still air (altitude
-    and heading RMS) and the cruise speed of a held ``forward`` as a fraction of the commanded one."""
+    and heading RMS) and the cruise speed of a held ``forward`` as a fraction of the commanded one and of its
+    target, the commanded speed or, if lower, the fastest ``blimp`` can stop from within the stop goal
+    (``stoppable.cruise_target``: the cruise goal as decided in docs/calibrate-flight.md)."""
     from feelium.lab.flight import scenarios as sc
+    from feelium.lab.flight.stoppable import cruise_target
 
     held = sc.hold(config, drafts=False, seed=seed, seconds=15.0, blimp=blimp)
     forward = sc.motion(config, "forward", hold_s=5.0, seed=seed, blimp=blimp)
     cruising = (forward.t >= forward.expired_s - 0.5 - 2.0) & (forward.t <= forward.expired_s - 0.5)
+    cruise = float(np.mean(forward.fraction[cruising]))
+    target = cruise_target(forward.commanded, blimp, config.max_output)
     return {"altitude_rms_m": held.altitude_rms_m, "heading_rms_deg": held.heading_rms_deg,
-            "cruise_fraction": float(np.mean(forward.fraction[cruising])), "forward_latency_s": forward.latency_s}
+            "cruise_fraction": cruise, "forward_latency_s": forward.latency_s, "v_stop_m_s": target["v_stop_m_s"],
+            "cruise_target_m_s": target["cruise_target_m_s"],
+            "cruise_fraction_of_target": cruise * target["commanded_m_s"] / target["cruise_target_m_s"]}
