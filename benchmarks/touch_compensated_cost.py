@@ -17,7 +17,7 @@ up; each figure is the median over the later loops of their means. For an A/B ru
 ``PYTHONPATH`` pointing there, back to back.
 
 ``--paced`` feeds the frames at the camera's rate, as the daemon's touch thread gets them: before each frame it sleeps
-until that frame's 1/30 s slot (caches go cold in between: on the 2-core VM a frame costs ~1.7x its back-to-back
+until that frame's 1/30 s slot (caches go cold in between: on the 2-core VM a frame costs 1.5-1.7x its back-to-back
 figure, 2026-11-27). Thread CPU is timed as without it; ``process_ms_per_frame`` adds the whole process's CPU over
 each loop (``os.times``, user + system of every thread: OpenCV's pool included when it has one) per frame.
 """
