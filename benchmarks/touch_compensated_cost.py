@@ -3,7 +3,7 @@ the rear frames the bench plays (320x240), the bench's projector calibration, a 
 face-on experiment's wearer video through the daemon's renderer, 30 fps), each camera frame's light and spread
 mixed by :class:`feelium.touch.projected.ExposureLight` and the pipeline fed with them.
 
-    PYTHONPATH=$PWD python3 benchmarks/touch_compensated_cost.py [--loops 3] [--profile] [--calls] [--detect-scale S] [--json FILE]
+    PYTHONPATH=$PWD python3 benchmarks/touch_compensated_cost.py [--loops 3] [--paced] [--profile] [--calls] [--detect-scale S] [--json FILE]
 
 One OpenCV thread (the daemon's touch thread competes with the projector's pool: its own figure is the one that
 counts). Reports ms per camera frame: ``predict`` (each new projector canvas to its light; with ``detect_scale``
@@ -15,6 +15,11 @@ the interpreter's per-frame work) and the functions called most. The bench's fra
 projection, so this measures cost, not accuracy (the face-on experiment measures that). The first loop warms
 up; each figure is the median over the later loops of their means. For an A/B run it from the older tree with
 ``PYTHONPATH`` pointing there, back to back.
+
+``--paced`` feeds the frames at the camera's rate, as the daemon's touch thread gets them: before each frame it sleeps
+until that frame's 1/30 s slot (caches go cold in between: on the 2-core VM a frame costs 1.5-1.7x its back-to-back
+figure, 2026-11-27). Thread CPU is timed as without it; ``process_ms_per_frame`` adds the whole process's CPU over
+each loop (``os.times``, user + system of every thread: OpenCV's pool included when it has one) per frame.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import inspect
+import os
 import pstats
 import statistics
 import tempfile
@@ -115,11 +121,25 @@ def _calls_per_frame(counter: cProfile.Profile, frames: int, top: int = 25) -> d
     }
 
 
+def _process_cpu() -> float:
+    """The process's CPU time so far (user + system, every thread), in seconds."""
+    times = os.times()
+    return times.user + times.system
+
+
+def _sleep_until(when: float) -> None:
+    """Sleep until ``when`` (``time.perf_counter``'s clock); a frame that is already late starts at once."""
+    wait = when - time.perf_counter()
+    if wait > 0.0:
+        time.sleep(wait)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--loops", type=int, default=3, help="passes over the 6 s of frames (the first warms up)")
     parser.add_argument("--profile", action="store_true", help="split the pipeline's time by stage")
     parser.add_argument("--calls", action="store_true", help="count the Python calls per frame in one more pass")
+    parser.add_argument("--paced", action="store_true", help="one frame every 1/30 s, as the camera delivers them")
     parser.add_argument("--json", help="write the figures here")
     parser.add_argument("--detect-scale", type=float, help="[touch] detect_scale (default: the config's)")
     args = parser.parse_args()
@@ -182,11 +202,15 @@ def main() -> int:
     per_loop: list[dict[str, float]] = []
     shown = 0
     counter = cProfile.Profile()
+    process_ms: list[float] = []
     for loop in range(passes):
         cpu.clear()
         counting = loop == loops
+        begun, process_start = time.perf_counter(), _process_cpu()
         for i, frame in enumerate(frames):
             t = (loop * len(frames) + i) / FPS
+            if args.paced:
+                _sleep_until(begun + (i + 1) / FPS)
             while shown / FPS + SHOWN_OFFSET_S <= t:
                 history.record(shown / FPS + SHOWN_OFFSET_S, shown + 1, canvases[shown])
                 shown += 1
@@ -204,6 +228,8 @@ def main() -> int:
                 counter.disable()
             cpu["exposure light"] += middle - start
             cpu["pipeline"] += end - middle
+        if not counting:
+            process_ms.append(1000.0 * (_process_cpu() - process_start) / len(frames))
         row = {name: 1000.0 * value / len(frames) for name, value in cpu.items()}
         row["mix"] = row["exposure light"] - row.get("predict", 0.0)
         row["total"] = row["exposure light"] + row["pipeline"]
@@ -218,6 +244,11 @@ def main() -> int:
         "projector_frames_predicted": exposure.predicted,
         "ms_per_frame": {k: round(statistics.median(r.get(k, 0.0) for r in later), 3) for k in sorted(later[0])},
         "total_by_loop": [round(r["total"], 3) for r in per_loop],
+        "paced": args.paced,
+        # Everything the process ran in each later loop, per frame: the timed work, the history's bookkeeping and
+        # any other thread (at os.times' resolution, 10 ms a loop: ~0.06 ms a frame).
+        "process_ms_per_frame": round(statistics.median(process_ms[1:]), 3),
+        "process_ms_by_loop": [round(v, 3) for v in process_ms],
     }
     if args.calls:
         report.update(_calls_per_frame(counter, len(frames)))
