@@ -88,7 +88,6 @@ def find_candidates(
     edge_radius: float = 10.0,
     scratch: Scratch | None = None,
     split_fraction: float = 0.0,
-    edges: bool = True,
     room_floor: Callable[[float, float], float | None] | None = None,
 ) -> tuple[list[Candidate], Segmentation | None]:
     """Candidates (largest shadow first, working-image coordinates) and their segmentation (None when none).
@@ -98,28 +97,19 @@ def find_candidates(
     of at least ``min_area`` px (the largest part always); the shadow's pixels are shared out to the nearest
     part. 0 never splits. Of two candidates centred on each other's footprint only the deeper is kept.
 
-    ``scratch`` holds the working-size mask (:mod:`feelium.touch.buffers`); nothing returned refers to it.
-    ``edges=False`` leaves every candidate's edge at 0.0: a caller that reads only where the shadows are (the coarse
-    pass of a two-resolution pipeline, :mod:`feelium.touch.refine`, which finds the candidates again finer) saves
-    the gradient filters, the costliest part of a candidate.
+    ``scratch`` holds the working-size mask (:mod:`feelium.touch.buffers`); nothing returned refers to it. (A caller
+    that reads only where the shadows are, the coarse pass of a two-resolution pipeline, takes :func:`shadow_boxes`.)
 
     ``room_floor(x, y)``: the deepest smoothed depth a hand above the membrane can cast at a point of ``depth``
     (all the light that is not the projector's, :mod:`feelium.touch.roomshare`), None where it is unknown. A core
     deeper than it is localised on that part alone (:func:`_contact_point`); depth, area and edge do not change.
     """
-    buf = Scratch() if scratch is None else scratch
-    full_mask = np.greater(depth, threshold, out=buf.like("candidates.mask", depth, bool)).view(np.uint8)
-    bx, by, bw, bh = cv2.boundingRect(full_mask)
-    if bw == 0 or bh == 0:
+    shadows = _components(depth, threshold, scratch)
+    if shadows is None:
         return [], None
-    mask = full_mask[by : by + bh, bx : bx + bw]
+    labels, areas, order, (bx, by) = shadows
     full_depth = depth
-    depth = depth[by : by + bh, bx : bx + bw]
-    # Labels only, then areas by bincount and boxes for the few kept: OpenCV's WithStats variant also computes
-    # centroids, which made it ~10x slower than the labelling alone (370-515 against 40 us on a 256x192 mask).
-    count, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_32S)
-    areas = np.bincount(labels.ravel(), minlength=count)[1:]
-    order = np.argsort(-areas, kind="stable")
+    depth = depth[by : by + labels.shape[0], bx : bx + labels.shape[1]]
     found: list[Candidate] = []
     for index in order[:max_candidates]:
         area = int(areas[index])
@@ -135,11 +125,12 @@ def find_candidates(
         weights = values - level
         np.maximum(weights, 0.0, out=weights)
         core = weights > 0
-        if float(weights.sum()) <= 0.0 or not np.isfinite(weights.sum()):
+        weight = float(weights.sum())
+        if weight <= 0.0 or not math.isfinite(weight):
             # A flat core (e.g. saturated depth 1.0 everywhere): fall back to the plain core centroid.
             core = values >= level
             weights = core.astype(depth.dtype)
-        split_level = split_fraction * float(values[core].mean())
+        split_level = split_fraction * _mean(values[core])
         for part, owned, part_area in _core_parts(values, core, inside, split_level, min_area):
             part_weights = np.where(part, weights, 0.0)
             total = float(part_weights.sum())
@@ -154,22 +145,64 @@ def find_candidates(
                     core_point = (cx, cy)
                     cx, cy = _contact_point(values, part, floor, (bx + x0, by + y0), core_point)
             part_values = values[part]
+            part_mean = _mean(part_values)
             # The footprint: where the shadow is at least core_fraction of the core's *mean* depth. The peak of a
             # large flat contact is the largest of many noisy pixels, so a level from it cuts into the plateau.
-            footprint = owned & (values >= core_fraction * float(part_values.mean()))
+            footprint = owned & (values >= core_fraction * part_mean)
             fys, fxs = footprint.nonzero()
-            edge = 0.0
-            if edges:
-                x_min, y_min = bx + x0 + int(xs.min()), by + y0 + int(ys.min())
-                x_max, y_max = bx + x0 + int(xs.max()), by + y0 + int(ys.max())
-                edge = steepest_gradient(full_depth, (x_min, y_min, x_max, y_max), edge_radius)
+            x_min, y_min = bx + x0 + int(xs.min()), by + y0 + int(ys.min())
+            x_max, y_max = bx + x0 + int(xs.max()), by + y0 + int(ys.max())
+            edge = steepest_gradient(full_depth, (x_min, y_min, x_max, y_max), edge_radius)
             found.append(Candidate(
-                cx, cy, float(part_values.max()), float(part_values.mean()), part_area, edge, label,
+                cx, cy, float(part_values.max()), part_mean, part_area, edge, label,
                 (bx + x0, by + y0, w, h), int(fxs.size), _covariance(fxs, fys), core_point,
             ))  # fmt: skip
             if len(found) >= max_candidates:
                 break
     return _drop_surrounding(found), Segmentation(labels, (bx, by))
+
+
+def shadow_boxes(
+    depth: np.ndarray, *, threshold: float, min_area: int, max_candidates: int, scratch: Scratch | None = None
+) -> list[tuple[int, int, int, int]]:
+    """The boxes ([x, y, w, h]) of the shadows :func:`find_candidates` would take candidates from: the components
+    above ``threshold`` of at least ``min_area`` px, the ``max_candidates`` largest.
+
+    Why: a two-resolution pipeline's coarse pass reads only where its candidates' shadows are (their boxes:
+    :func:`feelium.touch.refine.fine_window`) and finds them again finer, so their fingertips, parts, footprints and
+    depths were computed for nothing (~0.1 ms a paced frame, issue 16). The boxes are those of every candidate
+    :func:`find_candidates` returns, and possibly more: a shadow whose candidate it drops as surrounding another, or
+    that its split parts crowded out of ``max_candidates``, is looked at again finer, where the same rules apply."""
+    shadows = _components(depth, threshold, scratch)
+    if shadows is None:
+        return []
+    labels, areas, order, (bx, by) = shadows
+    boxes = []
+    for index in order[:max_candidates]:
+        if int(areas[index]) < min_area:
+            break
+        x0, y0, w, h = cv2.boundingRect(np.equal(labels, int(index) + 1).view(np.uint8))
+        boxes.append((bx + x0, by + y0, w, h))
+    return boxes
+
+
+def _components(
+    depth: np.ndarray, threshold: float, scratch: Scratch | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int, int]] | None:
+    """The connected regions of ``depth`` above ``threshold`` (8-connected), labelled inside the bounding box of
+    them all: (labels of the box, each label's area (label ``i + 1`` at ``i``), the labels' indices by decreasing
+    area, the box's corner (x, y)); None when nothing is above it. ``scratch`` holds the working-size mask."""
+    buf = Scratch() if scratch is None else scratch
+    full_mask = np.greater(depth, threshold, out=buf.like("candidates.mask", depth, bool)).view(np.uint8)
+    bx, by, bw, bh = cv2.boundingRect(full_mask)
+    if bw == 0 or bh == 0:
+        return None
+    mask = full_mask[by : by + bh, bx : bx + bw]
+    # Labels only, then areas by bincount and boxes for the few kept: OpenCV's WithStats variant also computes
+    # centroids, which made it ~10x slower than the labelling alone (370-515 against 40 us on a 256x192 mask).
+    count, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_32S)
+    areas = np.bincount(labels.ravel(), minlength=count)[1:]
+    return labels, areas, np.argsort(-areas, kind="stable"), (bx, by)
 
 
 def _contact_point(
@@ -241,7 +274,7 @@ def _covariance(xs: np.ndarray, ys: np.ndarray) -> tuple[float, float, float]:
     if xs.size == 0:
         return 0.0, 0.0, 0.0
     fx, fy = xs.astype(np.float64), ys.astype(np.float64)
-    mx, my = fx.mean(), fy.mean()
+    mx, my = _mean(fx), _mean(fy)
     dx, dy = fx - mx, fy - my
     return float(np.dot(dx, dx) / xs.size + 1 / 12), float(np.dot(dy, dy) / xs.size + 1 / 12), float(np.dot(dx, dy) / xs.size)
 
@@ -263,3 +296,13 @@ def steepest_gradient(depth: np.ndarray, box: tuple[int, int, int, int], radius:
     gy = cv2.Sobel(patch, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
     steepest = float(cv2.magnitude(gx, gy).max())
     return steepest if math.isfinite(steepest) else 0.0
+
+
+
+def _mean(values: np.ndarray) -> float:
+    """``float(values.mean())`` to the bit (numpy sums in the array's float type, divides in float64 and rounds back
+    to that type), NaN when empty. Why: ``ndarray.mean`` runs numpy's Python layer (``_methods._mean``), 3.8 against
+    1.5 us on a candidate's few hundred values, and a candidate takes five means (issue 16)."""
+    if values.size == 0:
+        return math.nan
+    return float(values.dtype.type(float(values.sum()) / values.size))

@@ -21,7 +21,7 @@ import numpy as np
 
 from feelium.events import TouchEvent
 from feelium.touch.buffers import Scratch
-from feelium.touch.candidates import Candidate, Segmentation, find_candidates
+from feelium.touch.candidates import Candidate, Segmentation, find_candidates, shadow_boxes
 from feelium.touch.config import TouchConfig
 from feelium.touch.depth import MaskCounts, relative_depth
 from feelium.touch.geometry import LightGrids, WorkingGeometry
@@ -326,20 +326,26 @@ class TouchPipeline:
         darkened = int(np.count_nonzero(shadow))
         area = int(round(darkened * self.geometry.area_scale))
         depth_max = float(smooth.max()) if smooth.size else 0.0
-        # With a fine pass the coarse candidates only say where to look (fine_window): their edges go unread.
-        candidates, _ = self._find(
-            smooth, self._min_area, self._edge_radius, buf, edges=self.fine is None,
-            room_floor=self._room_floor(lambda x, y: (x, y)) if self.fine is None else None,
-        )  # fmt: skip
+        boxes: list[tuple[int, int, int, int]] = []
+        if self.fine is None:
+            candidates, _ = self._find(
+                smooth, self._min_area, self._edge_radius, buf, room_floor=self._room_floor(lambda x, y: (x, y))
+            )
+        else:  # the coarse pass only says where to look (fine_window): the boxes of the shadows candidates come from
+            candidates = []
+            boxes = shadow_boxes(
+                smooth, threshold=cfg.candidate_depth, min_area=self._min_area, max_candidates=cfg.max_candidates,
+                scratch=buf,
+            )  # fmt: skip
         geometry = self.geometry
         fine_inputs = None
         learn_detail = self.fine is not None and self.settled and self.detail.due(t)
-        if self.fine is not None and (candidates or learn_detail):
+        if self.fine is not None and (boxes or learn_detail):
             lights = None if light is None else (projected_light, light, fine_light)
             fine_inputs = self._fine_inputs(frame, backlight_gain, lights, bound_full)
-        if candidates and fine_inputs is not None:
+        if boxes and fine_inputs is not None:
             # The fine depth decides, as the full-resolution path would: a coarse shadow it finds nothing in is none.
-            candidates, geometry = self._refine(fine_inputs, candidates), self.fine
+            candidates, geometry = self._refine(fine_inputs, boxes), self.fine
         observations = []
         kept = []
         # The share per tile is made when something reads it: a candidate, or health's judgement of the room.
@@ -536,12 +542,12 @@ class TouchPipeline:
             return lambda window: whole[window]
         return upsampled
 
-    def _refine(self, inputs: FineInputs, candidates: list[Candidate]) -> list[Candidate]:
-        """The candidates found again at the working resolution around the coarse ones' shadows (fine working
-        coordinates)."""
+    def _refine(self, inputs: FineInputs, boxes: list[tuple[int, int, int, int]]) -> list[Candidate]:
+        """The candidates found at the working resolution around the coarse pass's shadows (``boxes``, detection
+        pixels), in fine working coordinates."""
         fine, cfg = self.fine, self.config
         assert fine is not None
-        window = fine_window([c.bbox for c in candidates], self.geometry, fine, self._fine_margin)
+        window = fine_window(boxes, self.geometry, fine, self._fine_margin)
         buf = self._fine_scratch
         smooth = fine_depth(
             inputs, window, sigma=self._fine_sigma, dark_level=cfg.dark_reference_level,
@@ -593,11 +599,10 @@ class TouchPipeline:
         edge_radius: float,
         scratch: Scratch,
         *,
-        edges: bool = True,
         room_floor: Callable[[float, float], float | None] | None = None,
     ) -> tuple[list[Candidate], Segmentation | None]:
-        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes (``edges``,
-        ``room_floor``: :func:`find_candidates`'s)."""
+        """The candidates in a smoothed depth image with the config's gates, at one resolution's sizes
+        (``room_floor``: :func:`find_candidates`'s)."""
         cfg = self.config
         return find_candidates(
             smooth,
@@ -608,7 +613,6 @@ class TouchPipeline:
             edge_radius=edge_radius,
             scratch=scratch,
             split_fraction=cfg.contact_split_fraction,
-            edges=edges,
             room_floor=room_floor,
         )
 
