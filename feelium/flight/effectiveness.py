@@ -26,7 +26,8 @@ class Effectiveness:
 
     def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
-                 confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None) -> None:
+                 confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
+                 mirrored: bool = False) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -38,7 +39,9 @@ class Effectiveness:
         ``shown``: the effectiveness a calibration flight's own pushes showed (1: the fitted model's), which a
         safety margin counts on until a real push in flight teaches it (``None``: nothing shown, the box's
         lower bound); ``reverse_shown``: the same for negative pushes, when the calibration measured them apart
-        (``None``: ``shown``)."""
+        (``None``: ``shown``); ``mirrored``: the axis answers both ways alike (a yaw torque is one motor forward
+        and one reversed whichever way it turns), so until a real push of one sign confirms its value, a large push
+        of that sign counts on what the other sign confirmed instead of the box's upper bound (:meth:`confirmed`)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -57,6 +60,7 @@ class Effectiveness:
         self._history: deque[tuple[float, float, float]] = deque()  # (t, modelled push integral, measured rate)
         self._push_integral = 0.0
         self.samples = [0, 0]
+        self.mirrored = mirrored
 
     def value(self, push: float) -> float:
         """The effectiveness for a push of this sign (the larger one for no push: the safe side)."""
@@ -70,8 +74,17 @@ class Effectiveness:
         """The effectiveness for a large push: learned from real pushes only once one taught it, else the
         box's upper bound. Small corrections against a steady draft teach a value far too low (a steady force
         that changes no rate looks ineffective), and a turn normalised by it would push several times
-        too hard; hover corrections may use :meth:`value`, a large push waits for a real one."""
+        too hard; hover corrections may use :meth:`value`, a large push waits for a real one.
+
+        On a mirrored axis a sign nothing has confirmed takes the other sign's confirmed value. On a heavy, weak
+        blimp the box's upper bound is 20 times its answer: a turn normalised by it reached 1.5 of the commanded
+        20 deg/s, too little ever to confirm, and a turn the other way was braked at +-0.35 of the motors through
+        its brake and settling, where the hover after it pushed +-0.68 (corner-MtDL, flight seed 2: that turn's
+        lapse 1.76 s, now 0.96 s; docs/flight-robustness.md, session 20).
+        """
         side = 1 if push > 0.0 else 0
+        if self.mirrored and not self.confirming_samples[side] and self.confirming_samples[1 - side]:
+            side = 1 - side
         return self.strong_values[side] if self.confirming_samples[side] else self.high
 
     def assured(self, push: float) -> float:

@@ -312,7 +312,7 @@ class YawEstimate:
         self.last_heading_t: float | None = None
         low, high = effectiveness_bounds(config.uncertainty("yaw"), reverse=False)
         self.effectiveness = Effectiveness(low * _yaw_reverse_share(config), high, min_change=0.01,
-                                           confirming_change=YAW_CONFIRMING_CHANGE_RAD_S)
+                                           confirming_change=YAW_CONFIRMING_CHANGE_RAD_S, mirrored=True)
 
     def update(self, t: float, dt: float, heading_deg: float | None, gyro_dps: float | None, torque_mean: float) -> None:
         if gyro_dps is not None and self.fine_heading is not None:

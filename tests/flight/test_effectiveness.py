@@ -197,6 +197,28 @@ def test_a_steady_push_against_a_draft_does_not_make_a_large_push_count_on_a_low
     assert Effectiveness(0.25, 4.0, confirming_change=0.035).confirmed(1.0) == 4.0  # untaught: the safe side
 
 
+def test_a_mirrored_axis_lets_a_large_push_count_on_what_the_other_direction_confirmed() -> None:
+    """A yaw torque is one motor forward and one reversed either way: until a large push of one sign is confirmed,
+    it counts on what the other sign confirmed, not on the box's strongest (on a heavy, weak blimp 20 times its
+    answer: a turn that never turned and a brake that barely braked). Everything else keeps its own side."""
+    rate, dt = 0.0, 0.02
+    plain = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035)
+    mirrored = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035, mirrored=True)
+    for k in range(100):  # large pushes one way only, on a weak body (gain 0.3)
+        rate += 0.3 * 0.5 * dt
+        for estimator in (plain, mirrored):
+            estimator.update(k * dt, dt, 0.5, rate)
+    assert plain.confirmed(-1.0) == 4.0  # unmirrored, the other sign keeps the box's strongest
+    assert mirrored.confirmed(1.0) == pytest.approx(0.3, rel=0.05)
+    assert mirrored.confirmed(-1.0) == mirrored.confirmed(1.0)
+    assert mirrored.value(-1.0) == 4.0 and mirrored.assured(-1.0) == 0.25  # hover corrections and stop margins: own side
+    for k in range(100, 200):  # then large pushes the other way, twice as strong: that sign now counts on its own
+        rate -= 0.6 * 0.5 * dt
+        mirrored.update(k * dt, dt, -0.5, rate)
+    assert mirrored.confirmed(-1.0) == pytest.approx(0.6, rel=0.05)
+    assert mirrored.confirmed(1.0) == pytest.approx(0.3, rel=0.05)
+
+
 @given(u=st.floats(1.0, 4.0), v=st.floats(1.0, 4.0))
 def test_the_speed_estimate_trusts_the_model_less_the_less_it_is_known(u: float, v: float) -> None:
     """3 s for a model trusted outright, 80 ms for the shipped box; a fitted surge model (1.05-1.2) is
