@@ -1,12 +1,14 @@
 """The flight service: motor board link, control loop, failsafes, state on the hub.
 
-A thin shell around :class:`FlightController`. Every period one job of the
-service's serial thread waits out the period, polls the board, steps the
-controller with the wearer's dead-man command and the soften flag (from the
-touch and interaction events taken at the step), and commands the motors at
-once; the loop then publishes altitude, heading, battery and link state. So
-the loop never blocks on the port, the port is never used from two threads at
-once, and a tick costs one hand-off to the thread and one wake-up of the loop.
+A thin shell around :class:`FlightController`. While the board's link is
+open, one job of the service's serial thread flies it: every period it waits
+out the period on its own clock, polls the board, steps the controller with
+the wearer's dead-man command and the soften flag (from the touch and
+interaction events taken at the step), and commands the motors at once; the
+loop only publishes altitude, heading, battery and link state, and takes up a
+lost link. So the loop never blocks on the port, the port is never used from
+two threads at once, a late event loop (an HTTP burst, a CPU quota) does not
+delay the motors, and a tick costs at most one wake-up of the loop.
 When the port disappears it keeps stepping the controller without telemetry
 (which goes to its failsafe; the board's own watchdog stops the motors) and
 reopens the port with a doubling backoff, capped
@@ -66,11 +68,19 @@ LINK_REASONS = {
 
 
 class _Tick(NamedTuple):
-    """One control tick as the serial thread hands it to the loop: the step's time and output, and what failed."""
+    """One control tick: the step's time and output, and what failed."""
 
     t: float  # when the controller stepped (hub time)
     out: ControlOutput
     poll_started: float | None = None  # None: no poll (no link, or released while the tick waited)
+    poll_error: Exception | None = None
+    send_error: Exception | None = None
+
+
+class _Flown(NamedTuple):
+    """How a link's flight ended, as the serial thread hands it back to the loop: the next due time, what failed."""
+
+    due: float
     poll_error: Exception | None = None
     send_error: Exception | None = None
 
@@ -183,6 +193,9 @@ class FlightService:
         self._backoff_s = min(config.reconnect_min_s, config.reconnect_max_s)
         self._serial: ThreadPoolExecutor | None = None
         self._wake = threading.Event()  # set when the link is released: a poll waiting for its tick is not made
+        self._loop: asyncio.AbstractEventLoop | None = None  # run()'s loop, where the serial thread posts each tick's state
+        self._unpublished: tuple[MspClient, ControlOutput] | None = None  # posted by the serial thread, not yet published
+        self._unpublished_lock = threading.Lock()
         # How late each tick runs against its due time: the poll's start and the controller's step, both on the
         # serial thread since the step moved there; what the event loop's load can delay is the start (docs/daemon.md).
         self.start_late = LatenessHistogram()
@@ -200,14 +213,14 @@ class FlightService:
         events = self.hub.bus.subscribe(types=(TouchEvent, InteractionEvent), maxsize=64)
         serial = self._serial = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flight-serial", initializer=name_current_thread)
         self._wake.clear()
+        self._loop = asyncio.get_running_loop()
         try:
-            next_t = self.hub.clock()
+            due = self.hub.clock()
             while not self.stopping:
-                await self._cycle(events, next_t)
-                next_t += period
-                if next_t < self.hub.clock():
-                    self.overruns += 1
-                    next_t = self.hub.clock()
+                if self.client is None:
+                    due = await self._cycle_without_link(events, due, period)
+                else:
+                    due = await self._fly(events, due, period)
         finally:
             events.close()
             self._release()  # a crash or a cancel must not leave the last command on the motors
@@ -324,50 +337,102 @@ class FlightService:
         else:
             log.warning("flight: motor board link %s (%s)%s", state, LINK_REASONS[state], flapped)
 
-    # ------------------------------------------------------------ one cycle
-    async def _cycle(self, events: Subscription[Any], due: float) -> None:
-        """One control cycle at ``due``: poll, step, command (one serial-thread job), then publish on the loop.
+    # ------------------------------------------------------------ the cycles
+    async def _cycle_without_link(self, events: Subscription[Any], due: float, period: float) -> float:
+        """A cycle with no board to fly: sleep to ``due``, reopen the port when its backoff is over, else step.
 
-        With a link, the whole tick is one job of the serial thread (:meth:`_tick`): it waits for ``due``,
-        polls, steps the controller and writes the motor command, so a tick costs one hand-off to the thread
-        and one wake-up of the loop, for the publication. Without one, the loop sleeps and steps the controller
-        itself (no telemetry: it goes to its failsafe), never while a job of the thread runs.
+        The controller steps on the loop without telemetry (it goes to its failsafe; the board's own watchdog
+        stops the motors). A port that opens is flown from this same ``due``, so no tick is lost to the open.
+        Returns the next cycle's due time.
         """
-        if self.client is None or self.stopping:
-            await asyncio.sleep(max(0.0, due - self.hub.clock()))
+        await asyncio.sleep(max(0.0, due - self.hub.clock()))
         now = self.hub.clock()
-        if self.client is None and now >= self._next_open_t and not self.stopping:
+        if now >= self._next_open_t and not self.stopping:
             await self._open(now)
+            if self.client is not None:
+                return due
+        now = self.hub.clock()
+        tick = _Tick(now, self._step(events, now, None))
+        self._count(tick, due, link_up=False)
+        self._publish(tick.out)
+        return self._next_due(due, period)
+
+    async def _fly(self, events: Subscription[Any], due: float, period: float) -> float:
+        """Fly the open link until it fails or is released: one job of the serial thread, however many ticks.
+
+        The thread keeps its own time (:meth:`_fly_ticks`), so how late the event loop runs (a burst of HTTP, a
+        CPU quota) no longer delays the motors: the loop only publishes each tick's state, and takes up a lost
+        link. Returns the next cycle's due time.
+        """
         client = self.client
-        if client is None:
-            now = self.hub.clock()
-            tick = _Tick(now, self._step(events, now, None))
-        else:
+        assert client is not None
+        flown = await self._on_serial_thread(self._fly_ticks, client, events, due, period)
+        error = flown.poll_error or (flown.send_error if client is self.client else None)  # one stop() released is no longer ours
+        if error is not None:  # serial.SerialException is an OSError
+            await self._lost(self.hub.clock(), error)
+        return flown.due
+
+    def _fly_ticks(self, client: MspClient, events: Subscription[Any], due: float, period: float) -> _Flown:
+        """Serial-thread job: tick at ``period`` from ``due`` until the link fails or is released.
+
+        Each tick's state goes to the loop by :meth:`_post`, which wakes the loop at most once for however many
+        ticks it has not published yet. A released link (stop(), the end of run(), a cancel) wakes the wait at
+        once and ends the job, so the neutral queued behind it is the next thing on the port.
+        """
+        while True:
             battery = self.cycles % self.config.battery_every == 0
-            tick = await self._on_serial_thread(self._tick, client, events, due, battery)
-            if tick.poll_error is not None:  # serial.SerialException is an OSError
-                await self._lost(now, tick.poll_error)
-            elif tick.send_error is not None and client is self.client:  # one stop() released is no longer ours
-                await self._lost(now, tick.send_error)
-            else:
-                self._observe_link(client)
+            tick = self._tick(client, events, due, battery)
+            self._count(tick, due, link_up=client.state == "up")
+            self._post(client, tick.out)
+            due = self._next_due(due, period)
+            if tick.poll_error is not None or tick.send_error is not None or client is not self.client or self.stopping:
+                return _Flown(due, tick.poll_error, tick.send_error)
+
+    def _count(self, tick: _Tick, due: float, *, link_up: bool) -> None:
+        """Record a tick: its lateness, its output, the heartbeat; the rate counts ticks flown with the board up."""
         self.start_late.record((tick.t if tick.poll_started is None else tick.poll_started) - due)
         self.step_late.record(tick.t - due)
         self.last = tick.out
         self.cycles += 1
         self.heartbeat_at = tick.t
-        if self.link_state == "up":
+        if link_up:
             self._rate.tick(tick.t)
-        self._publish(tick.out)
+
+    def _next_due(self, due: float, period: float) -> float:
+        """The next tick's due time; a tick that ran past it is an overrun, and the schedule restarts from now."""
+        due += period
+        now = self.hub.clock()
+        if due < now:
+            self.overruns += 1
+            return now
+        return due
+
+    def _post(self, client: MspClient, out: ControlOutput) -> None:
+        """Serial thread: hand a tick's state to the loop; a publication still pending is replaced, not queued."""
+        with self._unpublished_lock:
+            pending, self._unpublished = self._unpublished, (client, out)
+        if pending is None:
+            assert self._loop is not None, "a tick outside run()"
+            self._loop.call_soon_threadsafe(self._publish_posted)
+
+    def _publish_posted(self) -> None:
+        """Loop: publish the newest tick the serial thread posted, and the link state its client saw."""
+        with self._unpublished_lock:
+            posted, self._unpublished = self._unpublished, None
+        if posted is None:
+            return
+        client, out = posted
+        self._observe_link(client)
+        self._publish(out)
 
     def _tick(self, client: MspClient, events: Subscription[Any], due: float, with_battery: bool) -> _Tick:
-        """Serial-thread job, one control tick: wait for ``due``, poll, step, command the motors at once.
+        """Serial thread, one control tick: wait for ``due``, poll, step, command the motors at once.
 
         A released link (stop(), the end of run()) wakes the wait and is not polled: the step then has no
         telemetry and nothing is written, so the neutral queued behind this job is the next thing on the port.
         Nothing is written once ``stopping`` is set either; should stop() come between that check and the
         write, its neutral still follows the write, on this same thread. Errors are returned, not raised:
-        the controller steps in every tick, and the loop takes up a lost link (:meth:`_cycle`).
+        the controller steps in every tick, and the loop takes up a lost link (:meth:`_fly`).
         """
         delay = due - self.hub.clock()
         telemetry, started, poll_error = None, None, None
@@ -391,7 +456,7 @@ class FlightService:
         """The controller's step at ``now`` with the events so far, the softening and the dead-man command.
 
         Runs on the serial thread with a link and on the loop without one, never on both at once (the loop
-        awaits the thread's tick): the soften tracker and the controller are only ever stepped by one of them.
+        awaits the thread's job): the soften tracker and the controller are only ever stepped by one of them.
         ``health()`` reads the controller's counters and estimates from the loop meanwhile: plain numbers,
         each whole, though one may be a tick newer than another.
         """

@@ -276,6 +276,7 @@ async def test_a_stalled_rear_camera_reads_zero_fps_within_two_seconds_and_is_de
 async def test_the_watchdog_is_fed_with_the_rear_camera_dead_and_stops_when_the_flight_loop_is_stuck(caplog):
     config = _config(rear_camera="picamera2", flight="sim")  # no picamera2 here: the rear camera is dead
     watchdog = Watchdog()
+    released = threading.Event()
 
     async def script(hub: Hub, supervisor: Supervisor) -> None:
         await _until(lambda: _state(hub, "touch") == "failed" and _state(hub, "flight") == "simulated", 20.0)
@@ -287,12 +288,18 @@ async def test_the_watchdog_is_fed_with_the_rear_camera_dead_and_stops_when_the_
         assert not [r for r in caplog.records if "flight loop stalled" in r.getMessage()]
         flight = supervisor.records["flight"].service
 
-        async def stuck(events: Any, due: float) -> None:
-            await asyncio.Event().wait()  # a cycle that never ends: the loop is alive, flight is not
+        tick = flight._tick
 
-        flight._cycle = stuck
+        def stuck(*args: Any) -> Any:  # a tick that does not return: the event loop is alive, flight is not
+            released.wait()
+            return tick(*args)
+
+        flight._tick = stuck
         hung = time.monotonic()
-        await asyncio.sleep(1.5)
+        try:
+            await asyncio.sleep(1.5)
+        finally:
+            released.set()  # the serial thread must end, or the interpreter waits for it at exit
         late = [p for p in list(watchdog.pings) if p > hung + config.daemon.flight_heartbeat_s + 0.15]
         assert late == [], f"{len(late)} pings after the flight loop hung"
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -183,19 +184,42 @@ def test_the_simulated_board_powers_up_when_the_link_opens_not_before() -> None:
 
 async def test_health_measures_the_control_rate_and_says_when_the_loop_stalls(monkeypatch) -> None:
     hub, service, opener, task = await started()
+    released = threading.Event()
     try:
         await wait_for(lambda: service.health()["fps"] > 0.5 * CONFIG.rate_hz)
         assert service.health()["condition"] == "ok"
 
-        async def stuck(*_: object) -> None:  # a cycle that never returns: the loop is alive, flight is not
-            await asyncio.Event().wait()
+        tick = service._tick
 
-        monkeypatch.setattr(service, "_cycle", stuck)
+        def stuck(*args: object) -> object:  # a tick that does not return: the event loop is alive, flight is not
+            released.wait()
+            return tick(*args)
+
+        monkeypatch.setattr(service, "_tick", stuck)
         await wait_for(lambda: service.health()["condition"] == "degraded")
         health = service.health()
         assert health["reason"].startswith("control loop stalled: no cycle for") and health["link"] == "up"
         await wait_for(lambda: service.health()["fps"] == 0.0)  # the rate decays: a stalled loop reads 0
     finally:
+        released.set()
         task.cancel()
         with pytest.raises(asyncio.CancelledError):
             await task
+
+
+async def test_the_motors_are_commanded_while_the_event_loop_is_blocked() -> None:
+    """Flight keeps its own time on the serial thread: a loop that stands still (a slow handler, a CPU quota's
+    throttling) neither stops the ticks nor lets the board's watchdog cut the motors. Before session 21 each tick was
+    handed to the thread by the loop, so a loop blocked for 0.6 s flew no tick and the board's 300 ms watchdog tripped.
+    """
+    hub, service, opener, task = await started()
+    try:
+        await wait_for(lambda: hub.state.snapshot().get("flight", {}).get("mode") == "flying")
+        assert opener.board is not None
+        trips, requests, cycles = opener.board.watchdog_trips, opener.board.requests, service.cycles
+        time.sleep(0.6)  # the event loop's thread blocked: nothing on the loop runs meanwhile
+        assert service.cycles - cycles >= 10, service.cycles - cycles  # 30 at 50 Hz; a loaded machine gives fewer
+        assert opener.board.requests > requests and opener.board.watchdog_trips == trips
+        await wait_for(lambda: hub.state.snapshot()["flight"]["link"] == "up")  # and the loop publishes again
+    finally:
+        await stopped(service, task)
