@@ -57,6 +57,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 STOP_WRITE_TIMEOUT_S = 0.3
+PUBLISH_EVERY_S = 0.1  # the serial thread wakes the loop to publish the flight state at most this often
 LOOP_STALL_S = 0.5  # no control cycle for this long (25 periods at 50 Hz): health says the loop stalled
 LINK_COUNTERS = ("stalls", "resyncs", "late_replies")  # summed over every client a run opened
 # At most this many link lines in any window this long; the changes beyond are counted into the next line.
@@ -196,6 +197,8 @@ class FlightService:
         self._loop: asyncio.AbstractEventLoop | None = None  # run()'s loop, where the serial thread posts each tick's state
         self._unpublished: tuple[MspClient, ControlOutput] | None = None  # posted by the serial thread, not yet published
         self._unpublished_lock = threading.Lock()
+        self._publish_due = False  # a wake-up of the loop for the unpublished tick is on its way
+        self._posted_at, self._posted_link = float("-inf"), ""  # when the last wake-up was posted, the link state then
         # How late each tick runs against its due time: the poll's start and the controller's step, both on the
         # serial thread since the step moved there; what the event loop's load can delay is the start (docs/daemon.md).
         self.start_late = LatenessHistogram()
@@ -367,6 +370,7 @@ class FlightService:
         client = self.client
         assert client is not None
         flown = await self._on_serial_thread(self._fly_ticks, client, events, due, period)
+        self._publish_posted()  # the last ticks, whose wake-up was not due yet
         error = flown.poll_error or (flown.send_error if client is self.client else None)  # one stop() released is no longer ours
         if error is not None:  # serial.SerialException is an OSError
             await self._lost(self.hub.clock(), error)
@@ -375,15 +379,16 @@ class FlightService:
     def _fly_ticks(self, client: MspClient, events: Subscription[Any], due: float, period: float) -> _Flown:
         """Serial-thread job: tick at ``period`` from ``due`` until the link fails or is released.
 
-        Each tick's state goes to the loop by :meth:`_post`, which wakes the loop at most once for however many
-        ticks it has not published yet. A released link (stop(), the end of run(), a cancel) wakes the wait at
-        once and ends the job, so the neutral queued behind it is the next thing on the port.
+        Each tick's state goes to the loop by :meth:`_post`, which wakes the loop at most every
+        ``PUBLISH_EVERY_S``, and at once when the link's state changes. A released link (stop(), the end of
+        run(), a cancel) wakes the wait at once and ends the job, so the neutral queued behind it is the next
+        thing on the port.
         """
         while True:
             battery = self.cycles % self.config.battery_every == 0
             tick = self._tick(client, events, due, battery)
             self._count(tick, due, link_up=client.state == "up")
-            self._post(client, tick.out)
+            self._post(client, tick.out, tick.t)
             due = self._next_due(due, period)
             if tick.poll_error is not None or tick.send_error is not None or client is not self.client or self.stopping:
                 return _Flown(due, tick.poll_error, tick.send_error)
@@ -407,18 +412,26 @@ class FlightService:
             return now
         return due
 
-    def _post(self, client: MspClient, out: ControlOutput) -> None:
-        """Serial thread: hand a tick's state to the loop; a publication still pending is replaced, not queued."""
+    def _post(self, client: MspClient, out: ControlOutput, now: float) -> None:
+        """Serial thread: hand a tick's state to the loop, waking it at most every ``PUBLISH_EVERY_S``.
+
+        The newest tick always replaces one not yet published; the loop is woken for it when the last wake-up is
+        ``PUBLISH_EVERY_S`` old or the link's state changed, so a stall or a resync shows at once. Nothing reads the
+        published state faster (the headset's state replies, health): waking the loop 50 times a second for it
+        was a tenth of its wake-ups.
+        """
         with self._unpublished_lock:
-            pending, self._unpublished = self._unpublished, (client, out)
-        if pending is None:
-            assert self._loop is not None, "a tick outside run()"
-            self._loop.call_soon_threadsafe(self._publish_posted)
+            self._unpublished = (client, out)
+            if self._publish_due or (now - self._posted_at < PUBLISH_EVERY_S and client.state == self._posted_link):
+                return
+            self._publish_due, self._posted_at, self._posted_link = True, now, client.state
+        assert self._loop is not None, "a tick outside run()"
+        self._loop.call_soon_threadsafe(self._publish_posted)
 
     def _publish_posted(self) -> None:
         """Loop: publish the newest tick the serial thread posted, and the link state its client saw."""
         with self._unpublished_lock:
-            posted, self._unpublished = self._unpublished, None
+            posted, self._unpublished, self._publish_due = self._unpublished, None, False
         if posted is None:
             return
         client, out = posted

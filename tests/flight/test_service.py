@@ -109,21 +109,24 @@ async def test_a_firm_touch_softens_and_its_release_ends_it() -> None:
 
 
 async def test_with_a_link_the_controller_steps_on_the_serial_thread() -> None:
-    """One serial-thread job a tick (poll, step, command): the loop only publishes what it stepped."""
+    """The serial thread polls, steps and commands; the loop only publishes what it stepped (at most every 0.1 s)."""
     hub, service, opener, task = await started()
     threads: list[str] = []
+    stepped: list[list[int]] = []
     step = service.controller.step
 
     def recording_step(*args: object) -> object:
         threads.append(threading.current_thread().name)
-        return step(*args)  # type: ignore[arg-type]
+        out = step(*args)  # type: ignore[arg-type]
+        stepped.append(list(out.motors_us))
+        return out
 
     try:
         service.controller.step = recording_step  # type: ignore[method-assign]
         cycles = service.cycles
         await wait_for(lambda: service.cycles > cycles + 10)
         assert len(threads) >= 10 and all(name.startswith("flight-serial") for name in threads)
-        assert service.last is not None and hub.state.snapshot()["flight"]["motors_us"] == list(service.last.motors_us)
+        await wait_for(lambda: hub.state.snapshot()["flight"]["motors_us"] in stepped[1:])  # published after patching
     finally:
         await stopped(service, task)
 
