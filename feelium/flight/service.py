@@ -183,6 +183,7 @@ class FlightService:
         self.cycles = 0
         self.heartbeat_at: float | None = None  # hub time at the end of the newest control cycle
         self._rate = RateMeter()  # cycles flown with the board answering: decays when the loop or the link stalls
+        self._rate_lock = threading.Lock()  # ticked on the serial thread, read by health() on the loop; both drop old ticks
         self.overruns = 0
         self.link_losses = 0
         self.reconnects = 0
@@ -276,7 +277,7 @@ class FlightService:
             "modes": dict(self.controller.mode_counts),
             "battery": out.battery if out else "unknown",
             "last_error": self.last_error,
-            "fps": round(self._rate.rate(self.hub.clock()), 1) if self.link_state == "up" else 0.0,
+            "fps": self._control_rate() if self.link_state == "up" else 0.0,
             "estimates": self.controller.estimates(self.hub.clock()),
         }
         if out is not None and out.mode != "waiting" and not out.speed_measured:
@@ -287,6 +288,10 @@ class FlightService:
         if board is not None:
             report["sim_watchdog_trips"] = board.watchdog_trips
         return report
+
+    def _control_rate(self) -> float:
+        with self._rate_lock:
+            return round(self._rate.rate(self.hub.clock()), 1)
 
     def _condition(self) -> dict[str, str]:
         """The motor board link as the part's health: without a board answering, flight is not ok."""
@@ -401,7 +406,8 @@ class FlightService:
         self.cycles += 1
         self.heartbeat_at = tick.t
         if link_up:
-            self._rate.tick(tick.t)
+            with self._rate_lock:
+                self._rate.tick(tick.t)
 
     def _next_due(self, due: float, period: float) -> float:
         """The next tick's due time; a tick that ran past it is an overrun, and the schedule restarts from now."""
