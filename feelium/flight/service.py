@@ -447,7 +447,8 @@ class FlightService:
     def _tick(self, client: MspClient, events: Subscription[Any], due: float, with_battery: bool) -> _Tick:
         """Serial thread, one control tick: wait for ``due``, poll, step, command the motors at once.
 
-        A released link (stop(), the end of run()) wakes the wait and is not polled: the step then has no
+        A released link (stop(), the end of run()) wakes the wait and is not polled, nor is it when the tick was
+        already due and did not wait (a late thread): the step then has no
         telemetry and nothing is written, so the neutral queued behind this job is the next thing on the port.
         Nothing is written once ``stopping`` is set either; should stop() come between that check and the
         write, its neutral still follows the write, on this same thread. Errors are returned, not raised:
@@ -455,7 +456,8 @@ class FlightService:
         """
         delay = due - self.hub.clock()
         telemetry, started, poll_error = None, None, None
-        if not (delay > 0.0 and self._wake.wait(delay)):
+        released = self._wake.wait(delay) if delay > 0.0 else self._wake.is_set()  # an overdue tick asks too
+        if not released:
             started = self.hub.clock()
             try:
                 telemetry = client.poll(with_battery)

@@ -203,3 +203,39 @@ async def test_a_crashed_run_leaves_motors_neutral_and_ends_its_thread_and_a_res
     restarted = opener.links[1]
     assert len(restarted.threads | opener.opened_on) == 1
     assert is_neutral(requests_in(restarted.written)[-1]) and restarted.closed_at_bytes is not None
+
+
+async def test_a_stop_before_an_overdue_tick_is_not_answered_with_a_poll_of_the_released_link() -> None:
+    """stop() releases the link just before a tick that is already due (a loaded machine: the thread runs late).
+
+    The tick must see the release and go without polling, so the neutral is the next thing on the port: a poll of
+    the released link would put a whole exchange (up to the reply timeout, longer on a board that answers late)
+    between stop() and its neutral.
+    """
+    hub = Hub()
+    opener = RecordingOpener(CONFIG, 1, hub.clock)
+    service = FlightService(CONFIG, hub, opener)
+    fly_ticks = service._fly_ticks
+    entered, gate = threading.Event(), threading.Event()
+
+    def late_fly_ticks(*args: object) -> object:  # the serial thread gets to the job late
+        entered.set()
+        gate.wait(5.0)
+        return fly_ticks(*args)  # type: ignore[arg-type]
+
+    service._fly_ticks = late_fly_ticks  # type: ignore[method-assign]
+    task = asyncio.create_task(service.run())
+    try:
+        await wait_for(entered.is_set)
+        (link,) = opener.links
+        written_before_stop = len(link.written)
+        stopping = asyncio.create_task(service.stop())
+        await asyncio.sleep(0)  # stop() has released the link and queued its neutral
+        assert service.client is None
+        await asyncio.sleep(3.0 / CONFIG.rate_hz)  # the job's first tick is now overdue
+    finally:
+        gate.set()
+    await stopping
+    await asyncio.wait_for(task, 2.0)
+    after_stop = requests_in(link.written[written_before_stop:])
+    assert [f.command for f in after_stop] == [m.MSP_SET_MOTOR] and is_neutral(after_stop[0]), "the released link was polled"
