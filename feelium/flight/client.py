@@ -458,8 +458,16 @@ class MspClient:
         return None if self.telemetry_t is None else self.clock() - self.telemetry_t
 
     def _oldest_outstanding_s(self) -> float | None:
-        """How long the oldest tracked request has waited: how far behind a lagging board is."""
-        return self.clock() - self._outstanding[0].written_t if self._outstanding else None
+        """How long the oldest tracked request has waited: how far behind a lagging board is.
+
+        Read by health() on the event loop while the serial thread polls, which may take the last request
+        between a check and a read: so one read, and an empty FIFO found there is none.
+        """
+        try:
+            oldest = self._outstanding[0]
+        except IndexError:
+            return None
+        return self.clock() - oldest.written_t
 
     def health(self) -> dict[str, object]:
         return {

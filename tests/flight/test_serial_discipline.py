@@ -9,6 +9,7 @@ import ast
 import asyncio
 import threading
 import time
+from collections import deque
 from pathlib import Path
 
 import pytest
@@ -20,6 +21,7 @@ from feelium.flight.controller import ControlOutput, FlightController
 from feelium.flight.sim_board import SimSerial
 from feelium.flight.mixer import NEUTRAL, to_microseconds
 from feelium.flight.msp import MspFrame, MspParser
+from feelium.flight.replies import Outstanding
 from feelium.flight.service import STOP_WRITE_TIMEOUT_S, FlightService, SimOpener
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.hub import Hub
@@ -239,3 +241,21 @@ async def test_a_stop_before_an_overdue_tick_is_not_answered_with_a_poll_of_the_
     await asyncio.wait_for(task, 2.0)
     after_stop = requests_in(link.written[written_before_stop:])
     assert [f.command for f in after_stop] == [m.MSP_SET_MOTOR] and is_neutral(after_stop[0]), "the released link was polled"
+
+
+class TakenJustBeforeTheRead(deque):  # type: ignore[type-arg]
+    """Outstanding requests as the loop's health() sees them while the serial thread takes the last one's reply:
+    counted, then gone by the time one is read (the thread ran in between)."""
+
+    def __getitem__(self, index: int) -> Outstanding:  # type: ignore[override]
+        self.clear()
+        return super().__getitem__(index)
+
+
+def test_the_client_health_read_on_the_loop_survives_the_serial_thread_taking_the_last_reply_meanwhile() -> None:
+    """health() never raises (feelium/service.py); the supervisor feeds systemd's watchdog only on a health() that
+    shows the flight heartbeat, so a race with the serial thread must not make it raise."""
+    client = MspClient(SimOpener(CONFIG, 1, time.monotonic).open(), clock=time.monotonic)
+    client._outstanding = TakenJustBeforeTheRead([Outstanding(m.MSP_ATTITUDE, time.monotonic(), 1)])
+    health = client.health()
+    assert health["outstanding"] == 1 and health["oldest_outstanding_s"] is None
