@@ -9,9 +9,9 @@ through a :class:`LoopInbox`, which wakes the loop once per batch: once per
 frame when the loop keeps up, once for several when it lags. Both are bounded,
 so a slow side makes the other drop (the camera's frames, newest wins) or wait
 (the pipeline, for a loop that has not drained its results), never queue
-without bound. A job that must be awaited once per unit of work (flight's tick,
-the projector's render) goes to its thread by :func:`call_on`, which posts the
-result straight to the awaiting future.
+without bound. A job that must be awaited once per unit of work (the projector's
+render; flight's opening, closing and flying of a link) goes to its thread by
+:func:`call_on`, which posts the result straight to the awaiting future.
 """
 
 from __future__ import annotations
@@ -140,8 +140,8 @@ async def call_on(executor: Executor, fn: Callable[..., T], *args: Any) -> T:
     schedules the task. Here the worker posts the outcome straight into the awaited future (one
     ``call_soon_threadsafe``, as before), and the chain's bookkeeping goes: per hand-off on uvloop, 41-44 ->
     19-25 us of the loop thread and 64-68 -> 37-45 us of the process on this machine
-    (``benchmarks/handoff_cost.py``; docs/performance.md, session 16), paid 50 times a second by flight and 30
-    by the projector. The rest is as before: jobs run
+    (``benchmarks/handoff_cost.py``; docs/performance.md, session 16), paid 30 times a second by the projector
+    (and 50 by flight's ticks until session 21, since when a link is flown as one job). The rest is as before: jobs run
     one after another on the executor's threads, an exception is raised to the awaiting task, and a
     cancelled wait cancels a job that has not started (one that runs finishes; its outcome is dropped).
     """

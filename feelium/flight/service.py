@@ -206,8 +206,8 @@ class FlightService:
         self.step_late = LatenessHistogram()
 
     async def _on_serial_thread(self, call: Callable[..., Any], *args: Any) -> Any:
-        """Run a port operation on this run's serial thread (jobs run one at a time, in order); its outcome comes
-        back by one post to the loop (:func:`call_on`), 50 times a second."""
+        """Run a port operation on this run's serial thread (jobs run one at a time, in order): an open, a close, a
+        whole link's flight (:meth:`_fly`); its outcome comes back by one post to the loop (:func:`call_on`)."""
         assert self._serial is not None, "serial I/O outside run()"
         return await call_on(self._serial, call, *args)
 
