@@ -387,8 +387,13 @@ class FlightService:
         Each tick's state goes to the loop by :meth:`_post`, which wakes the loop at most every
         ``PUBLISH_EVERY_S``, and at once when the link's state changes. A released link (stop(), the end of
         run(), a cancel) wakes the wait at once and ends the job, so the neutral queued behind it is the next
-        thing on the port.
+        thing on the port. So does an event loop that no longer runs (a blocked one still does): nothing could
+        stop the motors or take up a lost link any more, and a job that flew on would keep the interpreter's exit
+        waiting for this thread for ever; the board's watchdog sets neutral instead, and a loop that runs again
+        flies the link again (:meth:`_fly`).
         """
+        loop = self._loop
+        assert loop is not None, "a flight outside run()"
         while True:
             battery = self.cycles % self.config.battery_every == 0
             tick = self._tick(client, events, due, battery)
@@ -397,6 +402,8 @@ class FlightService:
             due = self._next_due(due, period)
             if tick.poll_error is not None or tick.send_error is not None or client is not self.client or self.stopping:
                 return _Flown(due, tick.poll_error, tick.send_error)
+            if not loop.is_running():
+                return _Flown(due)
 
     def _count(self, tick: _Tick, due: float, *, link_up: bool) -> None:
         """Record a tick: its lateness, its output, the heartbeat; the rate counts ticks flown with the board up."""

@@ -259,3 +259,35 @@ def test_the_client_health_read_on_the_loop_survives_the_serial_thread_taking_th
     client._outstanding = TakenJustBeforeTheRead([Outstanding(m.MSP_ATTITUDE, time.monotonic(), 1)])
     health = client.health()
     assert health["outstanding"] == 1 and health["oldest_outstanding_s"] is None
+
+
+def test_an_event_loop_stopped_under_a_running_flight_does_not_leave_its_thread_flying() -> None:
+    """A loop that stops with run() still pending (run_until_complete of something else, then the program ends):
+    nothing on it can stop the motors, take up a lost link or publish any more. The link's job must end, or it
+    flies on for ever and the interpreter's exit, which joins the serial thread, hangs with the motors still
+    commanded. Ended, the board's watchdog sets them neutral (docs/motor-board.md), as after any end of the Pi's side.
+    A loop that is running but blocked is another matter: flight goes on (test_service.py).
+    """
+    loop = asyncio.new_event_loop()
+    hub = Hub()
+    opener = RecordingOpener(CONFIG, 1, hub.clock)
+    service = FlightService(CONFIG, hub, opener)
+    task = loop.create_task(service.run())
+    try:
+        loop.run_until_complete(wait_for(lambda: service.cycles > 10))  # then the loop stops, run() pending
+        (link,) = opener.links
+        deadline = time.monotonic() + 5.0
+        while True:
+            written = len(link.written)
+            time.sleep(0.5)  # 25 periods
+            if len(link.written) == written:
+                break
+            assert time.monotonic() < deadline, "the serial thread flies on under a stopped event loop"
+    finally:
+        task.cancel()
+        loop.run_until_complete(asyncio.gather(task, return_exceptions=True))
+        loop.close()
+    deadline = time.monotonic() + 5.0
+    while link.closed_at_bytes is None and time.monotonic() < deadline:  # the end of run(): neutral, then close
+        time.sleep(0.02)
+    assert is_neutral(requests_in(link.written)[-1]) and link.closed_at_bytes is not None
