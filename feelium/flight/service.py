@@ -264,7 +264,7 @@ class FlightService:
             "backend": self.opener.description,
             "heartbeat_at": self.heartbeat_at,
             "link": self.link_state,
-            "telemetry_age_s": None if self._telemetry_t is None else round(self.hub.clock() - self._telemetry_t, 3),
+            "telemetry_age_s": self._telemetry_age_s(),
             **self._link_counts(),
             "cycles": self.cycles,
             "overruns": self.overruns,
@@ -288,6 +288,14 @@ class FlightService:
         if board is not None:
             report["sim_watchdog_trips"] = board.watchdog_trips
         return report
+
+    def _telemetry_age_s(self) -> float | None:
+        """How old the newest telemetry is: the live client's, which the serial thread renews every tick (the loop's
+        copy follows the publications, up to ``PUBLISH_EVERY_S`` behind), else the last one a link had."""
+        live = self.client
+        newest = None if live is None else live.telemetry_t
+        t = self._telemetry_t if newest is None else newest
+        return None if t is None else round(self.hub.clock() - t, 3)
 
     def _control_rate(self) -> float:
         with self._rate_lock:

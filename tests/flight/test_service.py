@@ -19,6 +19,7 @@ from feelium.events import InteractionEvent, TouchEvent
 from feelium.flight.config import FlightSimConfig
 from feelium.flight.sim_board import SimSerial
 from feelium.daemon.assembly import build_flight
+from feelium.flight import service as service_module
 from feelium.flight.service import FlightService, SerialOpener, SimOpener
 from feelium.hub import Hub
 
@@ -224,5 +225,23 @@ async def test_the_motors_are_commanded_while_the_event_loop_is_blocked() -> Non
         assert service.cycles - cycles >= 10, service.cycles - cycles  # 30 at 50 Hz; a loaded machine gives fewer
         assert opener.board.requests > requests and opener.board.watchdog_trips == trips
         await wait_for(lambda: hub.state.snapshot()["flight"]["link"] == "up")  # and the loop publishes again
+    finally:
+        await stopped(service, task)
+
+
+async def test_health_tells_the_age_of_the_newest_telemetry_not_of_the_newest_publication(monkeypatch) -> None:
+    """The serial thread wakes the loop to publish only every PUBLISH_EVERY_S (0.1 s); health's telemetry age must be
+    that of the telemetry the controller flies on, not of the last publication, or a fresh link reads up to 0.1 s
+    older than it is, beside a controller that refuses telemetry older than 0.1 s (issue 13 point 3). The wake-ups
+    are spaced out here so the publication is far behind; the age is bounded by the newest telemetry seen before."""
+    monkeypatch.setattr(service_module, "PUBLISH_EVERY_S", 60.0)
+    hub, service, opener, task = await started()
+    try:
+        await wait_for(lambda: service.client is not None and service.client.telemetry_t is not None)
+        first = service.client.telemetry_t
+        await wait_for(lambda: service.client.telemetry_t - first > 0.3)  # the first wake-up is long published
+        seen = service.client.telemetry_t
+        age = service.health()["telemetry_age_s"]
+        assert age is not None and age <= hub.clock() - seen + 0.0005  # rounded to the ms
     finally:
         await stopped(service, task)
