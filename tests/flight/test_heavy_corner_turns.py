@@ -5,7 +5,8 @@ sign confirmed before they needed it. At seeds 2-6 a heavy weak corner's right t
 by the box's strongest yaw effectiveness (20 times the plant's answer) it reached 0.06-0.18 of the commanded rate,
 too little ever to confirm one, and the left turn's brake was as weak: its lapse took 1.68-1.94 s (goal 1.5). The
 yaw axis now counts on the other sign's confirmed value (``Effectiveness(mirrored=True)``; docs/flight-robustness.md,
-session 20). Each flight is about 3 s of CPU.
+session 20), and a turn of a sign nothing confirmed escalates from the box's strongest (session 21). Each flight is
+about 3 s of CPU.
 """
 
 from __future__ import annotations
