@@ -21,13 +21,16 @@ import math
 from collections import deque
 
 
+REAL_PUSH_SLACK_S = 0.05  # the loop marks a real push after the estimate's update: a cycle late, with room
+
+
 class Effectiveness:
     """Least-squares ratio of measured to modelled rate change over ``window_s`` windows, per push direction."""
 
     def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
                  confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
-                 mirrored: bool = False) -> None:
+                 mirrored: bool = False, real_pushes_assure: bool = False) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -41,7 +44,11 @@ class Effectiveness:
         lower bound); ``reverse_shown``: the same for negative pushes, when the calibration measured them apart
         (``None``: ``shown``); ``mirrored``: the axis answers both ways alike (a yaw torque is one motor forward
         and one reversed whichever way it turns), so until a real push of one sign confirms its value, a large push
-        of that sign counts on what the other sign confirmed instead of the box's upper bound (:meth:`confirmed`)."""
+        of that sign counts on what the other sign confirmed instead of the box's upper bound (:meth:`confirmed`);
+        ``real_pushes_assure``: only a window that overlaps a real push (the loop out of hover: a command or a brake,
+        ``last_real_push_t``) may teach the margin. Hover corrections taught corner-MtdL a reverse surge
+        effectiveness twice what its brakes showed, and a speed cap that did not stop in time (flight seed 6: 1.50 s;
+        docs/flight-robustness.md, session 21)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -50,6 +57,8 @@ class Effectiveness:
         self.window_s, self.memory_s, self.min_change = window_s, memory_s, min_change
         self.assuring_change = assuring_change
         self.assuring_samples = [0, 0]
+        self.last_real_push_t: float | None = None  # the loop's last cycle out of hover (see ``real_pushes_assure``)
+        self.real_pushes_assure = real_pushes_assure
         self.confirming_change = confirming_change
         self.shown_by_side = [shown if reverse_shown is None else reverse_shown, shown]
         self.confirming_samples = [0, 0]
@@ -86,6 +95,11 @@ class Effectiveness:
         if self.mirrored and not self.confirming_samples[side] and self.confirming_samples[1 - side]:
             side = 1 - side
         return self.strong_values[side] if self.confirming_samples[side] else self.high
+
+    def is_confirmed(self, push: float) -> bool:
+        """Whether :meth:`confirmed` is a learned value for a push of this sign (not the box's upper bound)."""
+        side = 1 if push > 0.0 else 0
+        return bool(self.confirming_samples[side] or (self.mirrored and self.confirming_samples[1 - side]))
 
     def assured(self, push: float) -> float:
         """The effectiveness a safety margin may count on: the learned one once a real push taught it, else
@@ -129,7 +143,7 @@ class Effectiveness:
         sums[1] = sums[1] * decay + x * y
         self.samples[side] += 1
         self.values[side] = min(max(sums[1] / sums[0], self.lows[side]), self.high)
-        if abs(x) * self.values[side] >= self.assuring_change:  # the rate change it made, not the one modelled
+        if self._may_assure(t) and abs(x) * self.values[side] >= self.assuring_change:  # the change it made, not the modelled
             self.assuring_samples[side] += 1
         if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0:  # a large change, its way
             strong = self._strong_sums[side]
@@ -137,6 +151,13 @@ class Effectiveness:
             strong[1] = strong[1] * decay + x * y
             self.confirming_samples[side] += 1
             self.strong_values[side] = min(max(strong[1] / strong[0], self.lows[side]), self.high)
+
+    def _may_assure(self, t: float) -> bool:
+        """Whether the window ending at ``t`` may teach a margin: any, or with ``real_pushes_assure`` only one that
+        overlaps a real push (a command or a brake: the loop out of hover within the window)."""
+        if not self.real_pushes_assure:
+            return True
+        return self.last_real_push_t is not None and t - self.last_real_push_t <= self.window_s + REAL_PUSH_SLACK_S
 
     def as_dict(self) -> dict[str, float | int]:
         """For health: both directions and how many windows taught them."""

@@ -42,6 +42,14 @@ MEASURED_BRAKE_SHARE = 0.8
 HOVER_SPEED_BAND_M_S = 0.02  # in hover the surge loop rests below this measured speed (acts above 0.03)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
 HOVER_GAIN = 0.5  # a hover correction is gentle: it must not overshoot into a correction the other way
+# A hover heading correction turns back at most this fast: the stop goal's yaw rate with the turn cap's margin. The
+# stiffness balances the damping at kp/kd (0.94 deg/s per degree), so a heading 5 deg off after a forward turned back
+# at 3.04-3.10 deg/s, seconds after a stop that was otherwise complete (corner-MtDL seed 2, MtdL seed 3; session 20).
+HOVER_RETURN_DPS = 0.7 * STOPPED_YAW_DPS
+# A turn whose sign nothing has confirmed yet halves the yaw effectiveness it is normalised by every this long, from the
+# box's strongest down to the learned value: on a heavy weak blimp the box's strongest is 20 times its answer, and a
+# turn normalised by it reached 0.05-0.17 of the command, too little ever to confirm one (session 21).
+TURN_ESCALATE_S = 0.3
 MIN_CLIMB_BRAKE_M_S2 = 0.02  # a body that shows no braking at all still gets a finite (very slow) approach
 STILL_M_S = 0.05  # a climb rate this small is holding still: its force is the hover force...
 HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
@@ -242,6 +250,7 @@ class HeadingLoop:
         self.band = _Band()
         self.hovering = False  # no command, no brake, no settling: the motors may be kept from reversing
         self.turn_cap_dps = config.yaw_rate_dps
+        self.turn_started = 0.0
 
     def restart(self, heading: float) -> None:
         self.target = heading
@@ -262,6 +271,7 @@ class HeadingLoop:
         if turn:
             if not self.turning:
                 self.onset.start(math.degrees(self._rate_now(est, thrust)), math.degrees(est.accel(thrust.yaw)))
+                self.turn_started = t
             self.turning = True
             ref.rate, rate_ahead, ref.accel = self.onset.step(turn, self._accel_limits_dps2(est, self.onset.rate), dt)
             ahead = wrap_deg(ref.value + ref.rate * dt - est.heading)
@@ -308,10 +318,34 @@ class HeadingLoop:
         predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (YAW_RATE_TAU_S + c.motor_lag_s)
         rate_error = math.radians(rate_ahead if turn else ref.rate) - predicted
         alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
+        if hover and error:
+            alpha = self._limit_return(alpha, error, predicted, gain)
         r_ref = math.radians(ref.rate)
-        effectiveness = est.effectiveness.value(alpha) if hover else est.effectiveness.confirmed(alpha)
+        effectiveness = est.effectiveness.value(alpha) if hover else self._turn_effectiveness(t, alpha, est, turn)
         torque = c.yaw_inertia_kg_m2 * alpha / effectiveness + c.yaw_drag * r_ref * abs(r_ref)
         return self.band.same_sign(torque) if hover else torque
+
+    def _turn_effectiveness(self, t: float, alpha: float, est: YawEstimate, turn: float) -> float:
+        """What a large push (a turn, its brake) is normalised by: the confirmed value, or during a turn whose sign
+        nothing has confirmed, the box's strongest halving every ``TURN_ESCALATE_S`` down to the learned value (the
+        safe side first, never below what the small pushes taught)."""
+        e = est.effectiveness
+        if not turn or e.is_confirmed(alpha):
+            return e.confirmed(alpha)
+        return max(e.value(alpha), e.high * 0.5 ** ((t - self.turn_started) / TURN_ESCALATE_S))
+
+    @staticmethod
+    def _limit_return(alpha: float, error: float, predicted: float, gain: float) -> float:
+        """A hover correction's acceleration, at most what holds the return toward the target at ``HOVER_RETURN_DPS``.
+
+        The stiffness balances the damping at kp/kd, so a heading far off came back faster than the stop goal's
+        yaw rate. Only a push *toward* the target is limited, to a damping as firm as the settling's toward that
+        rate: it brakes a return that is too fast, and leaves the correction of a heading within about 4 deg of the
+        target as it was, and a push against a drift away grows with the drift's rate. (A clipped stiffness, or a
+        reference kept within the tolerance of the heading, let the drafts carry an unlearned heading 28 deg off.)"""
+        toward = math.copysign(1.0, error)
+        limit = gain * SETTLE_DAMPING * (math.radians(HOVER_RETURN_DPS) - toward * predicted)
+        return toward * limit if toward * alpha > limit else alpha
 
     def _rate_now(self, est: YawEstimate, thrust: ThrustModel) -> float:
         """The yaw rate (rad/s) now: the filtered gyro brought forward over its filter lag."""

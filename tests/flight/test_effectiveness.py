@@ -219,6 +219,25 @@ def test_a_mirrored_axis_lets_a_large_push_count_on_what_the_other_direction_con
     assert mirrored.confirmed(1.0) == pytest.approx(0.3, rel=0.05)
 
 
+def test_with_real_pushes_assuring_only_a_window_overlapping_a_command_or_brake_teaches_the_margin() -> None:
+    """Hover corrections of real size taught corner-MtdL's speed cap a reverse effectiveness twice what its brakes
+    showed, and its forward stop took 1.50 s (flight seed 6, session 21): the surge axis waits for a real push."""
+    gated = Effectiveness(0.25, 4.0, assuring_change=0.02, real_pushes_assure=True)
+    rate, dt = 0.0, 0.02
+    for k in range(400):  # 8 s of pushes each way (real changes well over 0.02); a brake marked real at the end
+        t = k * dt
+        if k == 300:
+            assert min(gated.samples) > 0 and gated.values[0] == pytest.approx(0.5, rel=0.1)  # the loop learns...
+            assert gated.assured(-1.0) == 0.25 and gated.assured(1.0) == 0.25  # ...a stop's margin does not
+        push = -0.5 if k >= 385 else 0.5 * math.sin(2 * math.pi * t / 1.5)
+        if k >= 385:
+            gated.last_real_push_t = t - dt  # the loop out of hover (it marks the cycle before the update)
+        rate += 0.5 * push * dt
+        gated.update(t, dt, push, rate)
+    assert gated.assured(-1.0) == pytest.approx(gated.values[0])  # a window over the brake taught it
+    assert gated.assured(1.0) == 0.25  # the other side still waits for its own
+
+
 @given(u=st.floats(1.0, 4.0), v=st.floats(1.0, 4.0))
 def test_the_speed_estimate_trusts_the_model_less_the_less_it_is_known(u: float, v: float) -> None:
     """3 s for a model trusted outright, 80 ms for the shipped box; a fitted surge model (1.05-1.2) is

@@ -13,7 +13,11 @@ other two flights, on a doubted model, are unchanged); the two doubted-model fli
 i13seed2): the yaw's confirmed effectiveness is mirrored, and the right turn's brake (a negative push, none confirmed
 yet) counts on the positive sign's confirmed 0.91 instead of the box's 4.0 for the 0.12 s it lasts: the yaw rate is
 under 3 deg/s 0.28 / 0.22 s after the release instead of 0.54 / 0.48 s, never below 0 (``fitted_still_air``, whose
-box is 1, unchanged): every
+box is 1, unchanged); the same two re-pinned in session 21 (branch i13seeds3) for the hover heading return limit
+(``HeadingLoop._limit_return``) alone, computed with each of that session's three changes switched off in turn (the
+speed cap taught by real pushes only and the turn escalation leave all three digests as they were; with the limit
+off the old digests come back): from t = 2.8 s, in the scripted forward, the hover correction of the heading is
+braked sooner, the yaw rate 1.0-1.2 deg/s where it was 1.5 (2.9-4.0 s): every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
 dropouts, drafts, a stalled link with its flood of replies and a lagging one. A change in the last
@@ -71,7 +75,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "4d3ff60ed93f3dfcb7bca00a",
+        "efff00587654ffe85f2ac5ea",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
@@ -83,7 +87,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "68e832034e93d06e8c963b8d",
+        "aaeb2c9b6d48b5fa297f3770",
     ),
 }
 

@@ -1,0 +1,72 @@
+"""The box's 16 corners at flight seeds other than the one ``test_random_plants.py`` flies (issue 13, point 1).
+
+Seed 1 alone hid 14 of 96 failing flights at seeds 1-6 (docs/flight-robustness.md, sessions 20-21;
+``benchmarks/flight_seed_sweep.py`` flies the whole table). Here: every corner at seed 2, the flights of seeds 3-6
+that session 21 fixed (each failed before), and the ones still open as strict xfails with their figure, so fixing
+one flips its test. Each flight is 2-3 s of CPU.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from feelium.daemon.config import Config
+from feelium.lab.flight.plants import corner_plants, describe
+from feelium.lab.flight.safety import SafetyResult, safety_flight
+
+CORNERS = {plant.name: plant for plant in corner_plants()}
+
+
+def _fly(name: str, seed: int) -> tuple[SafetyResult, str]:
+    result = safety_flight(Config().flight, CORNERS[name], seed=seed)
+    return result, f"{describe(CORNERS[name])} seed {seed}: {result.manoeuvres}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(CORNERS))
+def test_every_corner_meets_every_safety_goal_at_flight_seed_2(name: str) -> None:
+    """Before session 21: corner-MtDL's forward stop never completed, corner-mTDL peaked at 1.36 of the commanded
+    speed, corner-mTdL's lapse took 1.54 s."""
+    result, context = _fly(name, 2)
+    assert result.failures() == {}, context
+
+
+FIXED = [  # (corner, seed): the goal it missed before session 21, with the figure
+    ("corner-MtdL", 3),  # forward stop never completed: a hover heading return at 3.10 deg/s
+    ("corner-MTdL", 4),  # forward stop never completed
+    ("corner-Mtdl", 4),  # forward stop 1.02 s; both turns at 0.11-0.14 of the command
+    ("corner-MtdL", 4),  # both turns at 0.07-0.13 of the command
+    ("corner-mTdL", 6),  # backward stop never completed; speed 1.22 of the command
+    ("corner-MtdL", 6),  # forward stop 1.50 s: a speed cap hover corrections had taught
+    ("corner-MtDL", 6),  # forward stop 1.38 s: the same
+    ("corner-MtDl", 6),  # right turn at 0.08 of the command
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "seed"), FIXED, ids=[f"{name}-s{seed}" for name, seed in FIXED])
+def test_a_corner_that_missed_a_goal_at_another_seed_now_meets_them_all_and_turns(name: str, seed: int) -> None:
+    result, context = _fly(name, seed)
+    assert result.failures() == {}, context
+    for turn in ("turn_right-stop", "turn_left-lapse"):
+        assert result.manoeuvres[turn]["peak_fraction"] >= 0.4, context  # a turn, not a twitch
+
+
+OPEN = [  # (corner, seed, the goal it misses, its figure at session 21)
+    ("corner-mTDL", 4, "speed_peak_fraction", 1.235),
+    ("corner-mTdL", 5, "speed_peak_fraction", 1.23),
+    ("corner-MTdL", 5, "speed_peak_fraction", 1.23),
+    ("corner-MTDL", 6, "altitude_excursion_m", 0.111),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("name", "seed"),
+    [pytest.param(name, seed, marks=pytest.mark.xfail(strict=True, reason=f"{goal} {figure} (docs/flight-robustness.md, session 21)"))
+     for name, seed, goal, figure in OPEN],
+    ids=[f"{name}-s{seed}" for name, seed, _, _ in OPEN],
+)
+def test_a_corner_still_missing_a_goal_at_another_seed(name: str, seed: int) -> None:
+    result, context = _fly(name, seed)
+    assert result.failures() == {}, context
