@@ -91,15 +91,22 @@ class Effectiveness:
         its brake and settling, where the hover after it pushed +-0.68 (corner-MtDL, flight seed 2: that turn's
         lapse 1.76 s, now 0.96 s; docs/flight-robustness.md, session 20).
         """
-        side = 1 if push > 0.0 else 0
-        if self.mirrored and not self.confirming_samples[side] and self.confirming_samples[1 - side]:
-            side = 1 - side
-        return self.strong_values[side] if self.confirming_samples[side] else self.high
+        side = self._confirmed_side(push)
+        return self.high if side is None else self.strong_values[side]
 
     def is_confirmed(self, push: float) -> bool:
         """Whether :meth:`confirmed` is a learned value for a push of this sign (not the box's upper bound)."""
+        return self._confirmed_side(push) is not None
+
+    def _confirmed_side(self, push: float) -> int | None:
+        """The side whose confirmed value a push of this sign takes: its own, else on a mirrored axis the other's,
+        else ``None`` (nothing confirmed: the box's upper bound)."""
         side = 1 if push > 0.0 else 0
-        return bool(self.confirming_samples[side] or (self.mirrored and self.confirming_samples[1 - side]))
+        if self.confirming_samples[side]:
+            return side
+        if self.mirrored and self.confirming_samples[1 - side]:
+            return 1 - side
+        return None
 
     def assured(self, push: float) -> float:
         """The effectiveness a safety margin may count on: the learned one once a real push taught it, else

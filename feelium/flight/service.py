@@ -406,7 +406,7 @@ class FlightService:
             battery = self.cycles % self.config.battery_every == 0
             tick = self._tick(client, events, due, battery)
             self._count(tick, due, link_up=client.state == "up")
-            self._post(client, tick.out, tick.t)
+            self._post(loop, client, tick.out, tick.t)
             due = self._next_due(due, period)
             if tick.poll_error is not None or tick.send_error is not None or client is not self.client or self.stopping:
                 return _Flown(due, tick.poll_error, tick.send_error)
@@ -433,7 +433,7 @@ class FlightService:
             return now
         return due
 
-    def _post(self, client: MspClient, out: ControlOutput, now: float) -> None:
+    def _post(self, loop: asyncio.AbstractEventLoop, client: MspClient, out: ControlOutput, now: float) -> None:
         """Serial thread: hand a tick's state to the loop, waking it at most every ``PUBLISH_EVERY_S``.
 
         The newest tick always replaces one not yet published; the loop is woken for it when the last wake-up is
@@ -446,8 +446,7 @@ class FlightService:
             if self._publish_due or (now - self._posted_at < PUBLISH_EVERY_S and client.state == self._posted_link):
                 return
             self._publish_due, self._posted_at, self._posted_link = True, now, client.state
-        assert self._loop is not None, "a tick outside run()"
-        self._loop.call_soon_threadsafe(self._publish_posted)
+        loop.call_soon_threadsafe(self._publish_posted)
 
     def _publish_posted(self) -> None:
         """Loop: publish the newest tick the serial thread posted, and the link state its client saw."""
