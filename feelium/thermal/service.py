@@ -1,10 +1,15 @@
 """The thermal service: sensor (or its simulation) -> decoder -> presence detector -> hub.
 
-A thin shell. Bus work and decoding run in a worker thread (``asyncio.to_thread``)
-so the event loop never waits on I2C; presence events are published on
-``hub.bus`` and summarised in ``hub.state["presence"]``. Nothing here is fatal:
-an I2C error or a bad EEPROM dump is counted, reported in ``health()``, and
-retried after a backoff that doubles while failures continue.
+A thin shell. Bus work, decoding and presence detection run on a thread of the
+service's own (``thermal``), paced by its own clock, so the event loop never waits
+on I2C and is woken once per frame, not per poll: the thread hands each frame's
+presence events and summary to the loop through a
+:class:`~feelium.cameras.handoff.LoopInbox`, which publishes them on ``hub.bus``
+and in ``hub.state["presence"]`` (the loop's part of a sub-page went from two or
+three ``to_thread`` round trips, their sleeps and the detector to one batch;
+docs/performance.md, session 22). Nothing here is fatal: an I2C error or a bad
+EEPROM dump is counted, reported in ``health()``, and retried after a backoff that
+doubles while failures continue.
 
 In sim (``backend = "sim"``, or ``auto`` without an I2C bus) the
 simulated sensor sees the scene renderer's frames: the live simulator's warm
@@ -17,12 +22,16 @@ from __future__ import annotations
 import asyncio
 import math
 import os
+import threading
 import time
-from collections.abc import Awaitable, Callable
-from typing import Any
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from feelium.cameras.handoff import LoopInbox
+from feelium.cameras.reader import Worker
+from feelium.events import PresenceEvent
 from feelium.hub import Hub
 from feelium.thermal import registers as reg
 from feelium.thermal.calibration import CalibrationError
@@ -33,6 +42,13 @@ from feelium.thermal.presence import PresenceDetector
 
 MAX_BACKOFF_FACTOR = 8
 FAILED_AFTER = 3  # attempts in a row that raised before health calls the sensor failed (one can be a glitch)
+
+
+class Detected(NamedTuple):
+    """One frame's outcome, made on the thermal thread for the loop to publish."""
+
+    events: list[PresenceEvent]
+    presence: dict[str, Any]  # ``hub.state["presence"]``
 
 
 def control_settings(config: ThermalConfig) -> reg.ControlSettings:
@@ -76,8 +92,10 @@ class ThermalService:
         hub: Hub,
         make_driver: Callable[[], Mlx90640Driver],
         source: str,
-        sleep: Callable[[float], Awaitable[None]] = asyncio.sleep,
+        sleep: Callable[[float], None] | None = None,
     ) -> None:
+        """``sleep``: how the thermal thread waits between polls (tests pass a virtual clock's); by default it
+        waits on the service's stop, so a stop ends a wait at once."""
         self.config = config
         self.sleep = sleep
         self.hub = hub
@@ -92,9 +110,10 @@ class ThermalService:
         self.last_error: str | None = None
         self.last_frame: np.ndarray | None = None
         self.last_ta: float | None = None
-        self._stopping = False
         self._consecutive_failures = 0
         self._polled_at: float | None = None  # when the worker's newest poll began
+        self._stopping = False
+        self._ending = threading.Event()  # this run's thread should end (a new one per run: a restart after a crash)
 
     def _backoff(self) -> float:
         factor = min(MAX_BACKOFF_FACTOR, 2 ** max(0, self._consecutive_failures - 1))
@@ -130,17 +149,15 @@ class ThermalService:
             return not_ready_at, None
         return not_ready_at, image
 
-    def _publish(self, t: float, image: np.ndarray) -> None:
+    def _detect(self, t: float, image: np.ndarray) -> Detected:
+        """Thermal thread: count the frame, run presence on it, summarise it for ``hub.state``."""
         self.frames += 1
         self.last_frame = image
         if self.assembler is not None and self.assembler.last is not None:
             self.last_ta = self.assembler.last.ta
-        for event in self.detector.step(t, image):
-            self.events += 1
-            self.hub.bus.publish(event)
+        events = self.detector.step(t, image)
         cluster = self.detector.cluster if self.detector.present else None
-        self.hub.state.update(
-            "presence",
+        return Detected(events, dict(
             present=self.detector.present,
             t=round(t, 3),
             x=None if cluster is None else round(cluster.x, 2),
@@ -148,47 +165,78 @@ class ThermalService:
             size=0 if cluster is None else cluster.size,
             peak_rise_c=None if cluster is None else round(cluster.peak_rise_c, 2),
             ambient_c=None if not np.isfinite(image).any() else round(float(np.nanmedian(image)), 2),
-        )
+        ))  # fmt: skip
 
-    async def run(self) -> None:
-        """Poll, decode, publish; between sub-pages, sleep until the next one can be ready.
+    def _publish(self, batch: list[Detected]) -> None:
+        """On the loop: one wake-up's frames, in order."""
+        for detected in batch:
+            for event in detected.events:
+                self.events += 1
+                self.hub.bus.publish(event)
+            self.hub.state.update("presence", **detected.presence)
+
+    def _wait(self, seconds: float, ending: threading.Event) -> None:
+        if self.sleep is not None:
+            self.sleep(seconds)
+        else:
+            ending.wait(seconds)
+
+    def _read_loop(self, inbox: LoopInbox[Detected], ending: threading.Event) -> None:
+        """Thermal thread: poll, decode, detect, hand over; between sub-pages, wait until the next one can be ready.
 
         The device finishes a sub-page every ``1 / refresh_hz``. One that a poll found was not ready when the
-        poll before it began, at ``t`` (usually ``poll_s`` earlier; more when the loop lags), so the next cannot
-        be ready before ``t + period``: the service sleeps until then and polls every ``poll_s`` from there. A
-        sub-page still waits at most ``poll_s`` to be read, as with polling all the time, but it costs one or
-        two polls (worker hand-offs, status reads) instead of four or five (32 a second at 8 Hz).
+        poll before it began, at ``t`` (usually ``poll_s`` earlier; more when the thread was held up), so the
+        next cannot be ready before ``t + period``: the thread waits until then and polls every ``poll_s`` from
+        there. A sub-page still waits at most ``poll_s`` to be read, as with polling all the time, but it costs
+        one or two polls (status reads) instead of four or five (32 a second at 8 Hz).
         """
         period_s = 1.0 / self.config.refresh_hz
         poll_s = 0.25 * period_s
-        while not self._stopping:
-            try:
-                not_ready_at, image = await asyncio.to_thread(self._read_once)
-            except (OSError, CalibrationError) as exc:
-                self.failures += 1
-                self._consecutive_failures += 1
-                self.last_error = f"{type(exc).__name__}: {exc}"
-                if isinstance(exc, CalibrationError) and self.driver is not None:
+        try:
+            while not ending.is_set():
+                try:
+                    not_ready_at, image = self._read_once()
+                except (OSError, CalibrationError) as exc:
+                    self.failures += 1
+                    self._consecutive_failures += 1
+                    self.last_error = f"{type(exc).__name__}: {exc}"
+                    if isinstance(exc, CalibrationError) and self.driver is not None:
+                        self.driver.close()
+                        self.driver = None
+                    self._wait(self._backoff(), ending)
+                    continue
+                self._consecutive_failures = 0
+                if not_ready_at is None:
+                    self._wait(poll_s, ending)
+                    continue
+                now = self.hub.clock()
+                if image is not None:
+                    inbox.post(self._detect(now, image))
+                self._wait(max(0.0, not_ready_at + period_s - now), ending)
+        finally:
+            if ending.is_set() and self.driver is not None:  # stopped; after a crash the restart goes on with it
+                try:
                     self.driver.close()
-                    self.driver = None
-                await self.sleep(self._backoff())
-                continue
-            self._consecutive_failures = 0
-            if not_ready_at is None:
-                await self.sleep(poll_s)
-                continue
-            now = self.hub.clock()
-            if image is not None:
-                self._publish(now, image)
-            await self.sleep(max(0.0, not_ready_at + period_s - now))
+                except OSError:
+                    pass
+
+    async def run(self) -> None:
+        """Run the thermal thread until the service stops (or the thread raises what it cannot handle)."""
+        self._ending = ending = threading.Event()
+        if self._stopping:
+            return
+        worker = Worker("thermal")
+        inbox = LoopInbox(asyncio.get_running_loop(), self._publish)
+        try:
+            await worker.call(self._read_loop, inbox, ending)
+        finally:
+            ending.set()  # a cancelled run: the thread ends after its current read and closes the driver
+            inbox.close()
+            worker.shutdown()
 
     async def stop(self) -> None:
         self._stopping = True
-        if self.driver is not None:
-            try:
-                self.driver.close()
-            except OSError:
-                pass
+        self._ending.set()  # the thread closes the driver: closing it here could cut a read in half
 
     def _condition(self) -> dict[str, str]:
         """Failing reads are the part's health: a missing or dead sensor must not read as ok."""

@@ -1,6 +1,7 @@
 """The thermal service end to end: simulated sensor seeing a scene -> presence events on the hub."""
 
 import asyncio
+import time
 
 import numpy as np
 import pytest
@@ -44,9 +45,9 @@ def make_service(scene, faults=None, config=None, eeprom=None):
         sensors.append(sensor)
         return Mlx90640Driver(SMBus2Transport(sensor.bus(), max_read_words=cfg.max_read_words), reg.ControlSettings(16.0, 18, "chess"))
 
-    async def sleep(dt):
+    def sleep(dt):  # on the thermal thread: virtual time, and the GIL to the loop
         clock.sleep(dt)
-        await asyncio.sleep(0)
+        time.sleep(0)
 
     return hub, clock, ThermalService(cfg, hub, make_driver, "sim", sleep=sleep), sensors
 
@@ -114,7 +115,7 @@ async def test_bad_eeprom_is_reported_and_retried():
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 async def test_between_sub_pages_it_sleeps_yet_reads_every_one_even_when_the_loop_wakes_it_late(seed):
-    """Time passes only in the service's sleeps, each overslept by up to 40 ms (a loaded loop): at 8 Hz every
+    """Time passes only in the service's sleeps, each overslept by up to 40 ms (a loaded machine): at 8 Hz every
     sub-page the device writes is still read, no later than when polling all the time, with about two polls
     each instead of four or five."""
     from feelium.thermal.sim_device import VirtualClock
@@ -129,19 +130,19 @@ async def test_between_sub_pages_it_sleeps_yet_reads_every_one_even_when_the_loo
     def make_driver():
         return Mlx90640Driver(SMBus2Transport(sensor.bus(), max_read_words=cfg.max_read_words), reg.ControlSettings(8.0, 18, "chess"))
 
-    async def late_sleep(dt):
+    def late_sleep(dt):
         clock.sleep(dt + (float(rng.uniform(0.0, 0.04)) if rng.random() < 0.3 else 0.0))
-        await asyncio.sleep(0)
+        time.sleep(0)
 
     service = ThermalService(cfg, hub, make_driver, "sim", sleep=late_sleep)
     waits = []  # how long each sub-page had been ready when it was read (reads take no virtual time here)
-    publish = service._publish
+    detect = service._detect
 
-    def timed_publish(t, image):
+    def timed_detect(t, image):
         waits.append(t - (sensor._t0 + sensor._measured * sensor.period_s))
-        publish(t, image)
+        return detect(t, image)
 
-    service._publish = timed_publish
+    service._detect = timed_detect
     await run_until(service, clock, 20.0)
     counters = service.driver.counters
     polls = counters.subpages + counters.not_ready + counters.torn + counters.stale

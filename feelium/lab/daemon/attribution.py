@@ -3,8 +3,8 @@
 Three kinds of thread run a service's work, and each is charged differently:
 
 - dedicated threads (``rear-camera``, ``touch-pipeline``, ``front-camera``,
-  ``flight-serial``, ``projector-render``) by their name, from ``/proc/self/task/*/stat``;
-- the loop's shared pool (the projector's face decoding, thermal reads, JPEG encoding)
+  ``flight-serial``, ``projector-render``, ``thermal``) by their name, from ``/proc/self/task/*/stat``;
+- the loop's shared pool (the projector's face decoding, JPEG encoding)
   by the module of the function each job runs, timed with ``time.thread_time``
   around the job in :class:`ChargingExecutor`;
 - the event loop's thread by the coroutine a callback resumes, timed around
@@ -45,7 +45,7 @@ from feelium.priority import lower_current_thread
 SERVICE_PACKAGES = ("touch", "front_camera", "thermal", "audio", "projector", "flight", "http")
 THREAD_SERVICES = {
     "rear-camera": "touch", "touch-pipeline": "touch", "front-camera": "front_camera", "flight-serial": "flight",
-    "projector-render": "projector",
+    "projector-render": "projector", "thermal": "thermal",
 }
 HTTP_LIBRARIES = ("aiohttp", "yarl", "multidict")
 POOL_PREFIX = "bench-pool"
