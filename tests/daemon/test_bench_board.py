@@ -25,7 +25,36 @@ from feelium.lab.daemon.attribution import (
     charged_apart,
     service_of_module,
 )
-from feelium.lab.daemon.board import bench_board, format_table, sim_devices_apart
+from feelium.lab.daemon.board import LoopProbe, bench_board, format_table, sim_devices_apart
+
+
+async def test_the_probe_reads_memory_on_its_lag_wake_ups_and_keeps_only_the_windows_samples(monkeypatch) -> None:
+    """One sleeper for lag and memory: the peak counts from start-up until the daemon stops, the steady samples
+    only while the window is open, about one per ``RSS_EVERY_S``."""
+    from feelium.lab.daemon import board
+
+    readings = itertools.count(100.0)  # every read is 1 MB more than the one before
+    monkeypatch.setattr(board, "resident_mb", lambda: next(readings))
+    monkeypatch.setattr(board, "LAG_PROBE_S", 0.002)
+    monkeypatch.setattr(board, "RSS_EVERY_S", 0.01)
+    probe, daemon_stop, stop = LoopProbe(1.0), asyncio.Event(), asyncio.Event()
+    task = asyncio.create_task(probe.run(daemon_stop, stop))
+    await asyncio.sleep(0.05)
+    before = probe.peak_mb
+    probe.open_window()
+    await asyncio.sleep(0.1)
+    probe.window = False
+    inside = probe.rss_mb.values()
+    await asyncio.sleep(0.05)
+    daemon_stop.set()
+    stopped_at = probe.peak_mb
+    await asyncio.sleep(0.05)
+    stop.set()
+    await task
+    assert before >= 100.0 and len(inside) >= 3 and inside[0] > before  # read before the window: in the peak only
+    assert list(probe.rss_mb.values()) == list(inside) and probe.peak_mb > inside[-1]  # after it: the peak only
+    assert probe.peak_mb == stopped_at  # nothing read once the daemon is stopping
+    assert len(probe.lags_ms) >= 20 and all(lag >= 0.0 for lag in probe.lags_ms.values())
 
 
 def test_modules_and_threads_are_charged_to_their_service():

@@ -56,7 +56,7 @@ from feelium.lab.daemon.attribution import (
     charged_apart,
     thread_cpu,
 )
-from feelium.lab.daemon.bench import memory_mb
+from feelium.lab.daemon.bench import resident_mb
 from feelium.lab.daemon.host import host_reference
 from feelium.lab.daemon.numeric import NumericProfiler, numeric_shares
 from feelium.lab.daemon.perfsplit import PerfSampler, perf_usable, pooled_shares
@@ -76,7 +76,8 @@ FIRST_TOUCH_FRAME_S = 30.0  # the longest the window waits for the touch pipelin
 # The lag probe is the bench's own sleeper, not the daemon's: each wake-up costs the loop's thread what any timer
 # does. At 10 ms it cost that thread ~5 ms/s (2 interleaved pairs, 1 min, session 20: 51.2 / 52.3 against 47.3 /
 # 46.2 ms/s at 50 ms), 0.05 of a projected Pi core charged to the daemon. How late a sleeper wakes does not
-# depend on its period; 20 samples a second still give 1 200 a minute for the p99.
+# depend on its period; 20 samples a second still give 1 200 a minute for the p99. Resident memory is read on the
+# same wake-ups, every RSS_EVERY_S (:class:`LoopProbe`), not by timers of its own.
 LAG_PROBE_S = 0.05
 RSS_EVERY_S = 0.5
 REAR_LOOP_S = 6.0  # seconds of rear frames preloaded (touches every ~1.5 s); longer only costs memory
@@ -211,12 +212,39 @@ def sim_devices_apart(ledger: Ledger) -> Iterator[None]:
         yield
 
 
-async def _lag_probe(lags_ms: SampleBlock, stop: asyncio.Event) -> None:
-    """How late the loop wakes a sleeper of ``LAG_PROBE_S``: what any callback waits behind the others."""
-    while not stop.is_set():
-        due = time.perf_counter() + LAG_PROBE_S
-        await asyncio.sleep(LAG_PROBE_S)
-        lags_ms.add(1000.0 * max(0.0, time.perf_counter() - due))
+class LoopProbe:
+    """The bench's one sleeper on the daemon's loop: how late the loop wakes it (what any callback waits behind the
+    others) and, every :data:`RSS_EVERY_S`, resident memory: the peak from start-up until the daemon is told to
+    stop, the samples while :attr:`window` is set.
+
+    One timer for both: until session 22 the window and the peak read memory on timers of their own, two more
+    wake-ups of the loop every ``RSS_EVERY_S`` charged to the daemon, each reading ``/proc/self/status``."""
+
+    def __init__(self, seconds: float) -> None:
+        # Fixed blocks, written before the run: the bench's own samples must not show as the daemon's memory growth.
+        self.lags_ms = SampleBlock(math.ceil(seconds / LAG_PROBE_S) + 1)  # it sleeps at least LAG_PROBE_S a sample
+        self.rss_mb = SampleBlock(math.ceil(seconds / RSS_EVERY_S) + 2)
+        self.peak_mb = 0.0  # start-up included, not in the window's samples
+        self.window = False
+
+    def open_window(self) -> None:
+        """Samples from now on are the measured window's (the lags' warm-up ones are dropped)."""
+        self.lags_ms.clear()
+        self.window = True
+
+    async def run(self, daemon_stop: asyncio.Event, stop: asyncio.Event) -> None:
+        next_rss = time.perf_counter()
+        while not stop.is_set():
+            due = time.perf_counter() + LAG_PROBE_S
+            await asyncio.sleep(LAG_PROBE_S)
+            now = time.perf_counter()
+            self.lags_ms.add(1000.0 * max(0.0, now - due))
+            if now >= next_rss and not daemon_stop.is_set():
+                next_rss = now + RSS_EVERY_S
+                mb = resident_mb()
+                self.peak_mb = max(self.peak_mb, mb)
+                if self.window:
+                    self.rss_mb.add(mb)
 
 
 def _start_headset(port: int, seconds: float, motion_transport: str) -> subprocess.Popen[str]:
@@ -248,11 +276,8 @@ async def _measure(
     loop.set_default_executor(ChargingExecutor(ledger, WORKER_THREADS))
     undo = charge_loop_callbacks(ledger)
     overhead_s = callback_overhead_s(loop, ledger)
-    hub, stop, lag_stop = Hub(), asyncio.Event(), asyncio.Event()
-    # Fixed blocks, written before the run: the bench's own samples must not show as the daemon's memory growth.
-    lags = SampleBlock(math.ceil(seconds / LAG_PROBE_S) + 1)  # the probe sleeps at least LAG_PROBE_S between samples
-    rss = SampleBlock(math.ceil(seconds / RSS_EVERY_S) + 2)
-    peak_mb = [0.0]  # start-up included in the peak, not in the steady figure
+    hub, stop, probe_stop = Hub(), asyncio.Event(), asyncio.Event()
+    probe = LoopProbe(seconds)
     out: dict[str, Any] = {}
     started = asyncio.Event()
 
@@ -271,14 +296,14 @@ async def _measure(
                 out["cpu_quota"] = {"cgroup": str(cgroup), "quota_period_us": join(cgroup)}  # after the children started
             await asyncio.sleep(warmup_s)
             first, threads_before, cpu_before = hub.health(), thread_cpu(), os.times()
-            lags.clear()
+            probe.open_window()
             ledger.counting = True
             if profiler is not None:
                 profiler.counting = True
             start = time.monotonic()
             while (elapsed := time.monotonic() - start) < seconds:
-                rss.add(memory_mb()["rss"])
-                await asyncio.sleep(min(RSS_EVERY_S, seconds - elapsed))
+                await asyncio.sleep(seconds - elapsed)
+            probe.window = False
             ledger.counting = False
             if profiler is not None:
                 profiler.counting = False
@@ -299,12 +324,7 @@ async def _measure(
                 headset.kill()
             stop.set()  # a failed measurement stops the daemon too; its error surfaces below
 
-    async def peak() -> None:
-        while not stop.is_set():
-            peak_mb[0] = max(peak_mb[0], memory_mb()["rss"])
-            await asyncio.sleep(RSS_EVERY_S)
-
-    tasks = [asyncio.create_task(window()), asyncio.create_task(_lag_probe(lags, lag_stop)), asyncio.create_task(peak())]
+    tasks = [asyncio.create_task(window()), asyncio.create_task(probe.run(stop, probe_stop))]
     # Simulated devices' own work, which the blimp's hardware does instead, moves out of the service that calls it
     # (not in a profiled run, whose shares are of each service with its device: their numeric seconds are not
     # split): the simulated MLX90640 writes its RAM inside each of thermal's I2C reads (the Pi pays an I2C
@@ -319,16 +339,16 @@ async def _measure(
         if not tasks[0].done():
             tasks[0].cancel()  # the daemon ended before the window did (it failed): stop measuring
         stop.set()
-        lag_stop.set()
+        probe_stop.set()
         undo()
         if profiler is not None:
             profiler.uninstall()
         done = await asyncio.gather(*tasks, return_exceptions=True)
     if isinstance(done[0], Exception):
         raise done[0]  # the measurement failed (e.g. the headset process): not a report with holes
-    out["lags_ms"] = lags.values().tolist()
-    out["rss"] = rss.values().tolist()
-    out["rss_peak"] = max(peak_mb[0], *out["rss"]) if out["rss"] else peak_mb[0]
+    out["lags_ms"] = probe.lags_ms.values().tolist()
+    out["rss"] = probe.rss_mb.values().tolist()
+    out["rss_peak"] = max(probe.peak_mb, *out["rss"]) if out["rss"] else probe.peak_mb
     return out
 
 
