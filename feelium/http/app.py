@@ -68,8 +68,8 @@ def build_context(config: HttpConfig, hub: Hub, token: str, speech: SpeechSettin
 async def _start_pumps(app: web.Application) -> None:
     link = app[CONTEXT]
     link.events.start()  # subscribe now, so nothing published after startup is missed
-    app[_PUMPS] = [asyncio.create_task(link.events.pump()), asyncio.create_task(link.speech.pump()),
-                   asyncio.create_task(_close_revoked_streams(link))]
+    link.speech.start()
+    app[_PUMPS] = [asyncio.create_task(link.events.pump()), asyncio.create_task(_close_revoked_streams(link))]
 
 
 async def _close_revoked_streams(link: LinkContext) -> None:

@@ -1,17 +1,19 @@
 """Blimp-to-wearer speech: the newest captured chunks, numbered, for the headset to fetch as WAV or stream.
 
 Kept bounded in milliseconds: a headset that polls late skips ahead to the
-newest audio instead of hearing the room with a growing delay.
+newest audio instead of hearing the room with a growing delay. The feed listens
+on the bus (:meth:`~feelium.bus.EventBus.listen`): a chunk is numbered inside the
+microphone's publish, and only the clients waiting for it wake.
 """
 
 from __future__ import annotations
 
 import asyncio
 from collections import deque
-from typing import Any
+from collections.abc import Callable
 
 from feelium.events import SpeechOut
-from feelium.bus import EventBus, Subscription
+from feelium.bus import EventBus
 
 
 class SpeechFeed:
@@ -23,7 +25,7 @@ class SpeechFeed:
         self._chunks: deque[tuple[int, SpeechOut]] = deque()
         self._ms = 0.0
         self.last_seq = 0
-        self._sub: Subscription[Any] | None = None
+        self._unlisten: Callable[[], None] | None = None
         self._changed = asyncio.Event()
 
     def add(self, chunk: SpeechOut) -> None:
@@ -62,18 +64,15 @@ class SpeechFeed:
         chunks = await self.wait_numbered_after(seq, timeout)
         return [c for _, c in chunks], self.last_seq
 
-    async def pump(self) -> None:
-        if self._sub is None:
-            self._sub = self._bus.subscribe([SpeechOut], maxsize=64)
-        while True:
-            chunk = await self._sub.get()
-            if chunk is not None:
-                self.add(chunk)
+    def start(self) -> None:
+        """Number every chunk published from now on (call on the loop)."""
+        if self._unlisten is None:
+            self._unlisten = self._bus.listen([SpeechOut], self.add)
 
     def close(self) -> None:
-        if self._sub is not None:
-            self._sub.close()
-            self._sub = None
+        if self._unlisten is not None:
+            self._unlisten()
+            self._unlisten = None
 
 
 def _ms(chunk: SpeechOut) -> float:

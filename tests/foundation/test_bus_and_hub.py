@@ -69,6 +69,35 @@ async def test_typed_subscription_and_wakeup():
     assert bus.health()["subscribers"] == 0
 
 
+async def test_a_listener_files_each_item_inside_publish_and_stops_when_told():
+    """A listener runs in the producer's call (no task step per item), only for its types, until stopped."""
+    from feelium.events import SpeechOut
+    from feelium.http.speech import SpeechFeed
+
+    bus = EventBus()
+    seen: list[object] = []
+    stop = bus.listen([PresenceEvent], seen.append)
+    presence = PresenceEvent("approach", 1.0, 3, 4, 1.0, 2.0, 5, 3.0)
+    bus.publish(_touch(1))
+    bus.publish(presence)
+    assert seen == [presence] and bus.health()["listeners"] == 1
+    stop()
+    stop()  # twice is harmless
+    bus.publish(presence)
+    assert seen == [presence] and bus.health()["listeners"] == 0
+    feed = SpeechFeed(bus, keep_ms=200)
+    feed.start()
+    waiter = asyncio.create_task(feed.wait_numbered_after(0, timeout=1.0))
+    await asyncio.sleep(0)
+    chunk = SpeechOut(b"\0\0" * 640, 16000, 1.0)
+    bus.publish(chunk)
+    assert feed.last_seq == 1  # numbered before any task ran
+    assert await waiter == [(1, chunk)]
+    feed.close()
+    bus.publish(chunk)
+    assert feed.last_seq == 1 and bus.health()["listeners"] == 0
+
+
 async def test_latest_wakes_readers_with_newest_only():
     slot: Latest[int] = Latest()
     assert await slot.next_after(0, timeout=0.01) is None
