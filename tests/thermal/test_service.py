@@ -16,7 +16,7 @@ from feelium.thermal.config import ThermalConfig
 from feelium.thermal.driver import Mlx90640Driver
 from feelium.thermal.sim_device import Faults, SimMlx90640
 from feelium.daemon.assembly import build_thermal
-from feelium.thermal.service import ThermalService
+from feelium.thermal.service import ThermalService, sim_driver
 from feelium.thermal.transport import SMBus2Transport
 
 
@@ -150,3 +150,53 @@ async def test_between_sub_pages_it_sleeps_yet_reads_every_one_even_when_the_loo
     assert counters.subpages >= sensor.subpages_written - 1  # the one being written when the test stopped
     assert polls <= 2.5 * counters.subpages
     assert max(waits) <= 0.25 / 8.0 + 0.04 + 1e-9  # a poll period and the worst oversleep, as when polling all the time
+
+
+async def test_the_thermal_thread_publishes_through_the_loop_and_a_stop_ends_it_closing_the_bus():
+    """Real time, the default waits: frames reach the hub's state from the thermal thread's batches; after a stop
+    the run returns, the thread closes the bus and reads no more."""
+    hub = Hub()
+    cfg = ThermalConfig(refresh_hz=16.0)
+    buses = []
+
+    def make_driver():
+        driver = sim_driver(cfg, hub, seed=1)
+        buses.append(driver.transport.bus)
+        return driver
+
+    service = ThermalService(cfg, hub, make_driver, "sim")
+    task = asyncio.create_task(service.run())
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + 20.0
+    while service.frames < 2 and loop.time() < deadline and not task.done():
+        await asyncio.sleep(0.02)
+    assert service.frames >= 2, service.health()
+    assert hub.state.snapshot()["presence"]["present"] is False  # published on the loop from the thread's batch
+    await service.stop()
+    await asyncio.wait_for(task, 5.0)
+    assert len(buses) == 1 and buses[0].closed
+    frames = service.frames
+    await asyncio.sleep(0.3)
+    assert service.frames == frames
+
+
+async def test_a_stop_interrupts_the_thermal_threads_wait():
+    """A sensor that fails waits out a backoff on the thread (here 60 s); a stop ends that wait, not the backoff."""
+    hub = Hub()
+    cfg = ThermalConfig(refresh_hz=16.0, retry_backoff_s=60.0)
+
+    def make_driver():
+        sensor = SimMlx90640(np.full((24, 32), 22.0), clock=hub.clock, sleep=time.sleep, rng=np.random.default_rng(1),
+                             eeprom=np.zeros(832, dtype=np.uint16))
+        return Mlx90640Driver(SMBus2Transport(sensor.bus(), max_read_words=cfg.max_read_words), reg.ControlSettings(16.0, 18, "chess"))
+
+    service = ThermalService(cfg, hub, make_driver, "sim")
+    task = asyncio.create_task(service.run())
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + 20.0
+    while not service.failures and loop.time() < deadline:
+        await asyncio.sleep(0.02)
+    assert service.failures == 1 and "all zero" in service.last_error
+    await service.stop()
+    await asyncio.wait_for(task, 10.0)  # far inside the 60 s backoff
+    assert service.failures == 1
