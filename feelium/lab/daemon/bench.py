@@ -55,9 +55,9 @@ def memory_mb() -> dict[str, float]:
 
 
 def resident_mb() -> float:
-    """This process's resident memory in MB (``VmRSS``), from ``/proc/self/statm``: one line where ``status``
-    is ~55 for the kernel to write and Python to parse (a probe samples it while the daemon runs); 0.0 where
-    there is no ``/proc``."""
+    """This process's resident memory in MB (``VmRSS``), from ``/proc/self/statm``: one line, where ``status`` is
+    ~55 for the kernel to format and Python to parse (a probe reads it on the daemon's loop while it runs); 0.0
+    where there is no ``/proc``."""
     try:
         with open("/proc/self/statm", "rb") as statm:
             return int(statm.read().split()[1]) * PAGE_BYTES / 2**20

@@ -233,6 +233,7 @@ class LoopProbe:
         self.window = True
 
     async def run(self, daemon_stop: asyncio.Event, stop: asyncio.Event) -> None:
+        """Sample until ``stop``; memory only until ``daemon_stop`` (the daemon's shutdown is not its steady state)."""
         next_rss = time.perf_counter()
         while not stop.is_set():
             due = time.perf_counter() + LAG_PROBE_S
