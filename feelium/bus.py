@@ -14,11 +14,13 @@ costs the loop no task step per item.
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections import deque
 from collections.abc import Callable, Iterable
 from typing import Any, Generic, TypeVar
 
 T = TypeVar("T")
+log = logging.getLogger(__name__)
 
 
 class Subscription(Generic[T]):
@@ -106,6 +108,7 @@ class EventBus:
         self._subscriptions: list[Subscription[Any]] = []
         self._listeners: list[tuple[tuple[type, ...], Callable[[Any], None]]] = []
         self.published = 0
+        self.listener_errors = 0
 
     def subscribe(self, types: Iterable[type] | None = None, maxsize: int = 256) -> Subscription[Any]:
         """A new subscription to events of ``types`` (all events when ``None``)."""
@@ -122,7 +125,8 @@ class EventBus:
 
         For a consumer whose work per item is a few appends (the speech feed, 25 chunks a second): a
         subscription would wake a task for each item, a loop callback that does nothing but hand it on. The
-        listener runs in the producer's call, so it must be quick and must not raise."""
+        listener runs in the producer's call, so it must be quick; one that raises is counted (logged the first
+        time) and the producer goes on, since a consumer's fault must not stop the part that publishes."""
         entry = (tuple(types), listener)
         self._listeners.append(entry)
         return lambda: self._listeners.remove(entry) if entry in self._listeners else None
@@ -135,12 +139,18 @@ class EventBus:
                 sub._offer(item)
         for types, listener in self._listeners:
             if isinstance(item, types):
-                listener(item)
+                try:
+                    listener(item)
+                except Exception:
+                    self.listener_errors += 1
+                    if self.listener_errors == 1:
+                        log.exception("a bus listener raised on %s (counted from now on in health)", type(item).__name__)
 
     def health(self) -> dict[str, Any]:
         return {
             "published": self.published,
             "subscribers": len(self._subscriptions),
             "listeners": len(self._listeners),
+            "listener_errors": self.listener_errors,
             "dropped": sum(s.dropped for s in self._subscriptions),
         }

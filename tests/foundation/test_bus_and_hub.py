@@ -69,6 +69,25 @@ async def test_typed_subscription_and_wakeup():
     assert bus.health()["subscribers"] == 0
 
 
+def test_a_listener_that_raises_is_counted_and_neither_the_producer_nor_the_others_stop(caplog):
+    """A consumer's fault must not stop the part that publishes: the item still reaches every other consumer."""
+    bus = EventBus()
+    sub = bus.subscribe([PresenceEvent])
+    seen: list[object] = []
+
+    def broken(item: object) -> None:
+        raise RuntimeError("a consumer's bug")
+
+    bus.listen([PresenceEvent], broken)
+    bus.listen([PresenceEvent], seen.append)
+    presence = PresenceEvent("approach", 1.0, 3, 4, 1.0, 2.0, 5, 3.0)
+    bus.publish(presence)
+    bus.publish(presence)
+    assert seen == [presence, presence] and sub.take() == [presence, presence]
+    assert bus.health()["listener_errors"] == 2
+    assert sum("bus listener raised" in r.getMessage() for r in caplog.records) == 1  # logged once
+
+
 async def test_a_listener_files_each_item_inside_publish_and_stops_when_told():
     """A listener runs in the producer's call (no task step per item), only for its types, until stopped."""
     from feelium.events import SpeechOut
