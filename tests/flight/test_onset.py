@@ -96,7 +96,7 @@ def test_a_brake_without_handover_lands_its_predicted_rate_on_zero_and_its_rate_
     lag = 2.0 * THRUST_LAG_S
     brake = _RateOnset(lag, handover_s=0.0)
     brake.start(20.0, 0.0)
-    steps = [brake.step(0.0, (-60.0, 60.0), 0.02) for _ in range(60)]
+    steps = [brake.step(0.0, (-60.0, 60.0), 0.02) for _ in range(100)]
     commands = [command for _, _, command in steps]
     landed = next(i for i, (_, predicted, _) in enumerate(steps) if abs(predicted) < 1e-9)
     assert all(c == -60.0 for c in commands[: landed - 1])  # no taper before landing
