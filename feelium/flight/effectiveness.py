@@ -52,11 +52,10 @@ class Effectiveness:
         docs/flight-robustness.md, session 21); ``real_pushes_confirm``: the same rule for the windows that confirm
         a large push's value. A hover correction against a draft confirmed a yaw effectiveness of 1.3 on a plant whose
         turns showed 2.3, and the next turn started twice too hard (corner-mTdL, seed 4: peak 1.25 of the command);
-        ``delay_s``: the windows compare the measured change with the modelled push integral this much earlier (the
-        newest at or before then, so in whole cycles): a plant whose motors lag longer than the model's shows less
-        change than modelled in a push's first windows, and the loop then pushed too hard (the long-lag corners'
-        speed peaks of 1.23; session 22). The delay acts in whole cycles, rounded to the nearest: a fitted config's
-        few milliseconds are none."""
+        ``delay_s``: the windows compare the measured change with the modelled push integral this much earlier, in
+        whole cycles rounded to the nearest (a fitted config's few milliseconds are none): a plant whose motors lag
+        longer than the model's shows less change than modelled in a push's first windows, and the loop then pushed
+        too hard (the long-lag corners' speed peaks of 1.23; session 22)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")

@@ -80,9 +80,9 @@ def window_delay_s(config: FlightConfig, axis: Axis) -> float:
     the lag the box allows beyond the config's, ``motor_lag_s x (U - 1) / 2`` (40 ms at the shipped 80 ms and U = 2).
 
     It aligns a lag of about 120 ms, the middle of the longer half: a plant with the longest lag (150 ms) reads a
-    little low at a push's onset, one faster than modelled reads high (a gentler push, the safe side). Delays of
-    70 ms (aligning 150 ms) broke stops of the short-lag corners; 20 ms on the yaw left turn lapses of 1.82 s
-    (docs/flight-robustness.md, session 21). A fitted config (U = 1) gets none."""
+    little low at a push's onset, one faster than modelled reads high (a gentler push, the safe side). On session
+    21's turn brake, 70 ms on the surge (aligning 150 ms) left corner-mTdL a stop of 1.80 s, and 20 ms on the yaw
+    a lapse of 1.82 s (docs/flight-robustness.md, sessions 21-22). A fitted config (U = 1) gets none."""
     return config.motor_lag_s * (config.uncertainty(axis) - 1.0) / 2.0
 
 
