@@ -6,7 +6,8 @@ gains hold on a blimp twice as heavy or half as strong. A rate command
 (forward, up, turn) starts through a :class:`RateOnset`, is capped at the
 rate the body can still stop from within ``stop_within_s`` (counting only on
 the braking it has shown, or the box's weakest until it has braked once),
-and on release brakes along a ramp, then holds where the body came to rest.
+and on release brakes along a ramp (a turn: a reference that lands on zero
+through the box's longest motor lag), then holds where the body came to rest.
 In hover the horizontal loops rest inside a small band instead of chasing
 sensor noise, so the horizontal motors do not reverse back and forth.
 """
@@ -42,6 +43,8 @@ MEASURED_BRAKE_SHARE = 0.8
 HOVER_SPEED_BAND_M_S = 0.02  # in hover the surge loop rests below this measured speed (acts above 0.03)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
 HOVER_GAIN = 0.5  # a hover correction is gentle: it must not overshoot into a correction the other way
+# A turn brake's reference is done once its predicted rate is this close to zero and its rate inside the hover band.
+BRAKE_LANDED_DPS = 0.3
 # A hover heading correction turns back at most this fast: the stop goal's yaw rate with the turn cap's margin. The
 # stiffness balances the damping at kp/kd (0.94 deg/s per degree), so a heading 5 deg off after a forward turned back
 # at 3.04-3.10 deg/s, seconds after a stop that was otherwise complete (corner-MtDL seed 2, MtdL seed 3; session 20).
@@ -56,9 +59,14 @@ HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
 LIMIT_BRAKE_SHARE = 0.35  # of the vertical authority a climb into a limit plans to brake with (the loop needs the rest)
 
 
+def longest_lag_s(config: FlightConfig, axis: Axis) -> float:
+    """The longest motor lag (time constant) the axis' box allows: the config's, times the axis' uncertainty."""
+    return config.motor_lag_s * config.uncertainty(axis)
+
+
 def worst_lag_s(config: FlightConfig, axis: Axis) -> float:
     """The longest motor lag the axis' box allows, plus a cycle and the flow sensor's frame: what a stop must wait out."""
-    return config.motor_lag_s * config.uncertainty(axis) + 0.1
+    return longest_lag_s(config, axis) + 0.1
 
 
 class _Band:
@@ -245,6 +253,9 @@ class HeadingLoop:
         self.ref = Reference(2.0 * math.pi * config.reference_hz)
         self.turning = False
         self.onset = RateOnset(config.motor_lag_s)
+        # The turn brake's reference: full deceleration until its rate predicted over the box's longest lag lands on
+        # zero (no handover taper: its own lag is the taper), so no reverse torque is left in a long lag's pipe.
+        self.brake = RateOnset(longest_lag_s(config, "yaw"), handover_s=0.0)
         self.braking = False
         self.settle_until: float | None = None
         self.band = _Band()
@@ -280,14 +291,15 @@ class HeadingLoop:
         elif self.turning:
             self.turning = False
             ref.reset(est.heading, est.rate_dps)
+            self.brake.start(math.degrees(self._rate_now(est, thrust)), math.degrees(est.accel(thrust.yaw)))
             self.braking = True
         p_gain = 0.0 if turn else 1.0
         hover = False
         if not turn and self.braking:
-            ref.rate, ref.accel = ramp_to_zero(ref.rate, c.brake_yaw_dps2, dt)
+            ref.rate, rate_ahead, ref.accel = self.brake.step(0.0, (-c.brake_yaw_dps2, c.brake_yaw_dps2), dt)
             ref.value = (ref.value + ref.rate * dt) % 360.0
             self.target = ref.value
-            if ref.rate == 0.0:
+            if abs(rate_ahead) < BRAKE_LANDED_DPS and abs(ref.rate) < HOVER_YAW_BAND_DPS:
                 self.braking, self.settle_until = False, t + SETTLE_S
         elif not turn and self.settle_until is not None:
             p_gain, gain = 0.0, gain * SETTLE_DAMPING / max(c.heading_kd, 1e-6)
@@ -315,8 +327,8 @@ class HeadingLoop:
         else:
             self.band.take_over()
         error = math.radians(min(max(error_deg, -45.0), 45.0))
-        predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (YAW_RATE_TAU_S + c.motor_lag_s)
-        rate_error = math.radians(rate_ahead if turn else ref.rate) - predicted
+        predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (YAW_RATE_TAU_S + self._lag_s(turn))
+        rate_error = math.radians(rate_ahead if turn or self.braking else ref.rate) - predicted
         alpha = gain * (p_gain * c.heading_kp * error + c.heading_kd * rate_error) + math.radians(ref.accel)
         if hover and error:
             alpha = self._limit_return(alpha, error, predicted, gain)
@@ -324,6 +336,16 @@ class HeadingLoop:
         effectiveness = est.effectiveness.value(alpha) if hover else self._turn_effectiveness(t, alpha, est, turn)
         torque = c.yaw_inertia_kg_m2 * alpha / effectiveness + c.yaw_drag * r_ref * abs(r_ref)
         return self.band.same_sign(torque) if hover else torque
+
+    def _lag_s(self, turn: float) -> float:
+        """The lag the body's rate is predicted over: in a turn's brake the box's longest, as its reference plans.
+
+        A brake over the config's 80 ms lag left the reverse torque of a 150 ms plant in the pipe as the rate reached
+        zero: the rate went on to +4 deg/s the other way (corner-mTdL, lapses up to 1.50 s). Elsewhere the config's:
+        the settling's and the hover's small pushes, predicted over the longest lag, counted on torque a deadband
+        larger than the config's had eaten and let the rate linger near the stop threshold (lapses 1.84-2.02 s;
+        docs/flight-robustness.md, session 22)."""
+        return longest_lag_s(self.c, "yaw") if self.braking and not turn else self.c.motor_lag_s
 
     def _turn_effectiveness(self, t: float, alpha: float, est: YawEstimate, turn: float) -> float:
         """What a large push (a turn, its brake) is normalised by: the confirmed value, or during a turn whose sign

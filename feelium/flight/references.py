@@ -49,11 +49,14 @@ class RateOnset:
     comes within ``HANDOVER_S`` of the commanded rate, then tapers
     exponentially. The predicted rate moves exactly at the commanded
     acceleration, so it never passes the commanded rate, and the rate itself,
-    which trails it by the lag, does not either.
+    which trails it by the lag, does not either. ``handover_s`` is that taper's
+    time constant; 0 lands the predicted rate on the target within a cycle
+    (a turn brake: the rate then tapers through the lag alone).
     """
 
-    def __init__(self, lag_s: float) -> None:
+    def __init__(self, lag_s: float, handover_s: float = HANDOVER_S) -> None:
         self.lag_s = lag_s
+        self.handover_s = handover_s
         self.rate = 0.0
         self.accel = 0.0  # after the motor lag
 
@@ -69,7 +72,7 @@ class RateOnset:
         """This cycle's reference (rate, predicted rate, acceleration command); then advance over ``dt``."""
         rate, predicted = self.rate, self.predicted
         lo, hi = min(limits[0], 0.0), max(limits[1], 0.0)
-        command = min(max((target - predicted) / max(HANDOVER_S, dt), lo), hi)
+        command = min(max((target - predicted) / max(self.handover_s, dt), lo), hi)
         decay = math.exp(-dt / self.lag_s)  # the command held over dt through the lag, exactly
         self.rate += command * dt + (self.accel - command) * self.lag_s * (1.0 - decay)
         self.accel = command + (self.accel - command) * decay

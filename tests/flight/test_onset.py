@@ -90,6 +90,22 @@ def test_onset_from_rest_never_overshoots_and_arrives(target: float, lo: float, 
     assert abs(onset.rate - target) <= 1e-3 * max(abs(target), 1.0)
 
 
+def test_a_brake_without_handover_lands_its_predicted_rate_on_zero_and_its_rate_follows_through_the_lag() -> None:
+    """The turn brake's reference (``handover_s=0``): full deceleration until the rate predicted over the lag lands on
+    zero within a cycle, then the rate itself tapers through that lag alone, never passing zero."""
+    lag = 2.0 * THRUST_LAG_S
+    brake = _RateOnset(lag, handover_s=0.0)
+    brake.start(20.0, 0.0)
+    steps = [brake.step(0.0, (-60.0, 60.0), 0.02) for _ in range(100)]
+    commands = [command for _, _, command in steps]
+    landed = next(i for i, (_, predicted, _) in enumerate(steps) if abs(predicted) < 1e-9)
+    assert all(c == -60.0 for c in commands[: landed - 1])  # no taper before landing
+    assert all(abs(c) < 1e-9 for c in commands[landed:])  # nothing commanded after it
+    rates = [rate for rate, _, _ in steps]
+    assert all(0.0 <= b <= a for a, b in zip(rates, rates[1:]))  # the rate falls through the lag, never below zero
+    assert rates[landed] > 5.0 and rates[-1] < 0.01  # landing leaves the lag's share of the rate, which then decays
+
+
 # ------------------------------------------------------------------ the mixer's limits and the physical floor
 def test_mixer_limits_are_what_split_delivers() -> None:
     mixer = FlightController(CONFIG).mixer

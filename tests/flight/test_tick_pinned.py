@@ -17,7 +17,15 @@ box is 1, unchanged); the same two re-pinned in session 21 (branch i13seeds3) fo
 (``HeadingLoop._limit_return``) alone, computed with each of that session's three changes switched off in turn (the
 speed cap taught by real pushes only and the turn escalation leave all three digests as they were; with the limit
 off the old digests come back): from t = 2.8 s, in the scripted forward, the hover correction of the heading is
-braked sooner, the yaw rate 1.0-1.2 deg/s where it was 1.5 (2.9-4.0 s): every
+braked sooner, the yaw rate 1.0-1.2 deg/s where it was 1.5 (2.9-4.0 s); all three re-pinned in session 22 (branch
+i13turn): a turn's brake follows a reference that lands on zero through the box's longest motor lag (``HeadingLoop.brake``)
+instead of a linear ramp, and the rate in it is predicted over that lag; every cycle's commands are as before up to
+the right turn's release at 5.2 s and first differ in the brake's first cycles (5.22-5.24 s; in ``fitted_still_air``,
+whose box is 1, only the reference's shape changed); then the two doubted-model flights again on the same branch for
+the surge and yaw effectiveness windows taking the modelled push 40 ms earlier (``window_delay_s``) and a yaw sign
+confirmed only by windows overlapping a push out of hover: their commands first differ 0.12 s into the scripted
+forward (1.62 / 1.632 s), the surge's first windows reading the onset later and so higher (both motors 0.74 -> 0.28
+in that cycle); ``fitted_still_air`` (box 1: no delay) unchanged: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
 dropouts, drafts, a stalled link with its flood of replies and a lagging one. A change in the last
@@ -75,19 +83,19 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "efff00587654ffe85f2ac5ea",
+        "f791e8c893149d3f7bfaef80",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
         board_with(BoardParams(drafts=None), z=2.2),
         None,
-        "8051d84e42351adb0e577668",
+        "64035b5102d7fa15e389315e",
     ),
     "stall_and_lag": (
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "aaeb2c9b6d48b5fa297f3770",
+        "93c9d882f46cf0603643e12c",
     ),
 }
 
