@@ -181,14 +181,16 @@ class AltitudeLoop:
         # saturated, not softened by a partner, and not far *below* its target (a partner holding the
         # body down must not wind it up into a lunge when let go). Far *above* it still learns: a weak
         # blimp pinned under the ceiling must learn to push down harder, and up is where it fails safe.
-        # Nor for the box's longest motor lag after a saturated cycle: the motors are still catching up with
-        # the limit, and what the model misses then is its lag's error, not a force: a calibrated heavy corner
-        # (lag 150 ms, fitted 106 ms) climbing on and off its down limit learned +0.3 m/s^2 in 9 s (truth about
-        # 0.01), modelled no braking left, and rose through the ceiling limit and on through the `down` after it
-        # (corner-MtdL, flight seed 3; docs/calibrate-flight.md, session 22).
+        # Nor, in a held climb or descent, for the box's longest motor lag after a saturated cycle: the motors are
+        # still catching up with the limit, and what the model misses then is its lag's error, not a force: a
+        # calibrated heavy corner (lag 150 ms, fitted 106 ms) climbing on and off its down limit learned +0.3 m/s^2
+        # in 9 s (truth about 0.01), modelled no braking left, and rose through the ceiling limit and on through
+        # the `down` after it (corner-MtdL, flight seed 3; docs/calibrate-flight.md, session 22). A hold learns at
+        # once: heavy corners hover near their motors' limit, and waiting there too left the shipped config's
+        # altitude excursions on them at 0.08-0.09 m where they were 0.01-0.03.
         if saturated:
             self.saturated_t = t
-        settling = t - self.saturated_t < c.motor_lag_s * c.uncertainty("heave")
+        settling = bool(climb) and t - self.saturated_t < c.motor_lag_s * c.uncertainty("heave")
         below = max(ref.value - z, self.target - z) > c.altitude_integral_band_m
         obs.freeze_disturbance = soft or saturated or settling or below
         obs.touched = soft or below
@@ -243,10 +245,10 @@ class AltitudeLoop:
         down = (lo + c.net_buoyancy_n - drag) / c.heave_mass + obs.disturbance
         up = (hi + c.net_buoyancy_n - drag) / c.heave_mass + obs.disturbance
         # A reference slows, or turns, at least at the braking the limits' plan counts on (``_braking``: from the
-        # commands that held the body still, so no disturbance enters it): the disturbance a weak corner's hold
+        # commands that held the body still, so no disturbance enters it): the disturbance a heavy corner's hold
         # learns may leave the model no braking at all, and a reference clipped to what the model allows held a
-        # climb of 0.08-0.1 m/s through the twelve seconds of a `down` (calibrated corner-Mtdl, flight seed 3,
-        # with the margin below; session 22).
+        # climb into the limit, or on through a `down`: with the disturbance's wait above and without this floor,
+        # corner-Mtdl on the shipped config left the altitude limits by 0.14 m (flight seed 2; session 22).
         return min(e.value(down) * down, -self._braking(obs, 1.0)), max(e.value(up) * up, self._braking(obs, -1.0))
 
 

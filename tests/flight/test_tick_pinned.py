@@ -17,13 +17,13 @@ box is 1, unchanged); the same two re-pinned in session 21 (branch i13seeds3) fo
 (``HeadingLoop._limit_return``) alone, computed with each of that session's three changes switched off in turn (the
 speed cap taught by real pushes only and the turn escalation leave all three digests as they were; with the limit
 off the old digests come back): from t = 2.8 s, in the scripted forward, the hover correction of the heading is
-braked sooner, the yaw rate 1.0-1.2 deg/s where it was 1.5 (2.9-4.0 s); all three re-pinned in session 22 (branch
-i13heave) for one of its three changes alone, the altitude disturbance learning nothing for the box's longest motor
-lag after a cycle at a motor limit (``AltitudeLoop``'s ``settling``; with it off the old digests come back, and the
-heave margin's standard errors and the reference's braking floor leave all three as they were): each flight's vertical
-force meets a motor limit first around the scripted `up` (6.0-7.6 s), the disturbance then waits 0.08-0.16 s before
-it learns, and differs by at most 0.045 / 0.005 / 0.145 m/s^2 afterwards, the altitude estimate by 4.7 / 0.5 / 7.4 cm
-(drafts_dropouts / fitted_still_air / stall_and_lag): every
+braked sooner, the yaw rate 1.0-1.2 deg/s where it was 1.5 (2.9-4.0 s); ``drafts_dropouts`` and ``fitted_still_air``
+re-pinned in session 22 (branch i13heave) for one of its three changes alone, the altitude disturbance learning
+nothing, in a held climb or descent, for the box's longest motor lag after a cycle at a motor limit
+(``AltitudeLoop``'s ``settling``; with it off the old digests come back, and the heave margin's standard errors and
+the reference's braking floor leave all three as they were): their vertical force meets a motor limit in the
+scripted `up` (6.0-7.6 s), the disturbance then waits 0.16 / 0.08 s before it learns, and differs by at most 0.061 /
+0.009 m/s^2 afterwards, the altitude estimate by 4.7 / 0.6 cm (``stall_and_lag`` unchanged): every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
 dropouts, drafts, a stalled link with its flood of replies and a lagging one. A change in the last
@@ -81,19 +81,19 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "d475d094791e32d97ca7fcc5",
+        "d039a99a0ec1dda3a3a732a6",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
         board_with(BoardParams(drafts=None), z=2.2),
         None,
-        "cf827e04c4dc6fabc5c221aa",
+        "179d696d547c1c1c05fc67ab",
     ),
     "stall_and_lag": (
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "726be377f43804cfc002168f",
+        "aaeb2c9b6d48b5fa297f3770",
     ),
 }
 
