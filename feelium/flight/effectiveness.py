@@ -130,9 +130,9 @@ class Effectiveness:
     def _low_end(self, side: int) -> float:
         """The learned value ``ASSURED_STANDARD_ERRORS`` standard errors low (its least squares' error: the window's
         noise over the root of the information), within the box."""
-        information = self._information[side]
         if not self.change_noise:
             return self.values[side]
+        information = self._information[side]
         if information <= 0.0:
             return self.lows[side]
         low_end = self.values[side] - ASSURED_STANDARD_ERRORS * self.change_noise / math.sqrt(information)
