@@ -22,6 +22,7 @@ from collections import deque
 
 
 REAL_PUSH_SLACK_S = 0.05  # the loop marks a real push after the estimate's update: a cycle late, with room
+ASSURED_STANDARD_ERRORS = 2.0  # with ``change_noise``: a margin counts on the learned value this many standard errors low
 
 
 class Effectiveness:
@@ -31,7 +32,7 @@ class Effectiveness:
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
                  confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
                  mirrored: bool = False, real_pushes_assure: bool = False, real_pushes_confirm: bool = False,
-                 delay_s: float = 0.0) -> None:
+                 delay_s: float = 0.0, change_noise: float = 0.0) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -55,7 +56,13 @@ class Effectiveness:
         ``delay_s``: the windows compare the measured change with the modelled push integral this much earlier, in
         whole cycles rounded to the nearest (a fitted config's few milliseconds are none): a plant whose motors lag
         longer than the model's shows less change than modelled in a push's first windows, and the loop then pushed
-        too hard (the long-lag corners' speed peaks of 1.23; session 22)."""
+        too hard (the long-lag corners' speed peaks of 1.23; session 22);
+        ``change_noise``: the standard deviation of one window's measured rate change (the sensor's noise and the
+        air's): a margin then counts on the learned value ``ASSURED_STANDARD_ERRORS`` standard errors low, so a few
+        windows barely above the noise teach it nothing and many large ones teach it nearly the least squares (0:
+        the least squares as it is). Three windows of a climb's onset, each changing the modelled rate by 0.03 m/s
+        against 0.07 m/s of noise, taught the heave's down side 2.54 (true about 1), and a calibrated heavy corner
+        climbed into the ceiling (docs/calibrate-flight.md, session 22)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -72,6 +79,8 @@ class Effectiveness:
         self.values = [high, high]  # [push < 0, push > 0]
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
         self._strong_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over real pushes only
+        self.change_noise = change_noise
+        self._information = [0.0, 0.0]  # per direction: sum x*x over independent windows (they overlap)
         self.strong_values = [high, high]
         self._history: deque[tuple[float, float, float]] = deque()  # (t, modelled push integral, measured rate)
         self._push_integral = 0.0
@@ -125,8 +134,19 @@ class Effectiveness:
         side = 1 if push > 0.0 else 0
         shown = self.shown_by_side[side]
         if self.assuring_samples[side]:
-            return self.values[side]
+            return self._low_end(side)
         return self.lows[side] if shown is None else min(max(shown, self.lows[side]), self.high)
+
+    def _low_end(self, side: int) -> float:
+        """The learned value ``ASSURED_STANDARD_ERRORS`` standard errors low (its least squares' error: the window's
+        noise over the root of the information), within the box."""
+        if not self.change_noise:
+            return self.values[side]
+        information = self._information[side]
+        if information <= 0.0:
+            return self.lows[side]
+        low_end = self.values[side] - ASSURED_STANDARD_ERRORS * self.change_noise / math.sqrt(information)
+        return max(low_end, self.lows[side])
 
     def counts_on_shown(self, push: float) -> bool:
         """Whether :meth:`assured` is the calibration's value: nothing in flight has taught it yet."""
@@ -159,6 +179,8 @@ class Effectiveness:
         sums = self._sums[side]
         sums[0] = sums[0] * decay + x * x
         sums[1] = sums[1] * decay + x * y
+        # A window shares all but ``dt`` of its span with the one before: window_s / dt of them are one measurement.
+        self._information[side] = self._information[side] * decay + x * x * min(1.0, dt / self.window_s)
         self.samples[side] += 1
         self.values[side] = min(max(sums[1] / sums[0], self.lows[side]), self.high)
         if (not self.real_pushes_assure or self._overlaps_real_push(t)) and abs(x) * self.values[side] >= self.assuring_change:

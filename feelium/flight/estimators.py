@@ -33,6 +33,11 @@ DISTURBANCE_FROM_RATE_TAU_S = 3.0  # and how fast the disturbance learns what th
 NEW_HOLD_S, NEW_HOLD_TAU_S = 5.0, 0.5  # ...and how fast in the first seconds of a hold, when nothing is learned yet
 HEAVE_WINDOW_S = 0.5  # its effectiveness windows: longer than the surge's, the range slope is noisier
 HEAVE_MIN_CHANGE = 0.03  # m/s of modelled climb-rate change: below it a window is noise, not excitation
+# The noise of one heave window's measured climb-rate change: the difference of two range slopes, each over 15
+# readings of a VL53L1X-class sensor (1.6 cm at 1.6 m): sqrt(2) x 0.048 = 0.068 m/s; with the drafts and the model's
+# error, the windows of safety flights scatter 0.06-0.09 m/s about their least squares (session 22). What the
+# altitude's limit margin counts on is the learned value two of its standard errors low (Effectiveness.change_noise).
+HEAVE_CHANGE_NOISE_M_S = 0.08
 # In a held climb on a trusted model (heave uncertainty 1), away from the altitude limits, the observer follows
 # the rangefinder at this share of its bandwidth: the climb's rate loop damps the observer's climb rate and
 # nothing else, and at 0.6 Hz the rangefinder's noise (1.6 cm) moved that rate 2.5-3 cm/s for half a second,
@@ -199,7 +204,8 @@ class AltitudeObserver:
         self._gated_since: float | None = None
         self._restart_t = -math.inf
         low, high = effectiveness_bounds(config.uncertainty("heave"), reverse=False)
-        self.effectiveness = Effectiveness(low, high, window_s=HEAVE_WINDOW_S, min_change=HEAVE_MIN_CHANGE)
+        self.effectiveness = Effectiveness(low, high, window_s=HEAVE_WINDOW_S, min_change=HEAVE_MIN_CHANGE,
+                                           change_noise=HEAVE_CHANGE_NOISE_M_S)
         self.range_rate = RangeRate()
         self._pushes: deque[float] = deque(maxlen=max(1, round(self.range_rate.age_s * config.rate_hz)) + 1)
 
