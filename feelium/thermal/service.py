@@ -30,7 +30,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from feelium.cameras.handoff import LoopInbox
-from feelium.cameras.reader import Worker
+from feelium.cameras.reader import Worker, frame_condition
 from feelium.events import PresenceEvent
 from feelium.hub import Hub
 from feelium.thermal import registers as reg
@@ -42,6 +42,8 @@ from feelium.thermal.presence import PresenceDetector
 
 MAX_BACKOFF_FACTOR = 8
 FAILED_AFTER = 3  # attempts in a row that raised before health calls the sensor failed (one can be a glitch)
+STALE_AFTER_FRAMES = 5  # frame periods without a frame before health calls a part that raises nothing degraded
+MIN_STALE_AFTER_S = 1.0
 
 
 class Detected(NamedTuple):
@@ -110,6 +112,7 @@ class ThermalService:
         self.last_error: str | None = None
         self.last_frame: np.ndarray | None = None
         self.last_ta: float | None = None
+        self._frame_at: float | None = None  # hub time of the newest frame (set on the thermal thread)
         self._consecutive_failures = 0
         self._polled_at: float | None = None  # when the worker's newest poll began
         self._stopping = False
@@ -152,6 +155,7 @@ class ThermalService:
     def _detect(self, t: float, image: np.ndarray) -> Detected:
         """Thermal thread: count the frame, run presence on it, summarise it for ``hub.state``."""
         self.frames += 1
+        self._frame_at = t
         self.last_frame = image
         if self.assembler is not None and self.assembler.last is not None:
             self.last_ta = self.assembler.last.ta
@@ -244,9 +248,10 @@ class ThermalService:
             return {"condition": "failed", "reason": f"sensor failed {self._consecutive_failures} times in a row: {self.last_error}"}
         if self._consecutive_failures:
             return {"condition": "degraded", "reason": f"read failed, retrying: {self.last_error}"}
-        if not self.frames:
-            return {"condition": "starting", "reason": "waiting for the first thermal frame"}
-        return {"condition": "ok"}
+        # A sensor whose new-data bit never comes back, or a read stuck on the thread, raises nothing: only the
+        # age of the newest frame tells (a full frame takes two sub-pages, ``2 / refresh_hz``).
+        stale_after_s = max(MIN_STALE_AFTER_S, STALE_AFTER_FRAMES * 2.0 / self.config.refresh_hz)
+        return frame_condition(self._frame_at, self.hub.clock(), stale_after_s, "thermal")
 
     def health(self) -> dict[str, Any]:
         out: dict[str, Any] = {

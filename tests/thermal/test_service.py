@@ -200,3 +200,23 @@ async def test_a_stop_interrupts_the_thermal_threads_wait():
     await service.stop()
     await asyncio.wait_for(task, 10.0)  # far inside the 60 s backoff
     assert service.failures == 1
+
+
+async def test_a_sensor_that_goes_silent_after_frames_does_not_read_ok():
+    """A part whose reads stop bringing frames (the new-data bit never set again, or a read stuck on the thread)
+    raises nothing, so no failure is counted: health must still say frames stopped, not ok (session 22 review)."""
+    renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
+    hub, clock, service, _ = make_service(lambda t: renderer.frame(t, []))
+    task = asyncio.create_task(service.run())
+    while service.frames < 3 and clock.t < 10.0 and not task.done():
+        await asyncio.sleep(0)
+    assert service.frames >= 3 and service.health()["condition"] == "ok"
+    service.driver.poll = lambda: None  # silent from now on: every poll finds nothing ready
+    frames, started = service.frames, clock.t
+    while clock.t < started + 5.0 and not task.done():
+        await asyncio.sleep(0)
+    await service.stop()
+    await asyncio.wait_for(task, 5.0)
+    assert service.frames <= frames + 1  # at most the one being assembled
+    health = service.health()
+    assert health["condition"] == "degraded" and "no thermal frame" in health["reason"], health
