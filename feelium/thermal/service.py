@@ -117,6 +117,8 @@ class ThermalService:
         self._polled_at: float | None = None  # when the worker's newest poll began
         self._stopping = False
         self._ending = threading.Event()  # this run's thread should end (a new one per run: a restart after a crash)
+        self._reading = threading.Lock()  # held by the one thread that may use the driver
+        self._driver_closed = False  # a stopped or cancelled run's thread closed ``driver``
 
     def _backoff(self) -> float:
         factor = min(MAX_BACKOFF_FACTOR, 2 ** max(0, self._consecutive_failures - 1))
@@ -186,6 +188,16 @@ class ThermalService:
             ending.wait(seconds)
 
     def _read_loop(self, inbox: LoopInbox[Detected], ending: threading.Event) -> None:
+        """Thermal thread: :meth:`_poll_until_ended`, once the previous run's thread is gone.
+
+        A cancelled run's thread ends only after its current read and then closes the driver: a run started
+        meanwhile must neither read the bus alongside it nor go on with the driver it closed."""
+        with self._reading:
+            if self._driver_closed:
+                self.driver, self._driver_closed = None, False
+            self._poll_until_ended(inbox, ending)
+
+    def _poll_until_ended(self, inbox: LoopInbox[Detected], ending: threading.Event) -> None:
         """Thermal thread: poll, decode, detect, hand over; between sub-pages, wait until the next one can be ready.
 
         The device finishes a sub-page every ``1 / refresh_hz``. One that a poll found was not ready when the
@@ -223,6 +235,7 @@ class ThermalService:
                     self.driver.close()
                 except OSError:
                     pass
+                self._driver_closed = True  # kept for health(); a later run starts a new one
 
     async def run(self) -> None:
         """Run the thermal thread until the service stops (or the thread raises what it cannot handle)."""

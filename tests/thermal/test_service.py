@@ -220,3 +220,40 @@ async def test_a_sensor_that_goes_silent_after_frames_does_not_read_ok():
     assert service.frames <= frames + 1  # at most the one being assembled
     health = service.health()
     assert health["condition"] == "degraded" and "no thermal frame" in health["reason"], health
+
+
+async def test_a_cancelled_run_started_again_reads_on_with_one_thread_and_an_open_bus():
+    """``run`` cancelled (not stopped) and called again, as ``feelium.service`` allows: the old thread must end
+    without closing the bus under the new one's reads, and only one thread may read the sensor."""
+    import threading
+
+    hub = Hub()
+    cfg = ThermalConfig(refresh_hz=16.0)
+    buses = []
+
+    def make_driver():
+        driver = sim_driver(cfg, hub, seed=1)
+        buses.append(driver.transport.bus)
+        return driver
+
+    service = ThermalService(cfg, hub, make_driver, "sim")
+    loop = asyncio.get_running_loop()
+
+    async def frames_after(count):
+        task = asyncio.create_task(service.run())
+        deadline = loop.time() + 20.0
+        while service.frames < count and loop.time() < deadline and not task.done():
+            await asyncio.sleep(0.02)
+        return task
+
+    first = await frames_after(2)
+    first.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await first
+    second = await frames_after(service.frames + 4)
+    assert not second.done() and service.failures == 0, service.health()
+    assert [t.name.startswith("thermal") for t in threading.enumerate()].count(True) == 1
+    assert not any(bus.closed for bus in buses[-1:]), "the bus in use was closed under the new thread"
+    await service.stop()
+    await asyncio.wait_for(second, 5.0)
+    assert all(bus.closed for bus in buses)
