@@ -277,8 +277,9 @@ class ThermalService:
             "present": self.detector.present,
             "ta_c": None if self.last_ta is None or not math.isfinite(self.last_ta) else round(self.last_ta, 2),
         }
-        if self.driver is not None:
-            out["driver"] = self.driver.health()
+        driver = self.driver  # read once: the thermal thread drops it after a bad calibration
+        if driver is not None:
+            out["driver"] = driver.health()
         if self.assembler is not None:
             out["decoded"] = self.assembler.decoded
             out["rejected"] = dict(self.assembler.rejected)

@@ -257,3 +257,21 @@ async def test_a_cancelled_run_started_again_reads_on_with_one_thread_and_an_ope
     await service.stop()
     await asyncio.wait_for(second, 5.0)
     assert all(bus.closed for bus in buses)
+
+
+def test_health_reads_the_driver_once_while_the_thread_may_drop_it():
+    """The thermal thread sets ``driver`` to None after a bad calibration; a ``health()`` on the loop between its
+    check and its use must not raise (that reads as 'health() failed' in the report). The property below is that
+    interleaving: the thread drops the driver right after the check (session 22 review)."""
+    renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
+    hub, clock, service, sensors = make_service(lambda t: renderer.frame(t, []))
+    service._start_driver()
+    driver = service.__dict__.pop("driver")
+    reads = iter([driver])
+
+    class Racing(ThermalService):
+        driver = property(lambda self: next(reads, None), lambda self, value: None)
+
+    service.__class__ = Racing
+    health = service.health()
+    assert health["driver"]["io_errors"] == 0
