@@ -1,6 +1,7 @@
 """The thermal service end to end: simulated sensor seeing a scene -> presence events on the hub."""
 
 import asyncio
+import threading
 import time
 
 import numpy as np
