@@ -106,7 +106,9 @@ class EventBus:
 
     def __init__(self) -> None:
         self._subscriptions: list[Subscription[Any]] = []
-        self._listeners: list[tuple[tuple[type, ...], Callable[[Any], None]]] = []
+        # replaced, never changed in place: a listener that stops (or adds) one inside ``publish`` cannot make the
+        # loop over them skip the next listener
+        self._listeners: tuple[tuple[tuple[type, ...], Callable[[Any], None]], ...] = ()
         self.published = 0
         self.listener_errors = 0
 
@@ -128,8 +130,12 @@ class EventBus:
         listener runs in the producer's call, so it must be quick; one that raises is counted (logged the first
         time) and the producer goes on, since a consumer's fault must not stop the part that publishes."""
         entry = (tuple(types), listener)
-        self._listeners.append(entry)
-        return lambda: self._listeners.remove(entry) if entry in self._listeners else None
+        self._listeners += (entry,)
+
+        def stop() -> None:  # by identity: another registration of the same callable stays
+            self._listeners = tuple(e for e in self._listeners if e is not entry)
+
+        return stop
 
     def publish(self, item: object) -> None:
         """Deliver ``item`` to every interested subscriber and listener without waiting."""

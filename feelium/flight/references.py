@@ -9,6 +9,9 @@ from __future__ import annotations
 import math
 
 HANDOVER_S = 0.15  # time constant of the last part of a rate onset, where full thrust hands over to the rate loop
+# What a cycle of no time (a repeated timestamp) divides by when there is no handover taper either: the command is
+# then the full acceleration towards the target, or none on it, as in a cycle, never a division by zero.
+NO_TIME_S = 1e-9
 
 
 def wrap_deg(angle: float) -> float:
@@ -72,7 +75,7 @@ class RateOnset:
         """This cycle's reference (rate, predicted rate, acceleration command); then advance over ``dt``."""
         rate, predicted = self.rate, self.predicted
         lo, hi = min(limits[0], 0.0), max(limits[1], 0.0)
-        command = min(max((target - predicted) / max(self.handover_s, dt), lo), hi)
+        command = min(max((target - predicted) / max(self.handover_s, dt, NO_TIME_S), lo), hi)
         decay = math.exp(-dt / self.lag_s)  # the command held over dt through the lag, exactly
         self.rate += command * dt + (self.accel - command) * self.lag_s * (1.0 - decay)
         self.accel = command + (self.accel - command) * decay

@@ -30,7 +30,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from feelium.cameras.handoff import LoopInbox
-from feelium.cameras.reader import Worker
+from feelium.cameras.reader import Worker, frame_condition
 from feelium.events import PresenceEvent
 from feelium.hub import Hub
 from feelium.thermal import registers as reg
@@ -42,6 +42,8 @@ from feelium.thermal.presence import PresenceDetector
 
 MAX_BACKOFF_FACTOR = 8
 FAILED_AFTER = 3  # attempts in a row that raised before health calls the sensor failed (one can be a glitch)
+STALE_AFTER_FRAMES = 5  # frame periods without a frame before health calls a part that raises nothing degraded
+MIN_STALE_AFTER_S = 1.0
 
 
 class Detected(NamedTuple):
@@ -110,10 +112,13 @@ class ThermalService:
         self.last_error: str | None = None
         self.last_frame: np.ndarray | None = None
         self.last_ta: float | None = None
+        self._frame_at: float | None = None  # hub time of the newest frame (set on the thermal thread)
         self._consecutive_failures = 0
         self._polled_at: float | None = None  # when the worker's newest poll began
         self._stopping = False
         self._ending = threading.Event()  # this run's thread should end (a new one per run: a restart after a crash)
+        self._reading = threading.Lock()  # held by the one thread that may use the driver
+        self._driver_closed = False  # a stopped or cancelled run's thread closed ``driver``
 
     def _backoff(self) -> float:
         factor = min(MAX_BACKOFF_FACTOR, 2 ** max(0, self._consecutive_failures - 1))
@@ -152,6 +157,7 @@ class ThermalService:
     def _detect(self, t: float, image: np.ndarray) -> Detected:
         """Thermal thread: count the frame, run presence on it, summarise it for ``hub.state``."""
         self.frames += 1
+        self._frame_at = t
         self.last_frame = image
         if self.assembler is not None and self.assembler.last is not None:
             self.last_ta = self.assembler.last.ta
@@ -182,6 +188,16 @@ class ThermalService:
             ending.wait(seconds)
 
     def _read_loop(self, inbox: LoopInbox[Detected], ending: threading.Event) -> None:
+        """Thermal thread: :meth:`_poll_until_ended`, once the previous run's thread is gone.
+
+        A cancelled run's thread ends only after its current read and then closes the driver: a run started
+        meanwhile must neither read the bus alongside it nor go on with the driver it closed."""
+        with self._reading:
+            if self._driver_closed:
+                self.driver, self._driver_closed = None, False
+            self._poll_until_ended(inbox, ending)
+
+    def _poll_until_ended(self, inbox: LoopInbox[Detected], ending: threading.Event) -> None:
         """Thermal thread: poll, decode, detect, hand over; between sub-pages, wait until the next one can be ready.
 
         The device finishes a sub-page every ``1 / refresh_hz``. One that a poll found was not ready when the
@@ -219,6 +235,7 @@ class ThermalService:
                     self.driver.close()
                 except OSError:
                     pass
+                self._driver_closed = True  # kept for health(); a later run starts a new one
 
     async def run(self) -> None:
         """Run the thermal thread until the service stops (or the thread raises what it cannot handle)."""
@@ -244,9 +261,10 @@ class ThermalService:
             return {"condition": "failed", "reason": f"sensor failed {self._consecutive_failures} times in a row: {self.last_error}"}
         if self._consecutive_failures:
             return {"condition": "degraded", "reason": f"read failed, retrying: {self.last_error}"}
-        if not self.frames:
-            return {"condition": "starting", "reason": "waiting for the first thermal frame"}
-        return {"condition": "ok"}
+        # A sensor whose new-data bit never comes back, or a read stuck on the thread, raises nothing: only the
+        # age of the newest frame tells (a full frame takes two sub-pages, ``2 / refresh_hz``).
+        stale_after_s = max(MIN_STALE_AFTER_S, STALE_AFTER_FRAMES * 2.0 / self.config.refresh_hz)
+        return frame_condition(self._frame_at, self.hub.clock(), stale_after_s, "thermal")
 
     def health(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -259,8 +277,9 @@ class ThermalService:
             "present": self.detector.present,
             "ta_c": None if self.last_ta is None or not math.isfinite(self.last_ta) else round(self.last_ta, 2),
         }
-        if self.driver is not None:
-            out["driver"] = self.driver.health()
+        driver = self.driver  # read once: the thermal thread drops it after a bad calibration
+        if driver is not None:
+            out["driver"] = driver.health()
         if self.assembler is not None:
             out["decoded"] = self.assembler.decoded
             out["rejected"] = dict(self.assembler.rejected)

@@ -9,6 +9,7 @@ import asyncio
 import itertools
 import json
 import math
+import time
 
 import pytest
 
@@ -55,6 +56,28 @@ async def test_the_probe_reads_memory_on_its_lag_wake_ups_and_keeps_only_the_win
     assert list(probe.rss_mb.values()) == list(inside) and probe.peak_mb > inside[-1]  # after it: the peak only
     assert probe.peak_mb == stopped_at  # nothing read once the daemon is stopping
     assert len(probe.lags_ms) >= 20 and all(lag >= 0.0 for lag in probe.lags_ms.values())
+
+
+async def test_the_probes_lags_are_the_windows_only(monkeypatch) -> None:
+    """What the loop waits while the daemon shuts down (after the window: the headset's report, the services'
+    stops) is not the steady state the lag percentiles describe (session 22 review)."""
+    from feelium.lab.daemon import board
+
+    monkeypatch.setattr(board, "resident_mb", lambda: 100.0)
+    monkeypatch.setattr(board, "LAG_PROBE_S", 0.002)
+    probe, daemon_stop, stop = LoopProbe(1.0), asyncio.Event(), asyncio.Event()
+    task = asyncio.create_task(probe.run(daemon_stop, stop))
+    await asyncio.sleep(0.02)
+    probe.open_window()
+    await asyncio.sleep(0.05)
+    probe.window = False
+    in_window = len(probe.lags_ms)
+    for _ in range(3):
+        await asyncio.sleep(0.005)
+        time.sleep(0.03)  # a shutdown that holds the loop up
+    stop.set()
+    await task
+    assert in_window >= 5 and len(probe.lags_ms) == in_window
 
 
 def test_modules_and_threads_are_charged_to_their_service():

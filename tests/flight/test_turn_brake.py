@@ -40,3 +40,23 @@ def test_a_long_lag_turn_brake_does_not_overshoot_the_other_way(seed: int, monke
     after = (t > released) & (t < released + 1.0)
     assert np.max(r[after]) < STOPPED_YAW_DPS, f"overshoot {np.max(r[after]):.2f} deg/s"
     assert result.manoeuvres["turn_left-lapse"]["stop_s"] <= 1.2, result.manoeuvres
+
+
+def test_a_repeated_timestamp_in_a_turns_brake_is_a_cycle_of_no_time_not_a_crash() -> None:
+    """Two ticks at the same time (dt = 0: a clock step, a re-sent poll) while the turn brake runs: the brake's
+    reference (``RateOnset`` with no handover taper) must not divide by the zero cycle (session 22 review)."""
+    from feelium.flight.controller import FlightController
+    from feelium.flight.setpoint import HOLD, Setpoint
+    from feelium.flight.telemetry import Telemetry
+
+    controller = FlightController(Config().flight)
+    heading, rate, t = 0.0, 0.0, 0.0
+    for k in range(120):  # 1.2 s of a right turn at 20 deg/s, then the release
+        t = k * 0.01
+        rate = min(20.0, rate + 0.5)
+        heading = (heading + rate * 0.01) % 360.0
+        setpoint = Setpoint(yaw_rate_dps=20.0) if k < 100 else HOLD
+        out = controller.step(t, Telemetry(t, range_m=1.0, heading_deg=heading, yaw_rate_dps=rate), setpoint)
+    assert controller.heading_loop.braking
+    again = controller.step(t, Telemetry(t, range_m=1.0, heading_deg=heading, yaw_rate_dps=rate), HOLD)
+    assert all(np.isfinite(again.commands)) and np.allclose(np.shape(again.commands), np.shape(out.commands))

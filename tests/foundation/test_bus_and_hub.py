@@ -117,6 +117,25 @@ async def test_a_listener_files_each_item_inside_publish_and_stops_when_told():
     assert feed.last_seq == 1 and bus.health()["listeners"] == 0
 
 
+def test_a_listener_that_stops_during_publish_costs_no_other_listener_the_item():
+    """A one-shot listener stops itself inside ``publish``: the listener after it still gets that item, and a
+    stop called twice never stops another registration of the same callable (session 22 review)."""
+    bus = EventBus()
+    seen: list[object] = []
+    stops: list = []
+    once = lambda item: stops[0]()  # noqa: E731
+    stops.append(bus.listen([PresenceEvent], once))
+    bus.listen([PresenceEvent], seen.append)
+    presence = PresenceEvent("approach", 1.0, 3, 4, 1.0, 2.0, 5, 3.0)
+    bus.publish(presence)
+    assert seen == [presence] and bus.health()["listeners"] == 1
+    again = bus.listen([PresenceEvent], seen.append)
+    again()
+    again()
+    bus.publish(presence)
+    assert seen == [presence, presence] and bus.health()["listeners"] == 1
+
+
 async def test_latest_wakes_readers_with_newest_only():
     slot: Latest[int] = Latest()
     assert await slot.next_after(0, timeout=0.01) is None

@@ -1,6 +1,7 @@
 """The thermal service end to end: simulated sensor seeing a scene -> presence events on the hub."""
 
 import asyncio
+import threading
 import time
 
 import numpy as np
@@ -200,3 +201,78 @@ async def test_a_stop_interrupts_the_thermal_threads_wait():
     await service.stop()
     await asyncio.wait_for(task, 10.0)  # far inside the 60 s backoff
     assert service.failures == 1
+
+
+async def test_a_sensor_that_goes_silent_after_frames_does_not_read_ok():
+    """A part whose reads stop bringing frames (the new-data bit never set again, or a read stuck on the thread)
+    raises nothing, so no failure is counted: health must still say frames stopped, not ok (session 22 review)."""
+    renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
+    hub, clock, service, _ = make_service(lambda t: renderer.frame(t, []))
+    task = asyncio.create_task(service.run())
+    while service.frames < 3 and clock.t < 10.0 and not task.done():
+        await asyncio.sleep(0)
+    assert service.frames >= 3 and service.health()["condition"] == "ok"
+    service.driver.poll = lambda: None  # silent from now on: every poll finds nothing ready
+    frames, started = service.frames, clock.t
+    while clock.t < started + 5.0 and not task.done():
+        await asyncio.sleep(0)
+    await service.stop()
+    await asyncio.wait_for(task, 5.0)
+    assert service.frames <= frames + 1  # at most the one being assembled
+    health = service.health()
+    assert health["condition"] == "degraded" and "no thermal frame" in health["reason"], health
+
+
+async def test_a_cancelled_run_started_again_reads_on_with_one_thread_and_an_open_bus():
+    """``run`` cancelled (not stopped) and called again, as ``feelium.service`` allows: the old thread must end
+    without closing the bus under the new one's reads, and only one thread may read the sensor."""
+    import threading
+
+    hub = Hub()
+    cfg = ThermalConfig(refresh_hz=16.0)
+    buses = []
+
+    def make_driver():
+        driver = sim_driver(cfg, hub, seed=1)
+        buses.append(driver.transport.bus)
+        return driver
+
+    service = ThermalService(cfg, hub, make_driver, "sim")
+    loop = asyncio.get_running_loop()
+
+    async def frames_after(count):
+        task = asyncio.create_task(service.run())
+        deadline = loop.time() + 20.0
+        while service.frames < count and loop.time() < deadline and not task.done():
+            await asyncio.sleep(0.02)
+        return task
+
+    first = await frames_after(2)
+    first.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await first
+    second = await frames_after(service.frames + 4)
+    assert not second.done() and service.failures == 0, service.health()
+    assert [t.name.startswith("thermal") for t in threading.enumerate()].count(True) == 1
+    assert not any(bus.closed for bus in buses[-1:]), "the bus in use was closed under the new thread"
+    await service.stop()
+    await asyncio.wait_for(second, 5.0)
+    assert all(bus.closed for bus in buses)
+
+
+def test_health_reads_the_driver_once_while_the_thread_may_drop_it():
+    """The thermal thread sets ``driver`` to None after a bad calibration; a ``health()`` on the loop between its
+    check and its use must not raise (that reads as 'health() failed' in the report). The property below is that
+    interleaving: the thread drops the driver right after the check (session 22 review)."""
+    renderer = ThermalSceneRenderer(np.random.default_rng(4), 22.0)
+    hub, clock, service, sensors = make_service(lambda t: renderer.frame(t, []))
+    service._start_driver()
+    driver = service.__dict__.pop("driver")
+    reads = iter([driver])
+
+    class Racing(ThermalService):
+        driver = property(lambda self: next(reads, None), lambda self, value: None)
+
+    service.__class__ = Racing
+    health = service.health()
+    assert health["driver"]["io_errors"] == 0

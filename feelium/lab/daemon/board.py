@@ -214,8 +214,9 @@ def sim_devices_apart(ledger: Ledger) -> Iterator[None]:
 
 class LoopProbe:
     """The bench's one sleeper on the daemon's loop: how late the loop wakes it (what any callback waits behind the
-    others) and, every :data:`RSS_EVERY_S`, resident memory: the peak from start-up until the daemon is told to
-    stop, the samples while :attr:`window` is set.
+    others) while :attr:`window` is set and, every :data:`RSS_EVERY_S`, resident memory: the peak from start-up
+    until the daemon is told to stop, the samples while :attr:`window` is set. Lags outside the window (start-up,
+    the headset's report, the daemon's shutdown) are not the steady state the percentiles describe.
 
     One timer for both: until session 22 the window and the peak read memory on timers of their own, two more
     wake-ups of the loop every ``RSS_EVERY_S`` charged to the daemon, each reading ``/proc/self/status``."""
@@ -228,8 +229,7 @@ class LoopProbe:
         self.window = False
 
     def open_window(self) -> None:
-        """Samples from now on are the measured window's (the lags' warm-up ones are dropped)."""
-        self.lags_ms.clear()
+        """Samples from now on are the measured window's."""
         self.window = True
 
     async def run(self, daemon_stop: asyncio.Event, stop: asyncio.Event) -> None:
@@ -239,7 +239,8 @@ class LoopProbe:
             due = time.perf_counter() + LAG_PROBE_S
             await asyncio.sleep(LAG_PROBE_S)
             now = time.perf_counter()
-            self.lags_ms.add(1000.0 * max(0.0, now - due))
+            if self.window:
+                self.lags_ms.add(1000.0 * max(0.0, now - due))
             if now >= next_rss and not daemon_stop.is_set():
                 next_rss = now + RSS_EVERY_S
                 mb = resident_mb()
