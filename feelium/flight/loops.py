@@ -198,7 +198,7 @@ class AltitudeLoop:
         # altitude excursions on them at 0.08-0.09 m where they were 0.01-0.03.
         if saturated:
             self.saturated_t = t
-        settling = bool(climb) and t - self.saturated_t < c.motor_lag_s * c.uncertainty("heave")
+        settling = bool(climb) and t - self.saturated_t < longest_lag_s(c, "heave")
         below = max(ref.value - z, self.target - z) > c.altitude_integral_band_m
         obs.freeze_disturbance = soft or saturated or settling or below
         obs.touched = soft or below
@@ -226,7 +226,7 @@ class AltitudeLoop:
     def _climb_within_limits(self, z: float, obs: AltitudeObserver, climb: float) -> float:
         """The commanded climb rate, slowed near the altitude limits so that a held up or down stops there."""
         c = self.c
-        z_ahead = z + obs.vz * (HANDOVER_S + c.motor_lag_s * c.uncertainty("heave"))
+        z_ahead = z + obs.vz * (HANDOVER_S + longest_lag_s(c, "heave"))
         room = c.altitude_max_m - z_ahead if climb > 0 else z_ahead - c.altitude_min_m
         allowed = math.sqrt(2.0 * self._braking(obs, climb) * max(room, 0.0))
         self.near_limit = allowed < abs(climb)
