@@ -31,8 +31,7 @@ class Effectiveness:
     def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
                  confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
-                 mirrored: bool = False, real_pushes_assure: bool = False, real_pushes_confirm: bool = False,
-                 delay_s: float = 0.0, change_noise: float = 0.0) -> None:
+                 mirrored: bool = False, real_pushes_assure: bool = False, change_noise: float = 0.0) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -50,13 +49,7 @@ class Effectiveness:
         ``real_pushes_assure``: only a window that overlaps a real push (the loop out of hover: a command or a brake,
         ``last_real_push_t``) may teach the margin. Hover corrections taught corner-MtdL a reverse surge
         effectiveness twice what its brakes showed, and a speed cap that did not stop in time (flight seed 6: 1.50 s;
-        docs/flight-robustness.md, session 21); ``real_pushes_confirm``: the same rule for the windows that confirm
-        a large push's value. A hover correction against a draft confirmed a yaw effectiveness of 1.3 on a plant whose
-        turns showed 2.3, and the next turn started twice too hard (corner-mTdL, seed 4: peak 1.25 of the command);
-        ``delay_s``: the windows compare the measured change with the modelled push integral this much earlier, in
-        whole cycles rounded to the nearest (a fitted config's few milliseconds are none): a plant whose motors lag
-        longer than the model's shows less change than modelled in a push's first windows, and the loop then pushed
-        too hard (the long-lag corners' speed peaks of 1.23; session 22);
+        docs/flight-robustness.md, session 21);
         ``change_noise``: the standard deviation of one window's measured rate change (the sensor's noise and the
         air's): a margin then counts on the learned value ``ASSURED_STANDARD_ERRORS`` standard errors low, so a few
         windows barely above the noise teach it nothing and many large ones teach it nearly the least squares (0:
@@ -84,9 +77,6 @@ class Effectiveness:
         self.strong_values = [high, high]
         self._history: deque[tuple[float, float, float]] = deque()  # (t, modelled push integral, measured rate)
         self._push_integral = 0.0
-        self.real_pushes_confirm = real_pushes_confirm
-        self.delay_s = delay_s
-        self._integrals: deque[tuple[float, float]] = deque()  # (t, modelled push integral): the delayed one's source
         self.samples = [0, 0]
         self.mirrored = mirrored
 
@@ -160,17 +150,16 @@ class Effectiveness:
     def update(self, t: float, dt: float, push: float, measured_rate: float | None) -> None:
         """Fold in one cycle: the modelled acceleration ``push`` held over ``dt`` and the measured rate at ``t``."""
         self._push_integral += push * dt
-        integral = self._delayed_integral(t, dt)
         if measured_rate is None or not math.isfinite(measured_rate):
             self._history.clear()  # a gap breaks the windows
             return
-        self._history.append((t, integral, measured_rate))
+        self._history.append((t, self._push_integral, measured_rate))
         while len(self._history) >= 2 and self._history[1][0] <= t - self.window_s + 1e-9:
             self._history.popleft()  # keep the newest sample at or before the window's start
         t0, integral0, rate0 = self._history[0]
         if t - t0 < self.window_s - 1e-6:
             return
-        x = integral - integral0
+        x = self._push_integral - integral0
         if abs(x) < self.min_change:
             return
         y = measured_rate - rate0
@@ -183,28 +172,20 @@ class Effectiveness:
         self._information[side] = self._information[side] * decay + x * x * min(1.0, dt / self.window_s)
         self.samples[side] += 1
         self.values[side] = min(max(sums[1] / sums[0], self.lows[side]), self.high)
-        if (not self.real_pushes_assure or self._overlaps_real_push(t)) and abs(x) * self.values[side] >= self.assuring_change:
-            self.assuring_samples[side] += 1  # the change it made, not the modelled
-        if (self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0  # a large change, its way...
-                and (not self.real_pushes_confirm or self._overlaps_real_push(t))):  # ...of a real push
+        if self._may_assure(t) and abs(x) * self.values[side] >= self.assuring_change:  # the change it made, not the modelled
+            self.assuring_samples[side] += 1
+        if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0:  # a large change, its way
             strong = self._strong_sums[side]
             strong[0] = strong[0] * decay + x * x
             strong[1] = strong[1] * decay + x * y
             self.confirming_samples[side] += 1
             self.strong_values[side] = min(max(strong[1] / strong[0], self.lows[side]), self.high)
 
-    def _delayed_integral(self, t: float, dt: float) -> float:
-        """The modelled push integral ``delay_s`` before ``t``, in whole cycles of ``dt`` (the oldest known before)."""
-        if self.delay_s <= 0.0:
-            return self._push_integral
-        integrals = self._integrals
-        integrals.append((t, self._push_integral))
-        while len(integrals) >= 2 and integrals[1][0] <= t - self.delay_s + 0.5 * dt:
-            integrals.popleft()
-        return integrals[0][1]
-
-    def _overlaps_real_push(self, t: float) -> bool:
-        """Whether the window ending at ``t`` overlaps a real push (a command or a brake: the loop out of hover)."""
+    def _may_assure(self, t: float) -> bool:
+        """Whether the window ending at ``t`` may teach a margin: any, or with ``real_pushes_assure`` only one that
+        overlaps a real push (a command or a brake: the loop out of hover within the window)."""
+        if not self.real_pushes_assure:
+            return True
         return self.last_real_push_t is not None and t - self.last_real_push_t <= self.window_s + REAL_PUSH_SLACK_S
 
     def as_dict(self) -> dict[str, float | int]:

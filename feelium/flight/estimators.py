@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from feelium.flight.config import Axis, FlightConfig
+from feelium.flight.config import FlightConfig
 from feelium.flight.effectiveness import Effectiveness
 
 YAW_RATE_TAU_S = 0.06
@@ -78,17 +78,6 @@ def flow_tau_s(uncertainty: float) -> float:
     if uncertainty <= 1.0:
         return FLOW_TAU_TRUSTED_S
     return min(FLOW_TAU_TRUSTED_S, FLOW_TAU_BOX_S * (3.0 / (uncertainty * uncertainty - 1.0)) ** (2.0 / 3.0))
-
-
-def window_delay_s(config: FlightConfig, axis: Axis) -> float:
-    """How much earlier an axis' effectiveness windows take the modelled push (``Effectiveness(delay_s=...)``): half
-    the lag the box allows beyond the config's, ``motor_lag_s x (U - 1) / 2`` (40 ms at the shipped 80 ms and U = 2).
-
-    It aligns a lag of about 120 ms, the middle of the longer half: a plant with the longest lag (150 ms) reads a
-    little low at a push's onset, one faster than modelled reads high (a gentler push, the safe side). On session
-    21's turn brake, 70 ms on the surge (aligning 150 ms) left corner-mTdL a stop of 1.80 s, and 20 ms on the yaw
-    a lapse of 1.82 s (docs/flight-robustness.md, sessions 21-22). A fitted config (U = 1) gets none."""
-    return config.motor_lag_s * (config.uncertainty(axis) - 1.0) / 2.0
 
 
 def effectiveness_bounds(uncertainty: float, reverse: bool) -> tuple[float, float]:
@@ -329,8 +318,7 @@ class YawEstimate:
         self.last_heading_t: float | None = None
         low, high = effectiveness_bounds(config.uncertainty("yaw"), reverse=False)
         self.effectiveness = Effectiveness(low * _yaw_reverse_share(config), high, min_change=0.01,
-                                           confirming_change=YAW_CONFIRMING_CHANGE_RAD_S, mirrored=True,
-                                           real_pushes_confirm=True, delay_s=window_delay_s(config, "yaw"))
+                                           confirming_change=YAW_CONFIRMING_CHANGE_RAD_S, mirrored=True)
 
     def update(self, t: float, dt: float, heading_deg: float | None, gyro_dps: float | None, torque_mean: float) -> None:
         if gyro_dps is not None and self.fine_heading is not None:
@@ -390,8 +378,7 @@ class SurgeEstimate:
         self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005,
                                            assuring_change=SURGE_ASSURING_CHANGE_M_S,
                                            shown=1.0 / config.uncertainty("surge") if config.braking_shown else None,
-                                           reverse_shown=config.surge_brake_shown or None, real_pushes_assure=True,
-                                           delay_s=window_delay_s(config, "surge"))
+                                           reverse_shown=config.surge_brake_shown or None, real_pushes_assure=True)
 
     def measured(self, t: float) -> bool:
         return self.last_flow_t is not None and t - self.last_flow_t <= FLOW_FRESH_S

@@ -2,8 +2,9 @@
 
 Seed 1 alone hid 14 of 96 failing flights at seeds 1-6 (docs/flight-robustness.md, sessions 20-21;
 ``benchmarks/flight_seed_sweep.py`` flies the whole table). Here: every corner at seed 2, the flights of seeds 3-6
-that sessions 21-22 fixed (each failed before). Since session 22 none of the 96 misses a goal; a flight found
-missing one goes in as a strict xfail with its figure, so fixing it flips its test. Each flight is 2-3 s of CPU.
+that sessions 21-22 fixed (each failed before), and the ones still open as strict xfails with their figure, so
+fixing one flips its test: three of seeds 1-6 and two of seeds 7-12, which no change was tuned on (session 22).
+Each flight is 2-3 s of CPU.
 """
 
 from __future__ import annotations
@@ -40,10 +41,6 @@ FIXED = [  # (corner, seed): the goal it missed before session 21, with the figu
     ("corner-MtdL", 6),  # forward stop 1.50 s: a speed cap hover corrections had taught
     ("corner-MtDL", 6),  # forward stop 1.38 s: the same
     ("corner-MtDl", 6),  # right turn at 0.08 of the command
-    # session 22 (branch i13turn): the effectiveness windows' lag delay (``window_delay_s``)
-    ("corner-mTDL", 4),  # speed 1.235 of the command
-    ("corner-mTdL", 5),  # speed 1.23
-    ("corner-MTdL", 5),  # speed 1.23
     # session 22 (branch i13heave): the altitude disturbance waits out a motor limit in a held climb
     ("corner-MTDL", 6),  # altitude 0.111 m (0.060 m since; docs/calibrate-flight.md)
 ]
@@ -56,3 +53,24 @@ def test_a_corner_that_missed_a_goal_at_another_seed_now_meets_them_all_and_turn
     assert result.failures() == {}, context
     for turn in ("turn_right-stop", "turn_left-lapse"):
         assert result.manoeuvres[turn]["peak_fraction"] >= 0.4, context  # a turn, not a twitch
+
+
+OPEN = [  # (corner, seed, the goal it misses, its figure at session 22)
+    ("corner-mTDL", 4, "speed_peak_fraction", 1.235),
+    ("corner-mTdL", 5, "speed_peak_fraction", 1.23),
+    ("corner-MTdL", 5, "speed_peak_fraction", 1.23),
+    ("corner-mTDL", 8, "lapse_s", 2.78),
+    ("corner-mtDl", 8, "altitude_excursion_m", 0.123),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("name", "seed"),
+    [pytest.param(name, seed, marks=pytest.mark.xfail(strict=True, reason=f"{goal} {figure} (docs/flight-robustness.md, session 22)"))
+     for name, seed, goal, figure in OPEN],
+    ids=[f"{name}-s{seed}" for name, seed, _, _ in OPEN],
+)
+def test_a_corner_still_missing_a_goal_at_another_seed(name: str, seed: int) -> None:
+    result, context = _fly(name, seed)
+    assert result.failures() == {}, context

@@ -238,49 +238,6 @@ def test_with_real_pushes_assuring_only_a_window_overlapping_a_command_or_brake_
     assert gated.assured(1.0) == 0.25  # the other side still waits for its own
 
 
-def test_with_real_pushes_confirming_a_hover_correction_against_a_draft_confirms_nothing() -> None:
-    """A hover correction of 2 deg/s against a draft confirmed corner-mTdL's yaw at 1.3 (its turns showed 2.3) and the
-    next turn started twice too hard (flight seed 4: 1.25 of the command, session 21): only a window overlapping a push
-    out of hover (a turn, its brake, the settling) may confirm."""
-    gated = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035, real_pushes_confirm=True)
-    plain = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035)
-    rate, dt = 0.0, 0.02
-    for k in range(100):  # large pushes, all in hover (no real push marked)
-        rate += 0.5 * 0.5 * dt
-        for estimator in (gated, plain):
-            estimator.update(k * dt, dt, 0.5, rate)
-    assert plain.is_confirmed(1.0) and not gated.is_confirmed(1.0) and gated.confirmed(1.0) == 4.0
-    for k in range(100, 130):  # the same pushes in a turn
-        gated.last_real_push_t = (k - 1) * dt  # the loop marks the cycle before the update
-        rate += 0.5 * 0.5 * dt
-        gated.update(k * dt, dt, 0.5, rate)
-    assert gated.confirmed(1.0) == pytest.approx(0.5, rel=0.05)
-
-
-def test_a_delay_compares_the_measured_change_with_the_push_that_long_before() -> None:
-    """A body whose motors lag 120 ms where the model says 80 shows less change than modelled in a push's first
-    windows: without a delay the learned value there is low (the loop then pushes too hard); with the 40 ms delay of
-    ``window_delay_s`` it is within a few percent of the truth. The delay acts in whole cycles, rounded to the
-    nearest: 4 ms (a fitted config's) is none, bit for bit."""
-    dt, model_lag, true_lag = 0.02, 0.08, 0.12
-    delayed = Effectiveness(0.25, 4.0, min_change=0.01, delay_s=0.04)
-    plain = Effectiveness(0.25, 4.0, min_change=0.01)
-    nearly = Effectiveness(0.25, 4.0, min_change=0.01, delay_s=0.004)
-    modelled = true = rate = 0.0
-    first: dict[str, float] = {}
-    for k in range(40):  # a push from rest: the model's force and the body's, each through its own lag
-        modelled += (1.0 - modelled) * (1.0 - math.exp(-dt / model_lag))
-        true += (1.0 - true) * (1.0 - math.exp(-dt / true_lag))
-        rate += 2.0 * true * dt  # the true effectiveness: 2
-        for name, estimator in (("delayed", delayed), ("plain", plain), ("nearly", nearly)):
-            estimator.update(k * dt, dt, modelled, rate)
-            if estimator.samples[1] and name not in first:
-                first[name] = estimator.values[1]
-    assert first["plain"] < 1.8  # 1.74: the onset's first window reads the body's lag as a weak push
-    assert first["delayed"] == pytest.approx(2.0, rel=0.05)  # 2.07
-    assert nearly.values == plain.values and nearly.samples == plain.samples
-
-
 @given(u=st.floats(1.0, 4.0), v=st.floats(1.0, 4.0))
 def test_the_speed_estimate_trusts_the_model_less_the_less_it_is_known(u: float, v: float) -> None:
     """3 s for a model trusted outright, 80 ms for the shipped box; a fitted surge model (1.05-1.2) is

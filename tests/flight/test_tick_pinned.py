@@ -21,11 +21,8 @@ braked sooner, the yaw rate 1.0-1.2 deg/s where it was 1.5 (2.9-4.0 s); all thre
 i13turn): a turn's brake follows a reference that lands on zero through the box's longest motor lag (``HeadingLoop.brake``)
 instead of a linear ramp, and the rate in it is predicted over that lag; every cycle's commands are as before up to
 the right turn's release at 5.2 s and first differ in the brake's first cycles (5.22-5.24 s; in ``fitted_still_air``,
-whose box is 1, only the reference's shape changed); then the two doubted-model flights again on the same branch for
-the surge and yaw effectiveness windows taking the modelled push 40 ms earlier (``window_delay_s``) and a yaw sign
-confirmed only by windows overlapping a push out of hover: their commands first differ 0.12 s into the scripted
-forward (1.62 / 1.632 s), the surge's first windows reading the onset later and so higher (both motors 0.74 -> 0.28
-in that cycle); ``fitted_still_air`` (box 1: no delay) unchanged. ``drafts_dropouts`` and ``fitted_still_air`` were also
+whose box is 1, only the reference's shape changed; the same branch's lag-delayed windows were reverted before the
+merge, and ``stall_and_lag`` is this digest). ``drafts_dropouts`` and ``fitted_still_air`` were also
 re-pinned in session 22 (branch i13heave, on the code before i13turn) for one of its three changes alone, the altitude disturbance learning
 nothing, in a held climb or descent, for the box's longest motor lag after a cycle at a motor limit
 (``AltitudeLoop``'s ``settling``; with it off the old digests come back, and the heave margin's standard errors and
@@ -89,7 +86,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "ea6a752a439ff4d5996efa36",
+        "dea7ed0de030cdb31ac788ce",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
@@ -101,7 +98,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "93c9d882f46cf0603643e12c",
+        "06cdf1a4f63aa22be3c8c8cb",
     ),
 }
 
