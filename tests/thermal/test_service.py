@@ -153,9 +153,8 @@ async def test_between_sub_pages_it_sleeps_yet_reads_every_one_even_when_the_loo
     assert max(waits) <= 0.25 / 8.0 + 0.04 + 1e-9  # a poll period and the worst oversleep, as when polling all the time
 
 
-async def test_the_thermal_thread_publishes_through_the_loop_and_a_stop_ends_it_closing_the_bus():
-    """Real time, the default waits: frames reach the hub's state from the thermal thread's batches; after a stop
-    the run returns, the thread closes the bus and reads no more."""
+def _service_recording_buses() -> tuple[ThermalService, list]:
+    """A simulated thermal service at 16 Hz whose drivers' buses are kept, to see which are open."""
     hub = Hub()
     cfg = ThermalConfig(refresh_hz=16.0)
     buses = []
@@ -165,14 +164,20 @@ async def test_the_thermal_thread_publishes_through_the_loop_and_a_stop_ends_it_
         buses.append(driver.transport.bus)
         return driver
 
-    service = ThermalService(cfg, hub, make_driver, "sim")
+    return ThermalService(cfg, hub, make_driver, "sim"), buses
+
+
+async def test_the_thermal_thread_publishes_through_the_loop_and_a_stop_ends_it_closing_the_bus():
+    """Real time, the default waits: frames reach the hub's state from the thermal thread's batches; after a stop
+    the run returns, the thread closes the bus and reads no more."""
+    service, buses = _service_recording_buses()
     task = asyncio.create_task(service.run())
     loop = asyncio.get_running_loop()
     deadline = loop.time() + 20.0
     while service.frames < 2 and loop.time() < deadline and not task.done():
         await asyncio.sleep(0.02)
     assert service.frames >= 2, service.health()
-    assert hub.state.snapshot()["presence"]["present"] is False  # published on the loop from the thread's batch
+    assert service.hub.state.snapshot()["presence"]["present"] is False  # published on the loop from the thread's batch
     await service.stop()
     await asyncio.wait_for(task, 5.0)
     assert len(buses) == 1 and buses[0].closed
@@ -228,16 +233,7 @@ async def test_a_cancelled_run_started_again_reads_on_with_one_thread_and_an_ope
     without closing the bus under the new one's reads, and only one thread may read the sensor."""
     import threading
 
-    hub = Hub()
-    cfg = ThermalConfig(refresh_hz=16.0)
-    buses = []
-
-    def make_driver():
-        driver = sim_driver(cfg, hub, seed=1)
-        buses.append(driver.transport.bus)
-        return driver
-
-    service = ThermalService(cfg, hub, make_driver, "sim")
+    service, buses = _service_recording_buses()
     loop = asyncio.get_running_loop()
 
     async def frames_after(count):
