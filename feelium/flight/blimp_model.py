@@ -138,7 +138,7 @@ def step(
     """
     motors = (params.horizontal_motor, params.horizontal_motor, params.vertical_motor, params.vertical_motor)
     thrust = tuple(
-        t + (motor.static_thrust(float(np.clip(c, -1.0, 1.0))) - t) * min(1.0, dt / motor.time_constant_s)
+        t + (motor.static_thrust(min(max(float(c), -1.0), 1.0)) - t) * min(1.0, dt / motor.time_constant_s)
         for t, c, motor in zip(state.thrust_n, commands, motors)
     )
     if held:

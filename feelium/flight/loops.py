@@ -31,6 +31,7 @@ from feelium.flight.setpoint import Setpoint
 
 SETTLE_S = 0.6  # damping-only phase after a braking ramp
 RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an outage
+REST_MEAN_TAU_S = 0.15  # the averaging of where a settling stop rests: a few range readings, less than its settling
 SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 STOPPED_SPEED_M_S = 0.05  # the stop goal's thresholds (docs/flight-robustness.md)
 STOPPED_YAW_DPS = 3.0
@@ -116,6 +117,7 @@ class AltitudeLoop:
         self.onset = RateOnset(config.motor_lag_s)
         self.braking = False
         self.settle_until: float | None = None
+        self.rest_z: float | None = None  # the altitude's recent mean while a stop settles
         self.up_n = -config.net_buoyancy_n
         self.hover_up_n = -config.net_buoyancy_n  # the force that held the body still, lately
         self.near_limit = False  # a climb slowed for a limit: its braking is planned on the weakest plant
@@ -129,7 +131,7 @@ class AltitudeLoop:
     def recover(self, t: float) -> None:
         """Back from an outage, probably drifting: damp it out, then hold where it comes to rest (inside the limits)."""
         self.climbing = self.braking = False
-        self.settle_until = t + RECOVERY_SETTLE_S
+        self.settle_until, self.rest_z = t + RECOVERY_SETTLE_S, None
 
     def step(self, t: float, dt: float, sp: Setpoint, obs: AltitudeObserver, thrust: ThrustModel, gain: float, soft: bool) -> float:
         c = self.c
@@ -162,16 +164,22 @@ class AltitudeLoop:
             ref.value += ref.rate * dt
             self.target = ref.value
             if ref.rate == 0.0:
-                self.braking, self.settle_until = False, t + SETTLE_S
-        elif not climb and self.settle_until is not None:
-            # Damp out what is left and hold where it comes to rest, never outside the limits.
+                self.braking, self.settle_until, self.rest_z = False, t + SETTLE_S, None
+        elif not climb and self.settle_until is not None and c.altitude_min_m <= z <= c.altitude_max_m:
+            # Damp out what is left and hold where it comes to rest, never outside the limits. Where it rests is the
+            # altitude's recent mean, not its last estimate: one range-noisy cycle 1 cm low became the hold's
+            # target, and the body, stopped 0.3 s after a released `up`, then sank 1 cm at 2.5 cm/s two seconds
+            # later (the flight bench's `up` stop, 0.44 -> 2.40 s, was that sink crossing 10 % of the climb rate).
             p_gain, gain = 0.0, gain * SETTLE_DAMPING / max(c.altitude_kd, 1e-6)
-            ref.reset(z)
-            self.target = min(max(z, c.altitude_min_m), c.altitude_max_m)
+            self.rest_z = z if self.rest_z is None else self.rest_z + (z - self.rest_z) * min(1.0, dt / REST_MEAN_TAU_S)
+            # A mean lags a still-moving body by its speed times the averaging time: brought forward by it.
+            rest = min(max(self.rest_z + obs.vz * REST_MEAN_TAU_S, c.altitude_min_m), c.altitude_max_m)
+            ref.reset(rest)
+            self.target = rest
             if t >= self.settle_until:
-                self.settle_until = None
-                ref.reset(z)
+                self.settle_until = self.rest_z = None
         elif not climb:
+            self.settle_until = self.rest_z = None  # outside the limits a settling stop holds the limit at once
             if sp.altitude_m is not None:
                 self.target = sp.altitude_m
             self.target = min(max(self.target, c.altitude_min_m), c.altitude_max_m)
@@ -181,7 +189,7 @@ class AltitudeLoop:
         predicted = obs.vz + obs.accel(thrust.vertical) * c.motor_lag_s
         wanted = gain * (p_gain * c.altitude_kp * error + c.altitude_kd * (rate_ref - predicted)) + ref.accel
         brake = ref.accel if self.near_limit and climb * ref.accel < 0.0 else 0.0  # the climb slowing for a limit
-        push = self._limit_brake_push(brake, obs) + (wanted - brake) / obs.effectiveness.value(wanted - brake) - obs.disturbance
+        push = self._limit_brake_push(brake, obs) + (wanted - brake) / self._effectiveness(obs, z, climb, wanted - brake) - obs.disturbance
         up_n = c.heave_mass * push - c.net_buoyancy_n + c.quadratic_drag * ref.rate * abs(ref.rate)
         lo, hi = self.mixer.limits_up_n()
         saturated = up_n >= hi or up_n <= lo
@@ -206,6 +214,17 @@ class AltitudeLoop:
         if not climb and abs(obs.vz) < STILL_M_S:
             self.hover_up_n += (self.up_n - self.hover_up_n) * min(1.0, dt / HOVER_FORCE_TAU_S)
         return self.up_n
+
+    def _effectiveness(self, obs: AltitudeObserver, z: float, climb: float, push: float) -> float:
+        """What a push is divided by: the learned effectiveness, but the assured one for a hold's push back inside
+        the limits. The learned value of a side starts at the box's strongest (push gently), which below the floor
+        is the unsafe way: a weak heavy-drag blimp released under `altitude_min` believed its up push 2.2 times the
+        model, pushed a tenth of what it needed and sank 13 cm under the limit (corner-mtDL, flight seed 8)."""
+        c = self.c
+        inward = (z < c.altitude_min_m and push > 0.0) or (z > c.altitude_max_m and push < 0.0)
+        if inward and not climb:
+            return min(obs.effectiveness.value(push), obs.effectiveness.assured(push))
+        return obs.effectiveness.value(push)
 
     def _limit_brake_push(self, brake: float, obs: AltitudeObserver) -> float:
         """The push that slows a climb for a limit: the planned deceleration on the weakest plant of the box.

@@ -69,7 +69,7 @@ def us_to_command(value_us: int) -> float:
     """A motor value in microseconds to a command in [-1, 1]; 0 (slot unused) is neutral."""
     if value_us == 0:
         return 0.0
-    return float(np.clip((value_us - m.MOTOR_NEUTRAL_US) / 500.0, -1.0, 1.0))
+    return min(max((value_us - m.MOTOR_NEUTRAL_US) / 500.0, -1.0), 1.0)
 
 
 class SimMotorBoard:
@@ -227,7 +227,7 @@ class SimMotorBoard:
                 return None
             if len(values) < 4:
                 return None
-            motors = tuple(int(np.clip(v, m.MOTOR_MIN_US, m.MOTOR_MAX_US)) if v else m.MOTOR_NEUTRAL_US for v in values[:4])
+            motors = tuple(int(min(max(v, m.MOTOR_MIN_US), m.MOTOR_MAX_US)) if v else m.MOTOR_NEUTRAL_US for v in values[:4])
             delay = self.params.command_delay_s
             if delay > 0.0:
                 self._pending.append((round(self.t + delay, 9), motors))

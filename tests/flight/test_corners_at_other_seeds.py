@@ -3,7 +3,8 @@
 Seed 1 alone hid 14 of 96 failing flights at seeds 1-6 (docs/flight-robustness.md, sessions 20-21;
 ``benchmarks/flight_seed_sweep.py`` flies the whole table). Here: every corner at seed 2, the flights of seeds 3-6
 that sessions 21-22 fixed (each failed before), and the ones still open as strict xfails with their figure, so
-fixing one flips its test: three of seeds 1-6 and two of seeds 7-12, which no change was tuned on (session 22).
+fixing one flips its test: three of seeds 1-6 and one of seeds 7-12, which no change was tuned on (session 22;
+session 23 fixed the other).
 Each flight is 2-3 s of CPU.
 """
 
@@ -60,8 +61,7 @@ OPEN = [  # (corner, seed, the goal it misses, its figure at session 22)
     ("corner-mTdL", 5, "speed_peak_fraction", 1.23),
     ("corner-MTdL", 5, "speed_peak_fraction", 1.23),
     ("corner-mTDL", 8, "lapse_s", 2.78),
-    ("corner-mtDl", 8, "altitude_excursion_m", 0.123),
-]
+]  # corner-mtDl seed 8 (altitude 0.123 m) was fixed in session 23: tests/flight/test_altitude_limits_hold.py
 
 
 @pytest.mark.slow

@@ -28,7 +28,11 @@ nothing, in a held climb or descent, for the box's longest motor lag after a cyc
 (``AltitudeLoop``'s ``settling``; with it off the old digests come back, and the heave margin's standard errors and
 the reference's braking floor leave all three as they were): their vertical force meets a motor limit in the
 scripted `up` (6.0-7.6 s), the disturbance then waits 0.16 / 0.08 s before it learns, and differs by at most 0.061 /
-0.009 m/s^2 afterwards, the altitude estimate by 4.7 / 0.6 cm (``stall_and_lag`` unchanged); the digests below are the two branches merged: every
+0.009 m/s^2 afterwards, the altitude estimate by 4.7 / 0.6 cm (``stall_and_lag`` unchanged). All three re-pinned in
+session 23 for the altitude hold's end of a stop (``AltitudeLoop``): a settling stop holds the altitude's recent mean
+(``REST_MEAN_TAU_S``) instead of its last estimate, and outside the limits the push back inside counts on the assured
+effectiveness (``_effectiveness``) and a settling stop does not wait there; the body's simulation lost its scalar
+``np.clip`` calls in the same change and left the three digests as they were. The digests below are all of it: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
 dropouts, drafts, a stalled link with its flood of replies and a lagging one. A change in the last
@@ -86,19 +90,19 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "dea7ed0de030cdb31ac788ce",
+        "8d5d06c60e057ac4993a2891",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
         board_with(BoardParams(drafts=None), z=2.2),
         None,
-        "230f89ee7d4fef92868b9624",
+        "6efe3247aea50eed3d36293e",
     ),
     "stall_and_lag": (
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "06cdf1a4f63aa22be3c8c8cb",
+        "5ca7f2b0f85bfc078125aa81",
     ),
 }
 
