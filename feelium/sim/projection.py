@@ -87,6 +87,9 @@ class ProjectedLight:
         w, h = camera_size
         self.map_x, self.map_y = warp.truth_map(w, h)
         self._flat = self._light(np.float32(optics.flat_level))
+        # The light of each of the 256 grey levels, looked up per pixel: the same float32 values as computing
+        # the power law on every pixel of a frame (elementwise, so bit for bit), 10x cheaper on the face's frame.
+        self._table = self._light(np.arange(256, dtype=np.float32) * np.float32(1.0 / 255.0))
 
     def _light(self, level: np.ndarray | np.float32) -> np.ndarray:
         o = self.optics
@@ -95,7 +98,7 @@ class ProjectedLight:
     def factor(self, frame: np.ndarray) -> np.ndarray:
         """(H, W) float32 factor of projector frame ``frame`` (gray or BGR uint8) relative to the flat projection."""
         gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
-        light = self._light(gray.astype(np.float32) * np.float32(1.0 / 255.0))
+        light = cv2.LUT(gray, self._table)
         if self.optics.blur_px > 0:
             light = cv2.GaussianBlur(light, (0, 0), self.optics.blur_px)
         black = float(self.optics.black)

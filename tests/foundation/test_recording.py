@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from feelium import recording
 from feelium.recording import (
     Contact,
     Labels,
@@ -75,6 +76,18 @@ def test_timestamp_count_mismatch_is_named(tmp_path):
     ts.write_text(ts.read_text() + "9.0\n")
     with pytest.raises(RecordingError, match="7 timestamps but camera.mkv has 6 frames"):
         Recording(tmp_path / "r")
+
+
+def test_counting_packets_on_open_agrees_with_decoding_even_on_a_cut_video(tmp_path):
+    """Recording() counts camera.mkv's frames as packets, undecoded (a full decode per open was a third of the
+    touch end-to-end tests' time): the same count as decoding them, on the whole file and cut anywhere."""
+    _write(tmp_path / "r", n=12)
+    data = (tmp_path / "r" / "camera.mkv").read_bytes()
+    cut = tmp_path / "cut.mkv"
+    for end in (len(data), *range(len(data) // 10, len(data), len(data) // 10)):
+        cut.write_bytes(data[:end])
+        assert recording._probe_video(cut, decode=False) == recording._probe_video(cut), end
+    assert recording._probe_video(tmp_path / "r" / "camera.mkv", decode=False) == (12, (64, 48))
 
 
 def test_timestamps_that_are_not_utf8_are_named_not_a_traceback(tmp_path):

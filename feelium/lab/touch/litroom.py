@@ -48,6 +48,7 @@ only what the switch left behind counts.
 from __future__ import annotations
 
 import copy
+import functools
 import multiprocessing
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -220,11 +221,20 @@ def recovered(bad: list[tuple[float, bool]], switch_at: float) -> float:
 def _pressed(frame: np.ndarray, place: tuple[float, float], roi: tuple[int, int, int, int] = ROI) -> np.ndarray:
     """``frame`` with a fingertip's shadow of :data:`SENSE_DEPTH` at ``place`` (fractions of ``roi``), its edge
     blurred by 1 px."""
+    return np.clip(np.rint(frame * _fingertip(frame.shape[:2], tuple(place), tuple(roi))), 0, 255).astype(np.uint8)
+
+
+@functools.lru_cache(maxsize=4 * len(SENSE_PLACES))
+def _fingertip(shape: tuple[int, ...], place: tuple[float, float], roi: tuple[int, int, int, int]) -> np.ndarray:
+    """The (H, W) float32 transmission of :func:`_pressed`'s fingertip (read-only), made once per place and frame
+    size: every reading of every frame presses the same few places."""
     x0, y0, w, h = roi
     cx, cy = x0 + place[0] * w, y0 + place[1] * h
-    ys, xs = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]].astype(np.float32)
+    ys, xs = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float32)
     disc = cv2.GaussianBlur(((xs - cx) ** 2 + (ys - cy) ** 2 <= SENSE_RADIUS_PX**2).astype(np.float32), (0, 0), 1.0)
-    return np.clip(np.rint(frame * (1.0 - SENSE_DEPTH * disc)), 0, 255).astype(np.uint8)
+    transmission = 1.0 - SENSE_DEPTH * disc
+    transmission.setflags(write=False)
+    return transmission
 
 
 def sensed(
