@@ -35,8 +35,9 @@ effectiveness (``_effectiveness``) and a settling stop does not wait there; the 
 ``np.clip`` calls in the same change and left the three digests as they were. ``drafts_dropouts`` and ``stall_and_lag``
 re-pinned again in session 23 for a held command's speed predicted over the box's longest lag (``SurgeLoop``) and the
 hover heading loop taking over at 1.5 deg/s (``HOVER_ENGAGE_YAW_DPS``; 2 before); ``fitted_still_air``, whose box is 1
-(the longest lag is the config's) and whose still air never turns the body that fast, is as it was. The digests below
-are all of it: every
+(the longest lag is the config's) and whose still air never turns the body that fast, is as it was. The same two
+re-pinned a third time in session 23 for the hover's damping at full gain above 2 deg/s (``HOVER_FIRM_YAW_DPS``;
+``fitted_still_air`` unchanged). The digests below are all of it: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
 dropouts, drafts, a stalled link with its flood of replies and a lagging one. A change in the last
@@ -94,7 +95,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "54de228c62837443e5dfd664",
+        "218bd0274a98d21d2707bc96",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
@@ -106,7 +107,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "9bb54253e812affb54454d33",
+        "504bab0914642c8bef75b440",
     ),
 }
 
