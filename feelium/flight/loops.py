@@ -224,7 +224,7 @@ class AltitudeLoop:
         """What a push is divided by: the learned effectiveness, but the assured one for a hold's push back inside
         the limits. The learned value of a side starts at the box's strongest (push gently), which below the floor
         is the unsafe way: a weak heavy-drag blimp released under `altitude_min` believed its up push 2.2 times the
-        model, pushed a tenth of what it needed and sank 13 cm under the limit (corner-mtDL, flight seed 8)."""
+        model, pushed a tenth of what it needed and sank 12 cm under the limit (corner-mtDl, flight seed 8)."""
         c = self.c
         inward = (z < c.altitude_min_m and push > 0.0) or (z > c.altitude_max_m and push < 0.0)
         if inward and not climb:
