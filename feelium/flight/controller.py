@@ -145,7 +145,9 @@ class FlightController:
         yaw_nm = self.heading_loop.step(t, dt, setpoint, self.yaw, self.thrust, gain) if heading_age <= self.c.telemetry_stale_s else 0.0
         surge_n = self.surge_loop.step(t, dt, 0.0 if soft else setpoint.forward_m_s, gain, self.surge, self.thrust)
         if not self.surge_loop.hovering:  # a command or a brake: what may teach the speed cap's margin
-            self.surge.effectiveness.last_real_push_t = t
+            self.surge.effectiveness.mark_real_push(t, surge_n)
+        if not self.heading_loop.hovering:  # a turn, its brake or settling: what may confirm a turn's effectiveness
+            self.yaw.effectiveness.mark_real_push(t, yaw_nm)
         commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt)
         hovering = self.heading_loop.hovering and self.surge_loop.hovering
         commands = self.reversals.limit(t, commands, hovering, calm(self.surge.speed, self.yaw.rate_dps),

@@ -31,7 +31,8 @@ class Effectiveness:
     def __init__(self, low: float, high: float, reverse_low: float | None = None, window_s: float = 0.3,
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
                  confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
-                 mirrored: bool = False, real_pushes_assure: bool = False, change_noise: float = 0.0) -> None:
+                 mirrored: bool = False, real_pushes_assure: bool = False, real_pushes_confirm: bool = False,
+                 change_noise: float = 0.0) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -46,10 +47,15 @@ class Effectiveness:
         (``None``: ``shown``); ``mirrored``: the axis answers both ways alike (a yaw torque is one motor forward
         and one reversed whichever way it turns), so until a real push of one sign confirms its value, a large push
         of that sign counts on what the other sign confirmed instead of the box's upper bound (:meth:`confirmed`);
-        ``real_pushes_assure``: only a window that overlaps a real push (the loop out of hover: a command or a brake,
-        ``last_real_push_t``) may teach the margin. Hover corrections taught corner-MtdL a reverse surge
-        effectiveness twice what its brakes showed, and a speed cap that did not stop in time (flight seed 6: 1.50 s;
-        docs/flight-robustness.md, session 21);
+        ``real_pushes_assure``: only a window that overlaps a real push of its own sign (the loop out of hover: a
+        command or a brake, :meth:`mark_real_push`) may teach the margin. Hover corrections taught corner-MtdL a
+        reverse surge effectiveness twice what its brakes showed, and a speed cap that did not stop in time (flight
+        seed 6: 1.50 s; docs/flight-robustness.md, session 21). A window of reverse hover corrections that merely
+        overlapped a forward command's first cycles assured the reverse side at the box's strongest (corner-Mtdl,
+        flight seed 4: the forward stop 1.62 s; session 24);
+        ``real_pushes_confirm``: the same for what a large push counts on (:meth:`confirmed`). A hover correction
+        that met a draft turning the body its way confirmed corner-MtDL's yaw at five times its answer, and both its
+        turns, counting on that, reached 0.18-0.22 of the command (flight seed 5; session 24);
         ``change_noise``: the standard deviation of one window's measured rate change (the sensor's noise and the
         air's): a margin then counts on the learned value ``ASSURED_STANDARD_ERRORS`` standard errors low, so a few
         windows barely above the noise teach it nothing and many large ones teach it nearly the least squares (0:
@@ -64,8 +70,9 @@ class Effectiveness:
         self.window_s, self.memory_s, self.min_change = window_s, memory_s, min_change
         self.assuring_change = assuring_change
         self.assuring_samples = [0, 0]
-        self.last_real_push_t: float | None = None  # the loop's last cycle out of hover (see ``real_pushes_assure``)
+        self.real_push_t: list[float | None] = [None, None]  # per sign, the loop's last cycle out of hover pushing so
         self.real_pushes_assure = real_pushes_assure
+        self.real_pushes_confirm = real_pushes_confirm
         self.confirming_change = confirming_change
         self.shown_by_side = [shown if reverse_shown is None else reverse_shown, shown]
         self.confirming_samples = [0, 0]
@@ -81,12 +88,30 @@ class Effectiveness:
         self.mirrored = mirrored
 
     def value(self, push: float) -> float:
-        """The effectiveness for a push of this sign (the larger one for no push: the safe side)."""
-        if push > 0.0:
-            return self.values[1]
-        if push < 0.0:
-            return self.values[0]
-        return max(self.values)
+        """The effectiveness for a push of this sign (the larger one for no push: the safe side).
+
+        On a mirrored axis a sign no window has taught yet takes what the other sign learned, as :meth:`confirmed`
+        does: a heavy weak blimp drifting one way all through its hover learned only that side, and the push braking
+        the drift back was normalised by the box's strongest, a sixteenth of what it needed (corner-Mtdl, flight
+        seed 25: a stop that never completed; docs/flight-robustness.md, session 24)."""
+        if not push:
+            return max(self.values)
+        side = self._taught_side(push)
+        return self.values[1 if push > 0.0 else 0] if side is None else self.values[side]
+
+    def is_taught(self, push: float) -> bool:
+        """Whether :meth:`value` for a push of this sign is learned (not the box's strongest it starts from)."""
+        return self._taught_side(push) is not None
+
+    def _taught_side(self, push: float) -> int | None:
+        """The side whose learned value a push of this sign takes: its own once a window taught it, else on a
+        mirrored axis the other's, else ``None``."""
+        side = 1 if push > 0.0 else 0
+        if self.samples[side]:
+            return side
+        if self.mirrored and self.samples[1 - side]:
+            return 1 - side
+        return None
 
     def confirmed(self, push: float) -> float:
         """The effectiveness for a large push: learned from real pushes only once one taught it, else the
@@ -172,21 +197,27 @@ class Effectiveness:
         self._information[side] = self._information[side] * decay + x * x * min(1.0, dt / self.window_s)
         self.samples[side] += 1
         self.values[side] = min(max(sums[1] / sums[0], self.lows[side]), self.high)
-        if self._may_assure(t) and abs(x) * self.values[side] >= self.assuring_change:  # the change it made, not the modelled
+        real = self._overlaps_real_push(t, side)
+        # the change it made (modelled times learned), not the modelled
+        if (real or not self.real_pushes_assure) and abs(x) * self.values[side] >= self.assuring_change:
             self.assuring_samples[side] += 1
-        if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0:  # a large change, its way
+        if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0 and (real or not self.real_pushes_confirm):
             strong = self._strong_sums[side]
             strong[0] = strong[0] * decay + x * x
             strong[1] = strong[1] * decay + x * y
             self.confirming_samples[side] += 1
             self.strong_values[side] = min(max(strong[1] / strong[0], self.lows[side]), self.high)
 
-    def _may_assure(self, t: float) -> bool:
-        """Whether the window ending at ``t`` may teach a margin: any, or with ``real_pushes_assure`` only one that
-        overlaps a real push (a command or a brake: the loop out of hover within the window)."""
-        if not self.real_pushes_assure:
-            return True
-        return self.last_real_push_t is not None and t - self.last_real_push_t <= self.window_s + REAL_PUSH_SLACK_S
+    def mark_real_push(self, t: float, push: float) -> None:
+        """The loop pushes out of hover at ``t`` (a command or a brake) with this sign (see ``real_pushes_assure``)."""
+        if push:
+            self.real_push_t[1 if push > 0.0 else 0] = t
+
+    def _overlaps_real_push(self, t: float, side: int) -> bool:
+        """Whether the window ending at ``t`` overlaps a real push of side ``side``'s sign (a command or a brake: the
+        loop out of hover in the window; see ``real_pushes_assure``)."""
+        pushed = self.real_push_t[side]
+        return pushed is not None and t - pushed <= self.window_s + REAL_PUSH_SLACK_S
 
     def as_dict(self) -> dict[str, float | int]:
         """For health: both directions and how many windows taught them."""

@@ -54,6 +54,7 @@ FLOW_TAU_BOX_S = FLOW_TAU_TRUSTED_S / 2.0**5.23  # 80 ms at the shipped uncertai
 DECISION_FLOW_TAU_S = 0.15
 YAW_CONFIRMING_CHANGE_RAD_S = 0.035  # 2 deg/s of measured yaw-rate change in a window: a turn or a brake, not a nudge
 SURGE_ASSURING_CHANGE_M_S = 0.02  # a window must change the modelled speed this much to teach the stop's margin
+SURGE_CONFIRMING_CHANGE_M_S = 0.08  # measured in a window: a command or a brake, not a drift nor the flow noise (0.034 m/s)
 FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone
 MIN_FLOW_HEIGHT_M = 0.08
 
@@ -318,7 +319,8 @@ class YawEstimate:
         self.last_heading_t: float | None = None
         low, high = effectiveness_bounds(config.uncertainty("yaw"), reverse=False)
         self.effectiveness = Effectiveness(low * _yaw_reverse_share(config), high, min_change=0.01,
-                                           confirming_change=YAW_CONFIRMING_CHANGE_RAD_S, mirrored=True)
+                                           confirming_change=YAW_CONFIRMING_CHANGE_RAD_S, mirrored=True,
+                                           real_pushes_confirm=True)
 
     def update(self, t: float, dt: float, heading_deg: float | None, gyro_dps: float | None, torque_mean: float) -> None:
         if gyro_dps is not None and self.fine_heading is not None:
@@ -376,7 +378,7 @@ class SurgeEstimate:
         # A calibration that measured its reverse brake directly says how much of the modelled one it showed at 3
         # standard errors low (``surge_brake_shown``): that, not 1/U, is counted on for a forward speed (session 20).
         self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005,
-                                           assuring_change=SURGE_ASSURING_CHANGE_M_S,
+                                           assuring_change=SURGE_ASSURING_CHANGE_M_S, confirming_change=SURGE_CONFIRMING_CHANGE_M_S,
                                            shown=1.0 / config.uncertainty("surge") if config.braking_shown else None,
                                            reverse_shown=config.surge_brake_shown or None, real_pushes_assure=True)
 

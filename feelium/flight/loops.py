@@ -57,8 +57,9 @@ BRAKE_LANDED_DPS = 0.3
 HOVER_RETURN_DPS = 0.7 * STOPPED_YAW_DPS
 # A turn whose sign nothing has confirmed yet halves the yaw effectiveness it is normalised by every this long, from the
 # box's strongest down to the learned value: on a heavy weak blimp the box's strongest is 20 times its answer, and a
-# turn normalised by it reached 0.05-0.17 of the command, too little ever to confirm one (session 21).
-TURN_ESCALATE_S = 0.3
+# turn normalised by it reached 0.05-0.17 of the command, too little ever to confirm one (session 21). A held
+# command's surge push and a hover heading correction whose sign nothing has taught escalate alike (session 24).
+ESCALATE_S = 0.3
 MIN_CLIMB_BRAKE_M_S2 = 0.02  # a body that shows no braking at all still gets a finite (very slow) approach
 STILL_M_S = 0.05  # a climb rate this small is holding still: its force is the hover force...
 HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
@@ -227,7 +228,7 @@ class AltitudeLoop:
         model, pushed a tenth of what it needed and sank 12 cm under the limit (corner-mtDl, flight seed 8)."""
         c = self.c
         inward = (z < c.altitude_min_m and push > 0.0) or (z > c.altitude_max_m and push < 0.0)
-        if inward and not climb:
+        if inward:
             return min(obs.effectiveness.value(push), obs.effectiveness.assured(push))
         return obs.effectiveness.value(push)
 
@@ -302,6 +303,8 @@ class HeadingLoop:
         self.hovering = False  # no command, no brake, no settling: the motors may be kept from reversing
         self.turn_cap_dps = config.yaw_rate_dps
         self.turn_started = 0.0
+        self.untaught_push_since: float | None = None  # a hover correction of an untaught sign pushes since then...
+        self.untaught_push_sign = 0.0  # ...this way
 
     def restart(self, heading: float) -> None:
         self.target = heading
@@ -362,6 +365,7 @@ class HeadingLoop:
             outside = abs(wrap_deg(self.target - est.heading)) > tolerance or abs(est.rate_dps) > HOVER_ENGAGE_YAW_DPS
             inside = abs(wrap_deg(self.target - est.heading)) < 0.5 * tolerance and abs(est.rate_dps) < HOVER_YAW_BAND_DPS
             if not self.band.update(outside, inside):
+                self.untaught_push_since = None
                 return 0.0
             # Near the stop goal's rate a hover's damping takes the full gain: halved, a light blimp in drafts was held
             # at 3 deg/s, not under it (flight seed 14: stops that never completed). From 1.5 deg/s on, where the loop
@@ -378,28 +382,46 @@ class HeadingLoop:
         if hover and error:
             alpha = self._limit_return(alpha, error, predicted, gain)
         r_ref = math.radians(ref.rate)
-        effectiveness = est.effectiveness.value(alpha) if hover else self._turn_effectiveness(t, alpha, est, turn)
+        effectiveness = self._hover_effectiveness(t, alpha, est) if hover else self._turn_effectiveness(t, alpha, est, turn)
         torque = c.yaw_inertia_kg_m2 * alpha / effectiveness + c.yaw_drag * r_ref * abs(r_ref)
         return self.band.same_sign(torque) if hover else torque
 
     def _lag_s(self, turn: float) -> float:
-        """The lag the body's rate is predicted over: in a turn's brake the box's longest, as its reference plans.
+        """The lag the body's rate is predicted over: in a turn and its brake the box's longest, as the brake plans.
 
         A brake over the config's 80 ms lag left the reverse torque of a 150 ms plant in the pipe as the rate reached
-        zero: the rate went on to +4 deg/s the other way (corner-mTdL, lapses up to 1.50 s). Elsewhere the config's:
+        zero: the rate went on to +4 deg/s the other way (corner-mTdL, lapses up to 1.50 s). A held turn over it let
+        the rate outrun its reference through the longer lag, to 1.23 of the command on the same corner (flight seeds
+        4, 7, 19, 23, 24; session 24). Elsewhere the config's:
         the settling's and the hover's small pushes, predicted over the longest lag, counted on torque a deadband
         larger than the config's had eaten and let the rate linger near the stop threshold (lapses 1.84-2.02 s;
         docs/flight-robustness.md, session 22)."""
-        return longest_lag_s(self.c, "yaw") if self.braking and not turn else self.c.motor_lag_s
+        return longest_lag_s(self.c, "yaw") if turn or self.braking else self.c.motor_lag_s
+
+    def _hover_effectiveness(self, t: float, alpha: float, est: YawEstimate) -> float:
+        """What a hover correction is normalised by: the learned value, or for a sign no window has taught (on this
+        mirrored axis, neither sign), the box's strongest halving every ``ESCALATE_S`` while the correction keeps
+        pushing that way. The box's strongest is the gentle side, but on a plant whose deadband is the box's widest
+        the gentle push was eaten whole: nothing moved, so nothing taught it, and a draft turned corner-mTDl past the
+        stop goal's rate while the loop pushed (flight seed 17: a stop 1.40 s) and carried corner-Mtdl's heading 15
+        deg off through its hover (flight seed 25; docs/flight-robustness.md, session 24)."""
+        e = est.effectiveness
+        if e.is_taught(alpha) or not alpha:
+            self.untaught_push_since = None
+            return e.value(alpha)
+        sign = math.copysign(1.0, alpha)
+        if self.untaught_push_since is None or sign != self.untaught_push_sign:
+            self.untaught_push_since, self.untaught_push_sign = t, sign
+        return max(e.lowest(alpha), e.high * 0.5 ** ((t - self.untaught_push_since) / ESCALATE_S))
 
     def _turn_effectiveness(self, t: float, alpha: float, est: YawEstimate, turn: float) -> float:
         """What a large push (a turn, its brake) is normalised by: the confirmed value, or during a turn whose sign
-        nothing has confirmed, the box's strongest halving every ``TURN_ESCALATE_S`` down to the learned value (the
+        nothing has confirmed, the box's strongest halving every ``ESCALATE_S`` down to the learned value (the
         safe side first, never below what the small pushes taught)."""
         e = est.effectiveness
         if not turn or e.is_confirmed(alpha):
             return e.confirmed(alpha)
-        return max(e.value(alpha), e.high * 0.5 ** ((t - self.turn_started) / TURN_ESCALATE_S))
+        return max(e.value(alpha), e.high * 0.5 ** ((t - self.turn_started) / ESCALATE_S))
 
     @staticmethod
     def _limit_return(alpha: float, error: float, predicted: float, gain: float) -> float:
@@ -444,6 +466,7 @@ class SurgeLoop:
         self.band = _Band()
         self.hovering = False  # no command, no brake, no settling: the motors may be kept from reversing
         self.speed_cap = config.forward_speed_m_s
+        self.command_started = 0.0
 
     def step(self, t: float, dt: float, speed_sp: float, gain: float, est: SurgeEstimate, thrust: ThrustModel) -> float:
         c = self.c
@@ -453,6 +476,7 @@ class SurgeLoop:
         if speed_sp:
             if not self.surging:
                 self.onset.start(est.speed, est.accel(thrust.surge))
+                self.command_started = t
             self.surging = True
             self.ref_speed, v_ahead, accel = self.onset.step(speed_sp, self._accel_limits(est, self.onset.rate), dt)
         else:  # released: brake along a ramp the reverse thrust can follow
@@ -475,8 +499,21 @@ class SurgeLoop:
         lag = longest_lag_s(c, "surge") if speed_sp else c.motor_lag_s
         predicted = est.speed + est.accel(thrust.surge) * lag
         wanted = accel + gain * c.speed_kp * (v_ahead - predicted)
-        force = c.mass_kg * wanted / est.effectiveness.value(wanted) + air_drag(v, c.quadratic_drag)
+        effectiveness = self._command_effectiveness(t, wanted, est) if speed_sp else est.effectiveness.value(wanted)
+        force = c.mass_kg * wanted / effectiveness + air_drag(v, c.quadratic_drag)
         return self.band.same_sign(force) if hover else force
+
+    def _command_effectiveness(self, t: float, wanted: float, est: SurgeEstimate) -> float:
+        """What a held command's push is normalised by: the learned value once a window has confirmed its sign, else
+        the box's strongest halving every ``ESCALATE_S`` from the command's start down to the learned value.
+
+        The first windows of a command on a 150 ms, deadband-wide plant see the push and not yet its answer: they
+        taught corner-mTdL's forward side the box's weakest (0.25 against about 4) in 0.2 s, the push went to the
+        motors' limit, and the body reached 1.25 of the command (flight seed 9; docs/flight-robustness.md, session 24)."""
+        e = est.effectiveness
+        if e.is_confirmed(wanted):
+            return e.value(wanted)
+        return max(e.value(wanted), e.high * 0.5 ** ((t - self.command_started) / ESCALATE_S))
 
     def _stoppable_speed(self, t: float, est: SurgeEstimate, speed_sp: float) -> float:
         """The fastest speed this blimp has shown it can stop from in time (reverse thrust for forward): on a share of

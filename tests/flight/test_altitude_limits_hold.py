@@ -18,7 +18,7 @@ import pytest
 
 from feelium.daemon.config import Config
 from feelium.flight.controller import FlightController
-from feelium.flight.setpoint import HOLD
+from feelium.flight.setpoint import HOLD, Setpoint
 from feelium.lab.flight import scenarios
 from feelium.lab.flight.plants import corner_plants
 from feelium.lab.flight.safety import GOALS, safety_flight
@@ -26,16 +26,17 @@ from feelium.lab.flight.safety import GOALS, safety_flight
 CONFIG = Config().flight
 
 
-def _hold_force(z: float, target: float, learned_up: float | None = None) -> float:
+def _hold_force(z: float, target: float, learned_up: float | None = None, setpoint: Setpoint = HOLD) -> float:
     """The vertical force a still hold at ``z`` asks for on its first cycle toward ``target``, with the up side's
-    learned effectiveness ``learned_up`` (``None``: never learned, the box's strongest)."""
+    learned effectiveness ``learned_up`` (``None``: never learned, the box's strongest); ``setpoint``: what the
+    headset holds (a held `down` keeps its reference at the floor)."""
     controller = FlightController(CONFIG)
     obs, loop = controller.altitude, controller.altitude_loop
     obs.z, obs.vz = z, 0.0
     loop.restart(target)
     if learned_up is not None:
         obs.effectiveness.values[1] = learned_up
-    return loop.step(10.0, 1.0 / CONFIG.rate_hz, HOLD, obs, controller.thrust, 1.0, False)
+    return loop.step(10.0, 1.0 / CONFIG.rate_hz, setpoint, obs, controller.thrust, 1.0, False)
 
 
 def test_below_the_floor_the_push_up_counts_on_the_assured_effectiveness_whatever_was_learned() -> None:
@@ -50,6 +51,18 @@ def test_below_the_floor_the_push_up_counts_on_the_assured_effectiveness_whateve
     lo, hi = FlightController(CONFIG).mixer.limits_up_n()
     assert inside < below[0] < hi
     assert _hold_force(floor + 0.05, floor + 0.06, assured) == pytest.approx(below[0])  # as if learned at the assured
+
+
+def test_below_the_floor_in_a_held_down_the_push_up_counts_on_the_assured_effectiveness_too() -> None:
+    """A `down` held into the floor: its reference stays at the floor and the body under it is pushed back up as by
+    a hold. That push divided by the up side's value, which a climb had taught 3.72 (truth about 1), was a quarter of
+    what it needed: the body sank on through the floor at 8 cm/s, 0.32 m under it (corner-mtDl, flight seed 32)."""
+    floor = CONFIG.altitude_min_m
+    down = Setpoint(climb_m_s=-CONFIG.climb_rate_m_s)
+    assured = FlightController(CONFIG).altitude.effectiveness.assured(1.0)
+    below = [_hold_force(floor - 0.01, floor, learned, down) for learned in (None, 3.72, 1.0, assured)]
+    assert below == pytest.approx([below[0]] * 4)
+    assert below[0] > _hold_force(floor + 0.01, floor, 3.72, down)  # inside the limits, divided by the value
 
 
 @pytest.mark.slow

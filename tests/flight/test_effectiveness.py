@@ -200,7 +200,9 @@ def test_a_steady_push_against_a_draft_does_not_make_a_large_push_count_on_a_low
 def test_a_mirrored_axis_lets_a_large_push_count_on_what_the_other_direction_confirmed() -> None:
     """A yaw torque is one motor forward and one reversed either way: until a large push of one sign is confirmed,
     it counts on what the other sign confirmed, not on the box's strongest (on a heavy, weak blimp 20 times its
-    answer: a turn that never turned and a brake that barely braked). Everything else keeps its own side."""
+    answer: a turn that never turned and a brake that barely braked). A hover correction of the untaught sign takes
+    what the other sign learned (normalised by the box's strongest, the push braking a heavy weak blimp's drift was a
+    sixteenth of what it needed); a stop margin keeps its own side."""
     rate, dt = 0.0, 0.02
     plain = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035)
     mirrored = Effectiveness(0.25, 4.0, min_change=0.01, confirming_change=0.035, mirrored=True)
@@ -211,7 +213,9 @@ def test_a_mirrored_axis_lets_a_large_push_count_on_what_the_other_direction_con
     assert plain.confirmed(-1.0) == 4.0  # unmirrored, the other sign keeps the box's strongest
     assert mirrored.confirmed(1.0) == pytest.approx(0.3, rel=0.05)
     assert mirrored.confirmed(-1.0) == mirrored.confirmed(1.0)
-    assert mirrored.value(-1.0) == 4.0 and mirrored.assured(-1.0) == 0.25  # hover corrections and stop margins: own side
+    assert plain.value(-1.0) == 4.0  # unmirrored, a hover correction of the untaught sign is normalised by the strongest
+    assert mirrored.value(-1.0) == pytest.approx(0.3, rel=0.05)  # mirrored, by what the other sign learned
+    assert mirrored.assured(-1.0) == 0.25  # a stop margin keeps its own side: the box's weakest until taught
     for k in range(100, 200):  # then large pushes the other way, twice as strong: that sign now counts on its own
         rate -= 0.6 * 0.5 * dt
         mirrored.update(k * dt, dt, -0.5, rate)
@@ -231,11 +235,28 @@ def test_with_real_pushes_assuring_only_a_window_overlapping_a_command_or_brake_
             assert gated.assured(-1.0) == 0.25 and gated.assured(1.0) == 0.25  # ...a stop's margin does not
         push = -0.5 if k >= 385 else 0.5 * math.sin(2 * math.pi * t / 1.5)
         if k >= 385:
-            gated.last_real_push_t = t - dt  # the loop out of hover (it marks the cycle before the update)
+            gated.mark_real_push(t - dt, push)  # the loop out of hover (it marks the cycle before the update)
         rate += 0.5 * push * dt
         gated.update(t, dt, push, rate)
     assert gated.assured(-1.0) == pytest.approx(gated.values[0])  # a window over the brake taught it
     assert gated.assured(1.0) == 0.25  # the other side still waits for its own
+
+
+def test_a_window_of_hover_corrections_overlapping_a_command_the_other_way_teaches_no_margin() -> None:
+    """Reverse hover corrections then a forward command: the windows over the command's first cycles are still
+    reverse pushes, credited with a draft's slowing (the box's strongest), and assured corner-Mtdl's reverse side
+    at 4.0: its forward ran at the full speed its brake could not stop in time (flight seed 4: 1.62 s)."""
+    gated = Effectiveness(0.25, 4.0, min_change=0.001, assuring_change=0.02, real_pushes_assure=True)
+    rate, dt = 0.0, 0.02
+    for k in range(60):  # 1 s of small reverse corrections while a draft slows the body, then a forward command
+        t = k * dt
+        push = 0.005 * (k - 49) if k >= 50 else -0.05  # the command's onset ramps up
+        if k >= 50:
+            gated.mark_real_push(t - dt, push)
+        rate += (0.12 * push - (0.0 if k >= 50 else 0.3)) * dt
+        gated.update(t, dt, push, rate)
+    assert gated.samples[0] > 0 and gated.values[0] == 4.0  # the reverse side learned the draft, as the box's top
+    assert gated.assured(-1.0) == 0.25  # and a stop's margin still counts on its weakest
 
 
 @given(u=st.floats(1.0, 4.0), v=st.floats(1.0, 4.0))
@@ -290,3 +311,23 @@ def test_at_the_shipped_uncertainty_the_decision_speed_is_the_estimate() -> None
     for k in range(50):
         est.update(k * 0.02, 0.02, 0.05, 0.04 * math.sin(k), 1.2)
         assert est.decision_speed == est.speed
+
+
+def test_with_real_pushes_confirming_a_hover_correction_that_met_a_draft_confirms_nothing() -> None:
+    """A hover correction while a draft turned the body its way: large changes, its way, five times what the push
+    explains. Confirmed, corner-MtDL's turns counted on that and reached 0.18-0.22 of the command (flight seed 5,
+    session 24); with ``real_pushes_confirm`` only a window over a turn or a brake confirms."""
+    rate, dt = 0.0, 0.02
+    gated = Effectiveness(0.25, 4.0, min_change=0.001, confirming_change=0.035, mirrored=True, real_pushes_confirm=True)
+    plain = Effectiveness(0.25, 4.0, min_change=0.001, confirming_change=0.035, mirrored=True)
+    for k in range(50):  # 1 s: a push of 0.1 while a draft adds 0.4 its way
+        rate += (0.1 + 0.4) * dt
+        for estimator in (gated, plain):
+            estimator.update(k * dt, dt, 0.1, rate)
+    assert plain.is_confirmed(1.0) and plain.confirmed(-1.0) == 4.0  # 5x the push, clipped at the box's top
+    assert not gated.is_confirmed(1.0) and not gated.is_confirmed(-1.0)
+    for k in range(50, 100):  # then a turn: a real push, the body answering at 0.5
+        gated.mark_real_push(k * dt - dt, 0.5)
+        rate += 0.5 * 0.5 * dt
+        gated.update(k * dt, dt, 0.5, rate)
+    assert gated.is_confirmed(1.0) and gated.confirmed(1.0) == pytest.approx(0.5, rel=0.2)  # its first windows span both

@@ -37,7 +37,14 @@ re-pinned again in session 23 for a held command's speed predicted over the box'
 hover heading loop taking over at 1.5 deg/s (``HOVER_ENGAGE_YAW_DPS``; 2 before); ``fitted_still_air``, whose box is 1
 (the longest lag is the config's) and whose still air never turns the body that fast, is as it was. The same two
 re-pinned a third time in session 23 for the hover's damping at full gain above 2 deg/s (``HOVER_FIRM_YAW_DPS``;
-``fitted_still_air`` unchanged). The digests below are all of it: every
+``fitted_still_air`` unchanged). ``drafts_dropouts`` and ``stall_and_lag`` re-pinned in session 24 for four of
+its changes (each step computed on its own branch commit): a held turn's rate predicted over the box's longest lag,
+a mirrored axis' untaught sign taking the other's learned value and a window assuring only the sign of the real push
+it overlaps (together: 4eb9f070 / bab64245), a held command's surge push escalating from the box's strongest until a
+window confirms its sign (521f5ae8 / 14673487), a hover heading correction of an untaught sign escalating alike
+(3ee77e36 / 8708d9d9), and only a window over a real push confirming the yaw (the digests below); the push back
+inside the altitude limits in a held climb left both as they were, and ``fitted_still_air`` (box 1: nothing to
+escalate, the longest lag the config's) is unchanged by all of them. The digests below are all of it: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
 dropouts, drafts, a stalled link with its flood of replies and a lagging one. A change in the last
@@ -95,7 +102,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "218bd0274a98d21d2707bc96",
+        "f3b6603c5c06300490c5064f",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
@@ -107,7 +114,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "504bab0914642c8bef75b440",
+        "f62fdd297929045c45cd9056",
     ),
 }
 

@@ -1,0 +1,84 @@
+"""Pushes whose sign nothing has taught yet (issue 13, point 1; session 24).
+
+Every effectiveness starts at the box's strongest (push gently: never unstable). Two ways that went wrong, traced on
+held-out flight seeds:
+- a hover heading correction on a plant whose deadband is the box's widest was eaten whole by it: nothing moved, so
+  nothing taught the effectiveness, and drafts turned corner-mTDl past the stop goal's 3 deg/s while the loop pushed
+  (seed 17: a stop 1.40 s) and carried corner-Mtdl's heading 15 deg off through its hover (seed 25);
+- a held command's first windows on a 150 ms, deadband-wide plant saw the push and not yet its answer: they taught
+  corner-mTdL's forward side the box's weakest, the push went to the motors' limit and the body reached 1.25 of the
+  commanded speed (seed 9).
+Both now escalate as an unconfirmed turn does: from the box's strongest, halving every ``ESCALATE_S``, down to the
+learned value.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from feelium.daemon.config import Config
+from feelium.flight.controller import FlightController
+from feelium.flight.loops import ESCALATE_S
+from feelium.flight.setpoint import HOLD
+
+CONFIG = Config().flight
+DT = 1.0 / CONFIG.rate_hz
+
+
+def _hover_torques(taught: bool, times: list[float]) -> list[float]:
+    """The hover heading loop's torque at ``times`` for the same state: on target, turning at 2.5 deg/s (over the
+    engage rate: the loop corrects)."""
+    controller = FlightController(CONFIG)
+    est, loop = controller.yaw, controller.heading_loop
+    est.heading = est.fine_heading = 0.0
+    est.rate_dps = 2.5
+    loop.restart(0.0)
+    if taught:  # a window taught the push's side (negative: braking a positive rate)
+        est.effectiveness.samples[0], est.effectiveness.values[0] = 1, est.effectiveness.high
+    return [loop.step(t, DT, HOLD, est, controller.thrust, 1.0) for t in times]
+
+
+def test_an_untaught_hover_correction_doubles_every_escalation_period_while_it_pushes_the_same_way() -> None:
+    times = [10.0, 10.0 + ESCALATE_S, 10.0 + 2 * ESCALATE_S]
+    untaught, taught = _hover_torques(False, times), _hover_torques(True, times)
+    assert taught[0] < 0.0 and taught == pytest.approx([taught[0]] * 3)  # taught: what it learned, no growth
+    assert untaught[0] == pytest.approx(taught[0])  # both start at the box's strongest
+    assert untaught[1] == pytest.approx(2.0 * untaught[0]) and untaught[2] == pytest.approx(4.0 * untaught[0])
+
+
+def test_an_untaught_hover_correction_escalates_no_further_than_the_box_s_weakest() -> None:
+    controller = FlightController(CONFIG)
+    e = controller.yaw.effectiveness
+    torques = _hover_torques(False, [10.0 + k * ESCALATE_S for k in range(40)])  # 12 s: far past the halvings
+    assert torques[-1] == pytest.approx(torques[0] * e.high / e.lowest(-1.0))
+
+
+def _surge_forces(confirmed: bool, seconds: float) -> list[float]:
+    """The surge loop's forces through the first ``seconds`` of a held `forward`, the body still, with the forward
+    side learned at the box's weakest: ``confirmed`` by a large measured change, or not (a few windows of lag)."""
+    controller = FlightController(CONFIG)
+    est, loop = controller.surge, controller.surge_loop
+    e = est.effectiveness
+    e.samples[1], e.values[1] = 3, e.lowest(1.0)
+    if confirmed:
+        e.confirming_samples[1] = 1
+    est.last_flow_t = 0.0  # the speed is measured
+    forces = []
+    for k in range(round(seconds / DT)):
+        t = k * DT
+        est.last_flow_t = t
+        forces.append(loop.step(t, DT, CONFIG.forward_speed_m_s, 1.0, est, controller.thrust))
+    return forces
+
+
+def test_a_held_command_s_push_on_an_unconfirmed_side_starts_from_the_box_s_strongest() -> None:
+    """The same reference, normalised by the box's strongest at the start (a sixteenth of the confirmed push), by
+    the learned value once the halvings reach it (four: 1.2 s)."""
+    e = FlightController(CONFIG).surge.effectiveness
+    ratio = e.lowest(1.0) / e.high
+    halvings = 4
+    assert ratio == pytest.approx(0.5**halvings)
+    unconfirmed, confirmed = _surge_forces(False, 1.5), _surge_forces(True, 1.5)
+    assert unconfirmed[0] == pytest.approx(confirmed[0] * ratio, rel=0.05)
+    done = round(halvings * ESCALATE_S / DT) + 1
+    assert unconfirmed[done:] == pytest.approx(confirmed[done:], rel=1e-6)
