@@ -7,9 +7,10 @@ __version__ = "0.1.0"
 # OpenCV's thread pool (pthreads) spins between jobs: its workers and the caller busy-wait for the next
 # parallel_for instead of sleeping, which in the daemon (a warp and a touch frame 30 times a second, idle in
 # between) cost a whole OpenCV worker thread's worth of CPU for nothing (docs/performance.md: "OpenCV's
-# thread pool"). With no active wait the pool sleeps between jobs and still splits a big warp over the
-# Pi's four cores, which one OpenCV thread would not. OpenCV reads these once, when cv2 is first imported,
-# so they are set here, before any module of the package can import it; a value in the environment wins.
+# thread pool"). The daemon runs OpenCV on one thread since session 24 (``[daemon] opencv_threads``); where a
+# pool is used (that setting at 0, the lab's tools) it sleeps between jobs. OpenCV reads these once, when cv2 is
+# first imported, so they are set here, before any module of the package can import it; a value in the
+# environment wins.
 for _name in ("OPENCV_THREAD_POOL_ACTIVE_WAIT_WORKER", "OPENCV_THREAD_POOL_ACTIVE_WAIT_MAIN"):
     _os.environ.setdefault(_name, "0")
 del _name

@@ -84,6 +84,14 @@ class DaemonConfig:
         min=0,
         max=32768,
     )
+    opencv_threads: int = setting(
+        1,
+        "Threads OpenCV's pool splits one image operation over. 1: none, each runs on the thread that calls it (the "
+        "split's wake-ups and hand-offs between cores cost more CPU than the split saved: docs/performance.md, "
+        "session 24); 0 = OpenCV's default, one per core.",
+        min=0,
+        max=64,
+    )
     event_loop: EventLoopChoice = setting(
         "auto",
         "The event loop the daemon runs on: uvloop runs the loop's own machinery in C (about a fifth less CPU on "

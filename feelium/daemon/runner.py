@@ -145,6 +145,22 @@ async def run_daemon(
     return supervisor
 
 
+def _build_pixel_parts(config: Config, hub: Hub, builders: tuple[tuple[str, ServiceBuilder], ...]) -> Built:
+    """``build_services``, OpenCV's pool sized first: before any part starts a thread that calls OpenCV, and off
+    the loop (importing cv2 takes a tenth of a second or more)."""
+    set_opencv_threads(config.daemon.opencv_threads)
+    return build_services(config, hub, builders)
+
+
+def set_opencv_threads(threads: int) -> int:
+    """``[daemon] opencv_threads`` applied to OpenCV's pool (0: OpenCV's default, which a negative count restores);
+    the pool's size now."""
+    import cv2  # here, not at the module's top: the flight loop starts before anything loads OpenCV
+
+    cv2.setNumThreads(threads if threads > 0 else -1)
+    return int(cv2.getNumThreads())
+
+
 async def _built_off_the_loop(
     config: Config, hub: Hub, builders: tuple[tuple[str, ServiceBuilder], ...], stop: asyncio.Event
 ) -> Built | None:
@@ -152,7 +168,7 @@ async def _built_off_the_loop(
     cannot be interrupted: it finishes in its thread and what it built is dropped unstarted)."""
     if not builders:
         return Built()
-    building = asyncio.ensure_future(asyncio.to_thread(build_services, config, hub, builders))
+    building = asyncio.ensure_future(asyncio.to_thread(_build_pixel_parts, config, hub, builders))
     stopped = asyncio.ensure_future(stop.wait())
     try:
         await asyncio.wait((building, stopped), return_when=asyncio.FIRST_COMPLETED)

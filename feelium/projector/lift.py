@@ -53,7 +53,7 @@ class SensingLift:
         self.sensing_floor = sensing_floor
         self.fade_floor = fade_floor
         self.floor = sensing_floor  # the floor measured last (and applied to the last canvas)
-        self._luts: dict[int, np.ndarray] = {}
+        self._luts: dict[int, np.ndarray | None] = {}  # per floor key: its table, or None where the scaling is exact
 
     def measure(self, img: np.ndarray) -> float:
         """Choose the floor for the picture ``img`` (BGR or gray uint8, not yet lifted) and return it."""
@@ -66,11 +66,35 @@ class SensingLift:
         return floor
 
     def apply(self, img: np.ndarray) -> None:
-        """Lift ``img`` in place by the floor last measured."""
+        """Lift ``img`` in place by the floor last measured.
+
+        The lift is affine, so OpenCV's saturating scale (``convertScaleAbs``: one multiply-add a byte) computes
+        it about 2.5x faster than the table's look-up (0.07 against 0.17 ms a 512x384 canvas here, where the
+        projector lifts ~16 canvases a second). Its float32 rounding is checked against the table once per floor
+        key, on this machine, for every byte value along both of its code paths (vectorised and scalar); a key
+        where any value differs keeps the table, so the lifted canvas is the table's byte for byte either way.
+        """
         key = int(round(self.floor * 255.0))
         if key <= 0:
             return
-        lut = self._luts.get(key)
+        if key not in self._luts:
+            lut = lift_lut(key / 255.0)
+            self._luts[key] = None if _scales_exactly(key / 255.0, lut) else lut
+        lut = self._luts[key]
         if lut is None:
-            lut = self._luts[key] = lift_lut(key / 255.0)
-        cv2.LUT(img, lut, dst=img)
+            floor = key / 255.0
+            cv2.convertScaleAbs(img, dst=img, alpha=1.0 - floor, beta=255.0 * floor)
+        else:
+            cv2.LUT(img, lut, dst=img)
+
+
+def _scales_exactly(floor: float, lut: np.ndarray) -> bool:
+    """Whether ``convertScaleAbs`` with the lift's scale and shift gives ``lut``'s value for every byte, in place,
+    both in a long contiguous run (OpenCV's vector path) and one byte a row (its scalar path)."""
+    run = np.tile(np.arange(256, dtype=np.uint8), 4)
+    cv2.convertScaleAbs(run, dst=run, alpha=1.0 - floor, beta=255.0 * floor)
+    rows = np.zeros((256, 2), np.uint8)
+    rows[:, 0] = np.arange(256)
+    column = rows[:, :1]  # 256 rows of one byte each: not continuous, so no row is long enough to vectorise
+    cv2.convertScaleAbs(column, dst=column, alpha=1.0 - floor, beta=255.0 * floor)
+    return np.array_equal(run, np.tile(lut, 4)) and np.array_equal(rows[:, 0], lut)

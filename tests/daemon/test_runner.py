@@ -86,3 +86,27 @@ def test_status_line_names_rates_and_trouble():
         },
     }
     assert status_line(report) == "degraded: touch 15.0 fps, flight backoff"
+
+
+def test_the_pixel_parts_are_built_with_opencvs_pool_sized_as_configured():
+    """``[daemon] opencv_threads`` is applied before any part that calls OpenCV is built (and starts threads)."""
+    import asyncio
+
+    import cv2
+
+    from feelium.daemon.runner import _built_off_the_loop
+
+    seen: list[int] = []
+
+    def part(config: Config, hub: Hub) -> None:
+        seen.append(cv2.getNumThreads())
+
+    before = cv2.getNumThreads()
+    try:
+        for threads, expected in ((1, 1), (2, 2), (0, cv2.getNumberOfCPUs())):
+            config = parse_config(f"[daemon]\nopencv_threads = {threads}\n")
+            built = asyncio.run(_built_off_the_loop(config, Hub(), (("pixels", part),), asyncio.Event()))
+            assert built is not None and not built.failures
+            assert seen[-1] == expected
+    finally:
+        cv2.setNumThreads(before)

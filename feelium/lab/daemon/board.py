@@ -35,6 +35,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, NamedTuple, TypeVar
 
+import cv2
 import numpy as np
 
 from feelium.audio.backends import SimMicrophone
@@ -512,6 +513,7 @@ def bench_board(
         "load_average_1min_before_after": [round(load_before, 2), round(load_after, 2)],
         "malloc": malloc or "glibc defaults",
         "background_nice": background_nice(),
+        "opencv_threads": cv2.getNumThreads(),  # [daemon] opencv_threads as the daemon applied it
         "rear": {"size": [config.touch.width, config.touch.height], "fps": config.rear_camera.fps},
         "front": {"size": [config.front_camera.width, config.front_camera.height], "fps": front_fps, "jpeg_by": front_jpeg_by(config)},
         "process_cpu_ms_per_s": round(1000.0 * measured["cpu_s"] / wall, 1),
