@@ -106,12 +106,7 @@ class Effectiveness:
     def _taught_side(self, push: float) -> int | None:
         """The side whose learned value a push of this sign takes: its own once a window taught it, else on a
         mirrored axis the other's, else ``None``."""
-        side = 1 if push > 0.0 else 0
-        if self.samples[side]:
-            return side
-        if self.mirrored and self.samples[1 - side]:
-            return 1 - side
-        return None
+        return self._side_counted(self.samples, push)
 
     def confirmed(self, push: float) -> float:
         """The effectiveness for a large push: learned from real pushes only once one taught it, else the
@@ -135,10 +130,14 @@ class Effectiveness:
     def _confirmed_side(self, push: float) -> int | None:
         """The side whose confirmed value a push of this sign takes: its own, else on a mirrored axis the other's,
         else ``None`` (nothing confirmed: the box's upper bound)."""
+        return self._side_counted(self.confirming_samples, push)
+
+    def _side_counted(self, counts: list[int], push: float) -> int | None:
+        """A push's own side if ``counts`` has windows on it, else on a mirrored axis the other side if it has."""
         side = 1 if push > 0.0 else 0
-        if self.confirming_samples[side]:
+        if counts[side]:
             return side
-        if self.mirrored and self.confirming_samples[1 - side]:
+        if self.mirrored and counts[1 - side]:
             return 1 - side
         return None
 
