@@ -31,6 +31,7 @@ import asyncio
 import logging
 import os
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -57,6 +58,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 STOP_WRITE_TIMEOUT_S = 0.3
+NEUTRAL_DRAIN_S = 0.1  # after the neutral, the board's replies are read this long before the link closes (``_drain``)
 PUBLISH_EVERY_S = 0.1  # the serial thread wakes the loop to publish the flight state at most this often
 LOOP_STALL_S = 0.5  # no control cycle for this long (25 periods at 50 Hz): health says the loop stalled
 LINK_COUNTERS = ("stalls", "resyncs", "late_replies")  # summed over every client a run opened
@@ -96,8 +98,25 @@ def _neutral_then_close(client: MspClient) -> None:
     """Serial-thread job, a link's last: neutral through the client, then close, so nothing can follow the neutral."""
     try:
         client.send_neutral()
+        _drain(client.link, NEUTRAL_DRAIN_S)
     finally:
         _close_quietly(client.link)
+
+
+def _drain(link: ByteLink, seconds: float) -> None:
+    """Read and drop what the board sends for ``seconds`` (its replies, the neutral's acknowledgement).
+
+    A TCP link (pyserial's ``socket://``) closed with unread bytes is reset, not ended, and the board's side then drops
+    what it had not read yet: under load the board got a motor command as its last and never the neutral written after
+    it (tests/daemon/test_signals.py, once in CI, session 24). Read until then, the link ends cleanly."""
+    deadline = time.monotonic() + seconds
+    with suppress(OSError, ValueError):
+        while time.monotonic() < deadline:
+            waiting = link.in_waiting
+            if waiting:
+                link.read(waiting)
+            else:
+                time.sleep(0.005)
 
 
 class LinkOpener(Protocol):

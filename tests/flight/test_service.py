@@ -245,3 +245,38 @@ async def test_health_tells_the_age_of_the_newest_telemetry_not_of_the_newest_pu
         assert age is not None and age <= hub.clock() - seen + 0.0005  # rounded to the ms
     finally:
         await stopped(service, task)
+
+
+class _ReplyingLink:
+    """A link whose board has replies waiting: records what happens to it, in order."""
+
+    def __init__(self) -> None:
+        self.events: list[str] = []
+        self.unread = 40  # replies the board sent that nobody read yet
+
+    @property
+    def in_waiting(self) -> int:
+        return self.unread
+
+    def write(self, data: bytes) -> int:
+        self.events.append("write")
+        return len(data)
+
+    def read(self, size: int = 1) -> bytes:
+        taken, self.unread = min(size, self.unread), self.unread - min(size, self.unread)
+        self.events.append("read")
+        return b"\0" * taken
+
+    def close(self) -> None:
+        self.events.append(f"close with {self.unread} unread")
+
+
+def test_the_last_neutral_is_followed_by_reading_the_board_dry_then_the_close() -> None:
+    """A TCP link closed with unread bytes is reset, and the board's side drops what it had not read yet: once in CI
+    the board's last motor command was not the neutral written after it (session 24)."""
+    from feelium.flight.client import MspClient
+
+    link = _ReplyingLink()
+    service_module._neutral_then_close(MspClient(link))  # type: ignore[arg-type]
+    assert link.events[0] == "write" and "read" in link.events
+    assert link.events[-1] == "close with 0 unread"
