@@ -71,6 +71,12 @@ def longest_lag_s(config: FlightConfig, axis: Axis) -> float:
     return config.motor_lag_s * config.uncertainty(axis)
 
 
+def escalated(high: float, pushing_s: float) -> float:
+    """The effectiveness an untaught push is normalised by after ``pushing_s``: the box's strongest ``high``, halved
+    every ``ESCALATE_S`` (the caller keeps it at or above what was learned, or the box's weakest)."""
+    return high * 0.5 ** (pushing_s / ESCALATE_S)
+
+
 def worst_lag_s(config: FlightConfig, axis: Axis) -> float:
     """The longest motor lag the axis' box allows, plus a cycle and the flow sensor's frame: what a stop must wait out."""
     return longest_lag_s(config, axis) + 0.1
@@ -222,8 +228,8 @@ class AltitudeLoop:
         return self.up_n
 
     def _effectiveness(self, obs: AltitudeObserver, z: float, climb: float, push: float) -> float:
-        """What a push is divided by: the learned effectiveness, but the assured one for a hold's push back inside
-        the limits. The learned value of a side starts at the box's strongest (push gently), which below the floor
+        """What a push is divided by: the learned effectiveness, but the assured one for a push back inside the
+        limits (a hold's, or a held climb's whose reference waits at the limit: corner-mtDl s32, session 24). The learned value of a side starts at the box's strongest (push gently), which below the floor
         is the unsafe way: a weak heavy-drag blimp released under `altitude_min` believed its up push 2.2 times the
         model, pushed a tenth of what it needed and sank 12 cm under the limit (corner-mtDl, flight seed 8)."""
         c = self.c
@@ -412,7 +418,7 @@ class HeadingLoop:
         sign = math.copysign(1.0, alpha)
         if self.untaught_push_since is None or sign != self.untaught_push_sign:
             self.untaught_push_since, self.untaught_push_sign = t, sign
-        return max(e.lowest(alpha), e.high * 0.5 ** ((t - self.untaught_push_since) / ESCALATE_S))
+        return max(e.lowest(alpha), escalated(e.high, t - self.untaught_push_since))
 
     def _turn_effectiveness(self, t: float, alpha: float, est: YawEstimate, turn: float) -> float:
         """What a large push (a turn, its brake) is normalised by: the confirmed value, or during a turn whose sign
@@ -421,7 +427,7 @@ class HeadingLoop:
         e = est.effectiveness
         if not turn or e.is_confirmed(alpha):
             return e.confirmed(alpha)
-        return max(e.value(alpha), e.high * 0.5 ** ((t - self.turn_started) / ESCALATE_S))
+        return max(e.value(alpha), escalated(e.high, t - self.turn_started))
 
     @staticmethod
     def _limit_return(alpha: float, error: float, predicted: float, gain: float) -> float:
@@ -513,7 +519,7 @@ class SurgeLoop:
         e = est.effectiveness
         if e.is_confirmed(wanted):
             return e.value(wanted)
-        return max(e.value(wanted), e.high * 0.5 ** ((t - self.command_started) / ESCALATE_S))
+        return max(e.value(wanted), escalated(e.high, t - self.command_started))
 
     def _stoppable_speed(self, t: float, est: SurgeEstimate, speed_sp: float) -> float:
         """The fastest speed this blimp has shown it can stop from in time (reverse thrust for forward): on a share of
