@@ -380,6 +380,7 @@ class HeadingLoop:
             gain *= HOVER_GAIN
         else:
             self.band.take_over()
+            self.untaught_push_since = None  # a hover correction after this starts its escalation afresh
             firm = 1.0
         error = math.radians(min(max(error_deg, -45.0), 45.0))
         predicted = math.radians(est.rate_dps) + est.accel(thrust.yaw) * (YAW_RATE_TAU_S + self._lag_s(turn))

@@ -19,7 +19,7 @@ import pytest
 from feelium.daemon.config import Config
 from feelium.flight.controller import FlightController
 from feelium.flight.loops import ESCALATE_S
-from feelium.flight.setpoint import HOLD
+from feelium.flight.setpoint import HOLD, setpoint_for_motion
 
 CONFIG = Config().flight
 DT = 1.0 / CONFIG.rate_hz
@@ -82,3 +82,26 @@ def test_a_held_command_s_push_on_an_unconfirmed_side_starts_from_the_box_s_stro
     assert unconfirmed[0] == pytest.approx(confirmed[0] * ratio, rel=0.05)
     done = round(halvings * ESCALATE_S / DT) + 1
     assert unconfirmed[done:] == pytest.approx(confirmed[done:], rel=1e-6)
+
+
+def test_a_turn_between_two_untaught_hover_corrections_restarts_the_escalation() -> None:
+    """The escalation measures how long one hover correction has pushed; a turn ends that correction, so the next
+    hover correction of the same untaught sign starts again from the box's strongest (session 25: before, it resumed
+    where the one before the turn had stopped, already halved)."""
+    controller = FlightController(CONFIG)
+    est, loop = controller.yaw, controller.heading_loop
+    est.heading = est.fine_heading = 0.0
+    loop.restart(0.0)
+
+    def hover_torque(t: float) -> float:
+        est.rate_dps = 2.5  # over the engage rate: the loop corrects, braking it (a negative push, untaught)
+        return loop.step(t, DT, HOLD, est, controller.thrust, 1.0)
+
+    first = hover_torque(10.0)
+    assert hover_torque(10.0 + 2 * ESCALATE_S) == pytest.approx(4.0 * first)  # escalated while it pushed
+    loop.step(10.0 + 2 * ESCALATE_S + DT, DT, setpoint_for_motion("turn_left", CONFIG), est, controller.thrust, 1.0)
+    assert loop.untaught_push_since is None
+    loop.turning = loop.braking = False  # the turn and its brake are over (their own tests cover them)
+    loop.settle_until = None
+    loop.restart(0.0)  # and the hover holds the same target as before the turn
+    assert hover_torque(20.0) == pytest.approx(first)
