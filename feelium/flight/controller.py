@@ -97,6 +97,8 @@ class FlightController:
             "yaw_effectiveness": self.yaw.effectiveness.as_dict(),
             "speed_cap_m_s": round(self.surge_loop.speed_cap, 3),
             "turn_cap_dps": round(self.heading_loop.turn_cap_dps, 1),
+            "surge_escalating": self.surge_loop.escalating,
+            "yaw_escalating": self.heading_loop.escalating,
             "heave_effectiveness": self.altitude.effectiveness.as_dict(),
             "altitude_disturbance_m_s2": round(self.altitude.disturbance, 3),
             "old_telemetry": self.old_telemetry,

@@ -218,7 +218,16 @@ class Effectiveness:
         pushed = self.real_push_t[side]
         return pushed is not None and t - pushed <= self.window_s + REAL_PUSH_SLACK_S
 
-    def as_dict(self) -> dict[str, float | int]:
-        """For health: both directions and how many windows taught them."""
-        return {"reverse": round(self.values[0], 3), "forward": round(self.values[1], 3),
-                "reverse_samples": self.samples[0], "forward_samples": self.samples[1]}
+    def as_dict(self) -> dict[str, float | int | None]:
+        """For health, per direction: the learned value and how many windows taught it; what a large push counts on
+        (``confirmed``: ``None`` while nothing confirmed it, so such a push escalates from the box's strongest) and
+        how many windows confirmed it; what a safety margin counts on (``assured``)."""
+        health: dict[str, float | int | None] = {
+            "reverse": round(self.values[0], 3), "forward": round(self.values[1], 3),
+            "reverse_samples": self.samples[0], "forward_samples": self.samples[1]}
+        for side, name in enumerate(("reverse", "forward")):
+            push = 1.0 if side else -1.0
+            health[f"{name}_confirmed"] = round(self.confirmed(push), 3) if self.is_confirmed(push) else None
+            health[f"{name}_confirming_samples"] = self.confirming_samples[side]
+            health[f"{name}_assured"] = round(self.assured(push), 3)
+        return health

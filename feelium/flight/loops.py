@@ -311,6 +311,7 @@ class HeadingLoop:
         self.turn_started = 0.0
         self.untaught_push_since: float | None = None  # a hover correction of an untaught sign pushes since then...
         self.untaught_push_sign = 0.0  # ...this way
+        self.escalating = False  # this cycle's push has a sign nothing taught (confirmed): it escalates (health)
 
     def restart(self, heading: float) -> None:
         self.target = heading
@@ -322,6 +323,7 @@ class HeadingLoop:
 
     def step(self, t: float, dt: float, sp: Setpoint, est: YawEstimate, thrust: ThrustModel, gain: float) -> float:
         c = self.c
+        self.escalating = False
         if est.heading is None or self.target is None:
             return 0.0
         ref = self.ref
@@ -419,6 +421,7 @@ class HeadingLoop:
         sign = math.copysign(1.0, alpha)
         if self.untaught_push_since is None or sign != self.untaught_push_sign:
             self.untaught_push_since, self.untaught_push_sign = t, sign
+        self.escalating = True
         return max(e.lowest(alpha), escalated(e.high, t - self.untaught_push_since))
 
     def _turn_effectiveness(self, t: float, alpha: float, est: YawEstimate, turn: float) -> float:
@@ -426,7 +429,8 @@ class HeadingLoop:
         nothing has confirmed, the box's strongest halving every ``ESCALATE_S`` down to the learned value (the
         safe side first, never below what the small pushes taught)."""
         e = est.effectiveness
-        if not turn or e.is_confirmed(alpha):
+        self.escalating = bool(turn) and not e.is_confirmed(alpha)
+        if not self.escalating:
             return e.confirmed(alpha)
         return max(e.value(alpha), escalated(e.high, t - self.turn_started))
 
@@ -474,9 +478,11 @@ class SurgeLoop:
         self.hovering = False  # no command, no brake, no settling: the motors may be kept from reversing
         self.speed_cap = config.forward_speed_m_s
         self.command_started = 0.0
+        self.escalating = False  # this cycle's push has a sign nothing taught (confirmed): it escalates (health)
 
     def step(self, t: float, dt: float, speed_sp: float, gain: float, est: SurgeEstimate, thrust: ThrustModel) -> float:
         c = self.c
+        self.escalating = False
         self.speed_cap = self._stoppable_speed(t, est, speed_sp)
         speed_sp = math.copysign(min(abs(speed_sp), self.speed_cap), speed_sp) if speed_sp else 0.0
         hover = False
@@ -518,7 +524,8 @@ class SurgeLoop:
         taught corner-mTdL's forward side the box's weakest (0.25 against about 4) in 0.2 s, the push went to the
         motors' limit, and the body reached 1.25 of the command (flight seed 9; docs/flight-robustness.md, session 24)."""
         e = est.effectiveness
-        if e.is_confirmed(wanted):
+        self.escalating = not e.is_confirmed(wanted)
+        if not self.escalating:
             return e.value(wanted)
         return max(e.value(wanted), escalated(e.high, t - self.command_started))
 

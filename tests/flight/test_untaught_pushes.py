@@ -105,3 +105,26 @@ def test_a_turn_between_two_untaught_hover_corrections_restarts_the_escalation()
     loop.settle_until = None
     loop.restart(0.0)  # and the hover holds the same target as before the turn
     assert hover_torque(20.0) == pytest.approx(first)
+
+
+def test_health_says_which_pushes_escalate_and_what_is_confirmed() -> None:
+    """Online adaptation must be observable (issue 13, point 2): health names the loops pushing on an escalation and,
+    per side, the confirmed value (``None`` until a window confirms it) and what a margin counts on."""
+    controller = FlightController(CONFIG)
+    est, loop = controller.surge, controller.surge_loop
+    e = est.effectiveness
+    est.last_flow_t = 0.0
+    loop.step(0.0, DT, CONFIG.forward_speed_m_s, 1.0, est, controller.thrust)
+    health = controller.estimates(0.0)
+    assert health["surge_escalating"] is True and health["yaw_escalating"] is False
+    surge = health["surge_effectiveness"]
+    assert isinstance(surge, dict)
+    assert surge["forward_confirmed"] is None and surge["forward_confirming_samples"] == 0
+    assert surge["forward_assured"] == pytest.approx(e.assured(1.0), abs=1e-3)
+    e.confirming_samples[1], e.strong_values[1] = 2, 1.5  # a window confirmed the forward side
+    loop.step(DT, DT, CONFIG.forward_speed_m_s, 1.0, est, controller.thrust)
+    health = controller.estimates(DT)
+    assert health["surge_escalating"] is False
+    assert health["surge_effectiveness"]["forward_confirmed"] == 1.5  # type: ignore[index]
+    loop.step(2 * DT, DT, 0.0, 1.0, est, controller.thrust)  # released: a brake, never an escalation
+    assert controller.estimates(2 * DT)["surge_escalating"] is False
