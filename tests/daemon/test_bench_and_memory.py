@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import platform
+import sys
 
+import numpy as np
 import pytest
 
 from feelium.daemon.config import Config
@@ -69,3 +71,21 @@ def test_a_daemon_alone_in_a_fresh_process_reports_its_memory():
     empty = service_alone("none", 1.0)
     assert "error" not in empty, empty
     assert 0 < empty["rss_mb_steady"] <= empty["rss_mb_max"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the kernel's high-water mark is Linux's")
+def test_the_kernel_peak_sees_a_transient_allocation_a_sampler_would_miss_and_restarts_from_now() -> None:
+    """``bench board`` reports the kernel's resident high-water mark: 64 MB allocated, touched and freed between two
+    of its 0.5 s samples shows in it, and a restart starts the mark again from what is resident now."""
+    from feelium.lab.daemon.bench import peak_rss_mb, resident_mb, restart_peak_rss
+
+    if not restart_peak_rss():
+        pytest.skip("this kernel does not let a process restart its high-water mark")
+    before = resident_mb()
+    transient = np.ones(8 * 2**20)  # 64 MB, every page written
+    del transient
+    peak = peak_rss_mb()
+    assert peak is not None and peak >= before + 60.0
+    assert restart_peak_rss()
+    restarted = peak_rss_mb()
+    assert restarted is not None and restarted < peak - 50.0

@@ -9,6 +9,7 @@ import asyncio
 import itertools
 import json
 import math
+import sys
 import time
 
 import pytest
@@ -218,6 +219,9 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
         assert all(math.isfinite(row[key]) for key in ("rate_hz", "target_hz", "miss_pct", "cpu_ms_per_s")), name
         assert row["rate_hz"] > 0, name
     assert 0 < result["rss_mb"] <= result["rss_peak_mb"]
+    assert result["rss_peak_sampled_mb"] <= result["rss_peak_mb"]  # the kernel's mark (Linux) misses no transient
+    if sys.platform.startswith("linux"):
+        assert result["rss_peak_source"].startswith("kernel")
     assert result["services"]["flight"]["tick_step_late_ms_p99"] is not None  # the loop's delay of the control step
     assert 0 < result["services"]["touch"]["loop_wakeups_per_frame"] <= 1.0
     assert "pi_cores" in format_table(result)

@@ -57,7 +57,7 @@ from feelium.lab.daemon.attribution import (
     charged_apart,
     thread_cpu,
 )
-from feelium.lab.daemon.bench import resident_mb
+from feelium.lab.daemon.bench import peak_rss_mb, resident_mb, restart_peak_rss
 from feelium.lab.daemon.host import host_reference
 from feelium.lab.daemon.numeric import NumericProfiler, numeric_shares
 from feelium.lab.daemon.perfsplit import PerfSampler, perf_usable, pooled_shares
@@ -282,6 +282,7 @@ async def _measure(
     hub, stop, probe_stop = Hub(), asyncio.Event(), asyncio.Event()
     probe = LoopProbe(seconds)
     out: dict[str, Any] = {}
+    kernel_peak = restart_peak_rss()  # from the daemon's start: the preloaded frames in it, as in every sample
     started = asyncio.Event()
 
     async def window() -> None:
@@ -307,6 +308,7 @@ async def _measure(
             while (elapsed := time.monotonic() - start) < seconds:
                 await asyncio.sleep(seconds - elapsed)
             probe.window = False
+            out["rss_hwm"] = peak_rss_mb() if kernel_peak else None  # start-up and window, before the shutdown
             ledger.counting = False
             if profiler is not None:
                 profiler.counting = False
@@ -351,7 +353,9 @@ async def _measure(
         raise done[0]  # the measurement failed (e.g. the headset process): not a report with holes
     out["lags_ms"] = probe.lags_ms.values().tolist()
     out["rss"] = probe.rss_mb.values().tolist()
-    out["rss_peak"] = max(probe.peak_mb, *out["rss"]) if out["rss"] else probe.peak_mb
+    out["rss_sampled_peak"] = max([probe.peak_mb, *out["rss"]])
+    out["rss_peak"] = max(out["rss_sampled_peak"], out.get("rss_hwm") or 0.0)
+    out["rss_peak_source"] = "kernel high-water mark (VmHWM)" if out.get("rss_hwm") else f"sampled every {RSS_EVERY_S} s"
     return out
 
 
@@ -529,6 +533,8 @@ def bench_board(
         "preloaded_frames_mb": round(preload_mb, 1),
         "rss_mb": round(statistics.median(window[len(window) // 2 :]) - preload_mb, 1),
         "rss_peak_mb": round(measured["rss_peak"] - preload_mb, 1),
+        "rss_peak_sampled_mb": round(measured["rss_sampled_peak"] - preload_mb, 1),
+        "rss_peak_source": measured["rss_peak_source"],
         "rss_growth_mb": _growth_mb(window),
         "cpu_quota": measured.get("cpu_quota"),
         "projected_light_compensation": projected_light,
@@ -597,7 +603,8 @@ def format_table(result: dict[str, Any]) -> str:
         "touch loop wake-ups per frame {}".format(*(result["services"]["flight"].get(k) for k in (
             "tick_start_late_ms_p50", "tick_start_late_ms_p99", "tick_step_late_ms_p50", "tick_step_late_ms_p99")),
             result["services"]["touch"].get("loop_wakeups_per_frame")),
-        f"  RSS steady / peak {result['rss_mb']} / {result['rss_peak_mb']} MB (preloaded frames, "
+        f"  RSS steady / peak {result['rss_mb']} / {result['rss_peak_mb']} MB (peak: {result['rss_peak_source']}; "
+        f"sampled {result['rss_peak_sampled_mb']}; preloaded frames, "
         f"{result['preloaded_frames_mb']} MB, taken out); growth after warm-up {result['rss_growth_mb']} MB",
         f"  projected onto the Pi ({result['pi_factor']}): {result['pi_cores']} of 4 cores used, "
         f"{result['pi_cores_left']} left (all at x10: {result['pi_cores_at_10x']}, all at x6: {result['pi_cores_at_6x']}); event loop thread "
