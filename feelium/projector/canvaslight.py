@@ -29,7 +29,7 @@ import numpy as np
 
 from feelium.projector.avatar import BACKGROUND_BGR
 from feelium.projector.config import ProjectorConfig
-from feelium.projector.renderer import canvas_map
+from feelium.projector.renderer import CANVAS_MAP_BAND_POINTS, canvas_map
 from feelium.skin.blurwindow import blur_window
 from feelium.skin.face import FaceModel
 from feelium.skin.projector_map import ProjectorMap, sample
@@ -342,18 +342,24 @@ def _renderer_camera_points(
 def _drawn_canvas(
     inv_x: np.ndarray, inv_y: np.ndarray, calibration: ProjectorMap, canvas_size: tuple[int, int], face: FaceModel | None
 ) -> np.ndarray:
-    """(h, w) bool over the canvas: pixels a bilinear tap of the renderer's warp reads (as the renderer maps)."""
+    """(h, w) bool over the canvas: pixels a bilinear tap of the renderer's warp reads (as the renderer maps).
+
+    The projector's grid is taken in bands of rows (:data:`CANVAS_MAP_BAND_POINTS`): its whole 1280x720 at once
+    held ~40 MB of index arrays on top of the maps' own, at the daemon's start-up peak (session 25)."""
     cw, ch = canvas_size
-    map_x, map_y = canvas_map(inv_x, inv_y, calibration, canvas_size, face)
-    on = np.isfinite(map_x) & np.isfinite(map_y)
-    x0 = np.floor(map_x[on]).astype(np.int64)
-    y0 = np.floor(map_y[on]).astype(np.int64)
     drawn = np.zeros((ch, cw), bool)
-    for dx in (0, 1):
-        for dy in (0, 1):
-            x, y = x0 + dx, y0 + dy
-            keep = (x >= 0) & (x < cw) & (y >= 0) & (y < ch)
-            drawn[y[keep], x[keep]] = True
+    rows = max(1, CANVAS_MAP_BAND_POINTS // max(1, inv_x.shape[1]))
+    for top in range(0, inv_x.shape[0], rows):
+        band = slice(top, top + rows)
+        map_x, map_y = canvas_map(inv_x[band], inv_y[band], calibration, canvas_size, face)
+        on = np.isfinite(map_x) & np.isfinite(map_y)
+        x0 = np.floor(map_x[on]).astype(np.int64)
+        y0 = np.floor(map_y[on]).astype(np.int64)
+        for dx in (0, 1):
+            for dy in (0, 1):
+                x, y = x0 + dx, y0 + dy
+                keep = (x >= 0) & (x < cw) & (y >= 0) & (y < ch)
+                drawn[y[keep], x[keep]] = True
     return drawn
 
 

@@ -35,6 +35,12 @@ from feelium.projector.strokes import StrokeLayer
 from feelium.projector.tilewarp import TileWarp
 
 
+# Points a band of :func:`canvas_map` maps at once: the face's ray casting keeps ~15 float64 temporaries of its input's
+# size alive, 110 MB at once for the projector's 1280x720 grid, which made the daemon's start-up peak (its memory,
+# not its steady state) 28 MB over its steady resident size (session 25). A band of 64k points keeps them ~8 MB.
+CANVAS_MAP_BAND_POINTS = 65536
+
+
 def canvas_map(
     cam_x: np.ndarray, cam_y: np.ndarray, calibration: ProjectorMap, canvas_size: tuple[int, int], face: FaceModel | None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -44,11 +50,28 @@ def canvas_map(
     one, it spans the face's u, v (the model may be for another frame size:
     camera points are scaled onto its frame first), which is what the touch
     pipeline reports with the same model, so an answer lands where the touch was.
+    With a face, a grid of many rows is mapped in bands of rows (:data:`CANVAS_MAP_BAND_POINTS`): each point's
+    arithmetic is its own, so the bits are those of one pass.
     """
-    cw, ch = canvas_size
     if face is None:
+        cw, ch = canvas_size
         rx, ry, rw, rh = calibration.roi
         return (cam_x - rx) * np.float32(cw / rw), (cam_y - ry) * np.float32(ch / rh)
+    if cam_x.ndim != 2 or cam_x.size <= CANVAS_MAP_BAND_POINTS:
+        return _face_canvas_map(cam_x, cam_y, calibration, canvas_size, face)
+    map_x, map_y = np.empty(cam_x.shape, np.float32), np.empty(cam_x.shape, np.float32)
+    rows = max(1, CANVAS_MAP_BAND_POINTS // cam_x.shape[1])
+    for top in range(0, cam_x.shape[0], rows):
+        band = slice(top, top + rows)
+        map_x[band], map_y[band] = _face_canvas_map(cam_x[band], cam_y[band], calibration, canvas_size, face)
+    return map_x, map_y
+
+
+def _face_canvas_map(
+    cam_x: np.ndarray, cam_y: np.ndarray, calibration: ProjectorMap, canvas_size: tuple[int, int], face: FaceModel
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`canvas_map` with a face model, in one pass."""
+    cw, ch = canvas_size
     kw, kh = calibration.camera_size
     fx = (cam_x.astype(np.float64) + 0.5) * (face.width / kw) - 0.5
     fy = (cam_y.astype(np.float64) + 0.5) * (face.height / kh) - 0.5

@@ -18,7 +18,7 @@ import logging
 import math
 import threading
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -61,6 +61,8 @@ class ProjectorMap:
     # eval then keep [touch] projector_latency_s), :mod:`feelium.lab.projector.latency`.
     latency_s: float | None = None
     latency_sigma_s: float | None = None
+    _inverse: list[np.ndarray] = field(default_factory=list, init=False, repr=False)  # see _inverse_fit
+    _inverse_lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
 
     def __post_init__(self) -> None:
         w, h = self.camera_size
@@ -98,6 +100,30 @@ class ProjectorMap:
         wsum = float(weights[ok].sum())
         return float((px[ok] * weights[ok]).sum() / wsum), float((py[ok] * weights[ok]).sum() / wsum)
 
+    def _inverse_fit(self) -> tuple[np.ndarray, np.ndarray]:
+        """The inverse polynomial's coefficients for camera x and y, fitted once per map.
+
+        The renderer, both of touch's light predictors and the probe overlay each invert the one shared map at
+        start-up. Each fit held a design matrix of every covered camera pixel (~13 MB at 640x480) and its least
+        squares' copies, and the fits ran at once in the projector's and touch's threads: the daemon's start-up
+        peak stood ~28 MB over its steady resident size (session 25). The 42 coefficients are what is kept."""
+        with self._inverse_lock:
+            if self._inverse:
+                return self._inverse[0], self._inverse[1]
+            pw, ph = self.projector_size
+            cov = self.covered
+            ys, xs = np.nonzero(cov[::2, ::2])
+            if len(xs) < 50:
+                raise CalibrationError(f"only {int(cov.sum())} covered camera pixels; cannot invert the map")
+            cam_x, cam_y = xs * 2.0, ys * 2.0
+            px = self.proj_x[ys * 2, xs * 2].astype(np.float64)
+            py = self.proj_y[ys * 2, xs * 2].astype(np.float64)
+            design = _poly_terms(px / pw, py / ph)
+            coef_x, *_ = np.linalg.lstsq(design, cam_x, rcond=None)
+            coef_y, *_ = np.linalg.lstsq(design, cam_y, rcond=None)
+            self._inverse.extend((coef_x, coef_y))
+            return coef_x, coef_y
+
     def projector_to_camera(self) -> tuple[np.ndarray, np.ndarray]:
         """Inverse map at projector resolution: (H_p, W_p) float32 camera x and y, NaN where not covered.
 
@@ -107,15 +133,7 @@ class ProjectorMap:
         """
         pw, ph = self.projector_size
         cov = self.covered
-        ys, xs = np.nonzero(cov[::2, ::2])
-        if len(xs) < 50:
-            raise CalibrationError(f"only {int(cov.sum())} covered camera pixels; cannot invert the map")
-        cam_x, cam_y = xs * 2.0, ys * 2.0
-        px = self.proj_x[ys * 2, xs * 2].astype(np.float64)
-        py = self.proj_y[ys * 2, xs * 2].astype(np.float64)
-        design = _poly_terms(px / pw, py / ph)
-        coef_x, *_ = np.linalg.lstsq(design, cam_x, rcond=None)
-        coef_y, *_ = np.linalg.lstsq(design, cam_y, rcond=None)
+        coef_x, coef_y = self._inverse_fit()
 
         gw, gh = pw // _INVERSE_STEP + 2, ph // _INVERSE_STEP + 2
         gx, gy = np.meshgrid(np.arange(gw) * _INVERSE_STEP / pw, np.arange(gh) * _INVERSE_STEP / ph)
