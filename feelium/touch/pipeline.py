@@ -716,6 +716,9 @@ class TouchPipeline:
                     f"projected_light shape {projected_light.shape} is neither the camera's {fw}x{fh}, the ROI's "
                     f"{w}x{h} nor the working image's {g.work_size[0]}x{g.work_size[1]}"
                 )
+            if projected_light.dtype == out.dtype and cv2.checkRange(projected_light)[0]:
+                # All finite (almost always): the copy and the clip are one pass, _clean_light's bits.
+                return projected_light.clip(0.0, LIGHT_MAX, out=out)
             np.copyto(out, projected_light)  # predicted on the working grid (light_grids): nothing to resize
             return _clean_light(out, unknown)
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.
