@@ -83,7 +83,7 @@ def depth_against(
         counts.saturated = lit - int(np.count_nonzero(usable))
     masked = np.logical_not(usable, out=unsaturated)
     depth = buf.get("depth.depth", expected.shape, np.result_type(frame, expected))
-    with np.errstate(divide="ignore", invalid="ignore"):  # masked pixels may divide by 0 or NaN: zeroed below
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # masked pixels (0, NaN, tiny): zeroed below
         np.divide(frame, expected, out=depth)  # whole: a ufunc's where= runs a loop several times slower
     np.subtract(depth.dtype.type(1.0), depth, out=depth)
     depth.clip(-1.0 if signed else 0.0, 1.0, out=depth)  # the method: np.clip less its dispatch
