@@ -334,7 +334,7 @@ class ProjectorShare:
         n, var, cov = _centred(self._sums, self._carry)  # weighted sums: per unit of weight they are the means'
         p = np.where(var > 0.0, cov / np.maximum(var, 1e-12), 0.0)
         info = np.where(var >= MIN_LIGHT_VAR * np.maximum(n, 1e-9), var, 0.0)
-        return np.clip(p, *SHARE_LIMITS).astype(np.float32), info.astype(np.float32)
+        return p.clip(*SHARE_LIMITS, out=p).astype(np.float32), info.astype(np.float32)  # np.clip less its dispatch
 
     def coarse(self) -> np.ndarray | None:
         """The projector's share per tile (float32), or None until some tile saw its light change.
@@ -350,15 +350,19 @@ class ProjectorShare:
         if fitted is None:
             return None
         p, info = fitted
-        if not (info > 0.0).any():
+        most = float(info.max()) if info.size else 0.0  # info is >= 0 and never NaN: "any tile > 0" is its max > 0
+        if not most > 0.0:
             return None
-        num = cv2.GaussianBlur(p * info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
+        weighted = p * info  # blurred and summed: made once
+        num = cv2.GaussianBlur(weighted, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
         den = cv2.GaussianBlur(info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
         total = np.add.reduce  # np.sum's own arithmetic, without its dispatch
-        fallback = float(total(p * info, axis=None) / total(info, axis=None))
-        spread = np.where(den > 1e-3 * float(info.max()), num / np.maximum(den, 1e-12), fallback).astype(np.float32)
+        fallback = float(total(weighted, axis=None) / total(info, axis=None))
+        # float32 throughout (the scalars are weak or float32): astype only names the type, it copies nothing.
+        spread = np.where(den > 1e-3 * most, num / np.maximum(den, 1e-12), fallback).astype(np.float32, copy=False)
         k = np.float32(self.room_scale(fitted))
-        spread = (spread / np.maximum(spread + k * (1.0 - spread), np.float32(1e-6))).clip(*SHARE_LIMITS).astype(np.float32)
+        spread = (spread / np.maximum(spread + k * (1.0 - spread), np.float32(1e-6))).clip(*SHARE_LIMITS)
+        spread = spread.astype(np.float32, copy=False)
         self._coarse = spread
         return spread
 
