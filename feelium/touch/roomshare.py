@@ -206,7 +206,8 @@ class ProjectorShare:
         share = tiles[3]
         means = tiles[:3] / np.maximum(share, np.float32(1e-6))  # mz, mx, me: only tiles with half their pixels count
         me = means[2]
-        good = (share >= MIN_TILE_WEIGHT) & np.logical_and.reduce(np.isfinite(means), axis=0) & (me > 0.0)  # all(axis=0)
+        finite = np.logical_and.reduce(np.isfinite(means), axis=0)  # all(axis=0) without its Python layer
+        good = (share >= MIN_TILE_WEIGHT) & finite & (me > 0.0)
         # fresh: w, x * w, u * w, x^2 * w, x * u * w with w = good (0 or 1) and x, u 0 where it is 0: w multiplies
         # nothing away, so the products are the plain ones.
         fresh = np.zeros((5, grid[1], grid[0]))
