@@ -66,7 +66,9 @@ STAGES = {  # (owner, attribute) timed with --profile, charged to the name
     "prepare": ("pipeline", "_prepare"),
     "depth_uncertainty": ("module", "depth_uncertainty"),
     "spread_window": ("module", "spread_window"),
-    "relative_depth": ("module", "relative_depth"),
+    "relative_depth": ("module", "relative_depth"),  # the coarse depth until session 25
+    "depth_against": ("module", "depth_against"),  # the coarse depth since session 25 (its product made once)
+    "usable mask": ("pipeline", "_usable"),  # since session 25 the gain's and follow light's mask, made once
     "refine (fine window)": ("pipeline", "_refine"),
     "find_candidates": ("module", "find_candidates"),
     "noise floor": ("module", "_noise_floor_map"),

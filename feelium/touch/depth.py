@@ -48,25 +48,46 @@ def relative_depth(
     without, the result is a new array.
     """
     buf = Scratch() if scratch is None else scratch
-    dtype = reference.dtype.type
-    factor = dtype(gain) if np.isscalar(gain) else gain.astype(reference.dtype, copy=False)
+    factor = reference.dtype.type(gain) if np.isscalar(gain) else gain.astype(reference.dtype, copy=False)
     expected = np.multiply(reference, factor, out=buf.like("depth.expected", reference))
-    dark = np.greater_equal(expected, dark_level, out=buf.like("depth.dark", reference, bool))
-    np.logical_not(dark, out=dark)  # also catches NaN
-    saturated = np.less(frame, saturation_level, out=buf.like("depth.saturated", reference, bool))
-    np.logical_not(saturated, out=saturated)
-    masked = np.logical_or(dark, saturated, out=buf.like("depth.masked", reference, bool))
-    np.copyto(expected, dtype(1.0), where=masked)
-    depth = np.divide(frame, expected, out=buf.get("depth.depth", expected.shape, np.result_type(frame, expected)))
-    np.subtract(dtype(1.0), depth, out=depth)
-    depth.clip(-1.0 if signed else 0.0, 1.0, out=depth)  # the method: np.clip less its dispatch
-    np.copyto(depth, depth.dtype.type(0.0), where=masked)
-    bad = np.isfinite(depth, out=buf.like("depth.bad", reference, bool))
-    np.logical_not(bad, out=bad)
-    np.copyto(depth, depth.dtype.type(0.0), where=bad)
+    return depth_against(
+        frame, expected, dark_level=dark_level, saturation_level=saturation_level, counts=counts, signed=signed,
+        scratch=buf,
+    )  # fmt: skip
+
+
+def depth_against(
+    frame: np.ndarray,
+    expected: np.ndarray,
+    *,
+    dark_level: float,
+    saturation_level: float,
+    counts: MaskCounts | None = None,
+    signed: bool = False,
+    scratch: Scratch | None = None,
+) -> np.ndarray:
+    """:func:`relative_depth` against ``expected`` (the reference times its gain, already made; left unchanged), to
+    the bit.
+
+    Why: the pipeline makes the reference times its gain once a frame and reads it four times (the depth, the
+    spread's bound, the share's lesson, the fine pass), and the masks are built in fewer passes (masked pixels are
+    divided by whatever they hold, then zeroed with the non-finite ones in one pass): on the Pi a numpy call on
+    these small images is mostly its per-call cost (issue 16)."""
+    buf = Scratch() if scratch is None else scratch
+    usable = np.greater_equal(expected, dark_level, out=buf.like("depth.usable", expected, bool))  # NaN: not usable
+    lit = int(np.count_nonzero(usable)) if counts is not None else 0
+    unsaturated = np.less(frame, saturation_level, out=buf.like("depth.unsaturated", expected, bool))
+    usable &= unsaturated
     if counts is not None:
-        counts.dark = int(np.count_nonzero(dark))
-        only_saturated = np.logical_not(dark, out=bad)
-        np.logical_and(only_saturated, saturated, out=only_saturated)
-        counts.saturated = int(np.count_nonzero(only_saturated))
+        counts.dark = usable.size - lit
+        counts.saturated = lit - int(np.count_nonzero(usable))
+    masked = np.logical_not(usable, out=unsaturated)
+    depth = buf.get("depth.depth", expected.shape, np.result_type(frame, expected))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # masked pixels (0, NaN, tiny): zeroed below
+        np.divide(frame, expected, out=depth)  # whole: a ufunc's where= runs a loop several times slower
+    np.subtract(depth.dtype.type(1.0), depth, out=depth)
+    depth.clip(-1.0 if signed else 0.0, 1.0, out=depth)  # the method: np.clip less its dispatch
+    bad = np.isnan(depth, out=usable)  # the clip took infinities to the bounds: only NaN is left not finite
+    bad |= masked
+    np.copyto(depth, depth.dtype.type(0.0), where=bad)
     return depth

@@ -23,7 +23,7 @@ from feelium.events import TouchEvent
 from feelium.touch.buffers import Scratch
 from feelium.touch.candidates import Candidate, Segmentation, find_candidates, shadow_boxes
 from feelium.touch.config import TouchConfig
-from feelium.touch.depth import MaskCounts, relative_depth
+from feelium.touch.depth import MaskCounts, depth_against
 from feelium.touch.geometry import LightGrids, WorkingGeometry
 from feelium.touch.illumination import TILE_PX, illumination_change, reseed, tile_px_for
 from feelium.touch.photometric import LIGHT_MAX, ProjectorResponse
@@ -271,19 +271,22 @@ class TouchPipeline:
             self._deep = None
             return FrameResult(t, (), False, 0.0, 0.0, 0, (), 0.0)
         cfg = self.config
-        gain = ref.measure_gain(work, self._shadow)
+        usable = self._usable(work) if self.settled else None  # the gain's and the light's pixels, made once
+        gain = ref.measure_gain(work, self._shadow, usable)
         stepped = abs(gain / ref.gain - 1.0) > cfg.rebaseline_gain_step
-        if self.settled and self._follow_light(work, stepped):
+        if usable is not None and self._follow_light(work, stepped, usable):
             gain = ref.measure_gain(work, self._shadow)
             self.response.request_fit()  # the room's light changed: the projector's share of it may have too
         if self.settled:
             ref.observe_gain(gain, work, self._shadow)
         ref.measure_rows(work, self._deep)
         buf = self._scratch
-        depth = relative_depth(
+        # What the flat membrane gives this frame (the reference times its gain), made once: the depth, the spread's
+        # bound, the fine pass and the share's lesson read it; the reference does not change before its update.
+        expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("expected", ref.image))
+        depth = depth_against(
             work,
-            ref.image,
-            ref.expected_gain(),
+            expected,
             dark_level=cfg.dark_reference_level,
             saturation_level=float(cfg.saturation_level),
             counts=self.masked,
@@ -306,12 +309,9 @@ class TouchPipeline:
         # in the window around the nonzero spread (:func:`feelium.touch.settle.spread_window`); bit for bit the same.
         window = None if spread is None or self.response.slope is None else spread_window(spread, self._sigma, buf)
         if window is not None:
-            expected = buf.like("uncertainty.expected", ref.image)
-            gain = ref.expected_gain()  # one gain, or one per row (rows, 1)
-            gain = gain[window[0]] if isinstance(gain, np.ndarray) else gain
-            part = np.multiply(ref.image[window], gain, out=expected[window])
-            np.maximum(part, np.float32(cfg.dark_reference_level), out=part)
-            bound = depth_uncertainty(spread, self.response.slope, expected, self._sigma, buf, window)
+            lit = buf.like("uncertainty.expected", ref.image)
+            np.maximum(expected[window], np.float32(cfg.dark_reference_level), out=lit[window])
+            bound = depth_uncertainty(spread, self.response.slope, lit, self._sigma, buf, window)
             smooth[window] -= bound  # the smallest depth the prediction allows: its error cannot make a shadow
             if self.fine is not None:
                 bound_full = np.zeros(smooth.shape, smooth.dtype)
@@ -342,7 +342,7 @@ class TouchPipeline:
         learn_detail = self.fine is not None and self.settled and self.detail.due(t)
         if self.fine is not None and (boxes or learn_detail):
             lights = None if light is None else (projected_light, light, fine_light)
-            fine_inputs = self._fine_inputs(frame, backlight_gain, lights, bound_full)
+            fine_inputs = self._fine_inputs(frame, backlight_gain, lights, bound_full, expected)
         if boxes and fine_inputs is not None:
             # The fine depth decides, as the full-resolution path would: a coarse shadow it finds nothing in is none.
             candidates, geometry = self._refine(fine_inputs, boxes), self.fine
@@ -417,7 +417,6 @@ class TouchPipeline:
         # A frame with a hand teaches only the membrane's level of share, from the pixels away from its shadow.
         if learn_share:
             assert free is not None
-            expected = np.multiply(ref.image, ref.expected_gain(), out=buf.like("share.expected", ref.image))
             usable = np.greater_equal(expected, cfg.dark_reference_level, out=buf.like("share.usable", frozen))
             usable &= free
             hand_free = not candidates and area < self._activity_area
@@ -467,10 +466,9 @@ class TouchPipeline:
             projected_depth=most_projected,
         )
 
-    def _follow_light(self, work: np.ndarray, stepped: bool) -> bool:
-        """Re-seed the reference on a membrane-wide change of light's shape (:mod:`feelium.touch.illumination`),
-        or on any lighting step (``stepped``: the exposure gain jumped), so that under shadows the old reference
-        is scaled by the change measured around them rather than by one gain."""
+    def _usable(self, work: np.ndarray) -> np.ndarray:
+        """The pixels the exposure gain and the room's light are measured on: the reference times the current gain
+        at least the dark level, the frame under saturation, off the last frame's shadow (this frame's buffer)."""
         ref, cfg, buf = self.reference, self.config, self._scratch
         assert ref.image is not None
         lit = np.multiply(ref.image, ref.gain, out=buf.like("follow.lit", ref.image))
@@ -479,6 +477,14 @@ class TouchPipeline:
         usable &= other
         if self._shadow is not None:
             usable &= np.logical_not(self._shadow, out=other)
+        return usable
+
+    def _follow_light(self, work: np.ndarray, stepped: bool, usable: np.ndarray) -> bool:
+        """Re-seed the reference on a membrane-wide change of light's shape (:mod:`feelium.touch.illumination`),
+        or on any lighting step (``stepped``: the exposure gain jumped), so that under shadows the old reference
+        is scaled by the change measured around them rather than by one gain. ``usable``: :meth:`_usable`."""
+        ref, cfg, buf = self.reference, self.config, self._scratch
+        assert ref.image is not None
         change = illumination_change(
             work, ref.image, ref.gain, usable, cfg.noise_floor, buf, force=stepped, tile_px=self._tile_px
         )
@@ -499,17 +505,16 @@ class TouchPipeline:
         backlight_gain: np.ndarray | None,
         lights: tuple[np.ndarray, np.ndarray, Callable[[slice, slice], np.ndarray | None] | None] | None,
         bound: np.ndarray | None,
+        expected: np.ndarray,
     ) -> FineInputs:
         """This frame at the working resolution and the coarse pass's state it is read against
         (feelium.touch.refine); ``lights``: (projected light as passed, its cut, ``fine_light``), None when this
-        frame is not compensated."""
+        frame is not compensated; ``expected``: the reference times its gain (detection size)."""
         fine = self.fine
         assert fine is not None and self.reference.image is not None
         work, _ = self._prepare(frame, backlight_gain, fine, "fine.work")
         slope = self.response.slope if lights is not None else None
         light = None if slope is None or lights is None else self._fine_light(*lights)
-        ref = self.reference
-        expected = np.multiply(ref.image, ref.expected_gain(), out=self._fine_scratch.like("fine.expected", ref.image))
         return FineInputs(work, expected, light, slope, bound, self._fine_off_face, self.detail.ratio)
 
     def _fine_light(
@@ -711,6 +716,9 @@ class TouchPipeline:
                     f"projected_light shape {projected_light.shape} is neither the camera's {fw}x{fh}, the ROI's "
                     f"{w}x{h} nor the working image's {g.work_size[0]}x{g.work_size[1]}"
                 )
+            if projected_light.dtype == out.dtype and cv2.checkRange(projected_light)[0]:
+                # All finite (almost always): the copy and the clip are one pass, _clean_light's bits.
+                return projected_light.clip(0.0, LIGHT_MAX, out=out)
             np.copyto(out, projected_light)  # predicted on the working grid (light_grids): nothing to resize
             return _clean_light(out, unknown)
         # Resized first (a NaN stays local to its neighbourhood), then cleaned on the small image: cheaper.

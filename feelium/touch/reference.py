@@ -84,19 +84,24 @@ class AdaptiveReference:
         self.gain = 1.0
         self.last_t = t
 
-    def measure_gain(self, frame: np.ndarray, shadow: np.ndarray | None) -> float:
+    def measure_gain(self, frame: np.ndarray, shadow: np.ndarray | None, usable: np.ndarray | None = None) -> float:
         """Robust exposure gain: median of frame / reference over usable, unshadowed pixels.
 
         Keeps the previous gain when too few pixels are usable (all dark, all
-        saturated, all shadowed), so nothing degenerate can come out.
+        saturated, all shadowed), so nothing degenerate can come out. ``usable``: those pixels at full size when
+        the caller has them (the reference times the gain at least ``dark_level``, the frame under
+        ``saturation_level``, off ``shadow``): the same mask, sampled here, without making it again.
         """
         assert self.image is not None
         s = self.sample_step
         f = frame[::s, ::s]
         r = self.image[::s, ::s]
-        usable = (r * self.gain >= self.dark_level) & (f < self.saturation_level)
-        if shadow is not None:
-            usable &= ~shadow[::s, ::s]
+        if usable is not None:
+            usable = usable[::s, ::s]
+        else:
+            usable = (r * self.gain >= self.dark_level) & (f < self.saturation_level)
+            if shadow is not None:
+                usable &= ~shadow[::s, ::s]
         if np.count_nonzero(usable) < max(8, usable.size // 50):
             return self.gain
         ratio = median(f[usable] / r[usable])
@@ -198,7 +203,7 @@ class AdaptiveReference:
         if extra > 0.0:
             # Second step so the total rate where it got clearly brighter equals the bright rate.
             bright = np.multiply(image, self._bright_factor, out=buf.like("update.bright", image))
-            shape = np.broadcast_shapes(target.shape, bright.shape)
+            shape = bright.shape if target.shape == bright.shape else np.broadcast_shapes(target.shape, bright.shape)
             brighter = np.greater(target, bright, out=buf.get("update.brighter", shape, bool))
             if free is not None:
                 brighter &= free

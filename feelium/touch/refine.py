@@ -29,7 +29,7 @@ import numpy as np
 
 from feelium.touch.buffers import Scratch
 from feelium.touch.candidates import Candidate
-from feelium.touch.depth import relative_depth
+from feelium.touch.depth import depth_against
 from feelium.touch.geometry import WorkingGeometry
 
 Window = tuple[slice, slice]  # rows, columns of the fine working image
@@ -126,7 +126,11 @@ class FineDetail:
         np.maximum(rate, decay, out=rate)
         step = np.subtract(ratio, self.ratio, out=ratio)
         step *= rate
-        np.add(self.ratio, step, out=self.ratio, where=usable)
+        # Where not usable the step is 0 (the ratio stays >= DETAIL_LIMITS[0] > 0, so adding +0 keeps its bits): a
+        # ufunc's where= ran a masked loop at half this speed over the fine image.
+        still = np.logical_not(usable, out=buf.like("detail.still", usable))
+        np.copyto(step, np.float32(0.0), where=still)
+        self.ratio += step
         self._last_t = t
 
 
@@ -186,8 +190,8 @@ def fine_depth(
     size = (w, h)
     work = fine_flat(inputs, window, saturation_level=saturation_level, scratch=scratch)
     expected = fine_expected(inputs, window, scratch)
-    depth = relative_depth(
-        work, expected, 1.0, dark_level=dark_level, saturation_level=saturation_level, signed=True, scratch=scratch
+    depth = depth_against(
+        work, expected, dark_level=dark_level, saturation_level=saturation_level, signed=True, scratch=scratch
     )
     if inputs.off_face is not None:
         depth[inputs.off_face[window]] = 0.0

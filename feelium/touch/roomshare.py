@@ -206,7 +206,8 @@ class ProjectorShare:
         share = tiles[3]
         means = tiles[:3] / np.maximum(share, np.float32(1e-6))  # mz, mx, me: only tiles with half their pixels count
         me = means[2]
-        good = (share >= MIN_TILE_WEIGHT) & np.isfinite(means).all(axis=0) & (me > 0.0)
+        finite = np.logical_and.reduce(np.isfinite(means), axis=0)  # all(axis=0) without its Python layer
+        good = (share >= MIN_TILE_WEIGHT) & finite & (me > 0.0)
         # fresh: w, x * w, u * w, x^2 * w, x * u * w with w = good (0 or 1) and x, u 0 where it is 0: w multiplies
         # nothing away, so the products are the plain ones.
         fresh = np.zeros((5, grid[1], grid[0]))
@@ -255,7 +256,10 @@ class ProjectorShare:
         if self._expected is None or self._expected.shape != level.shape:
             return
         ratio = self._expected / level
-        ratio = np.where(np.isfinite(ratio), np.clip(ratio, 0.25, 4.0), 1.0)
+        unknown = np.isfinite(ratio)
+        np.logical_not(unknown, out=unknown)
+        ratio.clip(0.25, 4.0, out=ratio)  # np.clip's arithmetic, in place and without its dispatch
+        np.copyto(ratio, ratio.dtype.type(1.0), where=unknown)
         for sums, carry in ((self._sums, self._carry), (self._fast, self._fast_carry)):  # the short memory too: it
             if sums is not None and sums.shape[1:] == ratio.shape:  # judges the level against today's reference
                 sums[2::2] *= ratio  # u and x*u
@@ -331,7 +335,7 @@ class ProjectorShare:
         n, var, cov = _centred(self._sums, self._carry)  # weighted sums: per unit of weight they are the means'
         p = np.where(var > 0.0, cov / np.maximum(var, 1e-12), 0.0)
         info = np.where(var >= MIN_LIGHT_VAR * np.maximum(n, 1e-9), var, 0.0)
-        return np.clip(p, *SHARE_LIMITS).astype(np.float32), info.astype(np.float32)
+        return p.clip(*SHARE_LIMITS, out=p).astype(np.float32), info.astype(np.float32)  # np.clip less its dispatch
 
     def coarse(self) -> np.ndarray | None:
         """The projector's share per tile (float32), or None until some tile saw its light change.
@@ -347,14 +351,19 @@ class ProjectorShare:
         if fitted is None:
             return None
         p, info = fitted
-        if not (info > 0.0).any():
+        most = float(info.max()) if info.size else 0.0  # info is >= 0 and never NaN: "any tile > 0" is its max > 0
+        if not most > 0.0:
             return None
-        num = cv2.GaussianBlur(p * info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
+        weighted = p * info  # blurred and summed: made once
+        num = cv2.GaussianBlur(weighted, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
         den = cv2.GaussianBlur(info, (0, 0), SPREAD_SIGMA_TILES, borderType=cv2.BORDER_REPLICATE)
-        fallback = float(np.sum(p * info) / np.sum(info))
-        spread = np.where(den > 1e-3 * float(info.max()), num / np.maximum(den, 1e-12), fallback).astype(np.float32)
+        total = np.add.reduce  # np.sum's own arithmetic, without its dispatch
+        fallback = float(total(weighted, axis=None) / total(info, axis=None))
+        # float32 throughout (the scalars are weak or float32): astype only names the type, it copies nothing.
+        spread = np.where(den > 1e-3 * most, num / np.maximum(den, 1e-12), fallback).astype(np.float32, copy=False)
         k = np.float32(self.room_scale(fitted))
-        spread = np.clip(spread / np.maximum(spread + k * (1.0 - spread), np.float32(1e-6)), *SHARE_LIMITS).astype(np.float32)
+        spread = (spread / np.maximum(spread + k * (1.0 - spread), np.float32(1e-6))).clip(*SHARE_LIMITS)
+        spread = spread.astype(np.float32, copy=False)
         self._coarse = spread
         return spread
 
