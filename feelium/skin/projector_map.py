@@ -100,6 +100,13 @@ class ProjectorMap:
         wsum = float(weights[ok].sum())
         return float((px[ok] * weights[ok]).sum() / wsum), float((py[ok] * weights[ok]).sum() / wsum)
 
+    def __getstate__(self) -> dict[str, object]:
+        """Pickled (a worker process's setup) without the lock, which no process can share."""
+        return {key: value for key, value in self.__dict__.items() if key != "_inverse_lock"}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state, _inverse_lock=threading.Lock())
+
     def _inverse_fit(self) -> tuple[np.ndarray, np.ndarray]:
         """The inverse polynomial's coefficients for camera x and y, fitted once per map.
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import pickle
 
 import numpy as np
 import pytest
@@ -121,3 +122,17 @@ def test_a_calibration_file_is_held_once_however_many_parts_load_it(tmp_path):
     assert again is not first and again.source == "default"
     with pytest.raises(CalibrationError):
         load_shared(tmp_path / "missing.npz")
+
+
+def test_the_inverse_is_fitted_once_per_map_and_a_pickled_map_inverts_alike() -> None:
+    """The renderer, touch's light predictors and the probe all invert the one shared map: its least squares runs once
+    (its design matrix was the daemon's start-up memory peak, session 25), and a map pickled for a worker process
+    (without its lock) gives the same inverse."""
+    calibration = truth_calibration()
+    first = calibration.projector_to_camera()
+    fitted = calibration._inverse_fit()
+    assert calibration._inverse_fit()[0] is fitted[0]  # kept, not fitted again
+    copy = pickle.loads(pickle.dumps(calibration))
+    for ours, theirs in zip(first, copy.projector_to_camera()):
+        np.testing.assert_array_equal(ours, theirs)
+    assert copy._inverse_lock is not calibration._inverse_lock
