@@ -77,11 +77,17 @@ def _calibrate(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     from feelium.lab.flight.calibrate import plot_steps
 
-    (out / "flight-calibrated.toml").write_text(render_calibrated(full, calibration), encoding="utf-8")
+    if not calibration.problems:
+        (out / "flight-calibrated.toml").write_text(render_calibrated(full, calibration), encoding="utf-8")
     report = summary(calibration)
     report["plots"] = [str(p) for p in plot_steps(calibration, out)]
     (out / "calibration.json").write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
     print(json.dumps(report, indent=1))
+    if calibration.problems:
+        print(f"calibrate flight: the fit did not identify the plant ({'; '.join(calibration.problems)}): no config "
+              f"written; the report and plots are in {out}. Fly it again in calmer air, or keep the config you have.",
+              file=sys.stderr)
+        return 1
     print(f"fitted config: {out / 'flight-calibrated.toml'} (use it with --config, or copy its [flight] section)")
     return 1 if calibration.pilot.aborted else 0
 

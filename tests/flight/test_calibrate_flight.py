@@ -113,6 +113,30 @@ def test_the_brake_a_calibration_shows_is_its_measured_reverse_thrust_per_mass_3
     assert brake_shown(PlantFit({"surge_reverse_thrust_per_mass": Estimate(0.1, 0.01)}), FlightConfig(horizontal_reverse_ratio=0.0)) == 0.0
 
 
+def test_the_deadband_compensated_is_each_pair_s_fit_2_sigma_low_and_never_negative() -> None:
+    """Compensated too wide, a deadband pushes more than asked at every small force (calibrated corner-mtDL s10: a
+    first forward at 1.24 of the command, session 25); too narrow pushes less, which the loops make up."""
+    from feelium.lab.flight.calibrate import low_deadband
+
+    fit = PlantFit({"horizontal_deadband": Estimate(0.19, 0.0687), "vertical_deadband": Estimate(0.05, 0.04)})
+    assert low_deadband(fit, "horizontal_deadband") == pytest.approx(0.19 - 2 * 0.0687)
+    assert low_deadband(fit, "vertical_deadband") == 0.0  # 2 sigma below zero: none compensated
+
+
+def test_a_fit_no_blimp_can_have_is_named_and_a_physical_one_passes() -> None:
+    """calibrated corner-MtdL at flight seed 15 fitted a negative surge mass, thrust and yaw inertia with boxes of 1.3,
+    and the controller dividing by them never stopped the blimp (session 25): such a fit is reported, not flown."""
+    from dataclasses import replace
+
+    from feelium.lab.flight.calibrate import unphysical
+
+    assert unphysical(FlightConfig()) == [] and unphysical(replace(FlightConfig(), vertical_reverse_ratio=0.0)) == []
+    bad = replace(FlightConfig(), mass_kg=-0.0716, horizontal_thrust_n=-0.0066, yaw_inertia_kg_m2=float("nan"),
+                  vertical_reverse_ratio=float("nan"))
+    assert [p.split(" = ")[0] for p in unphysical(bad)] == [
+        "mass_kg", "heave_mass", "yaw_inertia_kg_m2", "horizontal_thrust_n", "vertical_reverse_ratio"]  # heave: mass_kg's
+
+
 def test_an_axis_uncertainty_overrides_plant_uncertainty_for_that_axis_only() -> None:
     config = FlightConfig(plant_uncertainty=2.0, surge_uncertainty=1.1)
     assert (config.uncertainty("surge"), config.uncertainty("yaw"), config.uncertainty("heave")) == (1.1, 2.0, 2.0)

@@ -106,12 +106,33 @@ class Calibration:
     record: FlightRecord
     pilot: CalibrationPilot
     details: Any  # sysid.AxisFits and Signals, for the plots
+    # Fitted values no blimp can have (see :func:`unphysical`): then ``config`` is the one flown with, unfitted.
+    problems: list[str] = field(default_factory=list)
 
 
 def calibrate_from(log: FlightLogRecorder, pilot: CalibrationPilot, config: FlightConfig) -> Calibration:
     record = log.record()
     fit, fits, sig = identify(record, config.net_buoyancy_n, config.arm_m, config.altitude_min_m - 0.4, config.altitude_max_m + 0.4)
-    return Calibration(fit, fitted_config(config, fit, braked(pilot)), record, pilot, (fits, sig))
+    fitted = fitted_config(config, fit, braked(pilot))
+    problems = unphysical(fitted)
+    return Calibration(fit, config if problems else fitted, record, pilot, (fits, sig), problems)
+
+
+# Fitted values that must be positive (a mass, an inertia, a thrust) and the ratios that must lie in [0, 1] (a
+# one-direction propeller may give no reverse thrust: corner-MTdL's fit at seed 4 found none and flew every goal).
+POSITIVE = ("mass_kg", "heave_mass", "yaw_inertia_kg_m2", "horizontal_thrust_n", "vertical_thrust_n")
+RATIOS = ("horizontal_reverse_ratio", "vertical_reverse_ratio")
+
+
+def unphysical(fitted: FlightConfig) -> list[str]:
+    """The fitted values no blimp can have, as ``name = value``: a fit that found them did not identify the plant.
+
+    On the heavy weak corner-MtdL at flight seed 15 the fit found a surge mass of -0.07 kg, a horizontal thrust of
+    -0.007 N and a yaw inertia of -0.006, yet boxes of 1.29-1.3: the controller, dividing by them, never stopped the
+    blimp (session 25). Such a fit is reported, not flown: the calibration keeps the config it flew with."""
+    bad = [name for name in POSITIVE if not (math.isfinite(getattr(fitted, name)) and getattr(fitted, name) > 0.0)]
+    bad += [name for name in RATIOS if not 0.0 <= getattr(fitted, name) <= 1.0]  # NaN included
+    return [f"{name} = {getattr(fitted, name)}" for name in bad]
 
 
 def braked(pilot: CalibrationPilot) -> bool:
@@ -124,6 +145,7 @@ def braked(pilot: CalibrationPilot) -> bool:
 # set so that its drag equals the fitted one at a typical speed (the commanded cruise and turn rate); this
 # also keeps a poorly separated linear/quadratic pair from reaching the controller as two wrong halves.
 AIR_LINEAR_DRAG = 0.02
+DEADBAND_STANDARD_ERRORS = 2.0  # the deadband the mixer compensates: the fit's, this many standard errors low
 SPEED_REFERENCE_M_S = 0.15
 YAW_REFERENCE_RAD_S = math.radians(20.0)
 
@@ -151,7 +173,7 @@ def fitted_config(config: FlightConfig, fit: PlantFit, braking_shown: bool = Fal
         vertical_thrust_n=round(v("vertical_thrust_n"), 4),
         horizontal_reverse_ratio=round(min(max(v("horizontal_reverse_ratio"), 0.0), 1.0), 3),
         vertical_reverse_ratio=round(min(max(v("vertical_reverse_ratio"), 0.0), 1.0), 3),
-        motor_deadband=round(float(min(max(0.5 * (v("horizontal_deadband") + v("vertical_deadband")), 0.0), 0.5)), 4),
+        motor_deadband=round(float(min(max(0.5 * (low_deadband(fit, "horizontal_deadband") + low_deadband(fit, "vertical_deadband")), 0.0), 0.5)), 4),
         motor_lag_s=round(min(max(v("motor_lag_s"), 0.01), 0.5), 4),
         plant_uncertainty=max(axes.values()),
         heave_uncertainty=axes["heave"],
@@ -160,6 +182,18 @@ def fitted_config(config: FlightConfig, fit: PlantFit, braking_shown: bool = Fal
         braking_shown=braking_shown,
     )
     return replace(fitted, surge_brake_shown=brake_shown(fit, fitted) if braking_shown else 0.0)
+
+
+def low_deadband(fit: PlantFit, name: str) -> float:
+    """A pair's fitted deadband ``DEADBAND_STANDARD_ERRORS`` standard errors low (not below 0): what the mixer adds to
+    every command it compensates.
+
+    A deadband compensated too wide pushes more than asked at every small force, where too narrow pushes less and
+    the loops' feedback makes it up. On corner-mtDL at seed 10 the fit found 0.190 +- 0.069 (horizontal) and
+    0.258 +- 0.027 (vertical) against the plant's 0.12, with a motor lag of 0.056 against 0.15 (the two trade off
+    on a weak, draggy plant): the first forward peaked at 1.24 of the command (docs/calibrate-flight.md, session 25)."""
+    estimate = fit.values[name]
+    return max(0.0, float(estimate.value) - DEADBAND_STANDARD_ERRORS * float(estimate.stderr))
 
 
 def brake_shown(fit: PlantFit, config: FlightConfig) -> float:
@@ -222,7 +256,7 @@ CONFIG_SOURCES = {"mass_kg": "surge_mass_kg", "heave_mass_kg": "heave_mass_kg", 
                   "motor_lag_s": "motor_lag_s"}
 DERIVED_NOTES = {"quadratic_drag": "the fitted drag at 0.15 m/s as this model's quadratic term (fitted terms above)",
                  "yaw_drag": "the fitted yaw drag at 20 deg/s as a quadratic term (fitted terms above)",
-                 "motor_deadband": "mean of the two pairs' fitted deadbands (above)",
+                 "motor_deadband": "mean of the two pairs' fitted deadbands (above), each 2 standard errors low",
                  "plant_uncertainty": "the worst axis below",
                  "heave_uncertainty": "the box holding 3 sigma of the heave thrust per mass, heave mass and vertical reverse ratio",
                  "surge_uncertainty": "the box holding 3 sigma of the surge thrust per mass and horizontal reverse ratio",
@@ -269,7 +303,7 @@ def summary(calibration: Calibration) -> dict[str, Any]:
             "residuals": fit.residuals, "plant_uncertainty": calibration.config.plant_uncertainty,
             "axis_uncertainty": {axis: calibration.config.uncertainty(axis) for axis in ("heave", "surge", "yaw")},
             "flight_s": float(calibration.record.t[-1] - calibration.record.t[0]), "steps_flown": len(calibration.pilot.segments),
-            "aborted": calibration.pilot.aborted}
+            "aborted": calibration.pilot.aborted, "problems": calibration.problems}
 
 
 def plot_steps(calibration: Calibration, out_dir: Path) -> list[Path]:
