@@ -55,6 +55,7 @@ def _fly_calibrated(job: Job) -> dict[str, Any]:
     row["cruise_target_m_s"] = row["tight_after"]["cruise_target_m_s"]
     row["plant_uncertainty"] = {axis: fitted.uncertainty(axis) for axis in ("heave", "surge", "yaw")}
     row["recovery_error"] = {k: round(v, 4) for k, v in recovery_errors(calibration.fit, plant.blimp).items()}
+    row["calibration_problems"] = calibration.problems  # a fit no blimp can have: the shipped config was flown
     return row
 
 
