@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import multiprocessing
 import os
@@ -376,6 +377,19 @@ def test_cli_on_the_simulator_writes_a_loadable_config_a_report_and_plots(tmp_pa
         assert (tmp_path / f"calibrate-{axis}.png").stat().st_size > 1000
     assert tomllib.loads(text)["flight"]["mass_kg"] == fitted.mass_kg
     assert math.isfinite(fitted.vertical_thrust_n)
+
+
+def test_cli_reports_a_fit_no_blimp_can_have_writes_no_config_and_keeps_the_report(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """The heavy weak corner-MtdL (plant 9) at seed 15 fits a negative surge mass (session 25): the user gets exit 1,
+    the values named, the report and plots kept (nothing recorded is lost), and no config to fly."""
+    from feelium.cli import main
+
+    assert main(["calibrate", "flight", "--sim", "--plant", "9", "--seed", "15", "--out", str(tmp_path)]) == 1
+    assert not (tmp_path / "flight-calibrated.toml").exists()
+    report = json.loads((tmp_path / "calibration.json").read_text())
+    assert any(problem.startswith("mass_kg = -") for problem in report["problems"])
+    assert "did not identify the plant" in capsys.readouterr().err
+    assert (tmp_path / "calibrate-surge.png").stat().st_size > 1000
 
 
 @pytest.mark.slow
