@@ -510,7 +510,8 @@ class SurgeLoop:
         # the push already at zero. The brake and the hover keep the config's lag (predicted over the longest, a
         # hover's small pushes counted on thrust a wide deadband had eaten; session 22).
         lag = longest_lag_s(c, "surge") if speed_sp else c.motor_lag_s
-        predicted = est.speed + est.accel(thrust.surge) * lag
+        speed = est.held_speed(t, speed_sp) if speed_sp else est.speed
+        predicted = speed + est.accel(thrust.surge) * lag
         wanted = accel + gain * c.speed_kp * (v_ahead - predicted)
         effectiveness = self._command_effectiveness(t, wanted, est) if speed_sp else est.effectiveness.value(wanted)
         force = c.mass_kg * wanted / effectiveness + air_drag(v, c.quadratic_drag)

@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from feelium.daemon.config import Config
+from feelium.flight.config import FlightConfig
 from feelium.flight.effectiveness import Effectiveness
 from feelium.flight.estimators import SurgeEstimate, air_drag, effectiveness_bounds, flow_tau_s
 
@@ -355,3 +356,54 @@ def test_a_fitted_speed_estimate_learns_what_its_model_misses_and_forgets_it_wit
     for k in range(150, 200):  # 1 s without the flow
         est.update(k * dt, dt, force, None, height)
     assert 0.0 < est.bias < 0.4 * learned
+
+
+
+def _tailwind_peak(config: FlightConfig, seed: int, steer_on_held: bool, flow_until_s: float = math.inf) -> tuple[float, SurgeEstimate]:
+    """A held 0.15 m/s cruise on a draggy body (quadratic drag 0.88) whose model is right, until a tailwind of the
+    box's 7.5 cm/s takes drag away at 0.5 s. A speed loop at the config's ``speed_kp`` cuts the push as the speed it
+    steers on rises, and the model, seeing the push cut, predicts the body slowing: the estimate that leans on it reads
+    low while the body speeds up. The flow reads the body with the simulator's noise (0.02 rad/s at 1.5 m) until
+    ``flow_until_s``. Returns the body's peak speed and the estimate at the end (3 s)."""
+    est = SurgeEstimate(config)
+    rng = np.random.default_rng(seed)
+    speed = est.speed = est.flow_speed = 0.15
+    dt, height, peak = 0.02, 1.5, 0.0
+    for k in range(150):
+        t = k * dt
+        steered = est.held_speed(t, 0.15) if steer_on_held else est.speed
+        force = max(air_drag(0.15, config.quadratic_drag) + config.mass_kg * config.speed_kp * (0.15 - steered), 0.0)
+        flow = (speed + height * 0.02 * float(rng.standard_normal())) / height if t < flow_until_s else None
+        est.update(t, dt, force, flow, height)
+        wind = 0.075 if t >= 0.5 else 0.0
+        speed += (force - air_drag(speed - wind, config.quadratic_drag)) / config.mass_kg * dt
+        peak = max(peak, speed)
+    return peak, est
+
+
+FITTED_DRAGGY = replace(Config().flight, mass_kg=0.33, quadratic_drag=0.88, surge_uncertainty=1.14)  # trusts its model 0.37 s
+
+
+def test_a_held_command_on_a_fitted_model_steered_on_the_held_speed_overshoots_a_tailwind_less() -> None:
+    """Calibrated corner-mTDL at flight seed 14 (session 26): a tailwind took the draggy body's drag away while the
+    loop cut its push, and the estimate that trusts the fitted model for 0.37 s read 0.163 m/s with the body at 0.181
+    (a speed peak of 1.21). Steered on the held speed (the flow-led speed when it says faster along the command), the
+    body's peak is lower at (nearly) every seed, never pushed on by the flow's noise."""
+    pairs = [(_tailwind_peak(FITTED_DRAGGY, seed, False)[0], _tailwind_peak(FITTED_DRAGGY, seed, True)[0]) for seed in range(16)]
+    assert sum(held < plain for plain, held in pairs) >= 14
+    assert float(np.median([plain - held for plain, held in pairs])) > 0.002
+
+
+def test_the_held_speed_is_the_one_further_along_the_command_and_the_estimate_with_a_stale_flow_shipped_or_trusted() -> None:
+    """Along the command means the larger forward and the smaller backward. No flow for longer than ``FLOW_FRESH_S``: its last speed is
+    history, not a measurement. The shipped estimate follows the flow within 80 ms already and a model trusted
+    outright is told to trust its model: for those the held speed is the estimate, and they fly as before."""
+    _, est = _tailwind_peak(FITTED_DRAGGY, 1, True)
+    assert est.flow_speed != est.speed
+    assert est.held_speed(2.98, 0.15) == max(est.speed, est.flow_speed)
+    assert est.held_speed(2.98, -0.15) == min(est.speed, est.flow_speed)
+    _, stale = _tailwind_peak(FITTED_DRAGGY, 1, True, flow_until_s=2.5)
+    assert stale.flow_speed != stale.speed and stale.held_speed(2.98, 0.15) == stale.speed
+    for config in (Config().flight, replace(FITTED_DRAGGY, surge_uncertainty=1.0)):
+        _, est = _tailwind_peak(config, 1, True)
+        assert est.flow_speed != est.speed and est.held_speed(2.98, 0.15) == est.speed
