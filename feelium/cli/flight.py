@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+from typing import Any
 
 from feelium.cli import CommandRegistry
 
@@ -32,6 +34,11 @@ def register(registry: CommandRegistry) -> None:
     calibrate.add_argument("--out", default="bench-out/calibrate-flight", help="directory for the fitted config, JSON and plots")
     calibrate.add_argument("--plant", type=int, help="with --sim: fly randomised plant N of the plant set (0-15 are the box's corners)")
     calibrate.add_argument("--seed", type=int, default=1, help="with --sim: simulation seed")
+    calibrate.add_argument("--stand-thrust-n", type=float,
+                           help="one horizontal motor's full forward thrust read on a thrust stand, newtons (docs/motor-board.md's "
+                                "acceptance test): scales the surge mass, drags and yaw inertia directly instead of through the heave drag")
+    calibrate.add_argument("--stand-error", type=float, default=0.05,
+                           help="with --stand-thrust-n: its relative standard error (default 0.05: 1.3 g of a 25 g reading)")
     bench = registry.subcommand("bench", "flight", "Fly the simulator: hold, climb, commands, quietness against an untuned PID.", _bench)
     bench.add_argument("--out", default="bench-out/flight", help="directory for the JSON and PNG plots")
     bench.add_argument("--seed", type=int, default=1, help="simulation seed (with --plants: of every flight and calibration)")
@@ -66,13 +73,14 @@ def _calibrate(args: argparse.Namespace) -> int:
     from feelium.lab.flight.calibrate import calibrate_board, calibrate_sim, render_calibrated, summary
 
     full = load_config(args.config)
+    stand = _stand_thrust(args)
     if args.sim:
         from feelium.lab.flight.plants import plant_set
 
         blimp = None if args.plant is None else plant_set(args.plant + 1)[args.plant].blimp
-        calibration = calibrate_sim(full.flight, blimp, seed=args.seed)
+        calibration = calibrate_sim(full.flight, blimp, seed=args.seed, stand_thrust_n=stand)
     else:
-        calibration = calibrate_board(full.flight, args.port)
+        calibration = calibrate_board(full.flight, args.port, stand_thrust_n=stand)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     from feelium.lab.flight.calibrate import plot_steps
@@ -90,6 +98,19 @@ def _calibrate(args: argparse.Namespace) -> int:
         return 1
     print(f"fitted config: {out / 'flight-calibrated.toml'} (use it with --config, or copy its [flight] section)")
     return 1 if calibration.pilot.aborted else 0
+
+
+def _stand_thrust(args: argparse.Namespace) -> Any:
+    """The thrust stand's figure as an estimate, or None; a value no stand reads is refused before anything flies."""
+    if args.stand_thrust_n is None:
+        return None
+    from feelium.flight.sysid import Estimate
+
+    if not (math.isfinite(args.stand_thrust_n) and args.stand_thrust_n > 0.0):
+        raise SystemExit(f"calibrate flight: --stand-thrust-n must be a thrust in newtons above 0, got {args.stand_thrust_n}")
+    if not (math.isfinite(args.stand_error) and 0.0 < args.stand_error < 1.0):
+        raise SystemExit(f"calibrate flight: --stand-error must be a relative error between 0 and 1, got {args.stand_error}")
+    return Estimate(args.stand_thrust_n, args.stand_thrust_n * args.stand_error)
 
 
 def _indices(text: str | None) -> list[int] | None:

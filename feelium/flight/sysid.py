@@ -382,9 +382,15 @@ def _drag_per_surge_mass(surge: AxisFit) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
-             floor_limit_m: float = 0.0, ceiling_limit_m: float = math.inf) -> tuple[PlantFit, AxisFits, Signals]:
+             floor_limit_m: float = 0.0, ceiling_limit_m: float = math.inf,
+             stand_thrust_n: Estimate | None = None) -> tuple[PlantFit, AxisFits, Signals]:
     """The plant in physical units from one logged flight; ``net_buoyancy_n`` (weighed) and ``arm_m`` (measured)
-    give the scale."""
+    give the scale.
+
+    ``stand_thrust_n``, one horizontal motor's full forward thrust read on a thrust stand (docs/motor-board.md's
+    acceptance test), scales the horizontal values directly: the surge mass is then that thrust over the fitted
+    thrust per mass. Without it the scale comes through the heave drag, which the drafts blur (docs/calibrate-flight.md,
+    session 26: the surge mass within 10 % on 8 of 20 plants through the heave, 18 of 20 from an exact stand figure)."""
     sig = prepare(record, floor_limit_m, ceiling_limit_m)
     fits = fit_axes(sig)
     drag_shape = _drag_per_surge_mass(fits.surge)
@@ -402,12 +408,15 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     values: dict[str, Estimate] = {"heave_mass_kg": heave_mass}
     values["vertical_thrust_n"] = _scaled(_ratio(heave.estimate("thrust_per_mass"), b_per_m), net_buoyancy_n)  # per motor
     values["vertical_reverse_ratio"] = _ratio(heave.estimate("reverse_thrust_per_mass"), heave.estimate("thrust_per_mass"))
-    surge_mass = _product(heave_mass, heave.estimate("surge_per_heave_mass"))
+    thrust_per_mass = surge.estimate("thrust_per_mass")
+    if stand_thrust_n is None:
+        surge_mass = _product(heave_mass, heave.estimate("surge_per_heave_mass"))
+    else:
+        surge_mass = _ratio(stand_thrust_n, thrust_per_mass)
     values["surge_mass_kg"] = surge_mass
     values["linear_drag_n_per_m_s"] = _product(surge.estimate("linear_drag_per_mass"), surge_mass)
     values["quadratic_drag"] = _product(surge.estimate("quadratic_drag_per_mass"), surge_mass)
-    thrust_per_mass = surge.estimate("thrust_per_mass")
-    values["horizontal_thrust_n"] = _product(thrust_per_mass, surge_mass)  # per motor
+    values["horizontal_thrust_n"] = stand_thrust_n or _product(thrust_per_mass, surge_mass)  # per motor
     reverse_surge = _ratio(surge.estimate("reverse_thrust_per_mass"), thrust_per_mass)
     reverse_yaw = _ratio(yaw.estimate("reverse_torque_per_inertia"), yaw.estimate("torque_per_inertia"))
     values["horizontal_reverse_ratio"] = _inverse_variance_mean(reverse_surge, reverse_yaw)

@@ -23,7 +23,7 @@ from feelium.flight.client import MspClient
 from feelium.flight.config import FlightConfig
 from feelium.flight.mixer import command_for_thrust, to_microseconds
 from feelium.flight.sim_board import BoardParams, SensorParams, SimMotorBoard, SimSerial, board_with
-from feelium.flight.sysid import FlightRecord, PlantFit, identify
+from feelium.flight.sysid import Estimate, FlightRecord, PlantFit, identify
 from feelium.flight.telemetry import Telemetry
 from feelium.flight.transport import ByteLink
 from feelium.lab.flight.calibration_pilot import CalibrationPilot
@@ -108,14 +108,17 @@ class Calibration:
     details: Any  # sysid.AxisFits and Signals, for the plots
     # Fitted values no blimp can have (see :func:`unphysical`): then ``config`` is the one flown with, unfitted.
     problems: list[str] = field(default_factory=list)
+    stand_scaled: bool = False  # the horizontal values were scaled by a thrust stand's figure, not the heave drag
 
 
-def calibrate_from(log: FlightLogRecorder, pilot: CalibrationPilot, config: FlightConfig) -> Calibration:
+def calibrate_from(log: FlightLogRecorder, pilot: CalibrationPilot, config: FlightConfig,
+                   stand_thrust_n: Estimate | None = None) -> Calibration:
     record = log.record()
-    fit, fits, sig = identify(record, config.net_buoyancy_n, config.arm_m, config.altitude_min_m - 0.4, config.altitude_max_m + 0.4)
+    fit, fits, sig = identify(record, config.net_buoyancy_n, config.arm_m, config.altitude_min_m - 0.4, config.altitude_max_m + 0.4,
+                              stand_thrust_n)
     fitted = fitted_config(config, fit, braked(pilot))
     problems = unphysical(fitted)
-    return Calibration(fit, config if problems else fitted, record, pilot, (fits, sig), problems)
+    return Calibration(fit, config if problems else fitted, record, pilot, (fits, sig), problems, stand_thrust_n is not None)
 
 
 # Fitted values that must be positive (a mass, an inertia, a thrust) and the ratios that must lie in [0, 1] (a
@@ -289,6 +292,8 @@ def render_calibrated(full_config: Any, calibration: Calibration) -> str:
         lines.append(line)
     header = ["# Fitted by `feelium calibrate flight` (docs/calibrate-flight.md). Value +- standard error:"]
     header += [f"#   {name} = {e.value:.5g} +- {e.stderr:.3g}" for name, e in fit.values.items()]
+    header.append("#   horizontal scale: " + ("the thrust stand's horizontal_thrust_n" if calibration.stand_scaled
+                                               else "the heave drag (no thrust stand figure given)"))
     header += [f"#   residual {axis}: rms {r['residual_rms']:.4g}, {100 * r['relative_residual']:.0f} % of the measured rate change,"
                f" {int(r['samples'])} samples" for axis, r in fit.residuals.items()]
     if calibration.pilot.aborted:
@@ -303,7 +308,8 @@ def summary(calibration: Calibration) -> dict[str, Any]:
             "residuals": fit.residuals, "plant_uncertainty": calibration.config.plant_uncertainty,
             "axis_uncertainty": {axis: calibration.config.uncertainty(axis) for axis in ("heave", "surge", "yaw")},
             "flight_s": float(calibration.record.t[-1] - calibration.record.t[0]), "steps_flown": len(calibration.pilot.segments),
-            "aborted": calibration.pilot.aborted, "problems": calibration.problems}
+            "aborted": calibration.pilot.aborted, "problems": calibration.problems,
+            "horizontal_scale": "thrust stand" if calibration.stand_scaled else "heave drag"}
 
 
 def plot_steps(calibration: Calibration, out_dir: Path) -> list[Path]:
@@ -332,7 +338,7 @@ def plot_steps(calibration: Calibration, out_dir: Path) -> list[Path]:
 
 
 def calibrate_sim(config: FlightConfig, blimp: Any = None, seed: int = 1, drafts: bool = True,
-                  sensors: SensorParams | None = None) -> Calibration:
+                  sensors: SensorParams | None = None, stand_thrust_n: Estimate | None = None) -> Calibration:
     """Calibrate on the simulated board flying ``blimp`` (default the paper's), in mild drafts.
 
     The net buoyancy is weighed on a real blimp, so the simulated one's true value stands in for the scale.
@@ -345,7 +351,7 @@ def calibrate_sim(config: FlightConfig, blimp: Any = None, seed: int = 1, drafts
     run = sim_run(BoardParams(blimp=blimp, drafts=MILD_DRAFTS if drafts else None, sensors=sensors or SensorParams()), seed=seed)
     pilot = CalibrationPilot(hover_command=hover_guess(config))
     log = fly(run.client, pilot, run.clock, run.wait_until, 1.0 / config.rate_hz)
-    return calibrate_from(log, pilot, config)
+    return calibrate_from(log, pilot, config, stand_thrust_n)
 
 
 def true_values(blimp: Any) -> dict[str, float]:
@@ -372,7 +378,7 @@ def recovery_errors(fit: PlantFit, blimp: Any) -> dict[str, float]:
     return {name: float((fit.value(name) - truth) / truth if truth else fit.value(name)) for name, truth in true_values(blimp).items()}
 
 
-def calibrate_board(config: FlightConfig, port: str) -> Calibration:
+def calibrate_board(config: FlightConfig, port: str, stand_thrust_n: Estimate | None = None) -> Calibration:
     """Calibrate a real board in real time; ``stop`` on stdin, Ctrl-C or SIGTERM end it with the motors neutral."""
     import signal
     import sys
@@ -404,7 +410,7 @@ def calibrate_board(config: FlightConfig, port: str) -> Calibration:
         link.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    return calibrate_from(log, pilot, config)
+    return calibrate_from(log, pilot, config, stand_thrust_n)
 
 
 def tight_goals(config: FlightConfig, blimp: Any, seed: int = 1) -> dict[str, float]:
