@@ -83,17 +83,20 @@ def test_a_corner_that_missed_a_goal_at_another_seed_now_meets_them_all_and_turn
         assert result.manoeuvres[turn]["peak_fraction"] >= 0.4, context  # a turn, not a twitch
 
 
-OPEN = [  # (corner, seed, the goal it misses, its figure at session 24)
+OPEN = [  # (corner, seed, the goal it misses, its figure when found)
     # 2.3 s after the left turn's stop a draft turns the light body at 4 deg/s/s; the hover, engaging at 1.5 deg/s on
     # the filtered gyro with half its push eaten by the box's widest deadband, holds it at 3.06-3.14 deg/s for 0.25 s
     ("corner-mTdL", 20, "lapse_s", 3.06),
+    # seed 54, first flown in session 26: in the first hover small pushes that the box's widest deadband ate taught
+    # the yaw 0.19 (below the box) and a surge correction asked for full reverse; the body turned and drifted back
+    ("corner-mTDL", 54, "hover_reversals_per_s", 0.60),
 ]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "seed"),
-    [pytest.param(name, seed, marks=pytest.mark.xfail(strict=True, reason=f"{goal} {figure} (docs/flight-robustness.md, session 24)"))
+    [pytest.param(name, seed, marks=pytest.mark.xfail(strict=True, reason=f"{goal} {figure} (docs/flight-robustness.md, sessions 24 and 26)"))
      for name, seed, goal, figure in OPEN],
     ids=[f"{name}-s{seed}" for name, seed, _, _ in OPEN],
 )
