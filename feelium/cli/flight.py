@@ -6,9 +6,12 @@ import argparse
 import json
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING
 
 from feelium.cli import CommandRegistry
+
+if TYPE_CHECKING:
+    from feelium.flight.sysid import Estimate
 
 
 def register(registry: CommandRegistry) -> None:
@@ -37,7 +40,7 @@ def register(registry: CommandRegistry) -> None:
     calibrate.add_argument("--stand-thrust-n", type=float,
                            help="one horizontal motor's full forward thrust read on a thrust stand, newtons (docs/motor-board.md's "
                                 "acceptance test): scales the surge mass, drags and yaw inertia directly instead of through the heave drag")
-    calibrate.add_argument("--stand-error", type=float, default=0.05,
+    calibrate.add_argument("--stand-error", type=float,
                            help="with --stand-thrust-n: its relative standard error (default 0.05: 1.3 g of a 25 g reading)")
     bench = registry.subcommand("bench", "flight", "Fly the simulator: hold, climb, commands, quietness against an untuned PID.", _bench)
     bench.add_argument("--out", default="bench-out/flight", help="directory for the JSON and PNG plots")
@@ -100,17 +103,26 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 1 if calibration.pilot.aborted else 0
 
 
-def _stand_thrust(args: argparse.Namespace) -> Any:
-    """The thrust stand's figure as an estimate, or None; a value no stand reads is refused before anything flies."""
-    if args.stand_thrust_n is None:
-        return None
+def _stand_thrust(args: argparse.Namespace) -> Estimate | None:
+    """The thrust stand's figure as an estimate, or None. A figure the config could not hold (a reading in grams: 25
+    for 0.25 N) or an error without a figure is refused before anything flies, not after four minutes of flight."""
+    from dataclasses import fields
+
+    from feelium.flight.config import FlightConfig
     from feelium.flight.sysid import Estimate
 
-    if not (math.isfinite(args.stand_thrust_n) and args.stand_thrust_n > 0.0):
-        raise SystemExit(f"calibrate flight: --stand-thrust-n must be a thrust in newtons above 0, got {args.stand_thrust_n}")
-    if not (math.isfinite(args.stand_error) and 0.0 < args.stand_error < 1.0):
-        raise SystemExit(f"calibrate flight: --stand-error must be a relative error between 0 and 1, got {args.stand_error}")
-    return Estimate(args.stand_thrust_n, args.stand_thrust_n * args.stand_error)
+    if args.stand_thrust_n is None:
+        if args.stand_error is not None:
+            raise SystemExit("calibrate flight: --stand-error needs --stand-thrust-n (the figure it is the error of)")
+        return None
+    bounds = next(f.metadata for f in fields(FlightConfig) if f.name == "horizontal_thrust_n")
+    if not (math.isfinite(args.stand_thrust_n) and bounds["min"] <= args.stand_thrust_n <= bounds["max"]):
+        raise SystemExit(f"calibrate flight: --stand-thrust-n must be one motor's thrust in newtons, {bounds['min']}-"
+                         f"{bounds['max']} as [flight] horizontal_thrust_n allows, got {args.stand_thrust_n}")
+    error = 0.05 if args.stand_error is None else args.stand_error
+    if not (math.isfinite(error) and 0.0 < error < 1.0):
+        raise SystemExit(f"calibrate flight: --stand-error must be a relative error between 0 and 1, got {error}")
+    return Estimate(args.stand_thrust_n, args.stand_thrust_n * error)
 
 
 def _indices(text: str | None) -> list[int] | None:

@@ -390,7 +390,8 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     ``stand_thrust_n``, one horizontal motor's full forward thrust read on a thrust stand (docs/motor-board.md's
     acceptance test), scales the horizontal values directly: the surge mass is then that thrust over the fitted
     thrust per mass. Without it the scale comes through the heave drag, which the drafts blur (docs/calibrate-flight.md,
-    session 26: the surge mass within 10 % on 8 of 20 plants through the heave, 18 of 20 from an exact stand figure)."""
+    session 26: the surge mass within 10 % on 8 of 20 plants through the heave, 18 of 20 from an exact stand figure and
+    12 of 20 from one 5 % high)."""
     sig = prepare(record, floor_limit_m, ceiling_limit_m)
     fits = fit_axes(sig)
     drag_shape = _drag_per_surge_mass(fits.surge)
@@ -411,12 +412,13 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     thrust_per_mass = surge.estimate("thrust_per_mass")
     if stand_thrust_n is None:
         surge_mass = _product(heave_mass, heave.estimate("surge_per_heave_mass"))
+        horizontal_thrust = _product(thrust_per_mass, surge_mass)
     else:
-        surge_mass = _ratio(stand_thrust_n, thrust_per_mass)
+        surge_mass, horizontal_thrust = _ratio(stand_thrust_n, thrust_per_mass), stand_thrust_n
     values["surge_mass_kg"] = surge_mass
     values["linear_drag_n_per_m_s"] = _product(surge.estimate("linear_drag_per_mass"), surge_mass)
     values["quadratic_drag"] = _product(surge.estimate("quadratic_drag_per_mass"), surge_mass)
-    values["horizontal_thrust_n"] = stand_thrust_n or _product(thrust_per_mass, surge_mass)  # per motor
+    values["horizontal_thrust_n"] = horizontal_thrust  # per motor
     reverse_surge = _ratio(surge.estimate("reverse_thrust_per_mass"), thrust_per_mass)
     reverse_yaw = _ratio(yaw.estimate("reverse_torque_per_inertia"), yaw.estimate("torque_per_inertia"))
     values["horizontal_reverse_ratio"] = _inverse_variance_mean(reverse_surge, reverse_yaw)
@@ -427,7 +429,7 @@ def identify(record: FlightRecord, net_buoyancy_n: float, arm_m: float,
     values["yaw_linear_drag"] = _product(yaw.estimate("linear_drag_per_inertia"), inertia)
     values["yaw_quadratic_drag"] = _product(yaw.estimate("quadratic_drag_per_inertia"), inertia)
     # The ratios the controller's dynamics depend on: every surge and yaw value above scales with the surge
-    # mass (poorly determined: the heave drag), these do not.
+    # mass (poorly determined through the heave drag, better from a thrust stand's figure), these do not.
     values["surge_thrust_per_mass"] = thrust_per_mass
     values["surge_reverse_thrust_per_mass"] = surge.estimate("reverse_thrust_per_mass")  # what a brake decelerates by
     values["yaw_torque_per_inertia"] = torque_per_inertia

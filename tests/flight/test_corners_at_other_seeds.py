@@ -93,13 +93,21 @@ OPEN = [  # (corner, seed, the goal it misses, its figure when found)
 ]
 
 
+class GoalStillMissed(Exception):
+    """The one goal an open corner is known to miss, missed again: the strict xfail expects exactly this."""
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("name", "seed"),
-    [pytest.param(name, seed, marks=pytest.mark.xfail(strict=True, reason=f"{goal} {figure} (docs/flight-robustness.md, sessions 24 and 26)"))
+    ("name", "seed", "goal"),
+    [pytest.param(name, seed, goal, marks=pytest.mark.xfail(strict=True, raises=GoalStillMissed,
+                                                            reason=f"{goal} {figure} (docs/flight-robustness.md, sessions 24 and 26)"))
      for name, seed, goal, figure in OPEN],
     ids=[f"{name}-s{seed}" for name, seed, _, _ in OPEN],
 )
-def test_a_corner_still_missing_a_goal_at_another_seed(name: str, seed: int) -> None:
+def test_a_corner_still_missing_a_goal_at_another_seed(name: str, seed: int, goal: str) -> None:
+    """Fails outright if any other goal is missed (the xfail expects only its own), xfails while its goal is."""
     result, context = _fly(name, seed)
-    assert result.failures() == {}, context
+    assert set(result.failures()) <= {goal}, context
+    if result.failures():
+        raise GoalStillMissed(context)
