@@ -267,10 +267,11 @@ class ProjectorService:
             self.hub.projector_video.post(loop, shown, frame)
             self.counters["frames"] += 1
             due += period
-            if due < self.hub.clock():
+            done = self.hub.clock()
+            if due < done:
                 self.counters["late_frames"] += 1
-                due = self.hub.clock()
-            halt.wait(due - self.hub.clock())
+                due = done
+            halt.wait(due - done)
 
     async def stop(self) -> None:
         self._stopping = True
