@@ -2,12 +2,15 @@
 
 Services never call each other; they meet here. Everything is newest-wins
 or bounded, so a slow reader can only miss data, never hold a writer up.
-All methods run on the event loop's thread.
+All methods run on the event loop's thread, except :meth:`Latest.post` (a slot's
+one publisher on a worker thread, the projector's frames) and what is said
+thread-safe (``hub.motion``).
 """
 
 from __future__ import annotations
 
 import asyncio
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -29,32 +32,66 @@ class Stamped(Generic[T]):
 
 
 class Latest(Generic[T]):
-    """A newest-wins slot (a video frame, a JPEG, the wearer's face) that readers can await."""
+    """A newest-wins slot (a video frame, a JPEG, the wearer's face) that readers can await.
+
+    Published on the event loop (:meth:`publish`) or by one worker thread (:meth:`post`); listeners are called
+    one item at a time, in order, on the publisher's thread (a lock serialises them with :meth:`listen`'s call).
+    """
 
     def __init__(self) -> None:
         self._item: Stamped[T] | None = None
         self._changed = asyncio.Event()
         self._listeners: list[Callable[[Stamped[T]], None]] = []
+        self._listening = threading.Lock()
+        self._waiting = 0  # readers in next_after: a post wakes the loop only for them
         self.published = 0
 
     def publish(self, t: float, value: T) -> Stamped[T]:
+        """On the event loop: store, wake the waiting readers, call the listeners."""
+        item = self._store(t, value)
+        self._wake()
+        self._call_listeners(item)
+        return item
+
+    def post(self, loop: asyncio.AbstractEventLoop, t: float, value: T) -> Stamped[T]:
+        """From the slot's one publishing thread: store and call the listeners here; wake ``loop`` only when a
+        reader waits in :meth:`next_after` (one ``call_soon_threadsafe``).
+
+        The item is stored before the waiters are counted, and a reader counts itself before it reads the item:
+        a reader this post does not wake has seen the item already. A wake-up that comes after the reader saw
+        the item finds nothing newer, and the reader waits on (:meth:`next_after` loops).
+        """
+        item = self._store(t, value)
+        if self._waiting:
+            loop.call_soon_threadsafe(self._wake)
+        self._call_listeners(item)
+        return item
+
+    def _store(self, t: float, value: T) -> Stamped[T]:
         self.published += 1
         item = self._item = Stamped(self.published, t, value)
+        return item
+
+    def _wake(self) -> None:
         self._changed.set()
         self._changed = asyncio.Event()
-        for listener in tuple(self._listeners):
-            listener(item)
-        return item
+
+    def _call_listeners(self, item: Stamped[T]) -> None:
+        with self._listening:
+            for listener in tuple(self._listeners):
+                listener(item)
 
     def listen(self, listener: Callable[[Stamped[T]], None]) -> Callable[[], None]:
         """Call ``listener`` with every item from now on, and with the current one at once; returns the unlisten.
 
         For a reader that needs every item and does little with each (the touch side records each projector
-        canvas): a call inside ``publish`` instead of a task that the loop wakes for every item.
+        canvas): a call inside ``publish`` instead of a task that the loop wakes for every item. It runs on the
+        publisher's thread: the projector's render thread for its slots.
         """
-        self._listeners.append(listener)
-        if self._item is not None:
-            listener(self._item)
+        with self._listening:
+            self._listeners.append(listener)
+            if self._item is not None:
+                listener(self._item)
         return lambda: self._listeners.remove(listener)
 
     def get(self) -> Stamped[T] | None:
@@ -62,18 +99,20 @@ class Latest(Generic[T]):
 
     async def next_after(self, seq: int, timeout: float | None = None) -> Stamped[T] | None:
         """The newest item with a sequence number above ``seq``; ``None`` on timeout."""
-        item = self._item
-        if item is not None and item.seq > seq:
-            return item
-        changed = self._changed
+        self._waiting += 1
         try:
             # asyncio.timeout, not wait_for: on Python 3.11 wait_for wraps the wait in a new task, with its own
             # loop callbacks, each time; every frame's consumers wait here (docs/performance.md).
             async with asyncio.timeout(timeout):
-                await changed.wait()
+                while True:
+                    item = self._item
+                    if item is not None and item.seq > seq:
+                        return item
+                    await self._changed.wait()
         except asyncio.TimeoutError:
             return None
-        return self._item
+        finally:
+            self._waiting -= 1
 
 
 class StateBoard:

@@ -229,7 +229,8 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
     assert host["cpu_model"] and host["python_ms"] > 0 and host["numeric_ms"] > 0
     assert result["host_after"]["python_ms"] > 0 and result["host_after"]["numeric_ms"] > 0  # did the host slow down?
     shares = result["numeric_split"]["shares"]  # a second, profiled run: each part's numpy/OpenCV share
-    assert 0 < shares["touch"]["thread"] <= 1 and 0 < shares["projector"]["pool"] <= 1
+    # the projector's face decodes ran in the pool until session 26; now its render thread does all its work
+    assert 0 < shares["touch"]["thread"] <= 1 and 0 < shares["projector"]["thread"] <= 1
     assert result["pi_cores_at_6x"] <= result["pi_cores"] <= result["pi_cores_at_10x"]
     assert result["front"]["jpeg_by"] == "camera"  # the blimp's front camera encodes in hardware: JPEGs handed over
     assert result["headset"]["mjpeg"]["frames"] > 0  # ...and forwarded to the headset as they came

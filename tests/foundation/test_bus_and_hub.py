@@ -149,6 +149,41 @@ async def test_latest_wakes_readers_with_newest_only():
     assert newest is not None and newest.value == 2 and newest.seq == 2
 
 
+async def test_a_post_from_a_thread_wakes_the_loop_only_for_a_waiting_reader():
+    """The projector's render thread posts every frame; the loop is woken only while a reader waits in
+    next_after, and a wake-up for an item the reader has already seen does not end its wait."""
+    import threading
+
+    loop = asyncio.get_running_loop()
+    slot: Latest[int] = Latest()
+    heard: list[str] = []
+    slot.listen(lambda item: heard.append(threading.current_thread().name))
+    wakes: list[object] = []
+    original = loop.call_soon_threadsafe
+
+    def counting(callback, *args, **kwargs):
+        wakes.append(callback)
+        return original(callback, *args, **kwargs)
+
+    loop.call_soon_threadsafe = counting  # type: ignore[method-assign]
+    try:
+        poster = threading.Thread(target=lambda: [slot.post(loop, 0.1 * k, k) for k in range(5)], name="poster")
+        poster.start()
+        poster.join()
+        assert wakes == [] and slot.get().value == 4 and heard == ["poster"] * 5  # nobody waited: no wake-up
+        reader = asyncio.create_task(slot.next_after(5, timeout=2.0))
+        ahead = asyncio.create_task(slot.next_after(6, timeout=2.0))  # wants more than the next item
+        await asyncio.sleep(0.01)
+        threading.Thread(target=slot.post, args=(loop, 0.6, 5)).start()  # item 6: one wake-up, both readers wait
+        assert (await reader).value == 5 and len(wakes) == 1
+        await asyncio.sleep(0.01)
+        assert not ahead.done()  # woken for item 6, which is not above its 6: it waits on
+        threading.Thread(target=slot.post, args=(loop, 0.7, 6)).start()
+        assert (await ahead).value == 6 and len(wakes) == 2
+    finally:
+        del loop.call_soon_threadsafe
+
+
 def test_a_listener_gets_the_current_item_then_every_one_until_it_unlistens():
     slot: Latest[str] = Latest()
     slot.publish(0.0, "before")

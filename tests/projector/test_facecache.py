@@ -33,7 +33,7 @@ async def _play(hub: Hub, service: ProjectorService, now: list[float], loop: lis
     for k in range(rounds * len(loop)):
         now[0] += 1 / 12
         hub.face.publish(hub.clock(), loop[k % len(loop)])
-        await service.update_face()
+        service.update_face()
         assert service._face is not None
         shown.append(service._face)
     return shown
@@ -54,7 +54,7 @@ async def test_a_looping_avatar_is_decoded_once_per_frame_and_shows_the_same_pic
     assert shown[6] is shown[3]  # the kept array itself, round after round
     assert not any(face.flags.writeable for face in shown)  # the renderer's "same array, same picture" holds
     hub.face.publish(hub.clock(), None)  # the wearer cleared the face: the kept faces go too
-    await service.update_face()
+    service.update_face()
     assert service._face is None and service.health()["faces_kept_mb"] == 0.0
 
 

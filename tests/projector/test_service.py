@@ -85,6 +85,7 @@ async def test_face_jpeg_is_shown_and_a_broken_one_is_counted(running):
     face = np.zeros((240, 320, 3), np.uint8)
     face[:] = (0, 220, 0)
     ok, jpeg = cv2.imencode(".jpg", face)
+    await _until(lambda: hub.projector_video.get() is not None)  # the render thread took up its first frames
     hub.face.publish(hub.clock(), jpeg.tobytes())
     await _until(lambda: service.counters["faces"] == 1)
     seq = hub.projector_video.get().seq
@@ -101,13 +102,13 @@ async def test_a_single_face_stays_however_long_the_headset_is_quiet_until_clear
     service = ProjectorService(Config().projector, Config().interactions, hub, SimDisplay(), truth_calibration())
     ok, jpeg = cv2.imencode(".jpg", np.full((240, 320, 3), 200, np.uint8))
     hub.face.publish(hub.clock(), jpeg.tobytes())
-    await service.update_face()
+    service.update_face()
     assert service._face is not None and service.counters["faces"] == 1
     now[0] += 3600.0  # an hour without another upload (it used to vanish after 3 s)
-    await service.update_face()
+    service.update_face()
     assert service._face is not None
     hub.face.publish(hub.clock(), None)  # DELETE /api/v1/face
-    await service.update_face()
+    service.update_face()
     assert service._face is None and service.counters["bad_faces"] == 0
 
 
@@ -217,3 +218,78 @@ async def test_every_frame_is_rendered_on_the_projectors_own_thread_while_the_sh
     await service.stop()
     await asyncio.wait_for(task, 5.0)
     assert display.threads == {"projector-render_0"}
+
+
+class _ClosingDisplay(SimDisplay):
+    """Notes a frame shown after the display was closed."""
+
+    def __init__(self, fail_at: int | None = None) -> None:
+        super().__init__()
+        self.closed = False
+        self.shown_after_close = 0
+        self.fail_at = fail_at
+
+    def show(self, frame: np.ndarray) -> None:
+        if self.fail_at is not None and self.frames == self.fail_at:
+            raise OSError("framebuffer gone")
+        self.shown_after_close += self.closed
+        super().show(frame)
+
+    def close(self) -> None:
+        self.closed = True
+        super().close()
+
+
+def _render_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name.startswith("projector-render")]
+
+
+async def test_frames_go_on_while_the_event_loop_is_blocked_and_stop_ends_the_thread():
+    """The render thread keeps its own 30 fps clock: a loop blocked for 0.3 s (a burst, a CPU quota) does not
+    hold frames up, and the loop is not woken for them."""
+    hub = Hub()
+    display = _ClosingDisplay()
+    service = ProjectorService(Config().projector, Config().interactions, hub, display, truth_calibration())
+    task = asyncio.create_task(service.run())
+    await _until(lambda: service.counters["frames"] >= 3)
+    before = service.counters["frames"]
+    time.sleep(0.3)  # the event loop blocked: 9 frame periods
+    assert service.counters["frames"] - before >= 4
+    assert hub.projector_video.get().seq == service.counters["frames"]  # published without the loop too
+    await service.stop()
+    await asyncio.wait_for(task, 5.0)
+    frames = service.counters["frames"]
+    await asyncio.sleep(0.1)
+    assert service.counters["frames"] == frames and display.closed and display.shown_after_close == 0
+    for thread in _render_threads():
+        thread.join(1.0)
+    assert _render_threads() == []
+
+
+async def test_a_cancelled_run_closes_the_display_after_the_threads_last_frame():
+    hub = Hub()
+    display = _ClosingDisplay()
+    service = ProjectorService(Config().projector, Config().interactions, hub, display, truth_calibration())
+    task = asyncio.create_task(service.run())
+    await _until(lambda: service.counters["frames"] >= 3)
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    frames = service.counters["frames"]
+    await asyncio.sleep(0.1)
+    assert service.counters["frames"] == frames and display.closed and display.shown_after_close == 0
+
+
+async def test_a_display_error_ends_the_run_for_the_supervisor_to_restart():
+    """The error reaches run() (the supervisor logs it and restarts the service); the display is closed."""
+    hub = Hub()
+    display = _ClosingDisplay(fail_at=3)
+    service = ProjectorService(Config().projector, Config().interactions, hub, display, truth_calibration())
+    with pytest.raises(OSError, match="framebuffer gone"):
+        await asyncio.wait_for(service.run(), 5.0)
+    assert service.counters["frames"] == 3 and display.closed
+    display.fail_at = None
+    task = asyncio.create_task(service.run())  # the restart renders again
+    await _until(lambda: service.counters["frames"] >= 6)
+    await service.stop()
+    await asyncio.wait_for(task, 5.0)
