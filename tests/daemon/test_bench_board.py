@@ -56,7 +56,9 @@ async def test_the_probe_reads_memory_on_its_lag_wake_ups_and_keeps_only_the_win
     assert before >= 100.0 and len(inside) >= 3 and inside[0] > before  # read before the window: in the peak only
     assert list(probe.rss_mb.values()) == list(inside) and probe.peak_mb > inside[-1]  # after it: the peak only
     assert probe.peak_mb == stopped_at  # nothing read once the daemon is stopping
-    assert len(probe.lags_ms) >= 20 and all(lag >= 0.0 for lag in probe.lags_ms.values())
+    # Lags were kept in the window, each a lateness. How many 2 ms sleeps fit in its 0.1 s is the host's business: a
+    # loaded CI host gave 10 of about 50 (session 26), so the count asks only what the steady samples ask.
+    assert len(probe.lags_ms) >= 3 and all(lag >= 0.0 for lag in probe.lags_ms.values())
 
 
 async def test_the_probes_lags_are_the_windows_only(monkeypatch) -> None:
