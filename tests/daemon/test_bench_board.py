@@ -225,7 +225,9 @@ def test_bench_board_runs_every_service_and_writes_finite_json():
     if sys.platform.startswith("linux"):
         assert result["rss_peak_source"].startswith("kernel")
     assert result["services"]["flight"]["tick_step_late_ms_p99"] is not None  # the loop's delay of the control step
-    assert 0 < result["services"]["touch"]["loop_wakeups_per_frame"] <= 1.0
+    touch = result["services"]["touch"]
+    # at most one loop wake-up per frame; one batch may be in flight (posted, not yet published) at the window's end
+    assert 0 < touch["loop_wakeups"] <= touch["frames"] + 1 and touch["loop_wakeups_per_frame"] > 0
     assert "pi_cores" in format_table(result)
     host = result["host"]  # the machine's speed on two fixed workloads, to compare reports across machines
     assert host["cpu_model"] and host["python_ms"] > 0 and host["numeric_ms"] > 0

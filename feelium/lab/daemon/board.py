@@ -411,7 +411,11 @@ def service_rows(measured: dict[str, Any], config: Config, cameras: Cameras, fro
     rows["front_camera"]["late_frames_total"] = cameras.front.late
     rows["flight"]["link_losses"] = int(_delta(first, last, "flight", "link_losses"))  # a starved board process shows here
     rows["flight"].update(_tick_lateness(first, last))
-    rows["touch"]["loop_wakeups_per_frame"] = round(_delta(first, last, "touch", "loop_wakeups") / max(touch_frames, 1.0), 2)
+    # A wake-up is counted when the pipeline thread posts and a frame when the loop publishes it, so a batch in
+    # flight at the last snapshot counts its wake-up without its frame: the counts are kept for that reading.
+    touch_wakeups = _delta(first, last, "touch", "loop_wakeups")
+    rows["touch"].update(loop_wakeups=int(touch_wakeups), frames=int(touch_frames),
+                         loop_wakeups_per_frame=round(touch_wakeups / max(touch_frames, 1.0), 2))
     moves = headset["motion"]
     rows["headset_motion"] = {"transport": moves["transport"], "rate_hz": moves["rate_hz"], "target_hz": moves["target_hz"], "miss_kind": "counted",
                               "miss_pct": round(100.0 * moves["late"] / max(moves["sent"], 1), 2),
