@@ -34,10 +34,10 @@ from feelium.lab.flight.safety import safety_flight
 CORNERS = 16
 
 
-Job = tuple[int, int, bool, str | None]  # corner index, flight seed, calibrated, cache folder
+Job = tuple[int, int, bool, str | None, int]  # plant index, flight seed, calibrated, cache folder, plant count
 
 
-def _fitted(index: int, seed: int, cache: str | None) -> FlightConfig:
+def _fitted(index: int, seed: int, cache: str | None, count: int = CORNERS) -> FlightConfig:
     """The config ``calibrate flight`` fits on corner ``index`` at ``seed``, from ``cache`` when it holds it."""
     from feelium.lab.flight.calibrate import calibrate_sim
 
@@ -46,7 +46,7 @@ def _fitted(index: int, seed: int, cache: str | None) -> FlightConfig:
         with path.open("rb") as f:
             config: FlightConfig = pickle.load(f)
         return config
-    config = calibrate_sim(Config().flight, plant_set(CORNERS)[index].blimp, seed=seed).config
+    config = calibrate_sim(Config().flight, plant_set(count)[index].blimp, seed=seed).config
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("wb") as f:
@@ -55,9 +55,9 @@ def _fitted(index: int, seed: int, cache: str | None) -> FlightConfig:
 
 
 def _fly(job: Job) -> dict[str, Any]:
-    index, seed, calibrated, cache = job
-    plant = plant_set(CORNERS)[index]
-    config = _fitted(index, seed, cache) if calibrated else Config().flight
+    index, seed, calibrated, cache, count = job
+    plant = plant_set(count)[index]
+    config = _fitted(index, seed, cache, count) if calibrated else Config().flight
     result = safety_flight(config, plant, seed=seed)
     return {"plant": plant.name, "index": index, "seed": seed, "failures": result.failures(),
             "figures": {k: round(v, 3) for k, v in result.figures().items()}, "manoeuvres": result.manoeuvres}
@@ -73,13 +73,17 @@ def _seeds(text: str) -> list[int]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", default="1-6", help="flight seeds: 1-6 or 2,5")
-    parser.add_argument("--only", default=None, help="corner indices, e.g. 8,9,10,11 (default: all 16)")
+    parser.add_argument("--plants", type=int, default=CORNERS,
+                        help="the set's first N plants: the 16 corners, then random ones (the 50 of test_random_plants.py)")
+    parser.add_argument("--only", default=None, help="plant indices, e.g. 8,9,10,11 or 16-49 (default: all of --plants)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--calibrated", action="store_true", help="fly the config calibrate flight fits on each plant")
     parser.add_argument("--cache", default=None, help="with --calibrated: a folder keeping the fitted configs")
     args = parser.parse_args()
-    indices = [int(i) for i in args.only.split(",")] if args.only else list(range(CORNERS))
-    jobs = [(index, seed, args.calibrated, args.cache) for seed in _seeds(args.seeds) for index in indices]
+    indices = _seeds(args.only) if args.only else list(range(args.plants))
+    if max(indices) >= args.plants:
+        parser.error(f"--only names plant {max(indices)}, but --plants is {args.plants}")
+    jobs = [(index, seed, args.calibrated, args.cache, args.plants) for seed in _seeds(args.seeds) for index in indices]
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(_fly, jobs))
     for row in rows:

@@ -65,6 +65,8 @@ class FlightController:
             )
         )
         self.thrust = ThrustModel(config.net_buoyancy_n, config.motor_lag_s)
+        # The box's widest horizontal deadband: a hover correction braking a rate near the stop goal's is mixed past it.
+        self.widest_horizontal_deadband = min(config.motor_deadband * max(config.uncertainty("surge"), config.uncertainty("yaw")), 0.5)
         self.altitude = AltitudeObserver(config)
         self.yaw = YawEstimate(config)
         self.surge = SurgeEstimate(config)
@@ -150,7 +152,11 @@ class FlightController:
             self.surge.effectiveness.mark_real_push(t, surge_n)
         if not self.heading_loop.hovering:  # a turn, its brake or settling: what may confirm a turn's effectiveness
             self.yaw.effectiveness.mark_real_push(t, yaw_nm)
-        commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt)
+        # A hover correction braking a rate near the stop goal's is mixed past the box's widest deadband: compensated
+        # for the config's, its small push was eaten by corner-mTdL's 60 us and a draft held the rate over 3 deg/s
+        # for 3 s (flight seed 20; docs/flight-robustness.md, session 27).
+        wide = self.widest_horizontal_deadband if self.heading_loop.firm_against_rate else None
+        commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt, wide)
         hovering = self.heading_loop.hovering and self.surge_loop.hovering
         commands = self.reversals.limit(t, commands, hovering, calm(self.surge.speed, self.yaw.rate_dps),
                                         still=calm(self.surge.speed, 0.0))

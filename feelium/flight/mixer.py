@@ -109,13 +109,16 @@ class Mixer:
         g = self.g
         return -2 * g.vertical_thrust_n * g.max_output**2, 2 * g.vertical_thrust_n * g.vertical_reverse_ratio * g.max_output**2
 
-    def mix(self, surge_n: float, up_n: float, yaw_nm: float, dt: float) -> tuple[float, float, float, float]:
-        """Commands in [-max_output, max_output], each changed by at most ``slew_per_s * dt``."""
+    def mix(self, surge_n: float, up_n: float, yaw_nm: float, dt: float,
+            horizontal_deadband: float | None = None) -> tuple[float, float, float, float]:
+        """Commands in [-max_output, max_output], each changed by at most ``slew_per_s * dt``; the horizontal motors'
+        deadband compensated as ``horizontal_deadband`` if given, else as the geometry's."""
         forces = self.split(surge_n, up_n, yaw_nm)
         g = self.g
+        band = g.deadband if horizontal_deadband is None else horizontal_deadband
         wanted = (
-            command_for_thrust(forces[0], g.horizontal_thrust_n, g.horizontal_reverse_ratio, g.deadband),
-            command_for_thrust(forces[1], g.horizontal_thrust_n, g.horizontal_reverse_ratio, g.deadband),
+            command_for_thrust(forces[0], g.horizontal_thrust_n, g.horizontal_reverse_ratio, band),
+            command_for_thrust(forces[1], g.horizontal_thrust_n, g.horizontal_reverse_ratio, band),
             command_for_thrust(forces[2], g.vertical_thrust_n, g.vertical_reverse_ratio, g.deadband),
             command_for_thrust(forces[3], g.vertical_thrust_n, g.vertical_reverse_ratio, g.deadband),
         )

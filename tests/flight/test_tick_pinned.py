@@ -48,6 +48,11 @@ escalate, the longest lag the config's) is unchanged by all of them. All three r
 alone: the estimates gained each loop's ``*_escalating`` and each effectiveness side's ``*_confirmed``,
 ``*_confirming_samples`` and ``*_assured``; hashed with those keys left out the three digests are as they were
 (f3b6603c / 6efe3247 / f62fdd29), and the one-line reset of the hover escalation after a turn changed none of them.
+``drafts_dropouts`` and ``stall_and_lag`` re-pinned in session 27 for a hover heading correction braking a rate over 2
+deg/s mixed past the box's widest deadband (``HeadingLoop.firm_against_rate``): their commands first differ at 2.02 /
+1.97 s, the first of 13 / 11 such cycles; the same session's brake escalating when nothing confirmed its sign leaves
+all three as they were (computed with each change switched off in turn), and ``fitted_still_air`` (box 1: the
+widest deadband is the config's) is unchanged.
 The digests below are all of it: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
@@ -106,7 +111,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "9431a3f514b0fbc65b926156",
+        "3ba78e242aeb723ccac07172",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
@@ -118,7 +123,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "f4a63e9cc697978b366fbad5",
+        "2cc31e5458da931b7c8e8009",
     ),
 }
 
