@@ -223,11 +223,20 @@ class AltitudeObserver:
         the altitude still looks close, and the loop would not damp a fall it cannot see. The slope
         is compared with the estimate brought back to the slope's age."""
         gain = (self.c.uncertainty("heave") - 1.0) / CLIMB_RATE_TAU_S
-        slope = self.range_rate.rate(t) if gain > 0.0 else None
+        slope = self.range_rate.rate(t) if gain > 0.0 or self.touched else None
         if slope is None:
             return
-        then = self.vz - self.accel(up_force_n) * self.range_rate.age_s
-        missed = min(1.0, gain * dt) * (slope - then)  # the climb rate the model did not predict
+        if self.touched:
+            # Held or far below the target the disturbance learns nothing (the loop's anti-windup), so the model's
+            # error stays in its acceleration: the climb rate is the slope, not brought forward by that acceleration
+            # over the slope's age. On the floor the model's push, which the floor met, held the climb rate at the
+            # push times that age, +0.18 m/s, with the rangefinder at 1 cm; the loop, seeing a climb, never pushed
+            # harder, and three random plants sank in their first hover and stayed (docs/flight-robustness.md,
+            # session 27).
+            missed = slope - self.vz
+        else:
+            then = self.vz - self.accel(up_force_n) * self.range_rate.age_s
+            missed = min(1.0, gain * dt) * (slope - then)  # the climb rate the model did not predict
         self.vz += missed
         if self._may_learn(t):  # and the acceleration it missed is the disturbance's to learn
             limit = self.c.altitude_integral_limit

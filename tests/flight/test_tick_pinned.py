@@ -52,7 +52,11 @@ alone: the estimates gained each loop's ``*_escalating`` and each effectiveness 
 deg/s mixed past the box's widest deadband (``HeadingLoop.firm_against_rate``): their commands first differ at 2.02 /
 1.97 s, the first of 13 / 11 such cycles; the same session's brake escalating when nothing confirmed its sign leaves
 all three as they were (computed with each change switched off in turn), and ``fitted_still_air`` (box 1: the
-widest deadband is the config's) is unchanged.
+widest deadband is the config's) is unchanged. All three re-pinned again in session 27 for the altitude observer
+taking the range slope as its climb rate, not brought forward by the model's acceleration, while the disturbance
+is frozen by a partner's hand or by being far below the target (``AltitudeObserver._correct_climb_rate``): their
+commands first differ at 8.42 / 8.44 s, in the scripted softening (30 such cycles), and in ``stall_and_lag`` at
+6.80 s, below the target after the stall (39).
 The digests below are all of it: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
@@ -111,19 +115,19 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "3ba78e242aeb723ccac07172",
+        "86cfff5666e61fe0a3d16358",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
         board_with(BoardParams(drafts=None), z=2.2),
         None,
-        "51b9af9a0d9bb54469225add",
+        "47ee39f8df51e65b37e7703c",
     ),
     "stall_and_lag": (
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "2cc31e5458da931b7c8e8009",
+        "302fbc725256a6b2180f7d78",
     ),
 }
 
