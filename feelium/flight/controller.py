@@ -65,7 +65,9 @@ class FlightController:
             )
         )
         self.thrust = ThrustModel(config.net_buoyancy_n, config.motor_lag_s)
-        # The box's widest horizontal deadband: a hover correction braking a rate near the stop goal's is mixed past it.
+        # The widest horizontal deadband the config allows: its deadband times the horizontal axes' uncertainty (the
+        # issue's box, 60 us, for the shipped 30 us and 2; a rule of thumb, as the longest lag is). A hover correction
+        # braking a rate near the stop goal's is mixed past it.
         self.widest_horizontal_deadband = min(config.motor_deadband * max(config.uncertainty("surge"), config.uncertainty("yaw")), 0.5)
         self.altitude = AltitudeObserver(config)
         self.yaw = YawEstimate(config)
@@ -154,8 +156,11 @@ class FlightController:
             self.yaw.effectiveness.mark_real_push(t, yaw_nm)
         # A hover correction braking a rate near the stop goal's is mixed past the box's widest deadband: compensated
         # for the config's, its small push was eaten by corner-mTdL's 60 us and a draft held the rate over 3 deg/s
-        # for 3 s (flight seed 20; docs/flight-robustness.md, session 27).
-        wide = self.widest_horizontal_deadband if self.heading_loop.firm_against_rate else None
+        # for 3 s (flight seed 20; docs/flight-robustness.md, session 27). Only in a cycle the heading loop pushed: its
+        # flag is this cycle's. (The surge's push of the cycle is mixed so too: requiring the surge loop to hover as
+        # well broke 86 of the 864 flights; docs/flight-robustness.md, session 27.)
+        firm = yaw_nm != 0.0 and self.heading_loop.firm_against_rate
+        wide = self.widest_horizontal_deadband if firm else None
         commands = self.mixer.mix(surge_n, up_n, yaw_nm, dt, wide)
         hovering = self.heading_loop.hovering and self.surge_loop.hovering
         commands = self.reversals.limit(t, commands, hovering, calm(self.surge.speed, self.yaw.rate_dps),

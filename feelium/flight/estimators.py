@@ -190,7 +190,9 @@ class AltitudeObserver:
         self.last_range_t: float | None = None
         self.disturbance = 0.0
         self.freeze_disturbance = False
-        self.touched = False  # set by the loop: a partner's hand is on the body, its motion teaches nothing
+        # set by the loop: a partner's hand is on the body, or it is far below its target (the loop's anti-windup);
+        # either way the model misses a force: its motion teaches nothing and the climb rate is the range slope
+        self.touched = False
         self.climbing = False  # set by the loop: a climb (or descent) command is held, away from the limits
         self.reacquire = False  # set by a failsafe: the next reading restarts the observer
         self._gated_since: float | None = None
@@ -221,7 +223,7 @@ class AltitudeObserver:
         Between readings the climb rate is the model's; on a blimp whose thrust or mass is off by 2x
         (and before the disturbance is learned) that rate may be off by half a metre per second while
         the altitude still looks close, and the loop would not damp a fall it cannot see. The slope
-        is compared with the estimate brought back to the slope's age."""
+        is compared with the estimate brought back to the slope's age; while ``touched`` it is taken as it is."""
         gain = (self.c.uncertainty("heave") - 1.0) / CLIMB_RATE_TAU_S
         slope = self.range_rate.rate(t) if gain > 0.0 or self.touched else None
         if slope is None:

@@ -396,7 +396,7 @@ class HeadingLoop:
         torque = c.yaw_inertia_kg_m2 * alpha / effectiveness + c.yaw_drag * r_ref * abs(r_ref)
         if hover:
             torque = self.band.same_sign(torque)
-            self.firm_against_rate = firm > 1.0 and torque * est.rate_dps < 0.0
+            self.firm_against_rate = not sp.soften and firm > 1.0 and torque * est.rate_dps < 0.0
         return torque
 
     def _lag_s(self, turn: float) -> float:

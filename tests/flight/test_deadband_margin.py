@@ -41,14 +41,17 @@ def test_a_push_mixed_past_the_widest_deadband_makes_its_torque_on_a_plant_with_
     assert made(wide_mix, CONFIG.motor_deadband) > torque
 
 
-def _hover_step(rate_dps: float) -> FlightController:
-    """One hover step of the heading loop on target, the body turning at ``rate_dps``."""
+def _hover_step(rate_dps: float, soften: bool = False) -> FlightController:
+    """One hover step of the heading loop on target, the body turning at ``rate_dps`` (a partner's hand on it if
+    ``soften``)."""
     controller = FlightController(CONFIG)
     est, loop = controller.yaw, controller.heading_loop
     est.heading = est.fine_heading = 0.0
     est.rate_dps = rate_dps
     loop.restart(0.0)
-    loop.step(10.0, DT, HOLD, est, controller.thrust, 1.0)
+    setpoint = setpoint_for_motion(None, CONFIG, soften=True) if soften else HOLD
+    torque = loop.step(10.0, DT, setpoint, est, controller.thrust, CONFIG.soften_factor if soften else 1.0)
+    assert torque * rate_dps < 0.0  # the loop brakes the rate in every case here
     return controller
 
 
@@ -57,11 +60,16 @@ def test_a_hover_correction_braking_a_rate_near_the_stop_goal_s_is_mixed_past_th
     assert _hover_step(rate_dps).heading_loop.firm_against_rate
 
 
-@pytest.mark.parametrize("rate_dps", [1.7, 0.0])
-def test_a_gentle_hover_correction_keeps_the_config_s_compensation(rate_dps: float) -> None:
+def test_a_gentle_hover_correction_keeps_the_config_s_compensation() -> None:
     """Below the firm rate (2 deg/s) a correction stays gentle: mixed for the wide deadband, every small push on a
     narrow-deadband plant would be one the motors make, and the hover's reversals would count them."""
-    assert not _hover_step(rate_dps).heading_loop.firm_against_rate
+    assert not _hover_step(1.7).heading_loop.firm_against_rate
+
+
+def test_under_a_partner_s_hand_a_correction_is_never_mixed_past_the_wide_deadband() -> None:
+    """Softened, the loop's push is scaled down for the partner; the wide deadband's offset is added in command
+    space, not scaled: it made 2.7-3.5 times the softened torque (the session's review)."""
+    assert not _hover_step(2.5, soften=True).heading_loop.firm_against_rate
 
 
 def _brake_torque(confirmed: bool) -> tuple[float, bool]:

@@ -5,8 +5,9 @@ missed a goal. Three sank to the floor in the first hover and stayed there, moto
 flight: far below its target the loop freezes the altitude disturbance (a partner holding the body down must not wind
 it up), and the observer, its model's push brought forward over the range slope's age, held a climb rate of
 +0.18 m/s with the rangefinder at 1 cm, so the loop saw a climb and never pushed harder. Two more left the altitude
-band by 0.12 and 0.14 m. Frozen like that, the climb rate is now the range slope (``AltitudeObserver``), and all five
-meet every goal (docs/flight-robustness.md, session 27).
+band by 0.12 and 0.14 m (not traced: far below the target the same lagging climb rate is the likely cause). Frozen
+like that, the climb rate is now the range slope (``AltitudeObserver``), and all five meet every goal
+(docs/flight-robustness.md, session 27).
 """
 
 from __future__ import annotations
