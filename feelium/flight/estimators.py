@@ -229,12 +229,12 @@ class AltitudeObserver:
         if slope is None:
             return
         if self.touched:
-            # Held or far below the target the disturbance learns nothing (the loop's anti-windup), so the model's
-            # error stays in its acceleration: the climb rate is the slope, not brought forward by that acceleration
-            # over the slope's age. On the floor the model's push, which the floor met, held the climb rate at the
-            # push times that age, +0.18 m/s, with the rangefinder at 1 cm; the loop, seeing a climb, never pushed
-            # harder, and three random plants sank in their first hover and stayed (docs/flight-robustness.md,
-            # session 27).
+            # Held or far below the target the disturbance is frozen (the loop's anti-windup; only a new hold still
+            # learns it), so the model's error stays in its acceleration: the climb rate is the slope, not brought
+            # forward by that acceleration over the slope's age. On the floor the model's push, which the floor met,
+            # held the climb rate at the push times that age, +0.18 m/s, with the rangefinder at 1 cm; the loop,
+            # seeing a climb, never pushed harder, and three random plants sank in their first hover and stayed
+            # (docs/flight-robustness.md, session 27).
             missed = slope - self.vz
         else:
             then = self.vz - self.accel(up_force_n) * self.range_rate.age_s
