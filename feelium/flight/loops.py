@@ -436,12 +436,16 @@ class HeadingLoop:
         A brake whose sign nothing has confirmed goes on with its turn's escalation, counting on what the turn
         reached. Counting on the box's strongest, 20 times the plant's answer, a heavy weak blimp's first turn (too
         slow ever to confirm) was braked at 0.4 of the motors where a confirmed brake pushed 0.9, and its rate was
-        still 7 deg/s when the brake's reference landed (corner-MtDL, flight seed 36: a stop 1.46 s; session 27)."""
+        still 7 deg/s when the brake's reference landed (corner-MtDL, flight seed 36: a stop 1.46 s; session 27).
+        Its escalation stops at the larger value either sign learned (the axis is mirrored): hover pushes a wide
+        deadband ate teach the brake's side far below the truth, and a brake counting on that pushed up to seven
+        times too hard (the turn's own side is taught by the turn; docs/flight-robustness.md, session 28)."""
         e = est.effectiveness
         self.escalating = (bool(turn) or self.braking) and not e.is_confirmed(alpha)
         if not self.escalating:
             return e.confirmed(alpha)
-        return max(e.value(alpha), escalated(e.high, t - self.turn_started))
+        learned = e.value(0.0) if self.braking else e.value(alpha)
+        return max(learned, escalated(e.high, t - self.turn_started))
 
     @staticmethod
     def _limit_return(alpha: float, error: float, predicted: float, gain: float) -> float:

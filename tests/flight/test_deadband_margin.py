@@ -72,17 +72,18 @@ def test_under_a_partner_s_hand_a_correction_is_never_mixed_past_the_wide_deadba
     assert not _hover_step(2.5, soften=True).heading_loop.firm_against_rate
 
 
-def _brake_torque(confirmed: bool) -> tuple[float, bool]:
-    """The heading loop's first brake torque after a 2 s right turn at 9 deg/s on a plant whose yaw learned 0.2 both
-    ways (a heavy weak blimp), with that value ``confirmed`` by a real push or not; and whether the brake escalates."""
+def _brake_torque(confirmed: bool, learned: tuple[float, float] = (0.2, 0.2)) -> tuple[float, bool]:
+    """The heading loop's first brake torque after a 2 s right turn at 9 deg/s on a plant whose yaw ``learned`` these
+    values (reverse, forward; 0.2 both ways: a heavy weak blimp), with them ``confirmed`` by a real push or not; and
+    whether the brake escalates."""
     controller = FlightController(CONFIG)
     est, loop, e = controller.yaw, controller.heading_loop, controller.yaw.effectiveness
     est.heading = est.fine_heading = 0.0
     est.rate_dps = 9.0
     loop.restart(0.0)
-    e.samples, e.values = [50, 50], [0.2, 0.2]
+    e.samples, e.values = [50, 50], list(learned)
     if confirmed:
-        e.confirming_samples, e.strong_values = [5, 5], [0.2, 0.2]
+        e.confirming_samples, e.strong_values = [5, 5], list(learned)
     turn = setpoint_for_motion("turn_right", CONFIG)
     t = 10.0
     while t < 12.0:
@@ -101,3 +102,14 @@ def test_a_brake_nothing_confirmed_counts_on_what_its_turn_escalated_to() -> Non
     confirmed, confirmed_escalating = _brake_torque(confirmed=True)
     assert escalating and not confirmed_escalating
     assert confirmed < 0.0 and unconfirmed == pytest.approx(confirmed)
+
+
+def test_a_brake_nothing_confirmed_counts_on_the_larger_value_either_sign_learned() -> None:
+    """Hover pushes a wide deadband ate teach a value far below the truth (they moved nothing); a brake counting on it
+    pushes that many times too hard, the unsafe side (the session-27 review, finding 7). The yaw is mirrored, so the
+    brake counts on the larger of the two learned values: here the turn's side, taught by the turn itself."""
+    eaten_brake_side = _brake_torque(confirmed=False, learned=(0.19, 1.4))[0]
+    both_as_the_turn_taught = _brake_torque(confirmed=False, learned=(1.4, 1.4))[0]
+    both_eaten = _brake_torque(confirmed=False, learned=(0.19, 0.19))[0]
+    assert eaten_brake_side == pytest.approx(both_as_the_turn_taught)
+    assert abs(eaten_brake_side) < abs(both_eaten) / 3.0
