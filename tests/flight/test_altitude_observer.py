@@ -241,3 +241,29 @@ def test_on_the_floor_with_the_disturbance_frozen_the_climb_rate_is_the_range_sl
         rates[touched] = observer.vz
     assert abs(rates[True]) < 0.005
     assert rates[False] > 0.1  # frozen but not marked (the code before): a believed climb
+
+
+@pytest.mark.parametrize("uncertainty", [2.0, 1.0])
+@pytest.mark.parametrize("true_accel", [0.15, 0.3, 0.6])
+def test_lifting_off_the_floor_the_climb_rate_does_not_jump_when_the_slope_hands_back_to_the_model(
+        uncertainty: float, true_accel: float) -> None:
+    """While ``touched`` the climb rate is the range slope, 0.1-0.15 s old; once the body is back near its target the
+    model-forward comparison takes over again (the session-27 review, finding 5). The body lifts off at 6 s, the loop
+    asking for 0.3 m/s^2 while the body answers ``true_accel`` (the model off by up to 2x), and the hand-back at 6.5 s
+    moves the climb rate by under 2 cm/s in its cycle."""
+    config = replace(Config().flight, plant_uncertainty=uncertainty)
+    dt = 1.0 / config.rate_hz
+    observer = AltitudeObserver(config)
+    lift, hand_back, floor = 6.0, 6.5, 0.3
+    before = None
+    for k in range(int(7.0 / dt)):
+        t = k * dt
+        rising = max(0.0, t - lift)
+        pushing = t > 4.0
+        observer.freeze_disturbance = observer.touched = pushing and t < hand_back
+        observer.update(t, floor + 0.5 * true_accel * rising * rising,
+                        -config.net_buoyancy_n + (0.3 * config.heave_mass if pushing else 0.0), dt)
+        if abs(t - hand_back) < dt / 2:
+            assert before is not None and abs(observer.vz - before) < 0.02
+            assert abs(observer.vz - true_accel * (t - lift)) < 0.1  # and it was the body's rate, 0.1-0.15 s late
+        before = observer.vz
