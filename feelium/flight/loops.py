@@ -540,7 +540,7 @@ class SurgeLoop:
         e = est.effectiveness
         self.escalating = not e.is_confirmed(wanted)
         if not self.escalating:
-            return e.confirmed(wanted)
+            return e.value(wanted)
         return max(e.value(wanted), escalated(e.high, t - self.command_started))
 
     def _stoppable_speed(self, t: float, est: SurgeEstimate, speed_sp: float) -> float:
