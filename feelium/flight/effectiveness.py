@@ -23,6 +23,8 @@ from collections import deque
 
 REAL_PUSH_SLACK_S = 0.05  # the loop marks a real push after the estimate's update: a cycle late, with room
 ASSURED_STANDARD_ERRORS = 2.0  # with ``change_noise``: a margin counts on the learned value this many standard errors low
+# With ``one_way``: a window teaches only if its net push is at least this share of its pushes' sum (they keep a sign).
+ONE_WAY_SHARE = 0.8
 
 
 class Effectiveness:
@@ -32,7 +34,7 @@ class Effectiveness:
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
                  confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
                  mirrored: bool = False, real_pushes_assure: bool = False, real_pushes_confirm: bool = False,
-                 change_noise: float = 0.0) -> None:
+                 change_noise: float = 0.0, one_way: bool = False) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -61,7 +63,12 @@ class Effectiveness:
         windows barely above the noise teach it nothing and many large ones teach it nearly the least squares (0:
         the least squares as it is). Three windows of a climb's onset, each changing the modelled rate by 0.03 m/s
         against 0.07 m/s of noise, taught the heave's down side 2.54 (true about 1), and a calibrated heavy corner
-        climbed into the ceiling (docs/calibrate-flight.md, session 22)."""
+        climbed into the ceiling (docs/calibrate-flight.md, session 22);
+        ``one_way``: a window whose pushes change sign teaches nothing (``ONE_WAY_SHARE``). Its net push is the
+        difference of two, so the same rate change divided by it reads too strong: a brake's first windows, mixed with
+        the command's last forward pushes, and the hover's windows mixing that brake with forward corrections taught
+        corner-MtDl's reverse surge 0.33 where its brake showed 0.13-0.15; the speed cap counting on it took the
+        forward lapse to 1.54 s (flight seed 19; docs/flight-robustness.md, session 28)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -82,8 +89,12 @@ class Effectiveness:
         self.change_noise = change_noise
         self._information = [0.0, 0.0]  # per direction: sum x*x over independent windows (they overlap)
         self.strong_values = [high, high]
-        self._history: deque[tuple[float, float, float]] = deque()  # (t, modelled push integral, measured rate)
+        # (t, modelled push integral, its magnitude's integral, measured rate)
+        self._history: deque[tuple[float, float, float, float]] = deque()
         self._push_integral = 0.0
+        self._gross_integral = 0.0
+        self.one_way = one_way
+        self.mixed_windows = 0  # with ``one_way``: windows not taught from, their pushes changing sign
         self.samples = [0, 0]
         self.mirrored = mirrored
 
@@ -174,17 +185,21 @@ class Effectiveness:
     def update(self, t: float, dt: float, push: float, measured_rate: float | None) -> None:
         """Fold in one cycle: the modelled acceleration ``push`` held over ``dt`` and the measured rate at ``t``."""
         self._push_integral += push * dt
+        self._gross_integral += abs(push) * dt
         if measured_rate is None or not math.isfinite(measured_rate):
             self._history.clear()  # a gap breaks the windows
             return
-        self._history.append((t, self._push_integral, measured_rate))
+        self._history.append((t, self._push_integral, self._gross_integral, measured_rate))
         while len(self._history) >= 2 and self._history[1][0] <= t - self.window_s + 1e-9:
             self._history.popleft()  # keep the newest sample at or before the window's start
-        t0, integral0, rate0 = self._history[0]
+        t0, integral0, gross0, rate0 = self._history[0]
         if t - t0 < self.window_s - 1e-6:
             return
         x = self._push_integral - integral0
         if abs(x) < self.min_change:
+            return
+        if self.one_way and abs(x) < ONE_WAY_SHARE * (self._gross_integral - gross0):
+            self.mixed_windows += 1
             return
         y = measured_rate - rate0
         side = 1 if x > 0 else 0
@@ -221,10 +236,13 @@ class Effectiveness:
     def as_dict(self) -> dict[str, float | int | None]:
         """For health, per direction: the learned value and how many windows taught it; what a large push counts on
         (``confirmed``: ``None`` while nothing confirmed it, so such a push escalates from the box's strongest) and
-        how many windows confirmed it; what a safety margin counts on (``assured``)."""
+        how many windows confirmed it; what a safety margin counts on (``assured``); with ``one_way``, how many windows
+        taught nothing, their pushes changing sign."""
         health: dict[str, float | int | None] = {
             "reverse": round(self.values[0], 3), "forward": round(self.values[1], 3),
             "reverse_samples": self.samples[0], "forward_samples": self.samples[1]}
+        if self.one_way:
+            health["mixed_windows"] = self.mixed_windows
         for side, name in enumerate(("reverse", "forward")):
             push = 1.0 if side else -1.0
             health[f"{name}_confirmed"] = round(self.confirmed(push), 3) if self.is_confirmed(push) else None

@@ -407,7 +407,8 @@ class SurgeEstimate:
         self.effectiveness = Effectiveness(low, high, reverse_low=reverse_low, min_change=0.005,
                                            assuring_change=SURGE_ASSURING_CHANGE_M_S, confirming_change=SURGE_CONFIRMING_CHANGE_M_S,
                                            shown=1.0 / config.uncertainty("surge") if config.braking_shown else None,
-                                           reverse_shown=config.surge_brake_shown or None, real_pushes_assure=True)
+                                           reverse_shown=config.surge_brake_shown or None, real_pushes_assure=True,
+                                           one_way=True)
 
     def measured(self, t: float) -> bool:
         return self.last_flow_t is not None and t - self.last_flow_t <= FLOW_FRESH_S

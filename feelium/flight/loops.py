@@ -531,8 +531,12 @@ class SurgeLoop:
         return self.band.same_sign(force) if hover else force
 
     def _command_effectiveness(self, t: float, wanted: float, est: SurgeEstimate) -> float:
-        """What a held command's push is normalised by: the learned value once a window has confirmed its sign, else
-        the box's strongest halving every ``ESCALATE_S`` from the command's start down to the learned value.
+        """What a held command's push is normalised by: the confirmed value (windows that changed the speed as a command
+        or a brake does) once one has confirmed its sign, else the box's strongest halving every ``ESCALATE_S`` from the
+        command's start down to the learned value. The learned value is taught by every window, and a steady push
+        through a deadband wider than the config's reads weak: corner-mTDL's forward side was learned at 1.40 where
+        its commands had confirmed 4.0, and a later command's onset, counting on 1.40, ran the body to 1.19 of the
+        command (flight seed 19; 1.13 counting on the confirmed value; docs/flight-robustness.md, session 28).
 
         The first windows of a command on a 150 ms, deadband-wide plant see the push and not yet its answer: they
         taught corner-mTdL's forward side the box's weakest (0.25 against about 4) in 0.2 s, the push went to the
@@ -540,7 +544,7 @@ class SurgeLoop:
         e = est.effectiveness
         self.escalating = not e.is_confirmed(wanted)
         if not self.escalating:
-            return e.value(wanted)
+            return e.confirmed(wanted)
         return max(e.value(wanted), escalated(e.high, t - self.command_started))
 
     def _stoppable_speed(self, t: float, est: SurgeEstimate, speed_sp: float) -> float:

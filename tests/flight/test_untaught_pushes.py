@@ -53,15 +53,17 @@ def test_an_untaught_hover_correction_escalates_no_further_than_the_box_s_weakes
     assert torques[-1] == pytest.approx(torques[0] * e.high / e.lowest(-1.0))
 
 
-def _surge_forces(confirmed: bool, seconds: float) -> list[float]:
+def _surge_forces(confirmed: bool, seconds: float, confirmed_value: float | None = None) -> list[float]:
     """The surge loop's forces through the first ``seconds`` of a held `forward`, the body still, with the forward
-    side learned at the box's weakest: ``confirmed`` by a large measured change, or not (a few windows of lag)."""
+    side learned at the box's weakest: ``confirmed`` by a large measured change (at ``confirmed_value``, by default
+    that same value), or not (a few windows of lag)."""
     controller = FlightController(CONFIG)
     est, loop = controller.surge, controller.surge_loop
     e = est.effectiveness
     e.samples[1], e.values[1] = 3, e.lowest(1.0)
     if confirmed:
         e.confirming_samples[1] = 1
+        e.strong_values[1] = e.lowest(1.0) if confirmed_value is None else confirmed_value
     est.last_flow_t = 0.0  # the speed is measured
     forces = []
     for k in range(round(seconds / DT)):
@@ -82,6 +84,17 @@ def test_a_held_command_s_push_on_an_unconfirmed_side_starts_from_the_box_s_stro
     assert unconfirmed[0] == pytest.approx(confirmed[0] * ratio, rel=0.05)
     done = round(halvings * ESCALATE_S / DT) + 1
     assert unconfirmed[done:] == pytest.approx(confirmed[done:], rel=1e-6)
+
+
+def test_a_held_command_on_a_confirmed_side_counts_on_the_confirmed_value_not_the_learned_one() -> None:
+    """Every window teaches the learned value, and steady pushes a deadband wider than the config's partly ate read
+    weak: corner-mTDL's forward side was learned at 1.40 where its commands had confirmed 4.0, and a command counting
+    on 1.40 ran the body to 1.19 of its speed (flight seed 19; session 28). The push counts on what was confirmed."""
+    e = FlightController(CONFIG).surge.effectiveness
+    on_the_learned = _surge_forces(True, 0.5)
+    on_the_confirmed = _surge_forces(True, 0.5, confirmed_value=e.high)
+    ratio = e.lowest(1.0) / e.high
+    assert on_the_confirmed[0] > 0.0 and on_the_confirmed[0] == pytest.approx(on_the_learned[0] * ratio, rel=0.05)
 
 
 def test_a_turn_between_two_untaught_hover_corrections_restarts_the_escalation() -> None:
