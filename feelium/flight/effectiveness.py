@@ -94,7 +94,7 @@ class Effectiveness:
         self._push_integral = 0.0
         self._gross_integral = 0.0
         self.one_way = one_way
-        self.mixed_windows = 0  # with ``one_way``: windows not taught from, their pushes changing sign
+        self.mixed_windows = 0  # with ``one_way``: windows over ``min_change`` not taught from, changing sign
         self.samples = [0, 0]
         self.mirrored = mirrored
 

@@ -444,7 +444,7 @@ class HeadingLoop:
         self.escalating = (bool(turn) or self.braking) and not e.is_confirmed(alpha)
         if not self.escalating:
             return e.confirmed(alpha)
-        learned = e.value(0.0) if self.braking else e.value(alpha)
+        learned = max(e.value(alpha), e.value(-alpha)) if self.braking else e.value(alpha)
         return max(learned, escalated(e.high, t - self.turn_started))
 
     @staticmethod
@@ -532,8 +532,9 @@ class SurgeLoop:
 
     def _command_effectiveness(self, t: float, wanted: float, est: SurgeEstimate) -> float:
         """What a held command's push is normalised by: the confirmed value (windows that changed the speed as a command
-        or a brake does) once one has confirmed its sign, else the box's strongest halving every ``ESCALATE_S`` from the
-        command's start down to the learned value. The learned value is taught by every window, and a steady push
+        or a brake does) once one has confirmed its sign, never below the learned value (so never a harder push than
+        the learned value asks), else the box's strongest halving every ``ESCALATE_S`` from the command's start down to
+        the learned value. The learned value is taught by every window, and a steady push
         through a deadband wider than the config's reads weak: corner-mTDL's forward side was learned at 1.40 where
         its commands had confirmed 4.0, and a later command's onset, counting on 1.40, ran the body to 1.19 of the
         command (flight seed 19; 1.13 counting on the confirmed value; docs/flight-robustness.md, session 28).
@@ -544,7 +545,7 @@ class SurgeLoop:
         e = est.effectiveness
         self.escalating = not e.is_confirmed(wanted)
         if not self.escalating:
-            return e.confirmed(wanted)
+            return max(e.confirmed(wanted), e.value(wanted))
         return max(e.value(wanted), escalated(e.high, t - self.command_started))
 
     def _stoppable_speed(self, t: float, est: SurgeEstimate, speed_sp: float) -> float:

@@ -249,8 +249,9 @@ def test_lifting_off_the_floor_the_climb_rate_does_not_jump_when_the_slope_hands
         uncertainty: float, true_accel: float) -> None:
     """While ``touched`` the climb rate is the range slope, 0.1-0.15 s old; once the body is back near its target the
     model-forward comparison takes over again (the session-27 review, finding 5). The body lifts off at 6 s, the loop
-    asking for 0.3 m/s^2 while the body answers ``true_accel`` (the model off by up to 2x), and the hand-back at 6.5 s
-    moves the climb rate by under 2 cm/s in its cycle."""
+    asking for 0.3 m/s^2 while the body answers ``true_accel`` (the model's push, effectiveness untaught, far from the
+    body's), and the hand-back at 6.5 s moves the climb rate by under 2 cm/s in its cycle. One cycle only: what the
+    observer does after it is the model's error, which the flights judge."""
     config = replace(Config().flight, plant_uncertainty=uncertainty)
     dt = 1.0 / config.rate_hz
     observer = AltitudeObserver(config)

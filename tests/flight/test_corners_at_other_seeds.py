@@ -3,8 +3,8 @@
 Seed 1 alone hid 14 of 96 failing flights at seeds 1-6 (docs/flight-robustness.md, sessions 20-21;
 ``benchmarks/flight_seed_sweep.py`` flies the whole table). Here: every corner at seed 2 and the flights of other
 seeds that sessions 21-28 fixed (each failed before, on the shipped code or a variant of it). Since session 28 seeds
-1-54 miss no goal in 864 flights (docs/flight-robustness.md); a flight found missing one again belongs here as a strict
-xfail with its figure (as corner-mTDL s54 was in sessions 26-27), so that fixing it flips its test.
+1-54 miss no goal in 864 flights (docs/flight-robustness.md). A flight found missing one again is pinned here as a
+strict xfail with its figure, so that fixing it flips its test (session 27's version of this file has the pattern).
 Each flight is 2-3 s of CPU.
 """
 

@@ -72,16 +72,17 @@ def test_under_a_partner_s_hand_a_correction_is_never_mixed_past_the_wide_deadba
     assert not _hover_step(2.5, soften=True).heading_loop.firm_against_rate
 
 
-def _brake_torque(confirmed: bool, learned: tuple[float, float] = (0.2, 0.2)) -> tuple[float, bool]:
+def _brake_torque(confirmed: bool, learned: tuple[float, float] = (0.2, 0.2),
+                  samples: tuple[int, int] = (50, 50)) -> tuple[float, bool]:
     """The heading loop's first brake torque after a 2 s right turn at 9 deg/s on a plant whose yaw ``learned`` these
-    values (reverse, forward; 0.2 both ways: a heavy weak blimp), with them ``confirmed`` by a real push or not; and
-    whether the brake escalates."""
+    values (reverse, forward; 0.2 both ways: a heavy weak blimp) from these many windows, with them ``confirmed`` by a
+    real push or not; and whether the brake escalates."""
     controller = FlightController(CONFIG)
     est, loop, e = controller.yaw, controller.heading_loop, controller.yaw.effectiveness
     est.heading = est.fine_heading = 0.0
     est.rate_dps = 9.0
     loop.restart(0.0)
-    e.samples, e.values = [50, 50], list(learned)
+    e.samples, e.values = list(samples), list(learned)
     if confirmed:
         e.confirming_samples, e.strong_values = [5, 5], list(learned)
     turn = setpoint_for_motion("turn_right", CONFIG)
@@ -113,3 +114,12 @@ def test_a_brake_nothing_confirmed_counts_on_the_larger_value_either_sign_learne
     both_eaten = _brake_torque(confirmed=False, learned=(0.19, 0.19))[0]
     assert eaten_brake_side == pytest.approx(both_as_the_turn_taught)
     assert abs(eaten_brake_side) < abs(both_eaten) / 3.0
+
+
+def test_a_brake_whose_own_side_nothing_taught_counts_on_the_turn_s_side() -> None:
+    """An untaught side holds the box's strongest it started from (4.0); the mirrored axis lends it the other side's
+    value. A brake counting on that 4.0 pushed a twentieth of what it needed on a heavy weak blimp (the session's
+    review: its first fix took the larger of the two raw values)."""
+    untaught_brake_side = _brake_torque(confirmed=False, learned=(4.0, 0.2), samples=(0, 50))[0]
+    both_taught = _brake_torque(confirmed=False)[0]
+    assert untaught_brake_side == pytest.approx(both_taught)

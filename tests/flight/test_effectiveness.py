@@ -457,7 +457,7 @@ def test_one_way_windows_only_a_window_whose_pushes_change_sign_teaches_nothing(
     assert mixed.value(-1.0) > 1.3 * 0.15 and mixed.value(1.0) < 0.5 * 0.15  # the draft, read as the push's answer
     one_way = _brake_pulses_against_a_draft(one_way=True)
     assert one_way.samples == [0, 0] and one_way.mixed_windows > 0
-    assert one_way.value(-1.0) == 4.0 and one_way.assured(-1.0) == 0.03  # the safe side of each: the box's
+    assert one_way.value(-1.0) == 4.0 and one_way.assured(-1.0) == 0.03  # the box's: a gentle push, the cap's weakest
 
 
 @pytest.mark.parametrize("gains", [(0.3, 0.6), (1.0, 1.0), (2.5, 3.5)])

@@ -53,14 +53,15 @@ def test_an_untaught_hover_correction_escalates_no_further_than_the_box_s_weakes
     assert torques[-1] == pytest.approx(torques[0] * e.high / e.lowest(-1.0))
 
 
-def _surge_forces(confirmed: bool, seconds: float, confirmed_value: float | None = None) -> list[float]:
+def _surge_forces(confirmed: bool, seconds: float, confirmed_value: float | None = None,
+                  learned: float | None = None) -> list[float]:
     """The surge loop's forces through the first ``seconds`` of a held `forward`, the body still, with the forward
-    side learned at the box's weakest: ``confirmed`` by a large measured change (at ``confirmed_value``, by default
-    that same value), or not (a few windows of lag)."""
+    side ``learned`` (by default at the box's weakest): ``confirmed`` by a large measured change (at
+    ``confirmed_value``, by default that same value), or not (a few windows of lag)."""
     controller = FlightController(CONFIG)
     est, loop = controller.surge, controller.surge_loop
     e = est.effectiveness
-    e.samples[1], e.values[1] = 3, e.lowest(1.0)
+    e.samples[1], e.values[1] = 3, e.lowest(1.0) if learned is None else learned
     if confirmed:
         e.confirming_samples[1] = 1
         e.strong_values[1] = e.lowest(1.0) if confirmed_value is None else confirmed_value
@@ -95,6 +96,15 @@ def test_a_held_command_on_a_confirmed_side_counts_on_the_confirmed_value_not_th
     on_the_confirmed = _surge_forces(True, 0.5, confirmed_value=e.high)
     ratio = e.lowest(1.0) / e.high
     assert on_the_confirmed[0] > 0.0 and on_the_confirmed[0] == pytest.approx(on_the_learned[0] * ratio, rel=0.05)
+
+
+def test_a_held_command_never_pushes_harder_than_the_learned_value_says() -> None:
+    """A confirmed value below the learned one (one window that met a draft confirms it) is not counted on: the push
+    is never stronger than before session 28 (the session's review)."""
+    e = FlightController(CONFIG).surge.effectiveness
+    learned_strong_confirmed_weak = _surge_forces(True, 0.5, confirmed_value=e.lowest(1.0), learned=e.high)
+    both_strong = _surge_forces(True, 0.5, confirmed_value=e.high, learned=e.high)
+    assert learned_strong_confirmed_weak == pytest.approx(both_strong, rel=1e-9)
 
 
 def test_a_turn_between_two_untaught_hover_corrections_restarts_the_escalation() -> None:
