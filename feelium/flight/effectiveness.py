@@ -86,6 +86,7 @@ class Effectiveness:
         self.values = [high, high]  # [push < 0, push > 0]
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
         self._strong_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over real pushes only
+        self._assuring_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over the windows that may teach a margin
         self.change_noise = change_noise
         self._information = [0.0, 0.0]  # per direction: sum x*x over independent windows (they overlap)
         self.strong_values = [high, high]
@@ -164,9 +165,15 @@ class Effectiveness:
 
     def _low_end(self, side: int) -> float:
         """The learned value ``ASSURED_STANDARD_ERRORS`` standard errors low (its least squares' error: the window's
-        noise over the root of the information), within the box."""
+        noise over the root of the information), within the box. Without ``change_noise``: the least squares over the
+        assuring windows alone, never above the learned value. Hover corrections after a brake kept teaching the value
+        a cap counted on, and a force the model misses (a draft, the drag it underrates) makes them read strong
+        (the session-28 review, finding 5; docs/flight-robustness.md)."""
         if not self.change_noise:
-            return self.values[side]
+            assuring = self._assuring_sums[side]
+            if assuring[0] <= 0.0:  # no assuring window carried a push
+                return self.values[side]
+            return min(self.values[side], max(assuring[1] / assuring[0], self.lows[side]))
         information = self._information[side]
         if information <= 0.0:
             return self.lows[side]
@@ -215,6 +222,9 @@ class Effectiveness:
         # the change it made (modelled times learned), not the modelled
         if (real or not self.real_pushes_assure) and abs(x) * self.values[side] >= self.assuring_change:
             self.assuring_samples[side] += 1
+            assuring = self._assuring_sums[side]
+            assuring[0] = assuring[0] * decay + x * x
+            assuring[1] = assuring[1] * decay + x * y
         if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0 and (real or not self.real_pushes_confirm):
             strong = self._strong_sums[side]
             strong[0] = strong[0] * decay + x * x

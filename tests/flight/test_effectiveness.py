@@ -13,7 +13,14 @@ from hypothesis import strategies as st
 from feelium.daemon.config import Config
 from feelium.flight.config import FlightConfig
 from feelium.flight.effectiveness import Effectiveness
-from feelium.flight.estimators import SurgeEstimate, air_drag, effectiveness_bounds, flow_tau_s
+from feelium.flight.estimators import (
+    SURGE_ASSURING_CHANGE_M_S,
+    SURGE_CONFIRMING_CHANGE_M_S,
+    SurgeEstimate,
+    air_drag,
+    effectiveness_bounds,
+    flow_tau_s,
+)
 
 
 def _fly(estimator: Effectiveness, gains: tuple[float, float], seconds: float = 6.0, noise: float = 0.0, seed: int = 1) -> None:
@@ -467,3 +474,36 @@ def test_one_way_windows_still_learn_each_direction(gains: tuple[float, float]) 
     assert 0 < estimator.mixed_windows < sum(estimator.samples)  # the sine's zero crossings
     assert estimator.value(-1.0) == pytest.approx(gains[0], rel=0.15)
     assert estimator.value(1.0) == pytest.approx(gains[1], rel=0.15)
+
+
+def _a_brake_then_hover_corrections_helped_by_a_force_the_model_misses() -> Effectiveness:
+    """A surge-like estimate: a real brake (0.4 s at -0.6) on a plant answering 0.15 in reverse, then 11 s of hover:
+    a draft carries the body forward, a reverse correction (-0.08, one way) brakes it, helped by 0.01 m/s^2 the model
+    does not know (the drag it underrates)."""
+    estimator = Effectiveness(0.25, 4.0, reverse_low=0.125, min_change=0.005, assuring_change=SURGE_ASSURING_CHANGE_M_S,
+                              confirming_change=SURGE_CONFIRMING_CHANGE_M_S, real_pushes_assure=True, one_way=True)
+    t, dt, speed = 0.0, 0.02, 0.15
+    for _ in range(20):
+        t += dt
+        estimator.mark_real_push(t, -0.6)
+        speed += 0.15 * -0.6 * dt
+        estimator.update(t, dt, -0.6, speed)
+    for _ in range(8):
+        for _ in range(40):
+            t += dt
+            speed += 0.01 * dt
+            estimator.update(t, dt, 0.0, speed)
+        for _ in range(30):
+            t += dt
+            speed += (0.15 * -0.08 - 0.01) * dt
+            estimator.update(t, dt, -0.08, speed)
+    return estimator
+
+
+def test_a_margin_counts_on_what_real_pushes_showed_not_on_hover_corrections_that_came_after() -> None:
+    """Once a real push assured the reverse side, the hover's corrections kept teaching the value the cap counted on,
+    and a force the model misses made them read strong: 0.189 against the brake's 0.150 here (the session-28 review,
+    finding 5). The margin is the least squares over the assuring windows alone, never above the learned value."""
+    estimator = _a_brake_then_hover_corrections_helped_by_a_force_the_model_misses()
+    assert estimator.assuring_samples[0] > 0 and estimator.value(-1.0) > 0.18  # the corrections read strong
+    assert estimator.assured(-1.0) == pytest.approx(0.15, abs=0.003)  # what the brake showed
