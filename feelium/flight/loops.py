@@ -534,10 +534,10 @@ class SurgeLoop:
         """What a held command's push is normalised by: the confirmed value (windows that changed the speed as a command
         or a brake does) once one has confirmed its sign, never below the learned value (so never a harder push than
         the learned value asks), else the box's strongest halving every ``ESCALATE_S`` from the command's start down to
-        the learned value. The learned value is taught by every window, and a steady push
-        through a deadband wider than the config's reads weak: corner-mTDL's forward side was learned at 1.40 where
-        its commands had confirmed 4.0, and a later command's onset, counting on 1.40, ran the body to 1.19 of the
-        command (flight seed 19; 1.13 counting on the confirmed value; docs/flight-robustness.md, session 28).
+        the learned value. The learned value is taught by every window, and a steady push through a deadband wider
+        than the config's reads weak: corner-mTDL's forward side was learned at 1.40 where its commands had confirmed
+        4.0, and a later command's onset, counting on 1.40, ran the body to 1.19 of the command (flight seed 19; 1.13
+        counting on the confirmed value; docs/flight-robustness.md, session 28).
 
         The first windows of a command on a 150 ms, deadband-wide plant see the push and not yet its answer: they
         taught corner-mTdL's forward side the box's weakest (0.25 against about 4) in 0.2 s, the push went to the
