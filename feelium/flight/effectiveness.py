@@ -27,6 +27,14 @@ ASSURED_STANDARD_ERRORS = 2.0  # with ``change_noise``: a margin counts on the l
 ONE_WAY_SHARE = 0.8
 
 
+def _fold(sums: list[float], decay: float, x: float, y: float) -> float:
+    """Fold one window into least-squares sums ``[sum x*x, sum x*y]`` with forgetting; the ratio they give now (0 while
+    no window has carried a push)."""
+    sums[0] = sums[0] * decay + x * x
+    sums[1] = sums[1] * decay + x * y
+    return sums[1] / sums[0] if sums[0] > 0.0 else 0.0
+
+
 class Effectiveness:
     """Least-squares ratio of measured to modelled rate change over ``window_s`` windows, per push direction."""
 
@@ -211,26 +219,19 @@ class Effectiveness:
         y = measured_rate - rate0
         side = 1 if x > 0 else 0
         decay = math.exp(-dt / self.memory_s)
-        sums = self._sums[side]
-        sums[0] = sums[0] * decay + x * x
-        sums[1] = sums[1] * decay + x * y
+        ratio = _fold(self._sums[side], decay, x, y)
         # A window shares all but ``dt`` of its span with the one before: window_s / dt of them are one measurement.
         self._information[side] = self._information[side] * decay + x * x * min(1.0, dt / self.window_s)
         self.samples[side] += 1
-        self.values[side] = min(max(sums[1] / sums[0], self.lows[side]), self.high)
+        self.values[side] = min(max(ratio, self.lows[side]), self.high)
         real = self._overlaps_real_push(t, side)
         # the change it made (modelled times learned), not the modelled
         if (real or not self.real_pushes_assure) and abs(x) * self.values[side] >= self.assuring_change:
             self.assuring_samples[side] += 1
-            assuring = self._assuring_sums[side]
-            assuring[0] = assuring[0] * decay + x * x
-            assuring[1] = assuring[1] * decay + x * y
+            _fold(self._assuring_sums[side], decay, x, y)
         if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0 and (real or not self.real_pushes_confirm):
-            strong = self._strong_sums[side]
-            strong[0] = strong[0] * decay + x * x
-            strong[1] = strong[1] * decay + x * y
             self.confirming_samples[side] += 1
-            self.strong_values[side] = min(max(strong[1] / strong[0], self.lows[side]), self.high)
+            self.strong_values[side] = min(max(_fold(self._strong_sums[side], decay, x, y), self.lows[side]), self.high)
 
     def mark_real_push(self, t: float, push: float) -> None:
         """The loop pushes out of hover at ``t`` (a command or a brake) with this sign (see ``real_pushes_assure``)."""
