@@ -1,4 +1,4 @@
-"""``feelium run``, ``feelium bench daemon``, ``feelium bench board`` and ``feelium bench soak``."""
+"""``feelium run``, ``feelium bench daemon``, ``feelium bench board``, ``feelium bench quota`` and ``feelium bench soak``."""
 
 from __future__ import annotations
 
@@ -71,6 +71,23 @@ def register(registry: CommandRegistry) -> None:
         help="the daemon's event loop (default: [daemon] event_loop); asyncio's lets the bench charge each loop "
         "callback to its service",
     )
+    quota = registry.subcommand(
+        "bench", "quota",
+        "The board bench inside a CPU quota equal to the projected budget, the quota derived on this host just before "
+        "(issue 16, point 3; docs/performance.md). Needs root for the cgroup.",
+        _bench_quota,
+    )
+    quota.add_argument("--cgroup", required=True, metavar="DIR",
+                       help="a cgroup with the cpu controller, created if absent (v1: /sys/fs/cgroup/cpu/NAME, v2: /sys/fs/cgroup/NAME)")
+    quota.add_argument("--minutes", type=float, default=2.0, help="measured window inside the quota (default 2)")
+    quota.add_argument("--calibrate-minutes", type=float, default=1.0,
+                       help="the unconfined run the quota is derived from (default 1)")
+    quota.add_argument("--numeric-split-seconds", type=float, default=20.0,
+                       help="the unconfined run's numeric split, for the factor (default 20; 0 = everything at 10x)")
+    quota.add_argument("--quota-us", type=int, help="use this quota instead of deriving it (no unconfined run)")
+    quota.add_argument("--period-us", type=int, default=10_000, help="the quota's period (default 10000)")
+    quota.add_argument("--config", help="TOML config file (sim backends forced; cameras preloaded; board out of process)")
+    quota.add_argument("--json", metavar="FILE", help="also write both runs, the quota and the verdict as JSON here")
     soak = registry.subcommand(
         "bench", "soak", "The board bench run long (30 min): RSS, growth after warm-up, rates held (docs/daemon.md).",
         _bench_soak,
@@ -133,6 +150,12 @@ def _bench_board(args: argparse.Namespace) -> int:
     from feelium.lab.daemon.board import bench_board_command
 
     return bench_board_command(args)
+
+
+def _bench_quota(args: argparse.Namespace) -> int:
+    from feelium.lab.daemon.budgetquota import bench_quota_command
+
+    return bench_quota_command(args)
 
 
 def _bench_soak(args: argparse.Namespace) -> int:

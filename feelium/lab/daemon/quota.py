@@ -24,3 +24,26 @@ def join(group: Path) -> str:
     """Move this process, all its threads, into ``group``; returns the quota that now applies."""
     (group / "cgroup.procs").write_text(f"{os.getpid()}\n")
     return quota_of(group)
+
+
+def set_quota(group: Path, quota_us: int, period_us: int) -> str:
+    """Give ``group`` a quota of ``quota_us`` CPU microseconds every ``period_us``; returns the quota it had,
+    as :func:`quota_of` states it, for :func:`restore_quota`. v2 writes ``cpu.max``; v1 the period first (the
+    kernel refuses a quota it cannot hold in the current period)."""
+    before = quota_of(group)
+    if (group / "cpu.max").exists():
+        (group / "cpu.max").write_text(f"{quota_us} {period_us}\n")
+    else:
+        (group / "cpu.cfs_period_us").write_text(f"{period_us}\n")
+        (group / "cpu.cfs_quota_us").write_text(f"{quota_us}\n")
+    return before
+
+
+def restore_quota(group: Path, before: str) -> None:
+    """Put back a quota :func:`set_quota` replaced (``max`` or ``-1``: none)."""
+    quota, period = before.split()
+    if (group / "cpu.max").exists():
+        (group / "cpu.max").write_text(f"{quota} {period}\n")
+    else:
+        (group / "cpu.cfs_period_us").write_text(f"{period}\n")
+        (group / "cpu.cfs_quota_us").write_text(f"{quota}\n")
