@@ -49,9 +49,13 @@ def test_the_quota_is_the_budget_over_the_factor_measured_here_plus_the_simulate
     factor = 1.63 / 0.204  # projected over the cores used here without the simulated sensor
     assert derived["factor"] == pytest.approx(factor, abs=1e-3)
     assert derived["quota_us"] == round((2.0 / factor + 0.006) * 10_000)
-    # A slower host needs more of its CPU for the same projected work: the same Pi cores, a larger quota.
+    # A host twice as slow projects twice the Pi cores at the same factor (the projection is per core here): the
+    # quota is the same share of a core, plus the simulated sensor's larger share, and the projection fails first.
     slower = quota_for_budget(run(process_ms=420.0, pi_cores=1.63 * 2.0, sim_ms=12.0))
-    assert slower["quota_us"] == pytest.approx(derived["quota_us"] + 60, abs=1)
+    assert slower["factor"] == pytest.approx(derived["factor"], rel=0.03)
+    assert slower["quota_us"] - derived["quota_us"] == pytest.approx(60 + 10_000 * 2.0 * (1 / slower["factor"] - 1 / derived["factor"]), abs=1)
+    # A split that finds more numeric work (a smaller factor) gives a larger quota for the same budget.
+    assert quota_for_budget(run(pi_cores=1.4))["quota_us"] > quota_for_budget(run(pi_cores=1.7))["quota_us"]
     with pytest.raises(ValueError):
         quota_for_budget(run(process_ms=6.0, sim_ms=6.0))  # nothing but the simulated devices measured
 

@@ -1,8 +1,9 @@
 """``feelium bench quota``: do the rates hold inside a CPU quota equal to the projected budget? (issue 16, point 3)
 
-The quota is derived in the same command, on the same host, minutes apart: a host that runs slower today needs more
-of its CPU for the same work, and a quota carried over from another day's factor judges the host, not the daemon
-(sessions 25-28 measured the same code at a Python reference of 3.2 and of 7 ms). So the command
+The quota is derived in the same command, from the projection's own factor measured minutes before: the day's
+numeric split (a factor of 8.05-8.28 in sessions 25-29) rather than one carried over by hand. The factor is per core
+of the measuring host, as the projection is, so a slower host makes both the projection and this check harsher
+together. So the command
 
 1. runs the board bench unconfined, with the numeric split, for the effective factor ``pi_cores / cores here``
    (every service's measured mix of 6x and 10x work), in a child process so that the confined run's memory is its own;
