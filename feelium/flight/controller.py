@@ -156,7 +156,8 @@ class FlightController:
             self.yaw.effectiveness.mark_real_push(t, yaw_nm)
         # A hover correction braking a rate near the stop goal's is mixed past the box's widest deadband: compensated
         # for the config's, its small push was eaten by corner-mTdL's 60 us and a draft held the rate over 3 deg/s
-        # for 3 s (flight seed 20; docs/flight-robustness.md, session 27). Only in a cycle the heading loop pushed: its
+        # for 3 s (flight seed 20; docs/flight-robustness.md, session 27); so is the settle after a turn's brake, over
+        # the same rate (session 29). Only in a cycle the heading loop pushed: its
         # flag is this cycle's. (The surge's push of the cycle is mixed so too: requiring the surge loop to hover as
         # well broke 86 of the 864 flights; docs/flight-robustness.md, session 27.)
         firm = yaw_nm != 0.0 and self.heading_loop.firm_against_rate

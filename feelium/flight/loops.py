@@ -312,7 +312,7 @@ class HeadingLoop:
         self.untaught_push_since: float | None = None  # a hover correction of an untaught sign pushes since then...
         self.untaught_push_sign = 0.0  # ...this way
         self.escalating = False  # this cycle's push has a sign nothing taught (confirmed): it escalates (health)
-        self.firm_against_rate = False  # a hover correction braking a rate near the stop goal's (see ``step``)
+        self.firm_against_rate = False  # a hover correction or a settle braking a rate over the firm one (see ``step``)
 
     def restart(self, heading: float) -> None:
         self.target = heading
@@ -346,7 +346,7 @@ class HeadingLoop:
             self.brake.start(math.degrees(self._rate_now(est, thrust)), math.degrees(est.accel(thrust.yaw)))
             self.braking = True
         p_gain = 0.0 if turn else 1.0
-        hover = False
+        hover = settling = False
         if not turn and self.braking:
             ref.rate, rate_ahead, ref.accel = self.brake.step(0.0, (-c.brake_yaw_dps2, c.brake_yaw_dps2), dt)
             ref.value = (ref.value + ref.rate * dt) % 360.0
@@ -354,6 +354,7 @@ class HeadingLoop:
             if abs(rate_ahead) < BRAKE_LANDED_DPS and abs(ref.rate) < HOVER_YAW_BAND_DPS:
                 self.braking, self.settle_until = False, t + SETTLE_S
         elif not turn and self.settle_until is not None:
+            settling = True
             p_gain, gain = 0.0, gain * SETTLE_DAMPING / max(c.heading_kd, 1e-6)
             ref.reset(est.heading)
             self.target = est.heading
@@ -397,6 +398,11 @@ class HeadingLoop:
         if hover:
             torque = self.band.same_sign(torque)
             self.firm_against_rate = not sp.soften and firm > 1.0 and torque * est.rate_dps < 0.0
+        elif settling:
+            # A brake lands on its plan, not on the body: on a plant whose deadband is twice the config's, the settle
+            # took over at 8 deg/s and its push, compensated for the config's deadband, was mostly eaten (the rate
+            # crept to 3 deg/s in 0.6 s: corner-mTdl's stops took 0.98 s at flight seeds 8 and 38, 0.88-0.90 mixed so).
+            self.firm_against_rate = not sp.soften and abs(est.rate_dps) > HOVER_FIRM_YAW_DPS and torque * est.rate_dps < 0.0
         return torque
 
     def _lag_s(self, turn: float) -> float:

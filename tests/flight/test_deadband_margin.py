@@ -123,3 +123,31 @@ def test_a_brake_whose_own_side_nothing_taught_counts_on_the_turn_s_side() -> No
     untaught_brake_side = _brake_torque(confirmed=False, learned=(4.0, 0.2), samples=(0, 50))[0]
     both_taught = _brake_torque(confirmed=False)[0]
     assert untaught_brake_side == pytest.approx(both_taught)
+
+
+def _settle_step(rate_dps: float, soften: bool = False) -> FlightController:
+    """One step of the damping-only settle after a turn's brake has landed, the body still turning at ``rate_dps``."""
+    controller = FlightController(CONFIG)
+    est, loop = controller.yaw, controller.heading_loop
+    est.heading = est.fine_heading = 0.0
+    est.rate_dps = rate_dps
+    loop.restart(0.0)
+    loop.settle_until = 10.5
+    setpoint = setpoint_for_motion(None, CONFIG, soften=True) if soften else HOLD
+    torque = loop.step(10.0, DT, setpoint, est, controller.thrust, CONFIG.soften_factor if soften else 1.0)
+    assert loop.settle_until is not None and not loop.hovering  # still settling: not a hover correction
+    assert torque * rate_dps < 0.0
+    return controller
+
+
+@pytest.mark.parametrize("rate_dps", [8.0, -2.5])
+def test_a_settle_braking_a_rate_over_the_firm_one_is_mixed_past_the_wide_deadband(rate_dps: float) -> None:
+    """A brake whose plan landed before the body did hands over a rate of several deg/s to the settle: its push,
+    compensated for the config's deadband, was eaten by corner-mTdl's (twice the config's) and the rate crept from 8
+    to 3 deg/s in 0.6 s (flight seeds 8 and 38: stops 0.98 s against the goal's 1.0; session 29)."""
+    assert _settle_step(rate_dps).heading_loop.firm_against_rate
+
+
+def test_a_settle_near_rest_or_under_a_partner_s_hand_keeps_the_config_s_compensation() -> None:
+    assert not _settle_step(1.7).heading_loop.firm_against_rate
+    assert not _settle_step(8.0, soften=True).heading_loop.firm_against_rate

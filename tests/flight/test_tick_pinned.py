@@ -63,7 +63,10 @@ first differ at 1.74 / 1.75 s) and a held command counts on the confirmed surge 
 both switched off and the key left out all three digests are as they were. ``stall_and_lag`` re-pinned again in
 session 28 for the surge margin's own least squares over its assuring windows (``Effectiveness._low_end``): every
 cycle's commands are as before; at the end health's surge ``forward_assured`` and ``reverse_assured`` read 0.782 / 0.934
-(0.814 / 0.961 before).
+(0.814 / 0.961 before). ``drafts_dropouts`` re-pinned in session 29 for the settle after a turn's brake mixing its
+push past the box's widest deadband while the rate is over 2 deg/s (``HeadingLoop.firm_against_rate`` while
+settling): its commands first differ at 5.70 s, the first of 3 such cycles after the right turn's brake; the other
+two flights never settle that fast and are as they were.
 The digests below are all of it: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
@@ -122,7 +125,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "33d64e3fb68ac0cdb7ea4eaf",
+        "a5c7d3990b9fd13485102a20",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
