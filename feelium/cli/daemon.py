@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import tempfile
 from pathlib import Path
@@ -109,10 +110,13 @@ def _run(args: argparse.Namespace) -> int:
         load_config(args.config), sim=args.sim, replay=args.replay, projector_calibration=args.projector_calibration
     )
     setup_logging(effective_level(config.daemon.log_level, args.verbose))
-    with tempfile.TemporaryDirectory(prefix="feelium-replay-map-") as scratch:
+    with contextlib.ExitStack() as scratch:
+        # Only a replay that fits its map needs a folder for it: every other run made an empty one, left behind in
+        # /tmp whenever the process ended by os._exit (a stuck device thread) or a kill.
         if args.replay and not args.projector_calibration and config.rear_camera.projection_compensation != "off":
+            folder = Path(scratch.enter_context(tempfile.TemporaryDirectory(prefix="feelium-replay-map-")))
             try:
-                config = _with_fitted_replay_map(config, Path(args.replay), Path(scratch))
+                config = _with_fitted_replay_map(config, Path(args.replay), folder)
             except (ValueError, OSError) as exc:
                 print(f"feelium run: --replay: {exc}", file=sys.stderr)
                 return 1

@@ -110,3 +110,24 @@ def test_the_pixel_parts_are_built_with_opencvs_pool_sized_as_configured():
             assert seen[-1] == expected
     finally:
         cv2.setNumThreads(before)
+
+
+def test_feelium_run_makes_a_scratch_folder_only_for_a_replay_that_fits_its_map(monkeypatch):
+    """Every run used to make an empty /tmp folder for a replay's fitted map, left behind whenever the process ended
+    by ``os._exit`` (a stuck device thread) or a kill: 24 of them in one day's /tmp on the development machine."""
+    import tempfile
+
+    from feelium.cli import main
+    from feelium.daemon import runner
+
+    made: list[str] = []
+    real = tempfile.TemporaryDirectory
+
+    def recording(*args: object, **kwargs: object) -> tempfile.TemporaryDirectory:  # type: ignore[type-arg]
+        made.append(str(kwargs.get("prefix")))
+        return real(*args, **kwargs)  # type: ignore[call-overload]
+
+    monkeypatch.setattr(tempfile, "TemporaryDirectory", recording)
+    monkeypatch.setattr(runner, "run_process", lambda config: 0)
+    assert main(["run", "--sim"]) == 0
+    assert made == []
