@@ -28,16 +28,12 @@ def join(group: Path) -> str:
 
 def set_quota(group: Path, quota_us: int, period_us: int) -> str:
     """Give ``group`` a quota of ``quota_us`` CPU microseconds every ``period_us``; returns the quota it had,
-    as :func:`quota_of` states it, for :func:`restore_quota`. v2 writes both in one ``cpu.max``; v1 writes the
-    period, then the quota (either write may be refused, for instance when the parent's quota is lower: then
-    the old values are put back before the error goes on, so a half-set group is never left behind)."""
+    as :func:`quota_of` states it, for :func:`restore_quota`. Either write may be refused (for instance when the
+    parent's quota is lower): then the old values are put back before the error goes on, so a half-set group is
+    never left behind."""
     before = quota_of(group)
     try:
-        if (group / "cpu.max").exists():
-            (group / "cpu.max").write_text(f"{quota_us} {period_us}\n")
-        else:
-            (group / "cpu.cfs_period_us").write_text(f"{period_us}\n")
-            (group / "cpu.cfs_quota_us").write_text(f"{quota_us}\n")
+        _write(group, str(quota_us), str(period_us))
     except OSError:
         restore_quota(group, before)
         raise
@@ -47,6 +43,11 @@ def set_quota(group: Path, quota_us: int, period_us: int) -> str:
 def restore_quota(group: Path, before: str) -> None:
     """Put back a quota :func:`set_quota` replaced (``max`` or ``-1``: none)."""
     quota, period = before.split()
+    _write(group, quota, period)
+
+
+def _write(group: Path, quota: str, period: str) -> None:
+    """v2: both in one ``cpu.max``; v1: the period, then the quota."""
     if (group / "cpu.max").exists():
         (group / "cpu.max").write_text(f"{quota} {period}\n")
     else:
