@@ -313,13 +313,14 @@ class HeadingLoop:
         self.untaught_push_sign = 0.0  # ...this way
         self.escalating = False  # this cycle's push has a sign nothing taught (confirmed): it escalates (health)
         self.firm_against_rate = False  # a hover correction or a settle braking a rate over the firm one (see ``step``)
+        self.settling_a_brake = False  # the settle follows a turn's brake, not a telemetry outage (see ``step``)
 
     def restart(self, heading: float) -> None:
         self.target = heading
         self.ref.reset(heading)
 
     def recover(self, t: float) -> None:
-        self.turning = self.braking = False
+        self.turning = self.braking = self.settling_a_brake = False
         self.settle_until = t + RECOVERY_SETTLE_S
 
     def step(self, t: float, dt: float, sp: Setpoint, est: YawEstimate, thrust: ThrustModel, gain: float) -> float:
@@ -352,7 +353,7 @@ class HeadingLoop:
             ref.value = (ref.value + ref.rate * dt) % 360.0
             self.target = ref.value
             if abs(rate_ahead) < BRAKE_LANDED_DPS and abs(ref.rate) < HOVER_YAW_BAND_DPS:
-                self.braking, self.settle_until = False, t + SETTLE_S
+                self.braking, self.settle_until, self.settling_a_brake = False, t + SETTLE_S, True
         elif not turn and self.settle_until is not None:
             settling = True
             p_gain, gain = 0.0, gain * SETTLE_DAMPING / max(c.heading_kd, 1e-6)
@@ -398,10 +399,12 @@ class HeadingLoop:
         if hover:
             torque = self.band.same_sign(torque)
             self.firm_against_rate = not sp.soften and firm > 1.0 and torque * est.rate_dps < 0.0
-        elif settling:
+        elif settling and self.settling_a_brake:
             # A brake lands on its plan, not on the body: on a plant whose deadband is twice the config's, the settle
             # took over at 8 deg/s and its push, compensated for the config's deadband, was mostly eaten (the rate
             # crept to 3 deg/s in 0.6 s: corner-mTdl's stops took 0.98 s at flight seeds 8 and 38, 0.88-0.90 mixed so).
+            # Not after a telemetry outage: that settle starts from a full turn's rate with a long lag's torque still
+            # in the pipe, and mixed so it swung past zero to -3.25 deg/s (corner-mTdL, a 0.4 s stall; the review).
             self.firm_against_rate = not sp.soften and abs(est.rate_dps) > HOVER_FIRM_YAW_DPS and torque * est.rate_dps < 0.0
         return torque
 

@@ -132,7 +132,7 @@ def _settle_step(rate_dps: float, soften: bool = False) -> FlightController:
     est.heading = est.fine_heading = 0.0
     est.rate_dps = rate_dps
     loop.restart(0.0)
-    loop.settle_until = 10.5
+    loop.settle_until, loop.settling_a_brake = 10.5, True
     setpoint = setpoint_for_motion(None, CONFIG, soften=True) if soften else HOLD
     torque = loop.step(10.0, DT, setpoint, est, controller.thrust, CONFIG.soften_factor if soften else 1.0)
     assert loop.settle_until is not None and not loop.hovering  # still settling: not a hover correction
@@ -151,3 +151,18 @@ def test_a_settle_braking_a_rate_over_the_firm_one_is_mixed_past_the_wide_deadba
 def test_a_settle_near_rest_or_under_a_partner_s_hand_keeps_the_config_s_compensation() -> None:
     assert not _settle_step(1.7).heading_loop.firm_against_rate
     assert not _settle_step(8.0, soften=True).heading_loop.firm_against_rate
+
+
+def test_the_settle_after_a_telemetry_outage_keeps_the_config_s_compensation() -> None:
+    """That settle starts from whatever rate the outage left, with a long lag's torque still in the pipe: mixed past
+    the wide deadband, corner-mTdL's rate swung past zero to -3.25 deg/s after a 0.4 s stall (the session's review)."""
+    controller = FlightController(CONFIG)
+    est, loop = controller.yaw, controller.heading_loop
+    est.heading = est.fine_heading = 0.0
+    est.rate_dps = 8.0
+    loop.restart(0.0)
+    loop.settling_a_brake = True  # a brake's settle interrupted by the outage
+    loop.recover(10.0)
+    torque = loop.step(10.0, DT, HOLD, est, controller.thrust, 1.0)
+    assert loop.settle_until is not None and torque * est.rate_dps < 0.0
+    assert not loop.firm_against_rate
