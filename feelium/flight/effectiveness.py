@@ -23,6 +23,10 @@ from collections import deque
 
 REAL_PUSH_SLACK_S = 0.05  # the loop marks a real push after the estimate's update: a cycle late, with room
 ASSURED_STANDARD_ERRORS = 2.0  # with ``change_noise``: a margin counts on the learned value this many standard errors low
+# With ``steady_bias``: a side's line is used once its slope's standard error (``change_noise`` over the root of its
+# information) is at most this; until then the ratio through the origin, biased but steady. Unguarded, a line through
+# a first hover's few windows read anything, and 88 of 1152 flights left the altitude limits (session 30).
+LINE_STANDARD_ERROR = 1.0
 # With ``one_way``: a window teaches only if its net push is at least this share of its pushes' sum (they keep a sign).
 ONE_WAY_SHARE = 0.8
 
@@ -35,6 +39,19 @@ def _fold(sums: list[float], decay: float, x: float, y: float) -> float:
     return sums[1] / sums[0] if sums[0] > 0.0 else 0.0
 
 
+def _fold_affine(sums: list[float], decay: float, x: float, y: float, least_spread: float) -> tuple[float | None, float]:
+    """Fold one window into the sums ``[n, sum x, sum y, sum x*x, sum x*y]`` of a line ``y = slope * x + offset`` with
+    forgetting; its slope now (``None`` while the pushes' spread about their mean is under ``least_spread``: their
+    differences would be noise) and that spread (the slope's information)."""
+    for i, term in enumerate((1.0, x, y, x * x, x * y)):
+        sums[i] = sums[i] * decay + term
+    n, sx, sy, sxx, sxy = sums
+    spread = sxx - sx * sx / n
+    if spread <= least_spread:
+        return None, 0.0
+    return (sxy - sx * sy / n) / spread, spread
+
+
 class Effectiveness:
     """Least-squares ratio of measured to modelled rate change over ``window_s`` windows, per push direction."""
 
@@ -42,7 +59,7 @@ class Effectiveness:
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
                  confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
                  mirrored: bool = False, real_pushes_assure: bool = False, real_pushes_confirm: bool = False,
-                 change_noise: float = 0.0, one_way: bool = False) -> None:
+                 change_noise: float = 0.0, one_way: bool = False, steady_bias: bool = False) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -76,7 +93,14 @@ class Effectiveness:
         difference of two, so the same rate change divided by it reads too strong: a brake's first windows, mixed with
         the command's last forward pushes, and the hover's windows mixing that brake with forward corrections taught
         corner-MtDl's reverse surge 0.33 where its brake showed 0.13-0.15; the speed cap counting on it took the
-        forward lapse to 1.54 s (flight seed 19; docs/flight-robustness.md, session 28)."""
+        forward lapse to 1.54 s (flight seed 19; docs/flight-robustness.md, session 28);
+        ``steady_bias``: the pushes carry an estimate that moves no rate (the learned disturbance, the part
+        :meth:`update` is told is ``learned``), off while it learns: each direction fits a line through the commanded
+        share of its pushes with an offset (the force the model misses), not a ratio of the whole push through the
+        origin. Through the origin, a hold whose disturbance was 0.2-0.7 m/s^2 off taught corner-MTdl's heave 0.25 down
+        and 3.1 up where both were about 1.0; its down pushes were four times too strong and the hold under the ceiling
+        swung 10.7 cm past it (flight seed 70; docs/flight-robustness.md, session 30). A line needs pushes that differ:
+        until its slope is known to ``LINE_STANDARD_ERROR``, the side keeps the ratio through the origin."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -93,15 +117,18 @@ class Effectiveness:
         self.confirming_samples = [0, 0]
         self.values = [high, high]  # [push < 0, push > 0]
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
+        self.steady_bias = steady_bias
+        self._affine_sums = [[0.0] * 5, [0.0] * 5]  # with ``steady_bias``, per direction: see :func:`_fold_affine`
         self._strong_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over real pushes only
         self._assuring_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over the windows that may teach a margin
         self.change_noise = change_noise
         self._information = [0.0, 0.0]  # per direction: sum x*x over independent windows (they overlap)
         self.strong_values = [high, high]
-        # (t, modelled push integral, its magnitude's integral, measured rate)
-        self._history: deque[tuple[float, float, float, float]] = deque()
+        # (t, modelled push integral, its magnitude's integral, the integral of its commanded share, measured rate)
+        self._history: deque[tuple[float, float, float, float, float]] = deque()
         self._push_integral = 0.0
         self._gross_integral = 0.0
+        self._commanded_integral = 0.0
         self.one_way = one_way
         self.mixed_windows = 0  # with ``one_way``: windows over ``min_change`` not taught from, changing sign
         self.samples = [0, 0]
@@ -197,17 +224,19 @@ class Effectiveness:
         """The box's lower bound for a push of this sign: what a push must be scaled by to act on every plant."""
         return self.lows[1 if push > 0.0 else 0]
 
-    def update(self, t: float, dt: float, push: float, measured_rate: float | None) -> None:
-        """Fold in one cycle: the modelled acceleration ``push`` held over ``dt`` and the measured rate at ``t``."""
+    def update(self, t: float, dt: float, push: float, measured_rate: float | None, learned: float = 0.0) -> None:
+        """Fold in one cycle: the modelled acceleration ``push`` held over ``dt`` and the measured rate at ``t``;
+        ``learned``: the share of ``push`` that is an estimate, not a command (the disturbance: see ``steady_bias``)."""
         self._push_integral += push * dt
         self._gross_integral += abs(push) * dt
+        self._commanded_integral += (push - learned) * dt
         if measured_rate is None or not math.isfinite(measured_rate):
             self._history.clear()  # a gap breaks the windows
             return
-        self._history.append((t, self._push_integral, self._gross_integral, measured_rate))
+        self._history.append((t, self._push_integral, self._gross_integral, self._commanded_integral, measured_rate))
         while len(self._history) >= 2 and self._history[1][0] <= t - self.window_s + 1e-9:
             self._history.popleft()  # keep the newest sample at or before the window's start
-        t0, integral0, gross0, rate0 = self._history[0]
+        t0, integral0, gross0, commanded0, rate0 = self._history[0]
         if t - t0 < self.window_s - 1e-6:
             return
         x = self._push_integral - integral0
@@ -219,9 +248,16 @@ class Effectiveness:
         y = measured_rate - rate0
         side = 1 if x > 0 else 0
         decay = math.exp(-dt / self.memory_s)
-        ratio = _fold(self._sums[side], decay, x, y)
         # A window shares all but ``dt`` of its span with the one before: window_s / dt of them are one measurement.
-        self._information[side] = self._information[side] * decay + x * x * min(1.0, dt / self.window_s)
+        overlap = min(1.0, dt / self.window_s)
+        ratio = _fold(self._sums[side], decay, x, y)
+        self._information[side] = self._information[side] * decay + x * x * overlap
+        if self.steady_bias:
+            commanded = self._commanded_integral - commanded0
+            slope, spread = _fold_affine(self._affine_sums[side], decay, commanded, y, max(self.min_change ** 2, 1e-12))
+            if slope is not None and self.change_noise <= LINE_STANDARD_ERROR * math.sqrt(spread * overlap):
+                self._information[side] = spread * overlap
+                ratio = slope
         self.samples[side] += 1
         self.values[side] = min(max(ratio, self.lows[side]), self.high)
         real = self._overlaps_real_push(t, side)

@@ -31,6 +31,13 @@ RANGE_RATE_MIN_SAMPLES = 6
 CLIMB_RATE_TAU_S = 0.1  # how fast the climb rate follows the range slope at plant_uncertainty 2 (never at 1)
 DISTURBANCE_FROM_RATE_TAU_S = 3.0  # and how fast the disturbance learns what the model missed of it...
 NEW_HOLD_S, NEW_HOLD_TAU_S = 5.0, 0.5  # ...and how fast in the first seconds of a hold, when nothing is learned yet
+# ...but from the climb rate never faster than this, m/s^2 per s. A step is the rate's miss over the learned
+# effectiveness, and a side's first windows may read that a quarter of its value: in a first hover the disturbance then
+# leapt from -0.46 to +0.38 m/s^2 (true -0.25) in half a second and corner-MTdL fell to the floor (flight seed 52;
+# docs/flight-robustness.md, session 30). What it learns (buoyancy, the model's hover force) changes slower; a first hold
+# still finds it in about a second. (Limiting the position residual's slow integral too took two flights of 1152 past
+# the altitude goal: session 30.)
+DISTURBANCE_SLEW_M_S3 = 1.0
 HEAVE_WINDOW_S = 0.5  # its effectiveness windows: longer than the surge's, the range slope is noisier
 HEAVE_MIN_CHANGE = 0.03  # m/s of modelled climb-rate change: below it a window is noise, not excitation
 # The noise of one heave window's measured climb-rate change: the difference of two range slopes, each over 15
@@ -198,10 +205,10 @@ class AltitudeObserver:
         self._gated_since: float | None = None
         self._restart_t = -math.inf
         low, high = effectiveness_bounds(config.uncertainty("heave"), reverse=False)
-        self.effectiveness = Effectiveness(low, high, window_s=HEAVE_WINDOW_S, min_change=HEAVE_MIN_CHANGE,
+        self.effectiveness = Effectiveness(low, high, window_s=HEAVE_WINDOW_S, min_change=HEAVE_MIN_CHANGE, steady_bias=True,
                                            change_noise=HEAVE_CHANGE_NOISE_M_S)
         self.range_rate = RangeRate()
-        self._pushes: deque[float] = deque(maxlen=max(1, round(self.range_rate.age_s * config.rate_hz)) + 1)
+        self._pushes: deque[tuple[float, float]] = deque(maxlen=max(1, round(self.range_rate.age_s * config.rate_hz)) + 1)
 
     def push(self, up_force_n: float) -> float:
         """The modelled net vertical acceleration of ``up_force_n``: thrust, buoyancy and drag over the mass."""
@@ -244,7 +251,8 @@ class AltitudeObserver:
             limit = self.c.altitude_integral_limit
             tau = DISTURBANCE_FROM_RATE_TAU_S if t - self._restart_t > NEW_HOLD_S else NEW_HOLD_TAU_S
             step = missed / (tau * self.effectiveness.value(self.push(up_force_n) + self.disturbance))
-            self.disturbance = min(max(self.disturbance + step, -limit), limit)
+            slew = DISTURBANCE_SLEW_M_S3 * dt
+            self.disturbance = min(max(self.disturbance + min(max(step, -slew), slew), -limit), limit)
 
     def _may_learn(self, t: float) -> bool:
         """The disturbance learns while the loop is in charge (not held, not saturated: a hand must not
@@ -256,11 +264,12 @@ class AltitudeObserver:
 
     def learn(self, t: float, dt: float, up_force_mean_n: float) -> None:
         """Teach the heave effectiveness one cycle: the push of ``rate.age_s`` ago against the range slope now."""
-        self._pushes.append(self.push(up_force_mean_n) + self.disturbance)
+        self._pushes.append((self.push(up_force_mean_n) + self.disturbance, self.disturbance))
         measured = None if self.touched or self.z is None else self.range_rate.rate(t)
         if len(self._pushes) < self._pushes.maxlen:  # type: ignore[operator]
             measured = None
-        self.effectiveness.update(t, dt, self._pushes[0], measured)
+        push, disturbance = self._pushes[0]
+        self.effectiveness.update(t, dt, push, measured, learned=disturbance)
 
     def predict(self, up_force_n: float, dt: float) -> None:
         """Propagate with the modelled forces (thrust, buoyancy, drag)."""

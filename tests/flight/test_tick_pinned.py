@@ -66,7 +66,10 @@ cycle's commands are as before; at the end health's surge ``forward_assured`` an
 (0.814 / 0.961 before). ``drafts_dropouts`` re-pinned in session 29 for the settle after a turn's brake mixing its
 push past the box's widest deadband while the rate is over 2 deg/s (``HeadingLoop.firm_against_rate`` while
 settling): its commands first differ at 5.70 s, the first of 3 such cycles after the right turn's brake; the other
-two flights never settle that fast and are as they were.
+two flights never settle that fast and are as they were. ``drafts_dropouts`` re-pinned in session 30 for the heave's
+line through the commanded pushes (``Effectiveness(steady_bias=True)``), ``stall_and_lag`` for that line and the
+disturbance's slew from the climb rate (``DISTURBANCE_SLEW_M_S3``), each switched off in turn; ``fitted_still_air``,
+whose box is 1, is as it was.
 The digests below are all of it: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
@@ -125,7 +128,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "a5c7d3990b9fd13485102a20",
+        "402d7d9744fb4291dd5a3bba",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
@@ -137,7 +140,7 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "962538626a3a541caa62b1a7",
+        "7e0b959c3ae50e63a30c018d",
     ),
 }
 
