@@ -78,6 +78,17 @@ FIXED = [  # (corner, seed): the goal it missed before session 21, with the figu
     # command counts on the confirmed surge value (docs/flight-robustness.md, session 28)
     ("corner-mTDL", 54),  # hover reversals 0.60 per second (a strict xfail since session 26)
     ("corner-MtDl", 19),  # forward lapse 1.54 s with the confirmed value alone: a cap on a reverse side mixed windows taught
+    # session 30: the heave's answer learned as a line through the commanded pushes, and the disturbance's slew
+    # (docs/flight-robustness.md, session 30; seeds 61-72 found these)
+    ("corner-MTdl", 70),  # altitude 0.107 m: the down push learned 0.25 (true about 1) through a disturbance's error
+    ("corner-MTdL", 70),  # altitude 0.103 m
+    ("corner-MTDl", 70),  # altitude 0.102 m
+]
+
+MISSING = [  # (corner, seed): a goal missed since session 30's heave changes, with the figure
+    ("corner-mTDl", 56),  # hover reversals 0.533 per second (0.467 before): one over the goal's seven in 15 s
+    ("corner-mTDl", 57),  # the same
+    ("corner-mtDL", 57),  # the same
 ]
 
 
@@ -88,3 +99,12 @@ def test_a_corner_that_missed_a_goal_at_another_seed_now_meets_them_all_and_turn
     assert result.failures() == {}, context
     for turn in ("turn_right-stop", "turn_left-lapse"):
         assert result.manoeuvres[turn]["peak_fraction"] >= 0.4, context  # a turn, not a twitch
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="hover reversals 0.533 per second against 0.5 since session 30's disturbance "
+                   "slew: the first hold learns more slowly and the body settles later (docs/flight-robustness.md)")
+@pytest.mark.parametrize(("name", "seed"), MISSING, ids=[f"{name}-s{seed}" for name, seed in MISSING])
+def test_a_corner_that_misses_a_goal_since_session_30(name: str, seed: int) -> None:
+    result, context = _fly(name, seed)
+    assert result.failures() == {}, context
