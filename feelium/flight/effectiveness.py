@@ -122,7 +122,9 @@ class Effectiveness:
         self._strong_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over real pushes only
         self._assuring_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over the windows that may teach a margin
         self.change_noise = change_noise
-        self._information = [0.0, 0.0]  # per direction: sum x*x over independent windows (they overlap)
+        # per direction: sum x*x over independent windows (they overlap); with ``steady_bias`` once a line is used, the
+        # spread of its commanded pushes instead
+        self._information = [0.0, 0.0]
         self.strong_values = [high, high]
         # (t, modelled push integral, its magnitude's integral, the integral of its commanded share, measured rate)
         self._history: deque[tuple[float, float, float, float, float]] = deque()
