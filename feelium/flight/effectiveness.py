@@ -27,6 +27,11 @@ ASSURED_STANDARD_ERRORS = 2.0  # with ``change_noise``: a margin counts on the l
 # information) is at most this; until then the ratio through the origin, biased but steady. Unguarded, a line through
 # a first hover's few windows read anything, and 88 of 1152 flights left the altitude limits (session 30).
 LINE_STANDARD_ERROR = 1.0
+# ...and once used, a line is left for the ratio only past this: chosen afresh at 1.0 in every window, a long still
+# hold's fading spread handed the side back to the biased ratio (a learned 1.09 read 0.25 after 30 s: the session-30
+# review, finding 1). Keeping the last line for ever instead kept a line the range noise had biased high through a
+# heavy weak corner's hold: 1 of 192 held-out flights 0.100 m past the ceiling (docs/flight-robustness.md, session 31).
+LINE_LEAVING_STANDARD_ERROR = 2.0
 # With ``one_way``: a window teaches only if its net push is at least this share of its pushes' sum (they keep a sign).
 ONE_WAY_SHARE = 0.8
 
@@ -100,10 +105,14 @@ class Effectiveness:
         origin. Through the origin, a hold whose disturbance was 0.2-0.7 m/s^2 off taught corner-MTdl's heave 0.25 down
         and 3.1 up where both were about 1.0; its down pushes were four times too strong and the hold under the ceiling
         swung 10.7 cm past it (flight seed 70; docs/flight-robustness.md, session 30). A line needs pushes that differ:
-        until its slope is known to ``LINE_STANDARD_ERROR``, the side keeps the ratio through the origin."""
+        until its slope is known to ``LINE_STANDARD_ERROR`` (so ``change_noise`` is required), the side keeps the ratio
+        through the origin, and a line in use is left only past ``LINE_LEAVING_STANDARD_ERROR``."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
+        if steady_bias and change_noise <= 0.0:
+            # its guard is the slope's standard error: without a noise, a first hover's few windows would fit any line
+            raise ValueError("steady_bias needs change_noise > 0: a line is used only once its slope is known")
         self.lows = [reverse_low, low]
         self.high = high
         self.window_s, self.memory_s, self.min_change = window_s, memory_s, min_change
@@ -119,6 +128,7 @@ class Effectiveness:
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
         self.steady_bias = steady_bias
         self._affine_sums = [[0.0] * 5, [0.0] * 5]  # with ``steady_bias``, per direction: see :func:`_fold_affine`
+        self._line_used = [False, False]  # with ``steady_bias``, per direction: the line, not the ratio, is in use
         self._strong_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over real pushes only
         self._assuring_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over the windows that may teach a margin
         self.change_noise = change_noise
@@ -257,7 +267,9 @@ class Effectiveness:
         if self.steady_bias:
             commanded = self._commanded_integral - commanded0
             slope, spread = _fold_affine(self._affine_sums[side], decay, commanded, y, max(self.min_change ** 2, 1e-12))
-            if slope is not None and self.change_noise <= LINE_STANDARD_ERROR * math.sqrt(spread * overlap):
+            bound = LINE_LEAVING_STANDARD_ERROR if self._line_used[side] else LINE_STANDARD_ERROR
+            self._line_used[side] = slope is not None and self.change_noise <= bound * math.sqrt(spread * overlap)
+            if self._line_used[side]:
                 self._information[side] = spread * overlap
                 ratio = slope
         self.samples[side] += 1

@@ -173,24 +173,29 @@ def test_a_few_heave_windows_barely_above_the_range_noise_do_not_teach_the_limit
     assert e.assured(-1.0) == e.lowest(-1.0)
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
-def test_seconds_of_real_heave_pushes_of_differing_sizes_teach_the_limit_margin_most_of_what_they_measured(seed: int) -> None:
-    """Eight seconds of pushes on a body that answers them exactly, through a range slope as noisy as the sensor's.
-    The heave's answer is a line's slope (its offset takes the force the model misses), as certain as its pushes
-    differ: pushes of +-0.5 m/s^2 alone teach the value but leave the margin at the box's weakest (through the origin
-    it counted on about 0.6 before session 30, from a model the seed-70 corners showed four times off); pushes of 0.3
-    and 1.2 in turn teach the margin the learned value two standard errors low, about 0.6, never above it."""
-    alike = AltitudeObserver(Config().flight)
-    _heave_windows(alike, 8.0, lambda t: 0.5 * math.sin(math.pi * t), gain=1.0, noise=0.048, seed=seed)
-    differing = AltitudeObserver(Config().flight)
-    _heave_windows(differing, 8.0, lambda t: (1.2 if int(t / 2.0) % 2 else 0.3) * math.sin(math.pi * t), gain=1.0,
-                   noise=0.048, seed=seed)
-    for push in (-1.0, 1.0):
-        assert alike.effectiveness.value(push) == pytest.approx(1.0, abs=0.1)
-        assert alike.effectiveness.assured(push) == alike.effectiveness.lowest(push)
-        e = differing.effectiveness
-        assert e.value(push) == pytest.approx(1.0, abs=0.1)
-        assert 0.5 < e.assured(push) < e.value(push)
+def test_seconds_of_real_heave_pushes_of_differing_sizes_teach_the_limit_margin_most_of_what_they_measured() -> None:
+    """Eight seconds of pushes on a body that answers them exactly, through a range slope as noisy as the sensor's, at
+    40 seeds. The heave's answer is a line's slope (its offset takes the force the model misses), as certain as its
+    pushes differ: pushes of +-0.5 m/s^2 alone leave the side on its ratio, which the noise moves 0.73-1.19 about the
+    true 1.0 (the margin stays at the box's weakest: through the origin it counted on about 0.6 before session 30,
+    from a model the seed-70 corners showed four times off); pushes of 0.3 and 1.2 in turn teach the value within
+    0.1 and the margin the learned value two standard errors low, 0.51-0.67, never above it. Seeds 1-3 alone once
+    hid the first spread (the session-30 review, finding 4)."""
+    alike_values = []
+    for seed in range(1, 41):
+        alike = AltitudeObserver(Config().flight)
+        _heave_windows(alike, 8.0, lambda t: 0.5 * math.sin(math.pi * t), gain=1.0, noise=0.048, seed=seed)
+        differing = AltitudeObserver(Config().flight)
+        _heave_windows(differing, 8.0, lambda t: (1.2 if int(t / 2.0) % 2 else 0.3) * math.sin(math.pi * t),
+                       gain=1.0, noise=0.048, seed=seed)
+        for push in (-1.0, 1.0):
+            alike_values.append(alike.effectiveness.value(push))
+            assert alike.effectiveness.value(push) == pytest.approx(1.0, abs=0.3)
+            assert alike.effectiveness.assured(push) == alike.effectiveness.lowest(push)
+            e = differing.effectiveness
+            assert e.value(push) == pytest.approx(1.0, abs=0.1)
+            assert 0.5 < e.assured(push) < e.value(push)
+    assert float(np.median(alike_values)) == pytest.approx(1.0, abs=0.05)
 
 
 @pytest.mark.parametrize("motion", ["up", None])
