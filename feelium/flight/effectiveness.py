@@ -27,11 +27,13 @@ ASSURED_STANDARD_ERRORS = 2.0  # with ``change_noise``: a margin counts on the l
 # information) is at most this; until then the ratio through the origin, biased but steady. Unguarded, a line through
 # a first hover's few windows read anything, and 88 of 1152 flights left the altitude limits (session 30).
 LINE_STANDARD_ERROR = 1.0
-# ...and once used, a line is left for the ratio only past this: chosen afresh at 1.0 in every window, a long still
-# hold's fading spread handed the side back to the biased ratio (a learned 1.09 read 0.25 after 30 s: the session-30
-# review, finding 1). Keeping the last line for ever instead kept a line the range noise had biased high through a
-# heavy weak corner's hold: 1 of 192 held-out flights 0.100 m past the ceiling (docs/flight-robustness.md, session 31).
+# ...and once a line is known, the value follows its slope whenever its standard error is at most this, and holds the
+# last slope it followed otherwise (its margin fading with the spread). Chosen afresh at 1.0 in every window, a long still hold's
+# fading spread handed the side back to the biased ratio (a learned 1.09 read 0.25 after 30 s: the session-30 review,
+# finding 1); following a line whatever its error kept one the range noise had biased high through a heavy weak
+# corner's hold, 1 of 192 held-out flights 0.100 m past the ceiling (docs/flight-robustness.md, session 31).
 LINE_LEAVING_STANDARD_ERROR = 2.0
+assert LINE_LEAVING_STANDARD_ERROR >= LINE_STANDARD_ERROR, "a line left before the error that admits it would flap"
 # With ``one_way``: a window teaches only if its net push is at least this share of its pushes' sum (they keep a sign).
 ONE_WAY_SHARE = 0.8
 
@@ -106,7 +108,7 @@ class Effectiveness:
         and 3.1 up where both were about 1.0; its down pushes were four times too strong and the hold under the ceiling
         swung 10.7 cm past it (flight seed 70; docs/flight-robustness.md, session 30). A line needs pushes that differ:
         until its slope is known to ``LINE_STANDARD_ERROR`` (so ``change_noise`` is required), the side keeps the ratio
-        through the origin, and a line in use is left only past ``LINE_LEAVING_STANDARD_ERROR``."""
+        through the origin; once known, the side never returns to the ratio (see ``LINE_LEAVING_STANDARD_ERROR``)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -128,7 +130,9 @@ class Effectiveness:
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
         self.steady_bias = steady_bias
         self._affine_sums = [[0.0] * 5, [0.0] * 5]  # with ``steady_bias``, per direction: see :func:`_fold_affine`
-        self._line_used = [False, False]  # with ``steady_bias``, per direction: the line, not the ratio, is in use
+        # with ``steady_bias``, per direction: the last slope the value followed, held while the line's spread no
+        # longer supports it (``None``: no line known yet, the side on the ratio; once known, never the ratio again)
+        self._line_slopes: list[float | None] = [None, None]
         self._strong_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over real pushes only
         self._assuring_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over the windows that may teach a margin
         self.change_noise = change_noise
@@ -267,11 +271,14 @@ class Effectiveness:
         if self.steady_bias:
             commanded = self._commanded_integral - commanded0
             slope, spread = _fold_affine(self._affine_sums[side], decay, commanded, y, max(self.min_change ** 2, 1e-12))
-            bound = LINE_LEAVING_STANDARD_ERROR if self._line_used[side] else LINE_STANDARD_ERROR
-            self._line_used[side] = slope is not None and self.change_noise <= bound * math.sqrt(spread * overlap)
-            if self._line_used[side]:
+            known = self._line_slopes[side] is not None
+            bound = LINE_LEAVING_STANDARD_ERROR if known else LINE_STANDARD_ERROR
+            if slope is not None and self.change_noise <= bound * math.sqrt(spread * overlap):
+                self._line_slopes[side] = slope
+            held = self._line_slopes[side]
+            if held is not None:
                 self._information[side] = spread * overlap
-                ratio = slope
+                ratio = held
         self.samples[side] += 1
         self.values[side] = min(max(ratio, self.lows[side]), self.high)
         real = self._overlaps_real_push(t, side)

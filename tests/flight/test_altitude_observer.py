@@ -176,11 +176,11 @@ def test_a_few_heave_windows_barely_above_the_range_noise_do_not_teach_the_limit
 def test_seconds_of_real_heave_pushes_of_differing_sizes_teach_the_limit_margin_most_of_what_they_measured() -> None:
     """Eight seconds of pushes on a body that answers them exactly, through a range slope as noisy as the sensor's, at
     40 seeds. The heave's answer is a line's slope (its offset takes the force the model misses), as certain as its
-    pushes differ: pushes of +-0.5 m/s^2 alone leave the side on its ratio, which the noise moves 0.73-1.19 about the
-    true 1.0 (the margin stays at the box's weakest: through the origin it counted on about 0.6 before session 30,
-    from a model the seed-70 corners showed four times off); pushes of 0.3 and 1.2 in turn teach the value within
-    0.1 and the margin the learned value two standard errors low, 0.51-0.67, never above it. Seeds 1-3 alone once
-    hid the first spread (the session-30 review, finding 4)."""
+    pushes differ: pushes of +-0.5 m/s^2 alone teach a line whose slope the noise moves 0.73-1.19 about the true 1.0,
+    and the margin stays at the box's weakest (through the origin it counted on about 0.6 before session 30, from a
+    model the seed-70 corners showed four times off); pushes of 0.3 and 1.2 in turn teach the value within 0.1 and the
+    margin the learned value two standard errors low, 0.51-0.67, never above it. Seeds 1-3 alone once hid the first
+    spread (the session-30 review, finding 4; the session-31 review, finding 5, on which estimate it is)."""
     alike_values = []
     for seed in range(1, 41):
         alike = AltitudeObserver(Config().flight)
