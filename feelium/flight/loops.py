@@ -41,6 +41,13 @@ BRAKE_SHARE = 0.55  # of the full reverse authority a stop may count on (the res
 # within 0.62 s on their true plants and 0.94 s on plants as weak in reverse as that low end; a share of 1.0 (on
 # the larger of 1/U and that low end) took 1.00 s (docs/calibrate-flight.md, session 20).
 MEASURED_BRAKE_SHARE = 0.8
+# A hover correction counts on its side's learned surge value, but no less than the other side's over this: the two
+# differ by the reverse thrust ratio, known within a factor of two. Corrections holding against a draft change no
+# speed and teach their side weak: corner-mTDl's forward side read 0.25 where a push showed 3.9 a cycle later, and a
+# 5 cm/s drift was met at full forward, then full reverse, past the hover's reversal goal (flight seeds 56-57). With
+# the larger side's value whole, weak-thrust corners' corrections were too weak: 7 of 1152 flights missed a goal (five
+# of them their hover's reversals) where 3 had (docs/flight-robustness.md, session 31).
+HOVER_SIDES_APART = 2.0
 HOVER_SPEED_BAND_M_S = 0.02  # in hover the surge loop rests below this measured speed (acts above 0.03)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
 # The hover heading loop takes over above this yaw rate. A draft keeps turning a light blimp through the filtered gyro's
@@ -535,7 +542,12 @@ class SurgeLoop:
         speed = est.held_speed(t, speed_sp) if speed_sp else est.speed
         predicted = speed + est.accel(thrust.surge) * lag
         wanted = accel + gain * c.speed_kp * (v_ahead - predicted)
-        effectiveness = self._command_effectiveness(t, wanted, est) if speed_sp else est.effectiveness.value(wanted)
+        if speed_sp:
+            effectiveness = self._command_effectiveness(t, wanted, est)
+        elif hover:
+            effectiveness = max(est.effectiveness.value(wanted), est.effectiveness.value(-wanted) / HOVER_SIDES_APART)
+        else:
+            effectiveness = est.effectiveness.value(wanted)
         force = c.mass_kg * wanted / effectiveness + air_drag(v, c.quadratic_drag)
         return self.band.same_sign(force) if hover else force
 

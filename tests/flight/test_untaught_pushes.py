@@ -18,7 +18,7 @@ import pytest
 
 from feelium.daemon.config import Config
 from feelium.flight.controller import FlightController
-from feelium.flight.loops import ESCALATE_S
+from feelium.flight.loops import ESCALATE_S, HOVER_SIDES_APART
 from feelium.flight.setpoint import HOLD, setpoint_for_motion
 
 CONFIG = Config().flight
@@ -151,3 +151,29 @@ def test_health_says_which_pushes_escalate_and_what_is_confirmed() -> None:
     assert health["surge_effectiveness"]["forward_confirmed"] == 1.5  # type: ignore[index]
     loop.step(2 * DT, DT, 0.0, 1.0, est, controller.thrust)  # released: a brake, never an escalation
     assert controller.estimates(2 * DT)["surge_escalating"] is False
+
+
+def _hover_correction(forward: float, reverse: float, speed: float) -> float:
+    """The surge loop's force in hover (no command) with the body drifting at ``speed``, the sides learned as given."""
+    controller = FlightController(CONFIG)
+    est, loop = controller.surge, controller.surge_loop
+    e = est.effectiveness
+    e.samples, e.values = [3, 3], [reverse, forward]
+    est.speed = est.flow_speed = speed
+    est.last_flow_t = 10.0
+    return loop.step(10.0, DT, 0.0, 1.0, est, controller.thrust)
+
+
+def test_a_hover_correction_counts_on_no_less_than_the_other_side_s_learned_value_over_their_box_apart() -> None:
+    """Hover corrections that hold against a draft change no speed and teach their side weak: corner-mTDl's forward
+    side read 0.25 where a push showed 3.9 a cycle later, and a 5 cm/s drift backwards, divided by 0.25, was met with
+    the motors at full forward, then full reverse 0.14 s later: the reversals that took light corners past the hover
+    goal (flight seeds 56-57; docs/flight-robustness.md, session 31). The sides differ by the reverse thrust ratio,
+    known within ``HOVER_SIDES_APART``: a correction counts on no less than the other side over that. Sides that
+    agree within it (a weak-thrust corner's: both low) keep their own value."""
+    drift = -0.055
+    draft_taught = _hover_correction(0.25, 1.15, drift)
+    assert draft_taught > 0.0
+    assert draft_taught == pytest.approx(_hover_correction(1.15 / HOVER_SIDES_APART, 1.15, drift), rel=1e-9)
+    assert _hover_correction(0.3, 0.5, drift) == pytest.approx(_hover_correction(0.3, 0.3, drift), rel=1e-9)
+    assert _hover_correction(0.3, 0.5, drift) > draft_taught
