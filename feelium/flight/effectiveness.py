@@ -28,10 +28,11 @@ ASSURED_STANDARD_ERRORS = 2.0  # with ``change_noise``: a margin counts on the l
 # a first hover's few windows read anything, and 88 of 1152 flights left the altitude limits (session 30).
 LINE_STANDARD_ERROR = 1.0
 # ...and once a line is known, the value follows its slope whenever its standard error is at most this, and holds the
-# last slope it followed otherwise (its margin fading with the spread). Chosen afresh at 1.0 in every window, a long still hold's
-# fading spread handed the side back to the biased ratio (a learned 1.09 read 0.25 after 30 s: the session-30 review,
-# finding 1); following a line whatever its error kept one the range noise had biased high through a heavy weak
-# corner's hold, 1 of 192 held-out flights 0.100 m past the ceiling (docs/flight-robustness.md, session 31).
+# last slope it followed otherwise (its margin fading with the spread). Chosen afresh at 1.0 in every window, a long
+# still hold's fading spread handed the side back to the biased ratio (a learned 1.09 read 0.25 after 30 s: the
+# session-30 review, finding 1); following a line whatever its error kept one the range noise had biased high through
+# a heavy weak corner's hold, 1 of 192 held-out flights 0.100 m past the ceiling (docs/flight-robustness.md, session
+# 31).
 LINE_LEAVING_STANDARD_ERROR = 2.0
 assert LINE_LEAVING_STANDARD_ERROR >= LINE_STANDARD_ERROR, "a line left before the error that admits it would flap"
 # With ``one_way``: a window teaches only if its net push is at least this share of its pushes' sum (they keep a sign).
