@@ -41,12 +41,15 @@ BRAKE_SHARE = 0.55  # of the full reverse authority a stop may count on (the res
 # within 0.62 s on their true plants and 0.94 s on plants as weak in reverse as that low end; a share of 1.0 (on
 # the larger of 1/U and that low end) took 1.00 s (docs/calibrate-flight.md, session 20).
 MEASURED_BRAKE_SHARE = 0.8
-# A hover correction counts on its side's learned surge value, but no less than the other side's over this: the two
-# differ by the reverse thrust ratio, known within a factor of two. Corrections holding against a draft change no
-# speed and teach their side weak: corner-mTDl's forward side read 0.25 where a push showed 3.9 a cycle later, and a
-# 5 cm/s drift was met at full forward, then full reverse, past the hover's reversal goal (flight seeds 56-57). With
-# the larger side's value whole, weak-thrust corners' corrections were too weak: 7 of 1152 flights missed a goal (five
-# of them their hover's reversals) where 3 had (docs/flight-robustness.md, session 31).
+# A hover correction counts on its side's learned surge value, but no less than the other side's value over this:
+# corrections holding against a draft change no speed and teach their side weak (corner-mTDl's reverse side read 0.12,
+# its forward 0.25, where the truth was about 2 and 4), and a 5 cm/s drift was met at full forward, then full reverse,
+# past the hover's reversal goal (flight seeds 56-57). What fixed those flights is mostly the untaught side: the surge
+# is not mirrored, so a side no window has taught is the box's strongest (4) and every correction counts on at least
+# 4 / 2 until both sides are taught; counting on the other side only once taught left both flights missing. The price
+# (the session-31 review): heavy weak corners whose hover teaches one side only hold their place more loosely (drift
+# 0.13-0.20 -> 0.20-0.30 m), which no safety goal measures. With the larger side's value whole, 7 of 1152 flights
+# missed a goal where 3 had (docs/flight-robustness.md, session 31).
 HOVER_SIDES_APART = 2.0
 HOVER_SPEED_BAND_M_S = 0.02  # in hover the surge loop rests below this measured speed (acts above 0.03)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)

@@ -153,12 +153,13 @@ def test_health_says_which_pushes_escalate_and_what_is_confirmed() -> None:
     assert controller.estimates(2 * DT)["surge_escalating"] is False
 
 
-def _hover_correction(forward: float, reverse: float, speed: float) -> float:
-    """The surge loop's force in hover (no command) with the body drifting at ``speed``, the sides learned as given."""
+def _hover_correction(forward: float, reverse: float | None, speed: float) -> float:
+    """The surge loop's force in hover (no command) with the body drifting at ``speed``, the sides learned as given
+    (``reverse=None``: that side untaught, at the box's strongest)."""
     controller = FlightController(CONFIG)
     est, loop = controller.surge, controller.surge_loop
     e = est.effectiveness
-    e.samples, e.values = [3, 3], [reverse, forward]
+    e.samples, e.values = [0 if reverse is None else 3, 3], [e.high if reverse is None else reverse, forward]
     est.speed = est.flow_speed = speed
     est.last_flow_t = 10.0
     return loop.step(10.0, DT, 0.0, 1.0, est, controller.thrust)
@@ -177,3 +178,15 @@ def test_a_hover_correction_counts_on_no_less_than_the_other_side_s_learned_valu
     assert draft_taught == pytest.approx(_hover_correction(1.15 / HOVER_SIDES_APART, 1.15, drift), rel=1e-9)
     assert _hover_correction(0.3, 0.5, drift) == pytest.approx(_hover_correction(0.3, 0.3, drift), rel=1e-9)
     assert _hover_correction(0.3, 0.5, drift) > draft_taught
+
+
+def test_while_the_other_side_is_untaught_a_hover_correction_counts_on_the_box_top_over_its_sides_apart() -> None:
+    """What fixed corner-mTDl s56 and corner-mtDL s57 (flight seeds; docs/flight-robustness.md, session 31): their
+    corrections counted on the untaught side's box top over ``HOVER_SIDES_APART`` for the first 10-14 s of the hover,
+    gentle where the side they had taught read 0.12. A version counting on the other side only once taught left both
+    flights missing their reversal goal (the session-31 review)."""
+    controller = FlightController(CONFIG)
+    top = controller.surge.effectiveness.high
+    assert _hover_correction(0.12, None, -0.055) == pytest.approx(
+        _hover_correction(top / HOVER_SIDES_APART, top / HOVER_SIDES_APART, -0.055), rel=1e-9)
+
