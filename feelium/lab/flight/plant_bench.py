@@ -22,7 +22,7 @@ from typing import Any
 
 from feelium.flight.config import FlightConfig
 from feelium.lab.flight.plants import Plant, describe, plant_set
-from feelium.lab.flight.safety import GOALS, safety_flight
+from feelium.lab.flight.safety import GOALS, REPORTED, safety_flight
 
 VARIANTS = {"learned": None, "model_trusted": 1.0}
 
@@ -90,6 +90,10 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         worst = max(rows, key=lambda row: row["figures"][goal])
         out[goal] = {"goal": limit, "median": statistics.median(values), "worst": max(values), "worst_plant": worst["plant"],
                      "plants_missing_goal": sum(1 for v in values if not v <= limit)}
+    for figure in REPORTED:
+        values = [row["figures"][figure] for row in rows]
+        worst = max(rows, key=lambda row: row["figures"][figure])
+        out[figure] = {"goal": None, "median": statistics.median(values), "worst": max(values), "worst_plant": worst["plant"]}
     out["plants_meeting_every_goal"] = sum(1 for row in rows if not row["failures"])
     return out
 
@@ -139,6 +143,10 @@ def format_plant_table(report: dict[str, Any]) -> str:
             s = report[variant]["summary"][goal]
             cells.append(f"{s['median']:9.3f} {s['worst']:9.3f} {s['plants_missing_goal']:6d} {'':>7s}")
         lines.append(f"{goal:28s} {limit:7.2f} | " + " | ".join(cells))
+    for figure in REPORTED:
+        cells = [f"{report[v]['summary'][figure]['median']:9.3f} {report[v]['summary'][figure]['worst']:9.3f} {'-':>6s} {'':>7s}"
+                 for v in VARIANTS]
+        lines.append(f"{figure:28s} {'-':>7s} | " + " | ".join(cells))
     lines.append(f"{'plants meeting every goal':28s} {'':>7s} | " + " | ".join(
         f"{report[v]['summary']['plants_meeting_every_goal']:>34d}" for v in VARIANTS))
     if "calibrated" in report:

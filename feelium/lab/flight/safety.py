@@ -12,6 +12,10 @@ limit, all through the dead-man path the headset uses (refreshed every
 - never over 120 % of the commanded speed or turn rate;
 - never outside [altitude_min, altitude_max] by more than 10 cm;
 - at most 0.5 direction reversals per second of either horizontal motor in hover.
+
+It also reports how far the hover wandered (``hover_drift_m``), which no goal of the
+issue bounds: the hover loops rest inside a speed band, not on a place, and a change
+that buys calm motors with weaker corrections shows up there first.
 """
 
 from __future__ import annotations
@@ -40,6 +44,8 @@ STOPPED_YAW_DPS = 3.0
 
 GOALS = {"stop_s": 1.0, "lapse_s": 1.5, "speed_peak_fraction": 1.2, "turn_peak_fraction": 1.2,
          "altitude_excursion_m": 0.1, "hover_reversals_per_s": 0.5}
+# Reported beside the goals, with no limit of its own (see the module's docstring).
+REPORTED = ("hover_drift_m",)
 
 
 @dataclass
@@ -53,6 +59,7 @@ class SafetyResult:
     turn_peak_fraction: float = 0.0
     altitude_excursion_m: float = 0.0  # furthest outside [altitude_min, altitude_max]
     hover_reversals_per_s: float = 0.0
+    hover_drift_m: float = 0.0  # furthest horizontal distance from where the hover began, over the hover
     manoeuvres: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def failures(self) -> dict[str, float]:
@@ -60,7 +67,8 @@ class SafetyResult:
         return {key: getattr(self, key) for key, limit in GOALS.items() if not getattr(self, key) <= limit}
 
     def figures(self) -> dict[str, float]:
-        return {key: getattr(self, key) for key in GOALS}
+        """Every goal's figure and the reported ones."""
+        return {key: getattr(self, key) for key in (*GOALS, *REPORTED)}
 
 
 def reversals_per_s(commands: np.ndarray, deadband: float, seconds: float) -> float:
@@ -69,6 +77,13 @@ def reversals_per_s(commands: np.ndarray, deadband: float, seconds: float) -> fl
     if spinning.size < 2:
         return 0.0
     return float(np.count_nonzero(np.diff(np.sign(spinning)) != 0) / max(seconds, 1e-9))
+
+
+def farthest_from_start(x: np.ndarray, y: np.ndarray) -> float:
+    """The largest horizontal distance from the first position of a track (0 for an empty one)."""
+    if x.size == 0:
+        return 0.0
+    return float(np.max(np.hypot(x - x[0], y - y[0])))
 
 
 def stopped_after(t: np.ndarray, u: np.ndarray, r_dps: np.ndarray, since: float, until: float) -> float:
@@ -125,6 +140,7 @@ def safety_flight(config: FlightConfig, plant: Plant, seed: int = 1, controller:
     pilot.fly(HOVER_S)
     m1, m2 = flight.log["m1"][start:], flight.log["m2"][start:]
     result.hover_reversals_per_s = max(reversals_per_s(m1, deadband, HOVER_S), reversals_per_s(m2, deadband, HOVER_S))
+    result.hover_drift_m = farthest_from_start(flight.log["x"][start:], flight.log["y"][start:])
 
     for name, ending in (("forward", "stop"), ("forward", "lapse"), ("backward", "stop"),
                          ("turn_right", "stop"), ("turn_left", "lapse")):

@@ -111,6 +111,8 @@ class SimFlight:
         s = self.board.state
         self.log.add(
             t=self.clock.t,
+            x=s.x,
+            y=s.y,
             z=s.z,
             w=s.w,
             heading=s.heading_deg,
