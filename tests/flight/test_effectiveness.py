@@ -627,3 +627,13 @@ def test_a_learned_line_is_kept_through_a_still_hold_and_only_its_margin_fades()
     assert holding.value(-1.0) == _a_line_learned_then_a_still_hold(50.0).value(-1.0)  # held, not moving on noise
     assert learning.assuring_samples[0] and holding.assuring_samples[0]
     assert holding.assured(-1.0) == following.assured(-1.0) == holding.lowest(-1.0) < learning.assured(-1.0)
+
+
+def test_health_shows_the_line_a_side_follows_or_holds_and_none_while_it_is_on_the_ratio() -> None:
+    """Online adaptation must be observable: which estimate a heave side flies on is in health (the session-31
+    review, finding 7). A side no line reached says ``None``; a held line reads the value the side flies on."""
+    fresh = Effectiveness(0.25, 4.0, window_s=0.5, min_change=0.03, steady_bias=True, change_noise=HEAVE_CHANGE_NOISE_M_S)
+    assert fresh.as_dict()["reverse_line"] is None and fresh.as_dict()["forward_line"] is None
+    holding = _a_line_learned_then_a_still_hold(60.0)
+    assert holding.as_dict()["reverse_line"] == round(holding.value(-1.0), 3)
+    assert "reverse_line" not in Effectiveness(0.25, 4.0).as_dict()  # no line without steady_bias
