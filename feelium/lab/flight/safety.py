@@ -13,9 +13,12 @@ limit, all through the dead-man path the headset uses (refreshed every
 - never outside [altitude_min, altitude_max] by more than 10 cm;
 - at most 0.5 direction reversals per second of either horizontal motor in hover.
 
-It also reports how far the hover wandered (``hover_drift_m``), which no goal of the
-issue bounds: the hover loops rest inside a speed band, not on a place, and a change
-that buys calm motors with weaker corrections shows up there first.
+It also reports how far the hover wandered, which no goal of the issue bounds: the
+whole drift (``hover_drift_m``) and its part along the body's axis
+(``hover_surge_drift_m``). Only the latter is the controller's: the blimp has no
+lateral motor, so a cross draft carries it sideways whatever it does. The surge loop
+rests inside a speed band, not on a place, and a change that buys calm motors with
+weaker corrections shows up there first.
 """
 
 from __future__ import annotations
@@ -45,7 +48,7 @@ STOPPED_YAW_DPS = 3.0
 GOALS = {"stop_s": 1.0, "lapse_s": 1.5, "speed_peak_fraction": 1.2, "turn_peak_fraction": 1.2,
          "altitude_excursion_m": 0.1, "hover_reversals_per_s": 0.5}
 # Reported beside the goals, with no limit of its own (see the module's docstring).
-REPORTED = ("hover_drift_m",)
+REPORTED = ("hover_drift_m", "hover_surge_drift_m")
 
 
 @dataclass
@@ -60,6 +63,7 @@ class SafetyResult:
     altitude_excursion_m: float = 0.0  # furthest outside [altitude_min, altitude_max]
     hover_reversals_per_s: float = 0.0
     hover_drift_m: float = 0.0  # furthest horizontal distance from where the hover began, over the hover
+    hover_surge_drift_m: float = 0.0  # the same along the body's axis at the hover's start (what the surge can correct)
     manoeuvres: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def failures(self) -> dict[str, float]:
@@ -84,6 +88,14 @@ def farthest_from_start(x: np.ndarray, y: np.ndarray) -> float:
     if x.size == 0:
         return 0.0
     return float(np.max(np.hypot(x - x[0], y - y[0])))
+
+
+def farthest_along(x: np.ndarray, y: np.ndarray, heading_deg: float) -> float:
+    """The largest distance from a track's first position along the direction ``heading_deg`` (either way)."""
+    if x.size == 0:
+        return 0.0
+    h = np.radians(heading_deg)
+    return float(np.max(np.abs((x - x[0]) * np.cos(h) + (y - y[0]) * np.sin(h))))
 
 
 def stopped_after(t: np.ndarray, u: np.ndarray, r_dps: np.ndarray, since: float, until: float) -> float:
@@ -140,7 +152,9 @@ def safety_flight(config: FlightConfig, plant: Plant, seed: int = 1, controller:
     pilot.fly(HOVER_S)
     m1, m2 = flight.log["m1"][start:], flight.log["m2"][start:]
     result.hover_reversals_per_s = max(reversals_per_s(m1, deadband, HOVER_S), reversals_per_s(m2, deadband, HOVER_S))
-    result.hover_drift_m = farthest_from_start(flight.log["x"][start:], flight.log["y"][start:])
+    x, y = flight.log["x"][start:], flight.log["y"][start:]
+    result.hover_drift_m = farthest_from_start(x, y)
+    result.hover_surge_drift_m = farthest_along(x, y, float(flight.log["heading"][start]))
 
     for name, ending in (("forward", "stop"), ("forward", "lapse"), ("backward", "stop"),
                          ("turn_right", "stop"), ("turn_left", "lapse")):
