@@ -73,34 +73,64 @@ def _calibrate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from feelium.daemon.config import load_config
-    from feelium.lab.flight.calibrate import calibrate_board, calibrate_sim, render_calibrated, summary
+    from feelium.lab.flight.calibrate import NothingFlown, calibrate_board, calibrate_sim, render_calibrated, summary
 
     full = load_config(args.config)
     stand = _stand_thrust(args)
-    if args.sim:
-        from feelium.lab.flight.plants import plant_set
-
-        blimp = None if args.plant is None else plant_set(args.plant + 1)[args.plant].blimp
-        calibration = calibrate_sim(full.flight, blimp, seed=args.seed, stand_thrust_n=stand)
-    else:
-        calibration = calibrate_board(full.flight, args.port, stand_thrust_n=stand)
+    if args.plant is not None and args.plant < 0 or args.seed < 0:
+        raise SystemExit("calibrate flight: --plant and --seed must be 0 or more")
+    if args.plant is not None and not args.sim:
+        raise SystemExit("calibrate flight: --plant picks a simulated plant; it needs --sim")
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    try:  # before anything flies: a bad --out found after four minutes of flight loses the flight
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SystemExit(f"calibrate flight: cannot write to --out {out}: {exc}") from None
+    try:
+        if args.sim:
+            from feelium.lab.flight.plants import plant_set
+
+            blimp = None if args.plant is None else plant_set(args.plant + 1)[args.plant].blimp
+            calibration = calibrate_sim(full.flight, blimp, seed=args.seed, stand_thrust_n=stand)
+        else:
+            calibration = calibrate_board(full.flight, args.port, stand_thrust_n=stand)
+    except NothingFlown as exc:
+        print(f"calibrate flight: {exc}; the motors are neutral and no file was written.", file=sys.stderr)
+        return 1
+    except OSError as exc:  # the port would not open, or the link died in flight (the board's watchdog stops the motors)
+        if args.sim:
+            raise
+        print(f"calibrate flight: the link to {args.port} failed: {exc}; no file was written.", file=sys.stderr)
+        return 1
     from feelium.lab.flight.calibrate import plot_steps
 
     if not calibration.problems:
         (out / "flight-calibrated.toml").write_text(render_calibrated(full, calibration), encoding="utf-8")
     report = summary(calibration)
     report["plots"] = [str(p) for p in plot_steps(calibration, out)]
-    (out / "calibration.json").write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
-    print(json.dumps(report, indent=1))
+    text = json.dumps(finite_or_null(report), indent=1, allow_nan=False)
+    (out / "calibration.json").write_text(text + "\n", encoding="utf-8")
+    print(text)
     if calibration.problems:
-        print(f"calibrate flight: the fit did not identify the plant ({'; '.join(calibration.problems)}): no config "
-              f"written; the report and plots are in {out}. Fly it again in calmer air, or keep the config you have.",
-              file=sys.stderr)
+        advice = ("Fly the whole script to fit a config." if calibration.pilot.aborted
+                  else "Fly it again in calmer air, or keep the config you have.")
+        print(f"calibrate flight: no config written ({'; '.join(calibration.problems)}); the report and plots are in "
+              f"{out}. {advice}", file=sys.stderr)
         return 1
     print(f"fitted config: {out / 'flight-calibrated.toml'} (use it with --config, or copy its [flight] section)")
-    return 1 if calibration.pilot.aborted else 0
+    return 0
+
+
+def finite_or_null(value: object) -> object:
+    """``value`` with every NaN or infinite float as ``None``: JSON has no NaN, and a strict parser (a browser's, Node's)
+    rejects the whole file for one. An unfitted value or a flight that never stopped is then ``null``."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: finite_or_null(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_null(item) for item in value]
+    return value
 
 
 def _stand_thrust(args: argparse.Namespace) -> Estimate | None:

@@ -106,18 +106,32 @@ class Calibration:
     record: FlightRecord
     pilot: CalibrationPilot
     details: Any  # sysid.AxisFits and Signals, for the plots
-    # Fitted values no blimp can have (see :func:`unphysical`): then ``config`` is the one flown with, unfitted.
+    # Why no config may be fitted: values no blimp can have (see :func:`unphysical`), or a flight stopped before its
+    # script ended (:func:`calibrate_from`). Then ``config`` is the one flown with, unfitted.
     problems: list[str] = field(default_factory=list)
     stand_scaled: bool = False  # the horizontal values were scaled by a thrust stand's figure, not the heave drag
 
 
+class NothingFlown(ValueError):
+    """The calibration flight ended before its first step: there is nothing to fit."""
+
+
 def calibrate_from(log: FlightLogRecorder, pilot: CalibrationPilot, config: FlightConfig,
                    stand_thrust_n: Estimate | None = None) -> Calibration:
+    """Fit what was flown. A flight stopped before its script ended is fitted for the report, never for a config: its
+    axes not yet stepped come out of the fit as anything (a flight stopped 45 s in, before any yaw step, wrote a yaw
+    drag 160 times the shipped one and a surge mass 6.6 times the truth, inside boxes of 1.14-1.29, and the blimp
+    flown with it spun at six times the commanded turn and never stopped: the session-32 review, finding 1)."""
+    if not pilot.segments:
+        raise NothingFlown(f"the flight ended before its first step ({pilot.aborted or 'no step flown'}): nothing to fit")
     record = log.record()
     fit, fits, sig = identify(record, config.net_buoyancy_n, config.arm_m, config.altitude_min_m - 0.4, config.altitude_max_m + 0.4,
                               stand_thrust_n)
     fitted = fitted_config(config, fit, braked(pilot))
     problems = unphysical(fitted)
+    if pilot.aborted:
+        problems.insert(0, f"the flight was stopped before its script ended ({pilot.aborted}), so the steps not flown "
+                           f"were fitted from nothing")
     return Calibration(fit, config if problems else fitted, record, pilot, (fits, sig), problems, stand_thrust_n is not None)
 
 
@@ -296,8 +310,6 @@ def render_calibrated(full_config: Any, calibration: Calibration) -> str:
                                                else "the heave drag (no thrust stand figure given)"))
     header += [f"#   residual {axis}: rms {r['residual_rms']:.4g}, {100 * r['relative_residual']:.0f} % of the measured rate change,"
                f" {int(r['samples'])} samples" for axis, r in fit.residuals.items()]
-    if calibration.pilot.aborted:
-        header.append(f"# The flight was stopped early ({calibration.pilot.aborted}): fewer steps, wider errors.")
     return "\n".join(header) + "\n" + "\n".join(lines) + "\n"
 
 
@@ -398,9 +410,9 @@ def calibrate_board(config: FlightConfig, port: str, stand_thrust_n: Estimate | 
                 stop.append("stop")
                 return
 
+    link: ByteLink = open_serial(port, config.baudrate, config.reply_timeout_s)  # a port that will not open: nothing flew
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     threading.Thread(target=read_stdin, daemon=True, name="calibrate-stop").start()
-    link: ByteLink = open_serial(port, config.baudrate, config.reply_timeout_s)
     try:
         client = MspClient(link, timeout_s=config.reply_timeout_s)
         pilot = CalibrationPilot(hover_command=hover_guess(config))

@@ -33,6 +33,7 @@ class Envelope:
     speed_m_s: float = 0.35
     turn_dps: float = 45.0
     telemetry_timeout_s: float = 0.3
+    first_telemetry_s: float = 2.0  # a board that has not answered by then is not there: the flight ends at once
     surge_change_m_s: float = 0.2  # a surge step this weak (a heavy, weak plant) is held on, up to its ``extend_s``
 
 
@@ -118,6 +119,7 @@ class CalibrationPilot:
     _phase_t: float | None = None
     _last_t: float | None = None
     _last_telemetry_t: float | None = None
+    _first_t: float | None = None  # the first tick's time: a board silent from the start times out from there
     _integral: float = 0.0
     _z_ref: float = 1.45
     _step_u: float = 0.0  # the forward speed when the step began
@@ -134,9 +136,14 @@ class CalibrationPilot:
         self._absorb(t, dt, telemetry)
         if self.done:
             return NEUTRAL
-        if self._last_telemetry_t is None or t - self._last_telemetry_t > self.envelope.telemetry_timeout_s:
-            if self._last_telemetry_t is not None:
-                self.abort("telemetry lost")
+        if self._first_t is None:
+            self._first_t = t
+        if self._last_telemetry_t is None:
+            if t - self._first_t > self.envelope.first_telemetry_s:
+                self.abort("no telemetry: the board never answered")
+            return NEUTRAL
+        if t - self._last_telemetry_t > self.envelope.telemetry_timeout_s:
+            self.abort("telemetry lost")
             return NEUTRAL
         if self._phase_t is None:
             self._phase_t = t
