@@ -103,6 +103,7 @@ def _calibrate(args: argparse.Namespace) -> int:
         print(f"calibrate flight: the link to {args.port} failed: {exc}; no file was written.", file=sys.stderr)
         return 1
     from feelium.lab.flight.calibrate import plot_steps
+    from feelium.lab.report import finite_or_null
 
     if not calibration.problems:
         (out / "flight-calibrated.toml").write_text(render_calibrated(full, calibration), encoding="utf-8")
@@ -119,18 +120,6 @@ def _calibrate(args: argparse.Namespace) -> int:
         return 1
     print(f"fitted config: {out / 'flight-calibrated.toml'} (use it with --config, or copy its [flight] section)")
     return 0
-
-
-def finite_or_null(value: object) -> object:
-    """``value`` with every NaN or infinite float as ``None``: JSON has no NaN, and a strict parser (a browser's, Node's)
-    rejects the whole file for one. An unfitted value or a flight that never stopped is then ``null``."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {key: finite_or_null(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [finite_or_null(item) for item in value]
-    return value
 
 
 def _stand_thrust(args: argparse.Namespace) -> Estimate | None:

@@ -3,15 +3,28 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
 
+def finite_or_null(value: object) -> object:
+    """``value`` with every NaN or infinite float as ``None``: JSON has no NaN, and a strict parser (a browser's, Node's)
+    rejects the whole file for one. An unfitted value or a flight that never stopped is then ``null``."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: finite_or_null(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_null(item) for item in value]
+    return value
+
+
 def emit_report(table: str, result: dict[str, Any], json_path: str | None) -> None:
     """Print ``table``; write ``result`` as JSON to ``json_path``, or print it after the table when none is given."""
     print(table)
-    text = json.dumps(result, indent=1)
+    text = json.dumps(finite_or_null(result), indent=1, allow_nan=False)
     if json_path:
         Path(json_path).write_text(text + "\n", encoding="utf-8")
     else:
@@ -20,9 +33,10 @@ def emit_report(table: str, result: dict[str, Any], json_path: str | None) -> No
 
 def print_and_save(report: dict[str, Any], json_path: str | None, *, indent: int | None = None) -> None:
     """A benchmark's report: printed as JSON (one line unless ``indent``), and written indented to ``json_path`` if given."""
-    print(json.dumps(report, indent=indent))
+    report = finite_or_null(report)  # type: ignore[assignment]
+    print(json.dumps(report, indent=indent, allow_nan=False))
     if json_path:
-        Path(json_path).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+        Path(json_path).write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", encoding="utf-8")
 
 
 def print_progress(n: int, total: int, name: str) -> None:

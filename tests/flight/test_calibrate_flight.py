@@ -577,7 +577,7 @@ def test_cli_refuses_an_out_it_cannot_write_and_a_port_that_does_not_open_withou
 
 
 def test_the_report_writes_a_value_that_is_not_a_number_as_null_so_strict_json_parsers_read_it() -> None:
-    from feelium.cli.flight import finite_or_null
+    from feelium.lab.report import finite_or_null
 
     report = {"values": {"a": {"value": float("nan"), "stderr": float("inf")}}, "list": [1.0, -float("inf")], "n": 3}
     assert json.loads(json.dumps(finite_or_null(report), allow_nan=False)) == {
