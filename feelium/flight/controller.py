@@ -93,6 +93,11 @@ class FlightController:
     def speed_hat(self) -> float:
         return self.surge.speed
 
+    def sensor_ages(self, t: float) -> dict[str, float | None]:
+        """How old each sensor's newest reading is at ``t`` (``None``: none yet): rangefinder, heading, optical flow."""
+        newest = {"range": self.altitude.last_range_t, "heading": self.yaw.last_heading_t, "flow": self.surge.last_flow_t}
+        return {sensor: None if at is None else round(t - at, 3) for sensor, at in newest.items()}
+
     def estimates(self, t: float) -> dict[str, object]:
         """What the controller has learned about this blimp, for health."""
         return {

@@ -47,6 +47,7 @@ from feelium.flight.config import FlightConfig
 from feelium.priority import name_current_thread
 from feelium.flight.controller import ControlOutput, FlightController
 from feelium.flight.lateness import LatenessHistogram
+from feelium.flight.sensor_health import sensor_problems
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
 from feelium.flight.telemetry import Telemetry
@@ -193,6 +194,7 @@ class FlightService:
         self.link: ByteLink | None = None
         self.client: MspClient | None = None
         self.link_state = "down"
+        self._up_since: float | None = None  # when the link last came up: its sensors are judged from a second after
         self._logged_state: str | None = None
         self._link_logged_at: deque[float] = deque()  # hub times of the link lines of the last LINK_LOG_WINDOW_S
         self._link_changes_unlogged = 0
@@ -299,8 +301,7 @@ class FlightService:
             "fps": self._control_rate() if self.link_state == "up" else 0.0,
             "estimates": self.controller.estimates(self.hub.clock()),
         }
-        if out is not None and out.mode != "waiting" and not out.speed_measured:
-            report["warning"] = "no measured speed (optical flow missing or without lock): forward/backward at reduced speed"
+        report["sensor_age_s"] = self.controller.sensor_ages(self.hub.clock())
         if self.client is not None:
             report["msp"] = self.client.health()
         board = getattr(self.opener, "board", None)
@@ -327,7 +328,9 @@ class FlightService:
         if stalled_s is not None and stalled_s > LOOP_STALL_S and not self.stopping:
             return {"condition": "degraded", "reason": f"control loop stalled: no cycle for {stalled_s:.1f} s"}
         if state == "up":
-            return {"condition": "ok"}
+            up_for = 0.0 if self._up_since is None else self.hub.clock() - self._up_since
+            problems = sensor_problems(self.controller.sensor_ages(self.hub.clock()), up_for, self.config)
+            return {"condition": "degraded", "reason": "; ".join(problems)} if problems else {"condition": "ok"}
         if state in LINK_REASONS:
             return {"condition": "degraded", "reason": f"motor board link {state}: {LINK_REASONS[state]}"}
         if self.last_error is None:
@@ -351,6 +354,8 @@ class FlightService:
         ``LINK_LOG_BURST`` lines are written in any ``LINK_LOG_WINDOW_S`` (a stall, its resync and the recovery
         all show), the changes beyond are counted, and the next line written says how many there were. Health
         shows the state of every tick regardless."""
+        if state == "up" and self.link_state != "up":
+            self._up_since = self.hub.clock()
         self.link_state = state
         if state == "connecting" or state == self._logged_state:
             return

@@ -4,7 +4,8 @@ pyserial's ``serial_for_url`` already understands device paths
 (``/dev/ttyAMA0``) and URLs (``socket://host:port``, ``loop://``), so the
 real backend is one call; the simulated board implements the same four
 members, which is all the client touches. A device path is wrapped in
-:class:`PosixLink`, which does a control tick's I/O in fewer system calls.
+:class:`PosixLink`, which does a control tick's I/O in fewer system calls; a
+URL in :class:`BufferedLink`, whose ``in_waiting`` counts every byte that came.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ def open_serial(port: str, baudrate: int, timeout_s: float) -> ByteLink:
     from serial.serialposix import Serial as PosixSerial
 
     link = serial.serial_for_url(port, baudrate=baudrate, timeout=timeout_s, write_timeout=max(timeout_s, WRITE_TIMEOUT_S))
-    return PosixLink(link) if isinstance(link, PosixSerial) else link
+    return PosixLink(link) if isinstance(link, PosixSerial) else BufferedLink(link)
 
 
 def read_some_of(link: ByteLink) -> Callable[[], bytes]:
@@ -115,6 +116,66 @@ class PosixLink:
             from serial import SerialException
 
             raise SerialException("device reports readiness to read but returned no data (device disconnected?)")
+        return data
+
+    def close(self) -> None:
+        self.port.close()
+
+
+class BufferedLink:
+    """A pyserial URL port (``socket://``, ``rfc2217://``, ``loop://``) with an ``in_waiting`` that counts bytes.
+
+    pyserial's socket port answers ``in_waiting`` with 0 or 1 (whether the socket is readable), where the client
+    needs the count: its drain of what waited before a burst then read one byte of the last tick's acks and
+    counted the rest stale, resynchronised about nine times a second on a healthy board, and after a stall drained
+    a byte a tick while nine came (the session-32 review: still resyncing 44 s later, the controller in its
+    failsafe). Here every byte the port has is pulled into a buffer at once (one non-blocking read of up to
+    ``READ_CHUNK``), and ``in_waiting`` is the buffer's length. One thread owns a link, as with the others.
+    """
+
+    def __init__(self, port: serial.Serial) -> None:
+        self.port = port
+        self._buffer = bytearray()
+
+    def _pull(self) -> None:
+        """Move everything the port holds now into the buffer, without waiting."""
+        timeout, self.port.timeout = self.port.timeout, 0
+        try:
+            while True:
+                data = self.port.read(READ_CHUNK)
+                self._buffer += data
+                if len(data) < READ_CHUNK:
+                    return
+        finally:
+            self.port.timeout = timeout
+
+    @property
+    def in_waiting(self) -> int:
+        self._pull()
+        return len(self._buffer)
+
+    def write(self, data: bytes) -> int | None:
+        return self.port.write(data)
+
+    def read(self, size: int = 1) -> bytes:
+        """Up to ``size`` bytes: the buffer's first, then the port's read waits up to its timeout for the rest."""
+        if len(self._buffer) < size:
+            self._pull()
+        data = bytes(self._buffer[:size])
+        del self._buffer[:size]
+        if len(data) < size:
+            data += self.port.read(size - len(data))
+        return data
+
+    def read_some(self) -> bytes:
+        """Whatever comes within the read timeout, all of it that is there then; empty if nothing came."""
+        self._pull()
+        if not self._buffer:
+            self._buffer += self.port.read(1)  # waits up to the port's timeout
+            if self._buffer:
+                self._pull()
+        data = bytes(self._buffer)
+        self._buffer.clear()
         return data
 
     def close(self) -> None:

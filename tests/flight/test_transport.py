@@ -63,3 +63,51 @@ def test_a_port_that_takes_no_bytes_still_times_out(pty_port) -> None:  # type: 
     finally:
         link.close()
     assert time.monotonic() - started < 5 * WRITE_TIMEOUT_S + 2.0
+
+
+def test_a_socket_links_in_waiting_counts_every_byte_that_came_not_only_whether_one_did() -> None:
+    """pyserial's socket port says 0 or 1; the client's drain then took one byte of a burst and counted the rest
+    stale (the session-32 review, finding 2)."""
+    import socket
+
+    from feelium.flight.transport import BufferedLink
+
+    server = socket.create_server(("127.0.0.1", 0))
+    link = open_serial(f"socket://127.0.0.1:{server.getsockname()[1]}", 115200, REPLY_TIMEOUT_S)
+    conn, _ = server.accept()
+    try:
+        assert isinstance(link, BufferedLink)
+        conn.sendall(bytes(range(150)))
+        deadline = time.monotonic() + 2.0
+        while link.in_waiting < 150 and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert link.in_waiting == 150
+        assert link.read(100) == bytes(range(100))
+        assert link.read_some() == bytes(range(100, 150))
+        assert link.read_some() == b""  # nothing came within the timeout
+        conn.sendall(b"\x01\x02")
+        assert link.read(2) == b"\x01\x02"  # waits for bytes not yet there, up to the timeout
+    finally:
+        link.close()
+        conn.close()
+        server.close()
+
+
+def test_the_client_flies_a_board_over_a_socket_without_stale_bytes_or_resyncs() -> None:
+    """A healthy board on TCP (the project's own board server) resynchronised about nine times a second."""
+    from feelium.flight.client import MspClient
+    from tests.daemon.board_server import BoardServer
+
+    board = BoardServer()
+    link = open_serial(board.url, 115200, REPLY_TIMEOUT_S)
+    try:
+        client = MspClient(link, timeout_s=REPLY_TIMEOUT_S)
+        for _ in range(100):
+            client.send_motors((1500, 1500, 1500, 1500))
+            telemetry = client.poll()
+            time.sleep(0.005)
+        assert telemetry.range_m is not None
+        assert client.resyncs == 0 and client.stale_bytes == 0 and client.stalls == 0
+    finally:
+        link.close()
+        board.close()

@@ -4,8 +4,8 @@ On the blimp the flight controller is another chip: the daemon only frames MSP
 requests and parses replies over a UART. Running the simulated board (the
 blimp's physics) inside the daemon's process would charge the daemon's CPU and
 GIL for it, so the bench runs it here, behind a pty, and the daemon's flight
-service takes its ordinary serial path (a pty, not pyserial's ``socket://``:
-a socket's ``in_waiting`` says only whether bytes wait, not how many, unlike a UART).
+service takes its ordinary serial path (a pty, as the blimp's UART, so the bench times
+the same system calls; ``socket://`` goes through ``transport.BufferedLink`` instead).
 
 ``python -m feelium.lab.daemon.board_server`` prints the pty's path, then serves until killed.
 """
