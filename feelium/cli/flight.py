@@ -28,7 +28,7 @@ def register(registry: CommandRegistry) -> None:
     probe.add_argument("--timeout", type=float, default=0.5, help="seconds to wait for each reply (default 0.5)")
     probe.set_defaults(handler=_probe)
     calibrate = registry.subcommand(
-        "calibrate", "flight", "Fly a short scripted flight (about 3 min) and fit this blimp's plant; type stop or Ctrl-C to abort.", _calibrate
+        "calibrate", "flight", "Fly a short scripted flight (about 4-5 min) and fit this blimp's plant; type stop or Ctrl-C to abort.", _calibrate
     )
     where = calibrate.add_mutually_exclusive_group(required=True)
     where.add_argument("--port", help="the motor board's serial device or pyserial URL")
@@ -144,14 +144,19 @@ def _stand_thrust(args: argparse.Namespace) -> Estimate | None:
     return Estimate(args.stand_thrust_n, args.stand_thrust_n * error)
 
 
-def _indices(text: str | None) -> list[int] | None:
-    """``8-11`` or ``0,3,8-11``: plant indices, in order."""
+def _indices(text: str | None, count: int) -> list[int] | None:
+    """``8-11`` or ``0,3,8-11``: plant indices of a set of ``count``, in order; a malformed or out-of-set one is refused."""
     if text is None:
         return None
     out: list[int] = []
     for part in text.split(","):
         first, _, last = part.partition("-")
-        out += range(int(first), int(last or first) + 1)
+        try:
+            out += range(int(first), int(last or first) + 1)
+        except ValueError:
+            raise SystemExit(f"bench flight: --only takes plant indices like 8-11 or 0,3,8, got {text!r}") from None
+    if not out or any(not 0 <= index < count for index in out):
+        raise SystemExit(f"bench flight: --only {text!r} names plants outside the set of --plants {count} (0-{count - 1})")
     return out
 
 
@@ -162,12 +167,17 @@ def _bench(args: argparse.Namespace) -> int:
     from feelium.lab.flight.bench import format_table, run_bench
 
     config = load_config(args.config).flight
+    plant_options = [name for name in ("json", "only", "calibrated", "no_flow") if getattr(args, name)]
+    if args.plants is None and plant_options:
+        raise SystemExit(f"bench flight: --{plant_options[0].replace('_', '-')} needs --plants N")
+    if args.plants is not None and args.plants < 1:
+        raise SystemExit(f"bench flight: --plants must be 1 or more, got {args.plants}")
     if args.plants:
         from feelium.lab.flight.plant_bench import format_plant_table, run_plant_bench
         from feelium.lab.report import emit_report
 
         report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow, calibrated=args.calibrated,
-                                 command_delay_s=args.command_delay_ms / 1000.0, only=_indices(args.only), flight_seed=args.seed)
+                                 command_delay_s=args.command_delay_ms / 1000.0, only=_indices(args.only, args.plants), flight_seed=args.seed)
         emit_report(format_plant_table(report), report, args.json)
         return 0
     results = run_bench(config, Path(args.out), seed=args.seed)

@@ -160,6 +160,13 @@ class FlightConfig:
 
     sim: FlightSimConfig = section(FlightSimConfig)
 
+    def __post_init__(self) -> None:
+        # Checked here so `feelium config check` finds it: with the floor above the ceiling every hold is outside one.
+        if not self.altitude_min_m < self.altitude_max_m:
+            raise ValueError(f"altitude_min_m ({self.altitude_min_m}) must be below altitude_max_m ({self.altitude_max_m})")
+        if self.battery_critical_v > self.battery_low_v:
+            raise ValueError(f"battery_critical_v ({self.battery_critical_v}) must not be above battery_low_v ({self.battery_low_v})")
+
     def uncertainty(self, axis: Axis) -> float:
         """How far this axis of the real blimp may be from the config: its own key if set, else ``plant_uncertainty``
         (a value below 1 counts as 1: nothing is known better than exactly)."""

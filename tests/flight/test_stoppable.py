@@ -67,4 +67,7 @@ def test_the_bench_judges_the_cruise_goal_against_the_target_and_keeps_the_comma
 def test_the_bench_command_reads_plant_indices_as_lists_and_ranges() -> None:
     from feelium.cli.flight import _indices
 
-    assert _indices("8-11") == [8, 9, 10, 11] and _indices("0,3,8-9") == [0, 3, 8, 9] and _indices(None) is None
+    assert _indices("8-11", 16) == [8, 9, 10, 11] and _indices("0,3,8-9", 16) == [0, 3, 8, 9] and _indices(None, 16) is None
+    for malformed, says in (("a-b", "plant indices like"), ("5", "outside the set"), ("15-16", "outside the set")):
+        with pytest.raises(SystemExit, match=says):
+            _indices(malformed, 16 if malformed != "5" else 2)

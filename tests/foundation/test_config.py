@@ -135,3 +135,17 @@ def test_relative_calibration_files_are_read_beside_the_config_from_any_working_
     assert calibration_path(config.projector.calibration.file) == calibration_path("maps/p.npz", path)  # where calibrate saves
     assert config.front_camera.lens_file == "/abs/lens.json"  # an absolute path is kept
     assert load_config(None).projector.calibration.file == "projector_calibration.npz"  # no file: the working directory's
+
+
+@pytest.mark.parametrize("flight, says", [
+    ("altitude_min_m = 2.8", "altitude_min_m (2.8) must be below altitude_max_m (2.6)"),
+    ("altitude_min_m = 1.0\naltitude_max_m = 1.0", "must be below altitude_max_m (1.0)"),
+    ("battery_critical_v = 3.6", "battery_critical_v (3.6) must not be above battery_low_v (3.5)"),
+], ids=["floor-above-ceiling", "floor-at-ceiling", "critical-above-low"])
+def test_flight_limits_that_contradict_each_other_are_refused_by_config_check_naming_the_file(flight, says, tmp_path, capsys):
+    """Each key alone was in its range, so `config check` passed a floor above the ceiling (the session-32 review)."""
+    path = tmp_path / "feelium.toml"
+    path.write_text(f"[flight]\n{flight}\n", encoding="utf-8")
+    assert main(["config", "check", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert str(path) in err and "flight" in err and says in err

@@ -4,8 +4,9 @@ Each plant (``plants.py``: the box's 16 corners first, then random ones) flies
 the whole safety flight (``safety.py``) twice in the same run: with the
 config as shipped (``plant_uncertainty`` 2: the loops learn the plant and
 count only on what they measured) and with the model trusted
-(``plant_uncertainty`` 1: what the controller did before it learned, every
-force from the config's mass and thrust). With ``calibrated`` a third
+(``plant_uncertainty`` 1: every force from the config's mass and thrust, as the
+controller the issue was filed against did; it is today's code with its learning
+switched off, not that controller, which is not kept). With ``calibrated`` a third
 variant first runs `calibrate flight` on each plant (``calibrate.py``) and
 flies it with the fitted config; it also reports the tight goals (hold RMS,
 cruise) before and after calibration and how far each fitted parameter is
