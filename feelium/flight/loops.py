@@ -71,10 +71,11 @@ HOVER_RETURN_DPS = 0.7 * STOPPED_YAW_DPS
 # command's surge push and a hover heading correction whose sign nothing has taught escalate alike (session 24).
 ESCALATE_S = 0.3
 # A held command on a fitted model closes the rest of its speed error on the flow-measured speed: an integral of this
-# gain, (m/s^2) per m (the PI's zero at CRUISE_INTEGRAL_GAIN / speed_kp = 0.4 /s, under the loop's own 5 /s), at most
-# CRUISE_INTEGRAL_LIMIT m/s^2 (a fifth of the planned brake). The fit's drag is biased low by the drafts (median -20 %,
+# gain, (m/s^2) per m (the PI's zero at CRUISE_INTEGRAL_GAIN / speed_kp = 1 /s, under the loop's own 5 /s), at most
+# CRUISE_INTEGRAL_LIMIT m/s^2 (a quarter of the planned brake). The fit's drag is biased low by the drafts (median -20 %,
 # docs/calibrate-flight.md, session 26) and the push is divided by the confirmed effectiveness, which an onset taught
-# 1.3 on calibrated corner-mtDL: the proportional loop alone cruised at 0.87-0.89 of the command (seed 1; session 32).
+# 1.37 on calibrated corner-mtDL: the proportional loop alone cruised at 0.87-0.89 of the command (seed 1; session 32).
+# At 2 /s^2 the integral had closed half the gap by the end of a 5 s command.
 CRUISE_INTEGRAL_GAIN = 5.0
 CRUISE_INTEGRAL_LIMIT = 0.1
 MIN_CLIMB_BRAKE_M_S2 = 0.02  # a body that shows no braking at all still gets a finite (very slow) approach
