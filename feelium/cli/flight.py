@@ -14,6 +14,9 @@ if TYPE_CHECKING:
     from feelium.flight.sysid import Estimate
 
 
+OUT_DEFAULT = "bench-out/flight"
+
+
 def register(registry: CommandRegistry) -> None:
     flight = registry.group("flight", "The motor board and the flight controller.")
     probe = flight.add_parser(
@@ -36,24 +39,24 @@ def register(registry: CommandRegistry) -> None:
     calibrate.add_argument("--config", help="TOML config file: its [flight] net_buoyancy_n (weighed) and arm_m give the scale")
     calibrate.add_argument("--out", default="bench-out/calibrate-flight", help="directory for the fitted config, JSON and plots")
     calibrate.add_argument("--plant", type=int, help="with --sim: fly randomised plant N of the plant set (0-15 are the box's corners)")
-    calibrate.add_argument("--seed", type=int, default=1, help="with --sim: simulation seed")
+    calibrate.add_argument("--seed", type=int, help="with --sim: simulation seed (default 1)")
     calibrate.add_argument("--stand-thrust-n", type=float,
                            help="one horizontal motor's full forward thrust read on a thrust stand, newtons (docs/motor-board.md's "
                                 "acceptance test): scales the surge mass, drags and yaw inertia directly instead of through the heave drag")
     calibrate.add_argument("--stand-error", type=float,
                            help="with --stand-thrust-n: its relative standard error (default 0.05: 1.3 g of a 25 g reading)")
     bench = registry.subcommand("bench", "flight", "Fly the simulator: hold, climb, commands, quietness against an untuned PID.", _bench)
-    bench.add_argument("--out", default="bench-out/flight", help="directory for the JSON and PNG plots")
+    bench.add_argument("--out", default=OUT_DEFAULT, help="directory for the JSON and PNG plots (not with --plants)")
     bench.add_argument("--seed", type=int, default=1, help="simulation seed (with --plants: of every flight and calibration)")
     bench.add_argument("--config", help="TOML config file (its [flight] section is used)")
     bench.add_argument("--plants", type=int, help="instead: the safety goals across N randomised plants (corners first), median and worst")
     bench.add_argument("--json", help="with --plants: write the report here (default: print it)")
-    bench.add_argument("--workers", type=int, default=1, help="with --plants: processes flying plants in parallel")
+    bench.add_argument("--workers", type=int, help="with --plants: processes flying plants in parallel (default 1)")
     bench.add_argument("--no-flow", action="store_true", help="with --plants: a board without the optical-flow sensor")
     bench.add_argument("--calibrated", action="store_true",
                        help="with --plants: also calibrate each plant (calibrate flight) and fly it with the fitted config: before and after")
     bench.add_argument("--only", help="with --plants: these indices of the set alone, e.g. 8-11 (the heavy weak corners) or 0,3,8")
-    bench.add_argument("--command-delay-ms", type=float, default=0.0,
+    bench.add_argument("--command-delay-ms", type=float,
                        help="with --plants: the simulated board's motors act this long after a command arrives (a phase sweep: 0, 2.5, 5, 7.5)")
 
 
@@ -77,13 +80,17 @@ def _calibrate(args: argparse.Namespace) -> int:
 
     full = load_config(args.config)
     stand = _stand_thrust(args)
-    if args.plant is not None and args.plant < 0 or args.seed < 0:
+    if not args.sim and (args.plant is not None or args.seed is not None):
+        raise SystemExit("calibrate flight: --plant and --seed pick a simulated plant and its air; they need --sim")
+    seed = 1 if args.seed is None else args.seed
+    if args.plant is not None and args.plant < 0 or seed < 0:
         raise SystemExit("calibrate flight: --plant and --seed must be 0 or more")
-    if args.plant is not None and not args.sim:
-        raise SystemExit("calibrate flight: --plant picks a simulated plant; it needs --sim")
     out = Path(args.out)
     try:  # before anything flies: a bad --out found after four minutes of flight loses the flight
         out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".feelium-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
     except OSError as exc:
         raise SystemExit(f"calibrate flight: cannot write to --out {out}: {exc}") from None
     try:
@@ -91,7 +98,7 @@ def _calibrate(args: argparse.Namespace) -> int:
             from feelium.lab.flight.plants import plant_set
 
             blimp = None if args.plant is None else plant_set(args.plant + 1)[args.plant].blimp
-            calibration = calibrate_sim(full.flight, blimp, seed=args.seed, stand_thrust_n=stand)
+            calibration = calibrate_sim(full.flight, blimp, seed=seed, stand_thrust_n=stand)
         else:
             calibration = calibrate_board(full.flight, args.port, stand_thrust_n=stand)
     except NothingFlown as exc:
@@ -152,9 +159,12 @@ def _indices(text: str | None, count: int) -> list[int] | None:
     for part in text.split(","):
         first, _, last = part.partition("-")
         try:
-            out += range(int(first), int(last or first) + 1)
+            start, stop = int(first), int(last or first)
         except ValueError:
             raise SystemExit(f"bench flight: --only takes plant indices like 8-11 or 0,3,8, got {text!r}") from None
+        if stop < start:
+            raise SystemExit(f"bench flight: --only {part!r} runs backwards: write the lower index first")
+        out += range(start, stop + 1)
     if not out or any(not 0 <= index < count for index in out):
         raise SystemExit(f"bench flight: --only {text!r} names plants outside the set of --plants {count} (0-{count - 1})")
     return out
@@ -167,17 +177,20 @@ def _bench(args: argparse.Namespace) -> int:
     from feelium.lab.flight.bench import format_table, run_bench
 
     config = load_config(args.config).flight
-    plant_options = [name for name in ("json", "only", "calibrated", "no_flow") if getattr(args, name)]
+    plant_options = [name for name in ("json", "only", "calibrated", "no_flow", "workers", "command_delay_ms")
+                     if getattr(args, name) not in (None, False)]
     if args.plants is None and plant_options:
         raise SystemExit(f"bench flight: --{plant_options[0].replace('_', '-')} needs --plants N")
     if args.plants is not None and args.plants < 1:
         raise SystemExit(f"bench flight: --plants must be 1 or more, got {args.plants}")
+    if args.plants is not None and args.out != OUT_DEFAULT:
+        raise SystemExit("bench flight: --out is the nominal bench's; with --plants the report goes to --json")
     if args.plants:
         from feelium.lab.flight.plant_bench import format_plant_table, run_plant_bench
         from feelium.lab.report import emit_report
 
-        report = run_plant_bench(config, args.plants, workers=args.workers, flow=not args.no_flow, calibrated=args.calibrated,
-                                 command_delay_s=args.command_delay_ms / 1000.0, only=_indices(args.only, args.plants), flight_seed=args.seed)
+        report = run_plant_bench(config, args.plants, workers=args.workers or 1, flow=not args.no_flow, calibrated=args.calibrated,
+                                 command_delay_s=(args.command_delay_ms or 0.0) / 1000.0, only=_indices(args.only, args.plants), flight_seed=args.seed)
         emit_report(format_plant_table(report), report, args.json)
         return 0
     results = run_bench(config, Path(args.out), seed=args.seed)

@@ -96,7 +96,8 @@ class FlightController:
     def sensor_ages(self, t: float) -> dict[str, float | None]:
         """How old each sensor's newest reading is at ``t`` (``None``: none yet): rangefinder, heading, optical flow."""
         newest = {"range": self.altitude.last_range_t, "heading": self.yaw.last_heading_t, "flow": self.surge.last_flow_t}
-        return {sensor: None if at is None else round(t - at, 3) for sensor, at in newest.items()}
+        # read from the event loop while the serial thread steps: a reading newer than ``t`` is 0 old, not negative
+        return {sensor: None if at is None else round(max(t - at, 0.0), 3) for sensor, at in newest.items()}
 
     def estimates(self, t: float) -> dict[str, object]:
         """What the controller has learned about this blimp, for health."""

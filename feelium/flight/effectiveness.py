@@ -306,8 +306,8 @@ class Effectiveness:
         """For health, per direction: the learned value and how many windows taught it; what a large push counts on
         (``confirmed``: ``None`` while nothing confirmed it, so such a push escalates from the box's strongest) and
         how many windows confirmed it; what a safety margin counts on (``assured``); with ``one_way``, how many windows
-        taught nothing, their pushes changing sign; with ``steady_bias``, the slope of the line each side follows or
-        holds (``*_line``: ``None`` while the side is on the ratio through the origin, no line known yet)."""
+        taught nothing, their pushes changing sign; with ``steady_bias``, the line each side follows or holds, as the
+        value it gives within the box (``*_line``: ``None`` while the side is on the ratio through the origin)."""
         health: dict[str, float | int | None] = {
             "reverse": round(self.values[0], 3), "forward": round(self.values[1], 3),
             "reverse_samples": self.samples[0], "forward_samples": self.samples[1]}
@@ -316,7 +316,7 @@ class Effectiveness:
         if self.steady_bias:
             for side, name in enumerate(("reverse", "forward")):
                 slope = self._line_slopes[side]
-                health[f"{name}_line"] = None if slope is None else round(slope, 3)
+                health[f"{name}_line"] = None if slope is None else round(min(max(slope, self.lows[side]), self.high), 3)
         for side, name in enumerate(("reverse", "forward")):
             push = 1.0 if side else -1.0
             health[f"{name}_confirmed"] = round(self.confirmed(push), 3) if self.is_confirmed(push) else None

@@ -47,7 +47,7 @@ from feelium.flight.config import FlightConfig
 from feelium.priority import name_current_thread
 from feelium.flight.controller import ControlOutput, FlightController
 from feelium.flight.lateness import LatenessHistogram
-from feelium.flight.sensor_health import sensor_problems
+from feelium.flight.sensor_health import SensorWatch
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
 from feelium.flight.telemetry import Telemetry
@@ -194,7 +194,8 @@ class FlightService:
         self.link: ByteLink | None = None
         self.client: MspClient | None = None
         self.link_state = "down"
-        self._up_since: float | None = None  # when the link last came up: its sensors are judged from a second after
+        self._up_since: float | None = None  # when a link last opened: its sensors are judged from a second after
+        self.sensors = SensorWatch(config)
         self._logged_state: str | None = None
         self._link_logged_at: deque[float] = deque()  # hub times of the link lines of the last LINK_LOG_WINDOW_S
         self._link_changes_unlogged = 0
@@ -280,8 +281,10 @@ class FlightService:
 
     def health(self) -> dict[str, Any]:
         out = self.last
+        now = self.hub.clock()
+        ages = self.controller.sensor_ages(now)
         report: dict[str, Any] = {
-            **self._condition(),
+            **self._condition(now, ages),
             "backend": self.opener.description,
             "heartbeat_at": self.heartbeat_at,
             "link": self.link_state,
@@ -301,7 +304,7 @@ class FlightService:
             "fps": self._control_rate() if self.link_state == "up" else 0.0,
             "estimates": self.controller.estimates(self.hub.clock()),
         }
-        report["sensor_age_s"] = self.controller.sensor_ages(self.hub.clock())
+        report["sensor_age_s"] = ages
         if self.client is not None:
             report["msp"] = self.client.health()
         board = getattr(self.opener, "board", None)
@@ -321,15 +324,16 @@ class FlightService:
         with self._rate_lock:
             return round(self._rate.rate(self.hub.clock()), 1)
 
-    def _condition(self) -> dict[str, str]:
-        """The motor board link as the part's health: without a board answering, flight is not ok."""
+    def _condition(self, now: float, ages: dict[str, float | None]) -> dict[str, str]:
+        """The motor board link and its sensors as the part's health: without a board answering, or with one whose
+        sensors are silent (``ages``, at ``now``), flight is not ok."""
         state = self.link_state
-        stalled_s = None if self.heartbeat_at is None else self.hub.clock() - self.heartbeat_at
+        stalled_s = None if self.heartbeat_at is None else now - self.heartbeat_at
         if stalled_s is not None and stalled_s > LOOP_STALL_S and not self.stopping:
             return {"condition": "degraded", "reason": f"control loop stalled: no cycle for {stalled_s:.1f} s"}
         if state == "up":
-            up_for = 0.0 if self._up_since is None else self.hub.clock() - self._up_since
-            problems = sensor_problems(self.controller.sensor_ages(self.hub.clock()), up_for, self.config)
+            up_for = 0.0 if self._up_since is None else now - self._up_since
+            problems = self.sensors.problems(now, ages, up_for)
             return {"condition": "degraded", "reason": "; ".join(problems)} if problems else {"condition": "ok"}
         if state in LINK_REASONS:
             return {"condition": "degraded", "reason": f"motor board link {state}: {LINK_REASONS[state]}"}
@@ -354,7 +358,7 @@ class FlightService:
         ``LINK_LOG_BURST`` lines are written in any ``LINK_LOG_WINDOW_S`` (a stall, its resync and the recovery
         all show), the changes beyond are counted, and the next line written says how many there were. Health
         shows the state of every tick regardless."""
-        if state == "up" and self.link_state != "up":
+        if state == "up" and self.link_state not in ("up", "stalled", "resyncing"):  # a new link, not a resync's end
             self._up_since = self.hub.clock()
         self.link_state = state
         if state == "connecting" or state == self._logged_state:

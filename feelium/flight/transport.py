@@ -5,7 +5,8 @@ pyserial's ``serial_for_url`` already understands device paths
 real backend is one call; the simulated board implements the same four
 members, which is all the client touches. A device path is wrapped in
 :class:`PosixLink`, which does a control tick's I/O in fewer system calls; a
-URL in :class:`BufferedLink`, whose ``in_waiting`` counts every byte that came.
+URL (``socket://``, ``loop://``) in :class:`BufferedLink`, whose ``in_waiting``
+counts every byte that came.
 """
 
 from __future__ import annotations
@@ -50,7 +51,15 @@ def open_serial(port: str, baudrate: int, timeout_s: float) -> ByteLink:
     import serial
     from serial.serialposix import Serial as PosixSerial
 
-    link = serial.serial_for_url(port, baudrate=baudrate, timeout=timeout_s, write_timeout=max(timeout_s, WRITE_TIMEOUT_S))
+    if port.lower().startswith("rfc2217://"):
+        # pyserial's RFC 2217 client supports no write deadline, and each change of its timeout renegotiates the port
+        # with the server (50 ms or more): no tick could keep its period
+        raise serial.SerialException(f"cannot open {port}: rfc2217:// is not supported for the motor board; use "
+                                     "socket:// (a raw TCP bridge) or the serial device")
+    try:
+        link = serial.serial_for_url(port, baudrate=baudrate, timeout=timeout_s, write_timeout=max(timeout_s, WRITE_TIMEOUT_S))
+    except ValueError as exc:  # a URL pyserial does not know ("foo://"), a malformed one: the port's fault, named
+        raise serial.SerialException(f"cannot open {port}: {exc}") from exc
     return PosixLink(link) if isinstance(link, PosixSerial) else BufferedLink(link)
 
 
@@ -123,7 +132,7 @@ class PosixLink:
 
 
 class BufferedLink:
-    """A pyserial URL port (``socket://``, ``rfc2217://``, ``loop://``) with an ``in_waiting`` that counts bytes.
+    """A pyserial URL port (``socket://``, ``loop://``) with an ``in_waiting`` that counts bytes.
 
     pyserial's socket port answers ``in_waiting`` with 0 or 1 (whether the socket is readable), where the client
     needs the count: its drain of what waited before a burst then read one byte of the last tick's acks and

@@ -553,13 +553,14 @@ def test_a_board_that_never_answers_ends_the_flight_neutral_within_its_first_tel
     assert t <= 10.0 + pilot.envelope.first_telemetry_s + 0.05
 
 
-@pytest.mark.parametrize("flags, says", [(["--plant", "-1"], "0 or more"), (["--seed", "-1"], "0 or more")],
-                         ids=["negative-plant", "negative-seed"])
+@pytest.mark.parametrize("flags, says", [(["--plant", "-1"], "0 or more"), (["--seed", "-1"], "0 or more"),
+                                         (["--port", "/dev/null", "--seed", "3"], "they need --sim")],
+                         ids=["negative-plant", "negative-seed", "seed-on-a-board"])
 def test_cli_refuses_arguments_no_plant_has_before_flying(flags: list[str], says: str, tmp_path: Path) -> None:
     from feelium.cli import main
 
     with pytest.raises(SystemExit, match=says):
-        main(["calibrate", "flight", "--sim", "--out", str(tmp_path / "out"), *flags])
+        main(["calibrate", "flight", *([] if "--port" in flags else ["--sim"]), "--out", str(tmp_path / "out"), *flags])
     assert not any(tmp_path.iterdir())
 
 

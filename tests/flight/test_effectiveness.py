@@ -636,4 +636,7 @@ def test_health_shows_the_line_a_side_follows_or_holds_and_none_while_it_is_on_t
     assert fresh.as_dict()["reverse_line"] is None and fresh.as_dict()["forward_line"] is None
     holding = _a_line_learned_then_a_still_hold(60.0)
     assert holding.as_dict()["reverse_line"] == round(holding.value(-1.0), 3)
+    boxed = Effectiveness(1.0, 1.0, window_s=0.5, min_change=0.03, steady_bias=True, change_noise=HEAVE_CHANGE_NOISE_M_S)
+    boxed._line_slopes = [1.09, 0.5]  # a line's slope outside a box of 1: health shows what the side flies on
+    assert boxed.as_dict()["reverse_line"] == 1.0 and boxed.as_dict()["forward_line"] == 1.0
     assert "reverse_line" not in Effectiveness(0.25, 4.0).as_dict()  # no line without steady_bias

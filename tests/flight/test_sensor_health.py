@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from feelium.daemon.config import Config
-from feelium.flight.sensor_health import FIRST_READINGS_S, FLOW_MISSING_S, sensor_problems
+from feelium.flight.sensor_health import CLEAR_AFTER_S, FIRST_READINGS_S, FLOW_MISSING_S, SensorWatch
 from feelium.flight.service import FlightService
 from feelium.flight.sim_board import BoardParams, SensorParams, board_with
 from feelium.hub import Hub
@@ -19,19 +19,36 @@ FRESH = {"range": 0.02, "heading": 0.02, "flow": 0.02}
 
 
 def test_fresh_sensors_are_no_problem_and_a_link_just_up_is_given_its_first_readings() -> None:
-    assert sensor_problems(FRESH, 10.0, CONFIG) == []
-    assert sensor_problems({"range": None, "heading": None, "flow": None}, 0.5 * FIRST_READINGS_S, CONFIG) == []
+    watch = SensorWatch(CONFIG)
+    assert watch.problems(10.0, FRESH, 10.0) == []
+    assert watch.problems(10.0, {"range": None, "heading": None, "flow": None}, 0.5 * FIRST_READINGS_S) == []
 
 
-def test_each_sensor_silent_past_its_limit_is_named_with_its_age_or_as_never_heard() -> None:
-    dead_range = sensor_problems({**FRESH, "range": CONFIG.range_hold_s + 0.1}, 10.0, CONFIG)
-    assert dead_range == [f"no rangefinder reading for {CONFIG.range_hold_s + 0.1:.1f} s: altitude failsafe, sinking gently"]
-    assert sensor_problems({**FRESH, "range": CONFIG.range_hold_s - 0.01}, 10.0, CONFIG) == []  # a dropout it holds through
-    never = sensor_problems({**FRESH, "flow": None}, 10.0, CONFIG)
+def test_each_sensor_silent_past_its_limit_and_a_tick_is_named_with_its_age_or_as_never_heard() -> None:
+    tick = 1.0 / CONFIG.rate_hz + CONFIG.reply_timeout_s  # health is read between ticks: a reading on its way is no news
+    late = CONFIG.range_hold_s + tick + 0.05
+    dead_range = SensorWatch(CONFIG).problems(10.0, {**FRESH, "range": late}, 10.0)
+    assert dead_range == [f"no rangefinder reading for {late:.1f} s: altitude failsafe, rising slowly (the motors cancel "
+                          "most of the buoyancy)"]
+    assert SensorWatch(CONFIG).problems(10.0, {**FRESH, "range": CONFIG.range_hold_s + 0.5 * tick}, 10.0) == []
+    never = SensorWatch(CONFIG).problems(10.0, {**FRESH, "flow": None}, 10.0)
     assert len(never) == 1 and never[0].startswith("no measured speed since the link came up")
-    assert sensor_problems({**FRESH, "flow": 0.9 * FLOW_MISSING_S}, 10.0, CONFIG) == []  # a short gap does not flap
-    both = sensor_problems({"range": 5.0, "heading": 5.0, "flow": 5.0}, 10.0, CONFIG)
+    assert SensorWatch(CONFIG).problems(10.0, {**FRESH, "flow": 0.9 * FLOW_MISSING_S}, 10.0) == []  # a short gap
+    both = SensorWatch(CONFIG).problems(10.0, {"range": 5.0, "heading": 5.0, "flow": 5.0}, 10.0)
     assert [problem.split(" ")[1] for problem in both] == ["rangefinder", "heading", "measured"]
+
+
+def test_an_intermittent_sensor_stays_reported_until_it_has_been_fresh_for_a_while_so_health_does_not_flap() -> None:
+    """The session-32 review: a flow losing lock 1.5 s of every 3.3 s, health read once a second, flipped flight ok /
+    degraded 20 times a minute, each flip a log line."""
+    watch = SensorWatch(CONFIG)
+    verdicts = []
+    for second in range(60):  # read every second; one read in four finds the flow 1.5 s silent
+        flow_age = 1.5 if second % 4 == 0 else 0.02
+        verdicts.append(bool(watch.problems(float(second), {**FRESH, "flow": flow_age}, 100.0)))
+    assert verdicts == [True] * 60
+    assert "intermittent" in " ".join(watch.problems(60.0, FRESH, 100.0))
+    assert watch.problems(60.0 + CLEAR_AFTER_S, FRESH, 100.0) == []  # fresh long enough: cleared
 
 
 async def test_a_board_whose_rangefinder_and_flow_report_nothing_is_degraded_and_says_why_and_ages_are_in_health() -> None:

@@ -68,6 +68,21 @@ def test_the_bench_command_reads_plant_indices_as_lists_and_ranges() -> None:
     from feelium.cli.flight import _indices
 
     assert _indices("8-11", 16) == [8, 9, 10, 11] and _indices("0,3,8-9", 16) == [0, 3, 8, 9] and _indices(None, 16) is None
-    for malformed, says in (("a-b", "plant indices like"), ("5", "outside the set"), ("15-16", "outside the set")):
+    for malformed, says in (("a-b", "plant indices like"), ("5", "outside the set"), ("15-16", "outside the set"),
+                            ("3-1", "runs backwards")):
         with pytest.raises(SystemExit, match=says):
             _indices(malformed, 16 if malformed != "5" else 2)
+
+
+@pytest.mark.parametrize("flags, says", [(["--workers", "2"], "--workers needs --plants"),
+                                         (["--command-delay-ms", "5"], "--command-delay-ms needs --plants"),
+                                         (["--json", "x.json"], "--json needs --plants"),
+                                         (["--plants", "2", "--out", "elsewhere"], "--out is the nominal bench's"),
+                                         (["--plants", "0"], "--plants must be 1 or more")])
+def test_the_bench_command_refuses_an_option_it_would_ignore(flags: list[str], says: str) -> None:
+    """``--plants 0`` ran the nominal bench and ignored ``--json``; ``--workers`` without ``--plants`` was ignored (the
+    session-32 reviews)."""
+    from feelium.cli import main
+
+    with pytest.raises(SystemExit, match=says):
+        main(["bench", "flight", *flags])

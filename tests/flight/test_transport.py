@@ -111,3 +111,12 @@ def test_the_client_flies_a_board_over_a_socket_without_stale_bytes_or_resyncs()
     finally:
         link.close()
         board.close()
+
+
+@pytest.mark.parametrize("port, says", [("foo://bar", "protocol 'foo' not known"), ("rfc2217://localhost:1", "not supported")])
+def test_a_port_url_no_link_can_serve_is_refused_as_a_serial_error_naming_it(port: str, says: str) -> None:
+    """An unknown scheme raised ValueError (a traceback from calibrate flight; the service's reopen loop expects a
+    serial error); RFC 2217 raised NotImplementedError for the write deadline (the session-32 review)."""
+    with pytest.raises(serial.SerialException, match=says) as raised:
+        open_serial(port, 115200, REPLY_TIMEOUT_S)
+    assert port in str(raised.value)
