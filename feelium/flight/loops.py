@@ -566,12 +566,13 @@ class SurgeLoop:
 
     def _cruise_integral(self, t: float, dt: float, speed_sp: float, est: SurgeEstimate) -> float:
         """The held command's integral of its speed error on the flow-led speed (not the held speed: its choice of the
-        faster of two noisy speeds reads high, and an integral would hold that bias), once its onset reached the
-        setpoint, on a fitted model with a fresh flow; held while the flow is stale, cleared when the command ends (a
-        brake owes it nothing)."""
-        if not speed_sp or not est.fitted:
+        faster of two noisy speeds reads high, and an integral would hold that bias), while its reference sits on the
+        setpoint, on a fitted model; held while the flow is stale. Cleared whenever the reference moves (an onset, a
+        command reversed, a speed cap that fell: the push learned for one setpoint must not carry into another) and
+        when the command ends (a brake owes it nothing)."""
+        if not speed_sp or not est.fitted or abs(self.ref_speed - speed_sp) > 1e-6:
             self.cruise_integral = 0.0
-        elif abs(self.ref_speed - speed_sp) <= 1e-6 and est.measured(t):
+        elif est.measured(t):
             step = CRUISE_INTEGRAL_GAIN * (speed_sp - est.flow_speed) * dt
             self.cruise_integral = min(max(self.cruise_integral + step, -CRUISE_INTEGRAL_LIMIT), CRUISE_INTEGRAL_LIMIT)
         return self.cruise_integral

@@ -51,3 +51,16 @@ def test_the_shipped_box_and_a_released_command_have_no_integral() -> None:
         assert (max(np.abs(integrals)) == 0.0) == (config is SHIPPED)
         flight.step()
         assert loop.cruise_integral == 0.0
+
+
+def test_a_command_reversed_mid_way_starts_without_the_push_the_other_way_learned() -> None:
+    """The integral belongs to one setpoint: a ``forward`` turned straight into ``backward`` (the headset sends one
+    after the other) must not carry 0.1 m/s^2 of forward push into the reversal."""
+    flight = sc.new_flight(FITTED, False, 1)
+    flight.run(sc.SETTLE_S)
+    loop = flight.controller.surge_loop  # type: ignore[attr-defined]
+    for _ in range(int(4.0 * FITTED.rate_hz)):
+        flight.step(setpoint_for_motion("forward", FITTED))
+    assert loop.cruise_integral != 0.0
+    flight.step(setpoint_for_motion("backward", FITTED))
+    assert loop.cruise_integral == 0.0
