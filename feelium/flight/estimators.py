@@ -422,11 +422,6 @@ class SurgeEstimate:
     def measured(self, t: float) -> bool:
         return self.last_flow_t is not None and t - self.last_flow_t <= FLOW_FRESH_S
 
-    @property
-    def fitted(self) -> bool:
-        """Whether the model is a calibration's: trusted longer than the hover's decision, not outright."""
-        return self._fitted
-
     def update(self, t: float, dt: float, surge_mean_n: float, flow_x_rad_s: float | None, height_m: float | None) -> None:
         c = self.c
         push = surge_mean_n / c.mass_kg

@@ -70,14 +70,6 @@ HOVER_RETURN_DPS = 0.7 * STOPPED_YAW_DPS
 # turn normalised by it reached 0.05-0.17 of the command, too little ever to confirm one (session 21). A held
 # command's surge push and a hover heading correction whose sign nothing has taught escalate alike (session 24).
 ESCALATE_S = 0.3
-# A held command on a fitted model closes the rest of its speed error on the flow-measured speed: an integral of this
-# gain, (m/s^2) per m (the PI's zero at CRUISE_INTEGRAL_GAIN / speed_kp = 1 /s, under the loop's own 5 /s), at most
-# CRUISE_INTEGRAL_LIMIT m/s^2 (a quarter of the planned brake). The fit's drag is biased low by the drafts (median -20 %,
-# docs/calibrate-flight.md, session 26) and the push is divided by the confirmed effectiveness, which an onset taught
-# 1.37 on calibrated corner-mtDL: the proportional loop alone cruised at 0.87-0.89 of the command (seed 1; session 32).
-# At 2 /s^2 the integral had closed half the gap by the end of a 5 s command.
-CRUISE_INTEGRAL_GAIN = 5.0
-CRUISE_INTEGRAL_LIMIT = 0.1
 MIN_CLIMB_BRAKE_M_S2 = 0.02  # a body that shows no braking at all still gets a finite (very slow) approach
 STILL_M_S = 0.05  # a climb rate this small is holding still: its force is the hover force...
 HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
@@ -330,7 +322,6 @@ class HeadingLoop:
         self.untaught_push_since: float | None = None  # a hover correction of an untaught sign pushes since then...
         self.untaught_push_sign = 0.0  # ...this way
         self.escalating = False  # this cycle's push has a sign nothing taught (confirmed): it escalates (health)
-        self.cruise_integral = 0.0  # m/s^2: a held command's integral on a fitted model (CRUISE_INTEGRAL_GAIN)
         self.firm_against_rate = False  # a hover correction or a settle braking a rate over the firm one (see ``step``)
         self.settling_a_brake = False  # the settle follows a turn's brake, not a telemetry outage (see ``step``)
 
@@ -520,7 +511,6 @@ class SurgeLoop:
         self.speed_cap = config.forward_speed_m_s
         self.command_started = 0.0
         self.escalating = False  # this cycle's push has a sign nothing taught (confirmed): it escalates (health)
-        self.cruise_integral = 0.0  # m/s^2: a held command's integral on a fitted model (CRUISE_INTEGRAL_GAIN)
 
     def step(self, t: float, dt: float, speed_sp: float, gain: float, est: SurgeEstimate, thrust: ThrustModel) -> float:
         c = self.c
@@ -554,7 +544,7 @@ class SurgeLoop:
         lag = longest_lag_s(c, "surge") if speed_sp else c.motor_lag_s
         speed = est.held_speed(t, speed_sp) if speed_sp else est.speed
         predicted = speed + est.accel(thrust.surge) * lag
-        wanted = accel + gain * c.speed_kp * (v_ahead - predicted) + self._cruise_integral(t, dt, speed_sp, est)
+        wanted = accel + gain * c.speed_kp * (v_ahead - predicted)
         if speed_sp:
             effectiveness = self._command_effectiveness(t, wanted, est)
         elif hover:
@@ -563,19 +553,6 @@ class SurgeLoop:
             effectiveness = est.effectiveness.value(wanted)
         force = c.mass_kg * wanted / effectiveness + air_drag(v, c.quadratic_drag)
         return self.band.same_sign(force) if hover else force
-
-    def _cruise_integral(self, t: float, dt: float, speed_sp: float, est: SurgeEstimate) -> float:
-        """The held command's integral of its speed error on the flow-led speed (not the held speed: its choice of the
-        faster of two noisy speeds reads high, and an integral would hold that bias), while its reference sits on the
-        setpoint, on a fitted model; held while the flow is stale. Cleared whenever the reference moves (an onset, a
-        command reversed, a speed cap that fell: the push learned for one setpoint must not carry into another) and
-        when the command ends (a brake owes it nothing)."""
-        if not speed_sp or not est.fitted or abs(self.ref_speed - speed_sp) > 1e-6:
-            self.cruise_integral = 0.0
-        elif est.measured(t):
-            step = CRUISE_INTEGRAL_GAIN * (speed_sp - est.flow_speed) * dt
-            self.cruise_integral = min(max(self.cruise_integral + step, -CRUISE_INTEGRAL_LIMIT), CRUISE_INTEGRAL_LIMIT)
-        return self.cruise_integral
 
     def _command_effectiveness(self, t: float, wanted: float, est: SurgeEstimate) -> float:
         """What a held command's push is normalised by: the confirmed value (windows that changed the speed as a command
