@@ -46,7 +46,7 @@ def register(registry: CommandRegistry) -> None:
     calibrate.add_argument("--stand-error", type=float,
                            help="with --stand-thrust-n: its relative standard error (default 0.05: 1.3 g of a 25 g reading)")
     bench = registry.subcommand("bench", "flight", "Fly the simulator: hold, climb, commands, quietness against an untuned PID.", _bench)
-    bench.add_argument("--out", default=OUT_DEFAULT, help="directory for the JSON and PNG plots (not with --plants)")
+    bench.add_argument("--out", help=f"directory for the JSON and PNG plots (default {OUT_DEFAULT}; not with --plants)")
     bench.add_argument("--seed", type=int, default=1, help="simulation seed (with --plants: of every flight and calibration)")
     bench.add_argument("--config", help="TOML config file (its [flight] section is used)")
     bench.add_argument("--plants", type=int, help="instead: the safety goals across N randomised plants (corners first), median and worst")
@@ -177,23 +177,26 @@ def _bench(args: argparse.Namespace) -> int:
     from feelium.lab.flight.bench import format_table, run_bench
 
     config = load_config(args.config).flight
-    plant_options = [name for name in ("json", "only", "calibrated", "no_flow", "workers", "command_delay_ms")
-                     if getattr(args, name) not in (None, False)]
-    if args.plants is None and plant_options:
-        raise SystemExit(f"bench flight: --{plant_options[0].replace('_', '-')} needs --plants N")
+    given = [name for name in ("json", "only", "workers", "command_delay_ms") if getattr(args, name) is not None]
+    given += [name for name in ("calibrated", "no_flow") if getattr(args, name)]  # flags: False when not given
+    if args.plants is None and given:
+        raise SystemExit(f"bench flight: --{given[0].replace('_', '-')} needs --plants N")
     if args.plants is not None and args.plants < 1:
         raise SystemExit(f"bench flight: --plants must be 1 or more, got {args.plants}")
-    if args.plants is not None and args.out != OUT_DEFAULT:
+    if args.workers is not None and args.workers < 1:
+        raise SystemExit(f"bench flight: --workers must be 1 or more, got {args.workers}")
+    if args.plants is not None and args.out is not None:
         raise SystemExit("bench flight: --out is the nominal bench's; with --plants the report goes to --json")
     if args.plants:
         from feelium.lab.flight.plant_bench import format_plant_table, run_plant_bench
         from feelium.lab.report import emit_report
 
-        report = run_plant_bench(config, args.plants, workers=args.workers or 1, flow=not args.no_flow, calibrated=args.calibrated,
+        report = run_plant_bench(config, args.plants, workers=1 if args.workers is None else args.workers, flow=not args.no_flow, calibrated=args.calibrated,
                                  command_delay_s=(args.command_delay_ms or 0.0) / 1000.0, only=_indices(args.only, args.plants), flight_seed=args.seed)
         emit_report(format_plant_table(report), report, args.json)
         return 0
-    results = run_bench(config, Path(args.out), seed=args.seed)
+    out = args.out or OUT_DEFAULT
+    results = run_bench(config, Path(out), seed=args.seed)
     print(format_table(results))
-    print(f"JSON and plots in {args.out}/")
+    print(f"JSON and plots in {out}/")
     return 0

@@ -78,7 +78,11 @@ def test_the_bench_command_reads_plant_indices_as_lists_and_ranges() -> None:
                                          (["--command-delay-ms", "5"], "--command-delay-ms needs --plants"),
                                          (["--json", "x.json"], "--json needs --plants"),
                                          (["--plants", "2", "--out", "elsewhere"], "--out is the nominal bench's"),
-                                         (["--plants", "0"], "--plants must be 1 or more")])
+                                         (["--plants", "0"], "--plants must be 1 or more"),
+                                         (["--workers", "0"], "--workers needs --plants"),
+                                         (["--command-delay-ms", "0"], "--command-delay-ms needs --plants"),
+                                         (["--plants", "2", "--workers", "0"], "--workers must be 1 or more"),
+                                         (["--plants", "2", "--out", "bench-out/flight"], "--out is the nominal bench's")])
 def test_the_bench_command_refuses_an_option_it_would_ignore(flags: list[str], says: str) -> None:
     """``--plants 0`` ran the nominal bench and ignored ``--json``; ``--workers`` without ``--plants`` was ignored (the
     session-32 reviews)."""
