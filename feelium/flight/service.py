@@ -302,7 +302,7 @@ class FlightService:
             "battery": out.battery if out else "unknown",
             "last_error": self.last_error,
             "fps": self._control_rate() if self.link_state == "up" else 0.0,
-            "estimates": self.controller.estimates(self.hub.clock()),
+            "estimates": self.controller.estimates(now),
         }
         report["sensor_age_s"] = ages
         if self.client is not None:

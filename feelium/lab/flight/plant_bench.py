@@ -85,16 +85,14 @@ def _recovery_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per goal its median, worst, worst plant and misses; per reported figure the same without a goal."""
     out: dict[str, Any] = {}
-    for goal, limit in GOALS.items():
-        values = [row["figures"][goal] for row in rows]
-        worst = max(rows, key=lambda row: row["figures"][goal])
-        out[goal] = {"goal": limit, "median": statistics.median(values), "worst": max(values), "worst_plant": worst["plant"],
-                     "plants_missing_goal": sum(1 for v in values if not v <= limit)}
-    for figure in REPORTED:
+    for figure, limit in (*GOALS.items(), *((figure, None) for figure in REPORTED)):
         values = [row["figures"][figure] for row in rows]
         worst = max(rows, key=lambda row: row["figures"][figure])
-        out[figure] = {"goal": None, "median": statistics.median(values), "worst": max(values), "worst_plant": worst["plant"]}
+        out[figure] = {"goal": limit, "median": statistics.median(values), "worst": max(values), "worst_plant": worst["plant"]}
+        if limit is not None:
+            out[figure]["plants_missing_goal"] = sum(1 for v in values if not v <= limit)
     out["plants_meeting_every_goal"] = sum(1 for row in rows if not row["failures"])
     return out
 
