@@ -67,7 +67,8 @@ class Effectiveness:
                  memory_s: float = 6.0, min_change: float = 0.0, assuring_change: float = 0.0,
                  confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
                  mirrored: bool = False, real_pushes_assure: bool = False, real_pushes_confirm: bool = False,
-                 change_noise: float = 0.0, one_way: bool = False, steady_bias: bool = False) -> None:
+                 change_noise: float = 0.0, one_way: bool = False, steady_bias: bool = False,
+                 assuring_error: float = 0.0) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -109,7 +110,13 @@ class Effectiveness:
         and 3.1 up where both were about 1.0; its down pushes were four times too strong and the hold under the ceiling
         swung 10.7 cm past it (flight seed 70; docs/flight-robustness.md, session 30). A line needs pushes that differ:
         until its slope is known to ``LINE_STANDARD_ERROR`` (so ``change_noise`` is required), the side keeps the ratio
-        through the origin; once known, the side never returns to the ratio (see ``LINE_LEAVING_STANDARD_ERROR``)."""
+        through the origin; once known, the side never returns to the ratio (see ``LINE_LEAVING_STANDARD_ERROR``);
+        ``assuring_error``: what the flight teaches the margin counts only once the windows that may teach it pin the
+        value to this standard error, each weighted by the noise :meth:`update` is told its measured change has (0: from
+        the first such window). A window whose push was barely over ``min_change`` read the flow's noise as a change
+        five times the push's, on a side still at the box's strongest: it assured the shipped config's reverse surge at
+        4.0 (from the box's 0.125) and the speed cap doubled, after a board stall had left the body under the ceiling
+        where the flow is noisiest (docs/flight-robustness.md, session 33)."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -137,6 +144,8 @@ class Effectiveness:
         self._strong_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over real pushes only
         self._assuring_sums = [[0.0, 0.0], [0.0, 0.0]]  # the same over the windows that may teach a margin
         self.change_noise = change_noise
+        self.assuring_error = assuring_error
+        self._assuring_precision = [0.0, 0.0]  # per direction: sum of (x / noise)^2 over the windows that may assure
         # per direction: sum x*x over independent windows (they overlap); with ``steady_bias`` once a line is used, the
         # spread of its commanded pushes instead
         self._information = [0.0, 0.0]
@@ -241,9 +250,11 @@ class Effectiveness:
         """The box's lower bound for a push of this sign: what a push must be scaled by to act on every plant."""
         return self.lows[1 if push > 0.0 else 0]
 
-    def update(self, t: float, dt: float, push: float, measured_rate: float | None, learned: float = 0.0) -> None:
+    def update(self, t: float, dt: float, push: float, measured_rate: float | None, learned: float = 0.0,
+               noise: float = 0.0) -> None:
         """Fold in one cycle: the modelled acceleration ``push`` held over ``dt`` and the measured rate at ``t``;
-        ``learned``: the share of ``push`` that is an estimate, not a command (the disturbance: see ``steady_bias``)."""
+        ``learned``: the share of ``push`` that is an estimate, not a command (the disturbance: see ``steady_bias``);
+        ``noise``: the standard deviation of a window's measured change now (see ``assuring_error``)."""
         self._push_integral += push * dt
         self._gross_integral += abs(push) * dt
         self._commanded_integral += (push - learned) * dt
@@ -285,8 +296,11 @@ class Effectiveness:
         real = self._overlaps_real_push(t, side)
         # the change it made (modelled times learned), not the modelled
         if (real or not self.real_pushes_assure) and abs(x) * self.values[side] >= self.assuring_change:
-            self.assuring_samples[side] += 1
             _fold(self._assuring_sums[side], decay, x, y)
+            if noise > 0.0:
+                self._assuring_precision[side] = self._assuring_precision[side] * decay + (x / noise) ** 2 * overlap
+            if not self.assuring_error or self.assuring_samples[side] or self._assuring_precision[side] * self.assuring_error ** 2 >= 1.0:
+                self.assuring_samples[side] += 1
         if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0 and (real or not self.real_pushes_confirm):
             self.confirming_samples[side] += 1
             self.strong_values[side] = min(max(_fold(self._strong_sums[side], decay, x, y), self.lows[side]), self.high)

@@ -62,6 +62,11 @@ DECISION_FLOW_TAU_S = 0.15
 YAW_CONFIRMING_CHANGE_RAD_S = 0.035  # 2 deg/s of measured yaw-rate change in a window: a turn or a brake, not a nudge
 SURGE_ASSURING_CHANGE_M_S = 0.02  # a window must change the modelled speed this much to teach the stop's margin
 SURGE_CONFIRMING_CHANGE_M_S = 0.08  # measured in a window: a command or a brake, not a drift nor the flow noise (0.034 m/s)
+# The flow sensor's noise (PMW3901 class, as the simulator's), rad/s per reading: a window's measured speed change has
+# root 2 times it, times the height. What the flight teaches the stop's margin counts once it is known to this standard
+# error (``Effectiveness(assuring_error=...)``; a brake of the nominal blimp at 1.2 m pins it in about 0.1 s).
+FLOW_NOISE_RAD_S = 0.02
+SURGE_ASSURING_ERROR = 2.0
 FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone
 # Without the flow the learned model bias fades over this: the model alone must not carry a draft long gone.
 SURGE_BIAS_FORGET_S = 1.0
@@ -417,7 +422,7 @@ class SurgeEstimate:
                                            assuring_change=SURGE_ASSURING_CHANGE_M_S, confirming_change=SURGE_CONFIRMING_CHANGE_M_S,
                                            shown=1.0 / config.uncertainty("surge") if config.braking_shown else None,
                                            reverse_shown=config.surge_brake_shown or None, real_pushes_assure=True,
-                                           one_way=True)
+                                           one_way=True, assuring_error=SURGE_ASSURING_ERROR)
 
     def measured(self, t: float) -> bool:
         return self.last_flow_t is not None and t - self.last_flow_t <= FLOW_FRESH_S
@@ -446,7 +451,8 @@ class SurgeEstimate:
         # The air's drag brakes the body along with any push against a drift; added back (by the model),
         # it is not credited to the push.
         self._drag_integral += air_drag(self.speed, c.quadratic_drag) / c.mass_kg * dt
-        self.effectiveness.update(t, dt, push, None if measured is None else measured + self._drag_integral)
+        noise = math.sqrt(2.0) * FLOW_NOISE_RAD_S * height_m if measured is not None and height_m is not None else 0.0
+        self.effectiveness.update(t, dt, push, None if measured is None else measured + self._drag_integral, noise=noise)
 
     @property
     def decision_speed(self) -> float:

@@ -640,3 +640,34 @@ def test_health_shows_the_line_a_side_follows_or_holds_and_none_while_it_is_on_t
     boxed._line_slopes = [1.09, 0.5]  # a line's slope outside a box of 1: health shows what the side flies on
     assert boxed.as_dict()["reverse_line"] == 1.0 and boxed.as_dict()["forward_line"] == 1.0
     assert "reverse_line" not in Effectiveness(0.25, 4.0).as_dict()  # no line without steady_bias
+
+
+def _corrections_then_brake(estimator: Effectiveness, brake_cycles: int, noise: float) -> None:
+    """A held command's tiny reverse corrections (just over ``min_change`` a window), one reading of which is the
+    sensor's noise two deviations low, then ``brake_cycles`` of a real brake; the true reverse gain is 0.25, the box's
+    weakest. ``noise``: the deviation of a window's measured change (the difference of two readings)."""
+    rate, dt = 0.0, 0.02
+    for k in range(16 + brake_cycles):
+        t = k * dt
+        push = -0.02 if k < 16 else -0.5
+        estimator.mark_real_push(t - dt, push)
+        rate += 0.25 * push * dt
+        estimator.update(t, dt, push, rate - (2.0 * noise / math.sqrt(2.0) if k == 15 else 0.0), noise=noise)
+
+
+def test_a_margin_waits_until_the_windows_pin_the_value_to_its_standard_error() -> None:
+    """After a board stall a held forward's tiny reverse corrections, the flow noisy under the ceiling, assured the
+    shipped reverse surge at the box's strongest from one window and the speed cap doubled: 7 of 128 held commands
+    through a stall ran over 1.2 of the command, up to 1.49 (session 33). With ``assuring_error`` that window
+    teaches the loop but not the margin, and a real brake still does."""
+    def estimator(error: float) -> Effectiveness:
+        return Effectiveness(0.25, 4.0, min_change=0.005, assuring_change=0.02, real_pushes_assure=True, one_way=True,
+                             assuring_error=error)
+    ungated, gated = estimator(0.0), estimator(2.0)
+    for e in (ungated, gated):
+        _corrections_then_brake(e, brake_cycles=0, noise=0.085)
+    assert ungated.assured(-1.0) == 4.0  # one noisy reading, taken for a brake of the box's strongest
+    assert gated.assured(-1.0) == 0.25 and gated.values[0] == 4.0  # the loop learned it; the margin did not
+    braked = estimator(2.0)
+    _corrections_then_brake(braked, brake_cycles=30, noise=0.034)
+    assert braked.assuring_samples[0] > 0 and braked.assured(-1.0) == pytest.approx(0.25, abs=0.05)  # a brake assures

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from feelium.flight.config import FlightConfig
+from feelium.flight.faulty_link import LinkFaults, Window
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.sim_board import BoardParams, SensorParams, board_with
 from feelium.lab.flight.plants import MILD_DRAFTS, Plant
@@ -190,3 +191,30 @@ def safety_flight(config: FlightConfig, plant: Plant, seed: int = 1, controller:
     if report is not None:
         report(f"{plant.name}: " + ", ".join(f"{k}={v:.3g}" for k, v in result.figures().items()))
     return result
+
+
+# A held command through a board stall (issue 13, point 3): the stall windows, seconds into the hold and long.
+STALL_HELD_S = 12.0
+STALLS = ((0.5, 3.0), (3.0, 3.0))
+
+
+def held_through_stall(config: FlightConfig, plant: Plant, command: str, stall_at_s: float, stall_s: float,
+                       seed: int = 1) -> dict[str, float]:
+    """Hold ``command`` for ``STALL_HELD_S`` with the board stalled ``stall_s`` from ``stall_at_s`` into it, then let
+    go: the hold's speed peak (fraction of the command), the stop after the release (s) and the highest altitude (m).
+
+    The safety flight has no stall; this is the case a stall hides from it. The watchdog stops the motors, the body
+    floats up, and the held command resumes on fresh telemetry with whatever the outage taught the estimators: one
+    window of flow noise once assured a brake of the box's strongest (docs/flight-robustness.md, session 33)."""
+    board = board_with(BoardParams(blimp=plant.blimp, drafts=MILD_DRAFTS), z=START_ALTITUDE_M)
+    stall = Window(SETTLE_S + stall_at_s, SETTLE_S + stall_at_s + stall_s)
+    flight = SimFlight(config, board, seed=seed, faults=LinkFaults(stalls=(stall,)))
+    flight.run(SETTLE_S)
+    flight.run(STALL_HELD_S, setpoint_for_motion(command, config))
+    released = flight.t
+    flight.run(OBSERVE_S + 1.0)
+    t, u = flight.log["t"], flight.log["u"]
+    held = (t > SETTLE_S) & (t <= released)
+    return {"speed_peak_fraction": float(np.max(np.abs(u[held]))) / config.forward_speed_m_s,
+            "lapse_s": stopped_after(t, u, flight.log["r_dps"], released, flight.t),
+            "highest_m": float(np.max(flight.log["z"]))}
