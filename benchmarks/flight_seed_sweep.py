@@ -15,9 +15,9 @@ flight). The calibration flies a model-free pilot, so its fitted config does not
 ``--cache DIR`` each one is kept there (``{index}-{seed}.pickle``) and reused, and a controller change is judged
 on the same fitted configs in seconds per flight. Clear the folder after a change to the calibration or the fit.
 
-``--stall`` flies instead, per plant and seed, a held ``forward`` and ``backward`` through a 3 s board stall at 0.5 s
-and at 3 s into the hold (``safety.held_through_stall``): four flights, each judged on the speed peak and on the stop
-after the release (docs/flight-robustness.md, session 33). About 1 s of CPU per flight.
+``--stall`` flies instead, per plant and seed, each held motion command (forward, backward, both turns) through a
+3 s board stall at 0.5 s and at 3 s into the hold (``safety.held_through_stall``): eight flights, each judged on its
+peak and on the stop after the release (docs/flight-robustness.md, session 33). About 1 s of CPU per flight.
 """
 
 from __future__ import annotations
@@ -72,8 +72,9 @@ def _fly(job: Job) -> dict[str, Any]:
 def _fly_stalls(config: FlightConfig, plant: Plant, index: int, seed: int) -> dict[str, Any]:
     """The held commands through a stall: each one's figures, and the worst of each with the goals it misses."""
     manoeuvres = {f"{command}-stall-{at:g}s": {k: round(v, 3) for k, v in held_through_stall(config, plant, command, at, long, seed).items()}
-                  for command in ("forward", "backward") for at, long in STALLS}
-    figures = {goal: max(m[goal] for m in manoeuvres.values()) for goal in ("speed_peak_fraction", "lapse_s", "highest_m")}
+                  for command in ("forward", "backward", "turn_right", "turn_left") for at, long in STALLS}
+    figures = {goal: max(m.get(goal, 0.0) for m in manoeuvres.values())
+               for goal in ("speed_peak_fraction", "turn_peak_fraction", "lapse_s", "highest_m")}
     failures = {goal: value for goal, value in figures.items() if goal in GOALS and value > GOALS[goal]}
     return {"plant": plant.name, "index": index, "seed": seed, "failures": failures, "figures": figures, "manoeuvres": manoeuvres}
 

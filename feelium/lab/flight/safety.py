@@ -201,7 +201,8 @@ STALLS = ((0.5, 3.0), (3.0, 3.0))
 def held_through_stall(config: FlightConfig, plant: Plant, command: str, stall_at_s: float, stall_s: float,
                        seed: int = 1) -> dict[str, float]:
     """Hold ``command`` for ``STALL_HELD_S`` with the board stalled ``stall_s`` from ``stall_at_s`` into it, then let
-    go: the hold's speed peak (fraction of the command), the stop after the release (s) and the highest altitude (m).
+    go: the hold's speed or turn peak (fraction of the command), the stop after the release (s) and the highest
+    altitude (m).
 
     The safety flight has no stall; this is the case a stall hides from it. The watchdog stops the motors, the body
     floats up, and the held command resumes on fresh telemetry with whatever the outage taught the estimators: one
@@ -213,8 +214,9 @@ def held_through_stall(config: FlightConfig, plant: Plant, command: str, stall_a
     flight.run(STALL_HELD_S, setpoint_for_motion(command, config))
     released = flight.t
     flight.run(OBSERVE_S + 1.0)
-    t, u = flight.log["t"], flight.log["u"]
+    t, u, r = flight.log["t"], flight.log["u"], flight.log["r_dps"]
     held = (t > SETTLE_S) & (t <= released)
-    return {"speed_peak_fraction": float(np.max(np.abs(u[held]))) / config.forward_speed_m_s,
-            "lapse_s": stopped_after(t, u, flight.log["r_dps"], released, flight.t),
-            "highest_m": float(np.max(flight.log["z"]))}
+    surge = command in ("forward", "backward")
+    peak = float(np.max(np.abs((u if surge else r)[held]))) / (config.forward_speed_m_s if surge else config.yaw_rate_dps)
+    return {"speed_peak_fraction" if surge else "turn_peak_fraction": peak,
+            "lapse_s": stopped_after(t, u, r, released, flight.t), "highest_m": float(np.max(flight.log["z"]))}
