@@ -15,9 +15,10 @@ flight). The calibration flies a model-free pilot, so its fitted config does not
 ``--cache DIR`` each one is kept there (``{index}-{seed}.pickle``) and reused, and a controller change is judged
 on the same fitted configs in seconds per flight. Clear the folder after a change to the calibration or the fit.
 
-``--stall`` flies instead, per plant and seed, each held motion command (forward, backward, both turns) through a
-3 s board stall at 0.5 s and at 3 s into the hold (``safety.held_through_stall``): eight flights, each judged on its
-peak and on the stop after the release (docs/flight-robustness.md, session 33). About 1 s of CPU per flight.
+``--faults`` flies instead, per plant and seed, each held motion command (forward, backward, both turns) through
+each of ``safety.HELD_FAULTS``: a 3 s board stall at 0.5 s and at 3 s into the hold, the link unplugged for 3 s at
+0.5 s and for 1 s at 3 s (``safety.held_through_fault``): 16 flights, each judged on its peak and on the stop after
+the release (docs/flight-robustness.md, session 33). About 1 s of CPU per flight.
 """
 
 from __future__ import annotations
@@ -33,12 +34,12 @@ from typing import Any
 from feelium.daemon.config import Config
 from feelium.flight.config import FlightConfig
 from feelium.lab.flight.plants import Plant, plant_set
-from feelium.lab.flight.safety import GOALS, STALLS, held_through_stall, safety_flight
+from feelium.lab.flight.safety import GOALS, HELD_FAULTS, held_through_fault, safety_flight
 
 CORNERS = 16
 
 
-Job = tuple[int, int, bool, str | None, int, bool]  # plant index, flight seed, calibrated, cache folder, plant count, stall
+Job = tuple[int, int, bool, str | None, int, bool]  # plant index, flight seed, calibrated, cache folder, plant count, link faults
 
 
 def _fitted(index: int, seed: int, cache: str | None, count: int = CORNERS) -> FlightConfig:
@@ -59,20 +60,20 @@ def _fitted(index: int, seed: int, cache: str | None, count: int = CORNERS) -> F
 
 
 def _fly(job: Job) -> dict[str, Any]:
-    index, seed, calibrated, cache, count, stall = job
+    index, seed, calibrated, cache, count, faults = job
     plant = plant_set(count)[index]
     config = _fitted(index, seed, cache, count) if calibrated else Config().flight
-    if stall:
-        return _fly_stalls(config, plant, index, seed)
+    if faults:
+        return _fly_faults(config, plant, index, seed)
     result = safety_flight(config, plant, seed=seed)
     return {"plant": plant.name, "index": index, "seed": seed, "failures": result.failures(),
             "figures": {k: round(v, 3) for k, v in result.figures().items()}, "manoeuvres": result.manoeuvres}
 
 
-def _fly_stalls(config: FlightConfig, plant: Plant, index: int, seed: int) -> dict[str, Any]:
-    """The held commands through a stall: each one's figures, and the worst of each with the goals it misses."""
-    manoeuvres = {f"{command}-stall-{at:g}s": {k: round(v, 3) for k, v in held_through_stall(config, plant, command, at, long, seed).items()}
-                  for command in ("forward", "backward", "turn_right", "turn_left") for at, long in STALLS}
+def _fly_faults(config: FlightConfig, plant: Plant, index: int, seed: int) -> dict[str, Any]:
+    """The held commands through link faults: each one's figures, and the worst of each with the goals it misses."""
+    manoeuvres = {f"{command}-{kind}-{at:g}s": {k: round(v, 3) for k, v in held_through_fault(config, plant, command, kind, at, long, seed).items()}
+                  for command in ("forward", "backward", "turn_right", "turn_left") for kind, at, long in HELD_FAULTS}
     figures = {goal: max(m.get(goal, 0.0) for m in manoeuvres.values())
                for goal in ("speed_peak_fraction", "turn_peak_fraction", "lapse_s", "highest_m")}
     failures = {goal: value for goal, value in figures.items() if goal in GOALS and value > GOALS[goal]}
@@ -95,12 +96,12 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--calibrated", action="store_true", help="fly the config calibrate flight fits on each plant")
     parser.add_argument("--cache", default=None, help="with --calibrated: a folder keeping the fitted configs")
-    parser.add_argument("--stall", action="store_true", help="held commands through a board stall, not the safety flight")
+    parser.add_argument("--faults", action="store_true", help="held commands through link faults, not the safety flight")
     args = parser.parse_args()
     indices = _seeds(args.only) if args.only else list(range(args.plants))
     if max(indices) >= args.plants:
         parser.error(f"--only names plant {max(indices)}, but --plants is {args.plants}")
-    jobs = [(index, seed, args.calibrated, args.cache, args.plants, args.stall) for seed in _seeds(args.seeds) for index in indices]
+    jobs = [(index, seed, args.calibrated, args.cache, args.plants, args.faults) for seed in _seeds(args.seeds) for index in indices]
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(_fly, jobs))
     for row in rows:

@@ -193,25 +193,29 @@ def safety_flight(config: FlightConfig, plant: Plant, seed: int = 1, controller:
     return result
 
 
-# A held command through a board stall (issue 13, point 3): the stall windows, seconds into the hold and long.
-STALL_HELD_S = 12.0
-STALLS = ((0.5, 3.0), (3.0, 3.0))
+# A held command through a link fault (issue 13, point 3): the kind, seconds into the hold it starts, how long.
+FAULT_HELD_S = 12.0
+HELD_FAULTS = (("stall", 0.5, 3.0), ("stall", 3.0, 3.0), ("drop", 0.5, 3.0), ("drop", 3.0, 1.0))
 
 
-def held_through_stall(config: FlightConfig, plant: Plant, command: str, stall_at_s: float, stall_s: float,
+def held_through_fault(config: FlightConfig, plant: Plant, command: str, kind: str, at_s: float, long_s: float,
                        seed: int = 1) -> dict[str, float]:
-    """Hold ``command`` for ``STALL_HELD_S`` with the board stalled ``stall_s`` from ``stall_at_s`` into it, then let
-    go: the hold's speed or turn peak (fraction of the command), the stop after the release (s) and the highest
-    altitude (m).
+    """Hold ``command`` for ``FAULT_HELD_S`` with the board stalled (``kind`` "stall") or the link unplugged ("drop")
+    for ``long_s`` from ``at_s`` into it, then let go: the hold's speed or turn peak (fraction of the command), the
+    stop after the release (s) and the highest altitude (m).
 
-    The safety flight has no stall; this is the case a stall hides from it. The watchdog stops the motors, the body
-    floats up, and the held command resumes on fresh telemetry with whatever the outage taught the estimators: one
-    window of flow noise once assured a brake of the box's strongest (docs/flight-robustness.md, session 33)."""
+    The safety flight has no fault; this is what a fault hides from it. The watchdog stops the motors, the body floats
+    up, and the held command resumes on fresh telemetry with whatever the outage taught the estimators: one window of
+    flow noise once assured a brake of the box's strongest, and a correction against the command escalated as if it
+    had pushed since the command began (docs/flight-robustness.md, session 33)."""
+    if kind not in ("stall", "drop"):
+        raise ValueError(f"a held command's fault is a stall or a drop, not {kind!r}")
     board = board_with(BoardParams(blimp=plant.blimp, drafts=MILD_DRAFTS), z=START_ALTITUDE_M)
-    stall = Window(SETTLE_S + stall_at_s, SETTLE_S + stall_at_s + stall_s)
-    flight = SimFlight(config, board, seed=seed, faults=LinkFaults(stalls=(stall,)))
+    window = (Window(SETTLE_S + at_s, SETTLE_S + at_s + long_s),)
+    faults = LinkFaults(stalls=window) if kind == "stall" else LinkFaults(drops=window)
+    flight = SimFlight(config, board, seed=seed, faults=faults)
     flight.run(SETTLE_S)
-    flight.run(STALL_HELD_S, setpoint_for_motion(command, config))
+    flight.run(FAULT_HELD_S, setpoint_for_motion(command, config))
     released = flight.t
     flight.run(OBSERVE_S + 1.0)
     t, u, r = flight.log["t"], flight.log["u"], flight.log["r_dps"]
