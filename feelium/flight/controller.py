@@ -103,6 +103,7 @@ class FlightController:
         """What the controller has learned about this blimp, for health."""
         return {
             "speed_source": "optical_flow" if self.surge.measured(t) else "model_only",
+            "flow_noise_rad_s": round(self.surge.flow_noise_rad_s, 4),
             "surge_effectiveness": self.surge.effectiveness.as_dict(),
             "yaw_effectiveness": self.yaw.effectiveness.as_dict(),
             "speed_cap_m_s": round(self.surge_loop.speed_cap, 3),

@@ -65,7 +65,11 @@ SURGE_CONFIRMING_CHANGE_M_S = 0.08  # measured in a window: a command or a brake
 # The flow sensor's noise (PMW3901 class, as the simulator's), rad/s per reading: a window's measured speed change has
 # root 2 times it, times the height. What the flight teaches the stop's margin counts once it is known to this standard
 # error (``Effectiveness(assuring_error=...)``; a brake of the nominal blimp at 1.2 m pins it in about 0.1 s).
+# The noise is also measured in flight (``SurgeEstimate.flow_noise_rad_s``), never counted below this: a real sensor
+# over a real floor may be noisier than the simulator's, and a margin that counted on less noise than it has would
+# take a noisy window for a brake again.
 FLOW_NOISE_RAD_S = 0.02
+FLOW_NOISE_TAU_S = 5.0  # the measured noise follows successive readings' differences within this
 SURGE_ASSURING_ERROR = 2.0
 FLOW_FRESH_S = 0.3  # older than this, the speed is the model's alone
 # Without the flow the learned model bias fades over this: the model alone must not carry a draft long gone.
@@ -394,6 +398,8 @@ class SurgeEstimate:
         self._flow_tau_s = flow_tau_s(config.uncertainty("surge"))
         self.last_flow_t: float | None = None
         self.last_measured: float | None = None
+        self._last_flow_rad_s: float | None = None
+        self._flow_noise_var = FLOW_NOISE_RAD_S ** 2  # (rad/s)^2: half the mean square of successive readings' difference
         self._drag_integral = 0.0
         self.bias = 0.0  # m/s^2: what the flow says the model's acceleration misses (see _bias_gain)
         # A model trusted longer than the decision's 0.15 s (a fitted one) has a second state, the acceleration its
@@ -427,12 +433,22 @@ class SurgeEstimate:
     def measured(self, t: float) -> bool:
         return self.last_flow_t is not None and t - self.last_flow_t <= FLOW_FRESH_S
 
+    @property
+    def flow_noise_rad_s(self) -> float:
+        """The flow sensor's noise per reading as measured in flight, never less than ``FLOW_NOISE_RAD_S``.
+
+        Readings a control period apart differ by the noise of both (root 2 times it) and by the body's change of
+        speed over height, which at the planned brake is a third of the specified noise at 1.2 m: the measure errs
+        noisy, the safe side for what counts on it."""
+        return max(FLOW_NOISE_RAD_S, math.sqrt(self._flow_noise_var))
+
     def update(self, t: float, dt: float, surge_mean_n: float, flow_x_rad_s: float | None, height_m: float | None) -> None:
         c = self.c
         push = surge_mean_n / c.mass_kg
         self.speed += (self.effectiveness.value(push) * push - air_drag(self.speed, c.quadratic_drag) / c.mass_kg + self.bias) * dt
         measured = None
         if flow_x_rad_s is not None and height_m is not None and height_m >= MIN_FLOW_HEIGHT_M:
+            self._learn_flow_noise(t, dt, flow_x_rad_s)
             measured = flow_x_rad_s * height_m
             innovation = measured - self.speed
             self.speed += innovation * (1.0 - math.exp(-dt / self._flow_tau_s))
@@ -451,8 +467,16 @@ class SurgeEstimate:
         # The air's drag brakes the body along with any push against a drift; added back (by the model),
         # it is not credited to the push.
         self._drag_integral += air_drag(self.speed, c.quadratic_drag) / c.mass_kg * dt
-        noise = math.sqrt(2.0) * FLOW_NOISE_RAD_S * height_m if measured is not None and height_m is not None else 0.0
+        noise = math.sqrt(2.0) * self.flow_noise_rad_s * height_m if measured is not None and height_m is not None else 0.0
         self.effectiveness.update(t, dt, push, None if measured is None else measured + self._drag_integral, noise=noise)
+
+    def _learn_flow_noise(self, t: float, dt: float, flow_rad_s: float) -> None:
+        """Fold one reading into the measured noise: only a reading that follows a fresh one counts (after a gap the
+        body's speed has changed)."""
+        if self._last_flow_rad_s is not None and self.measured(t):
+            difference = flow_rad_s - self._last_flow_rad_s
+            self._flow_noise_var += (0.5 * difference * difference - self._flow_noise_var) * (1.0 - math.exp(-dt / FLOW_NOISE_TAU_S))
+        self._last_flow_rad_s = flow_rad_s
 
     @property
     def decision_speed(self) -> float:

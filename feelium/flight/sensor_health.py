@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 from feelium.flight.config import FlightConfig
+from feelium.flight.estimators import FLOW_NOISE_RAD_S
 
 # A sensor is reported missing only after the link has been up this long (its first readings come within a tick)...
 FIRST_READINGS_S = 1.0
@@ -23,6 +24,11 @@ FLOW_MISSING_S = 1.0
 # Once reported, a sensor stays reported until it has been fresh this long: a flow that loses lock 1.5 s of every
 # 3.3 s flipped health ok/degraded 20 times a minute, each flip a log line (the session-32 review).
 CLEAR_AFTER_S = 5.0
+# A flow measured this many times noisier than the speed control was judged with is reported (and cleared again under
+# NOISY_FLOW_CLEAR): at twice the noise 128 held commands through stalls and drops kept every goal, at three times
+# the heavy corners' stops took up to 3.8 s (docs/flight-robustness.md, session 33).
+NOISY_FLOW = 2.0
+NOISY_FLOW_CLEAR = 1.8
 
 
 class SensorWatch:
@@ -37,14 +43,21 @@ class SensorWatch:
         self.limits = {"range": config.range_hold_s + slack, "heading": config.telemetry_stale_s + slack,
                        "flow": FLOW_MISSING_S + slack}
         self._reported: dict[str, float] = {}  # sensor -> when it was last seen silent past its limit
+        self._noisy_flow = False
 
-    def problems(self, now: float, ages_s: dict[str, float | None], up_for_s: float) -> list[str]:
+    def problems(self, now: float, ages_s: dict[str, float | None], up_for_s: float,
+                 flow_noise_rad_s: float = FLOW_NOISE_RAD_S) -> list[str]:
         """What the sensors' ages say is wrong, in words (none: every sensor reports). ``ages_s``: the newest
         reading's age per sensor (``range``, ``heading``, ``flow``; ``None``: none since the controller started);
-        ``up_for_s``: how long the link has been up."""
+        ``up_for_s``: how long the link has been up; ``flow_noise_rad_s``: the flow's noise as measured in flight."""
         if up_for_s < FIRST_READINGS_S:
             return []
         out = []
+        times = flow_noise_rad_s / FLOW_NOISE_RAD_S
+        self._noisy_flow = times > (NOISY_FLOW_CLEAR if self._noisy_flow else NOISY_FLOW)
+        if self._noisy_flow:
+            out.append(f"optical flow noisy ({flow_noise_rad_s:.3f} rad/s, {times:.1f} times what the speed control was judged"
+                       " with): stops may be slow")
         for sensor, words in WORDS.items():
             age = ages_s.get(sensor)
             silent = age is None or not math.isfinite(age) or age > self.limits[sensor]

@@ -333,7 +333,7 @@ class FlightService:
             return {"condition": "degraded", "reason": f"control loop stalled: no cycle for {stalled_s:.1f} s"}
         if state == "up":
             up_for = 0.0 if self._up_since is None else now - self._up_since
-            problems = self.sensors.problems(now, ages, up_for)
+            problems = self.sensors.problems(now, ages, up_for, self.controller.surge.flow_noise_rad_s)
             return {"condition": "degraded", "reason": "; ".join(problems)} if problems else {"condition": "ok"}
         if state in LINK_REASONS:
             return {"condition": "degraded", "reason": f"motor board link {state}: {LINK_REASONS[state]}"}

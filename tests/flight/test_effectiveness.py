@@ -671,3 +671,16 @@ def test_a_margin_waits_until_the_windows_pin_the_value_to_its_standard_error() 
     braked = estimator(2.0)
     _corrections_then_brake(braked, brake_cycles=30, noise=0.034)
     assert braked.assuring_samples[0] > 0 and braked.assured(-1.0) == pytest.approx(0.25, abs=0.05)  # a brake assures
+
+
+@pytest.mark.parametrize("noise", [0.005, 0.02, 0.04, 0.08])
+def test_the_flow_noise_is_measured_in_flight_and_never_counted_below_the_specified(noise: float) -> None:
+    """A real flow sensor over a real floor may be noisier than the simulator's; the stop's margin weighs its windows
+    by the noise measured (session 33), never by less than ``FLOW_NOISE_RAD_S``."""
+    from feelium.flight.estimators import FLOW_NOISE_RAD_S
+    estimate = SurgeEstimate(Config().flight)
+    rng = np.random.default_rng(5)
+    dt = 0.02
+    for k in range(int(30.0 / dt)):  # a body drifting at 5 cm/s, 1.2 m up
+        estimate.update(k * dt, dt, 0.0, 0.05 / 1.2 + noise * float(rng.standard_normal()), 1.2)
+    assert estimate.flow_noise_rad_s == pytest.approx(max(noise, FLOW_NOISE_RAD_S), rel=0.1)

@@ -8,7 +8,8 @@ from dataclasses import replace
 import pytest
 
 from feelium.daemon.config import Config
-from feelium.flight.sensor_health import CLEAR_AFTER_S, FIRST_READINGS_S, FLOW_MISSING_S, SensorWatch
+from feelium.flight.estimators import FLOW_NOISE_RAD_S
+from feelium.flight.sensor_health import CLEAR_AFTER_S, FIRST_READINGS_S, FLOW_MISSING_S, NOISY_FLOW, NOISY_FLOW_CLEAR, SensorWatch
 from feelium.flight.service import FlightService
 from feelium.flight.sim_board import BoardParams, SensorParams, board_with
 from feelium.hub import Hub
@@ -49,6 +50,33 @@ def test_an_intermittent_sensor_stays_reported_until_it_has_been_fresh_for_a_whi
     assert verdicts == [True] * 60
     assert "intermittent" in " ".join(watch.problems(60.0, FRESH, 100.0))
     assert watch.problems(60.0 + CLEAR_AFTER_S, FRESH, 100.0) == []  # fresh long enough: cleared
+
+
+def test_a_flow_noisier_than_the_speed_control_was_judged_with_is_reported_with_hysteresis() -> None:
+    """At three times the simulator's flow noise the heavy corners' stops took up to 3.8 s after a stall (session 33):
+    the operator must see it. Reported over NOISY_FLOW times the noise, cleared under NOISY_FLOW_CLEAR."""
+    watch = SensorWatch(CONFIG)
+    def noisy(times: float) -> bool:
+        return any("optical flow noisy" in p for p in watch.problems(10.0, FRESH, 10.0, times * FLOW_NOISE_RAD_S))
+    assert [noisy(x) for x in (1.0, 0.99 * NOISY_FLOW, 1.01 * NOISY_FLOW, 1.01 * NOISY_FLOW_CLEAR, 0.99 * NOISY_FLOW_CLEAR)] == [
+        False, False, True, True, False]
+    assert "3.0 times" in watch.problems(10.0, FRESH, 10.0, 3.0 * FLOW_NOISE_RAD_S)[0]
+
+
+async def test_a_board_whose_flow_is_three_times_noisier_than_specified_is_degraded_within_seconds() -> None:
+    hub = Hub()
+    opener = RecordingSimOpener(CONFIG, 1, hub.clock)
+    opener.params = board_with(BoardParams(sensors=SensorParams(range_dropout_probability=0.0, flow_noise_rad_s=3 * FLOW_NOISE_RAD_S)),
+                               z=CONFIG.sim.start_altitude_m)
+    service = FlightService(CONFIG, hub, opener)
+    task = asyncio.create_task(service.run())
+    try:
+        await wait_for(lambda: service.health()["condition"] == "degraded", timeout_s=6.0)
+        health = service.health()
+        assert "optical flow noisy" in health["reason"] and health["link"] == "up"
+        assert health["estimates"]["flow_noise_rad_s"] > NOISY_FLOW * FLOW_NOISE_RAD_S
+    finally:
+        await stopped(service, task)
 
 
 async def test_a_board_whose_rangefinder_and_flow_report_nothing_is_degraded_and_says_why_and_ages_are_in_health() -> None:

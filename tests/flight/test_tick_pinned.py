@@ -77,7 +77,8 @@ effectiveness shows each side's line (``reverse_line``, ``forward_line``, within
 they were (ea6a57ae / 977c9bcd / 8119db57). ``drafts_dropouts`` and ``stall_and_lag`` re-pinned in session 33 for the
 surge margin waiting until its windows pin the value (``Effectiveness(assuring_error=...)``): their commands first
 differ at 9.10 / 9.00 s, in the soften before the ``backward`` (at the end, the surge's ``forward_assured`` reads
-0.988 -> 1.149 and 0.722 -> 0.713); ``fitted_still_air`` is as it was.
+0.988 -> 1.149 and 0.722 -> 0.713); ``fitted_still_air`` is as it was. All three re-pinned later in session 33 for
+health alone: the flow noise measured in flight (``flow_noise_rad_s``); every cycle's commands are as before.
 The digests below are all of it: every
 cycle's four commands, microseconds, mode and estimates, as ``repr`` of the floats, over flights
 that visit hold, each motion command, release, softening, a climb to the ceiling, rangefinder
@@ -136,19 +137,19 @@ FLIGHTS = {
         CONFIG,
         board_with(BoardParams(drafts=DraftParams(), sensors=SensorParams(range_dropout_probability=0.1)), z=1.5),
         None,
-        "e2f90340a4dbb618ea0a4684",
+        "859eb7a146d8b12e9d8fa91d",
     ),
     "fitted_still_air": (
         replace(CONFIG, plant_uncertainty=1.0),
         board_with(BoardParams(drafts=None), z=2.2),
         None,
-        "52948bd1289cd63bf85f9f97",
+        "d8a16e35a2a78978436de0b9",
     ),
     "stall_and_lag": (
         CONFIG,
         board_with(BoardParams(drafts=DraftParams()), z=1.5),
         LinkFaults(stalls=(Window(3.5, 4.1),), lag_s=0.012),
-        "1122f1e8b39ebd62d7043b63",
+        "37a16537d6a3ce146aadb8a3",
     ),
 }
 
