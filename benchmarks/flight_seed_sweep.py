@@ -75,7 +75,7 @@ def _fly_faults(config: FlightConfig, plant: Plant, index: int, seed: int) -> di
     manoeuvres = {f"{command}-{kind}-{at:g}s": {k: round(v, 3) for k, v in held_through_fault(config, plant, command, kind, at, long, seed).items()}
                   for command in ("forward", "backward", "turn_right", "turn_left") for kind, at, long in HELD_FAULTS}
     figures = {goal: max(m.get(goal, 0.0) for m in manoeuvres.values())
-               for goal in ("speed_peak_fraction", "turn_peak_fraction", "lapse_s", "highest_m")}
+               for goal in ("speed_peak_fraction", "turn_peak_fraction", "stop_s", "highest_m")}
     failures = {goal: value for goal, value in figures.items() if goal in GOALS and value > GOALS[goal]}
     return {"plant": plant.name, "index": index, "seed": seed, "failures": failures, "figures": figures, "manoeuvres": manoeuvres}
 

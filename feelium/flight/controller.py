@@ -144,6 +144,7 @@ class FlightController:
             self._telemetry_failsafe = False
             self.altitude_loop.recover(t)
             self.heading_loop.recover(t)
+            self.surge_loop.recover(t)
 
         soft = setpoint.soften
         if self._was_soft and not soft:  # the partner let go: stay where they left it

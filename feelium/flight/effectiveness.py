@@ -242,7 +242,8 @@ class Effectiveness:
         return max(low_end, self.lows[side])
 
     def counts_on_shown(self, push: float) -> bool:
-        """Whether :meth:`assured` is the calibration's value: nothing in flight has taught it yet."""
+        """Whether :meth:`assured` is the calibration's value: nothing in flight has taught it yet, or not yet to
+        ``assuring_error`` (``assuring_samples`` counts only the windows since the gate opened)."""
         side = 1 if push > 0.0 else 0
         return self.shown_by_side[side] is not None and not self.assuring_samples[side]
 

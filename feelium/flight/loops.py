@@ -510,8 +510,7 @@ class SurgeLoop:
         self.hovering = False  # no command, no brake, no settling: the motors may be kept from reversing
         self.speed_cap = config.forward_speed_m_s
         self.command_started = 0.0
-        self.push_sign = 0.0  # the sign a held command's push has kept...
-        self.push_sign_since = 0.0  # ...since then (an untaught push escalates from the later of this and the start)
+        self.escalating_since = 0.0  # an untaught push escalates from the later of this (an outage's end) and the start
         self.escalating = False  # this cycle's push has a sign nothing taught (confirmed): it escalates (health)
 
     def step(self, t: float, dt: float, speed_sp: float, gain: float, est: SurgeEstimate, thrust: ThrustModel) -> float:
@@ -560,10 +559,11 @@ class SurgeLoop:
         """What a held command's push is normalised by: the confirmed value (windows that changed the speed as a command
         or a brake does) once one has confirmed its sign, never below the learned value (so never a harder push than
         the learned value asks), else the box's strongest halving every ``ESCALATE_S`` down to the learned value, from
-        the command's start or from when the push took its sign, whichever is later: a correction against the command
+        the command's start or the end of a telemetry outage, whichever is later: a correction against the command
         after a dropped link, escalating from a start 4.8 s past, was at once divided by a value the outage's noisy
         windows had taught the box's weakest, and pushed full reverse then full forward (corner-mtdL: 1.445 of the
-        command; docs/flight-robustness.md, session 33). The learned value is taught by every window, and a steady push through a deadband wider
+        command; docs/flight-robustness.md, session 33). Restarting it whenever the push changed sign weakened the
+        corrections of a noisy cruise and so the brake after it (the session-33 review). The learned value is taught by every window, and a steady push through a deadband wider
         than the config's reads weak: corner-mTDL's forward side was learned at 1.40 where its commands had confirmed
         4.0, and a later command's onset, counting on 1.40, ran the body to 1.19 of the command (flight seed 19; 1.13
         counting on the confirmed value; docs/flight-robustness.md, session 28).
@@ -572,13 +572,14 @@ class SurgeLoop:
         taught corner-mTdL's forward side the box's weakest (0.25 against about 4) in 0.2 s, the push went to the
         motors' limit, and the body reached 1.25 of the command (flight seed 9; docs/flight-robustness.md, session 24)."""
         e = est.effectiveness
-        sign = math.copysign(1.0, wanted)
-        if sign != self.push_sign:
-            self.push_sign, self.push_sign_since = sign, t
         self.escalating = not e.is_confirmed(wanted)
         if not self.escalating:
             return max(e.confirmed(wanted), e.value(wanted))
-        return max(e.value(wanted), escalated(e.high, t - max(self.command_started, self.push_sign_since)))
+        return max(e.value(wanted), escalated(e.high, t - max(self.command_started, self.escalating_since)))
+
+    def recover(self, t: float) -> None:
+        """Back from a telemetry outage: what the outage taught is suspect, so an untaught push escalates afresh."""
+        self.escalating_since = t
 
     def _stoppable_speed(self, t: float, est: SurgeEstimate, speed_sp: float) -> float:
         """The fastest speed this blimp has shown it can stop from in time (reverse thrust for forward): on a share of

@@ -26,11 +26,12 @@ CONFIG = Config().flight
 
 @pytest.mark.parametrize("corner,seed", [("corner-MTdL", 1), ("corner-MtdL", 1)])
 def test_a_held_forward_through_a_stall_keeps_the_speed_and_stop_goals(corner: str, seed: int) -> None:
-    """Was 1.485 of the command (corner-MTdL) and a 1.88 s stop after the release (corner-MtdL)."""
+    """Was 1.485 of the command (corner-MTdL) and a 1.88 s stop after the release (corner-MtdL); the release ends
+    the command at once, so its goal is an explicit stop's (1.0 s)."""
     plant = next(p for p in plant_set(16) if p.name == corner)
     figures = held_through_fault(CONFIG, plant, "forward", "stall", at_s=3.0, long_s=3.0, seed=seed)
     assert figures["speed_peak_fraction"] <= GOALS["speed_peak_fraction"]
-    assert figures["lapse_s"] <= GOALS["lapse_s"]
+    assert figures["stop_s"] <= GOALS["stop_s"]
 
 
 def test_a_held_forward_through_a_dropped_link_keeps_the_speed_goal() -> None:
@@ -38,4 +39,4 @@ def test_a_held_forward_through_a_dropped_link_keeps_the_speed_goal() -> None:
     plant = next(p for p in plant_set(16) if p.name == "corner-mtdL")
     figures = held_through_fault(CONFIG, plant, "forward", "drop", at_s=0.5, long_s=3.0, seed=1)
     assert figures["speed_peak_fraction"] <= GOALS["speed_peak_fraction"]
-    assert figures["lapse_s"] <= GOALS["lapse_s"]
+    assert figures["stop_s"] <= GOALS["stop_s"]

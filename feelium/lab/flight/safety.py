@@ -202,7 +202,8 @@ def held_through_fault(config: FlightConfig, plant: Plant, command: str, kind: s
                        seed: int = 1) -> dict[str, float]:
     """Hold ``command`` for ``FAULT_HELD_S`` with the board stalled (``kind`` "stall") or the link unplugged ("drop")
     for ``long_s`` from ``at_s`` into it, then let go: the hold's speed or turn peak (fraction of the command), the
-    stop after the release (s) and the highest altitude (m).
+    stop after the release (s: the command ends at once, as an explicit ``stop`` ends it, so its goal is ``stop_s``,
+    not the lapse's, which counts the dead-man's 0.5 s hold) and the highest altitude (m).
 
     The safety flight has no fault; this is what a fault hides from it. The watchdog stops the motors, the body floats
     up, and the held command resumes on fresh telemetry with whatever the outage taught the estimators: one window of
@@ -223,4 +224,4 @@ def held_through_fault(config: FlightConfig, plant: Plant, command: str, kind: s
     surge = command in ("forward", "backward")
     peak = float(np.max(np.abs((u if surge else r)[held]))) / (config.forward_speed_m_s if surge else config.yaw_rate_dps)
     return {"speed_peak_fraction" if surge else "turn_peak_fraction": peak,
-            "lapse_s": stopped_after(t, u, r, released, flight.t), "highest_m": float(np.max(flight.log["z"]))}
+            "stop_s": stopped_after(t, u, r, released, flight.t), "highest_m": float(np.max(flight.log["z"]))}
