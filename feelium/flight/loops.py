@@ -563,10 +563,11 @@ class SurgeLoop:
         after a dropped link, escalating from a start 4.8 s past, was at once divided by a value the outage's noisy
         windows had taught the box's weakest, and pushed full reverse then full forward (corner-mtdL: 1.445 of the
         command; docs/flight-robustness.md, session 33). Restarting it whenever the push changed sign weakened the
-        corrections of a noisy cruise and so the brake after it (the session-33 review). The learned value is taught by every window, and a steady push through a deadband wider
-        than the config's reads weak: corner-mTDL's forward side was learned at 1.40 where its commands had confirmed
-        4.0, and a later command's onset, counting on 1.40, ran the body to 1.19 of the command (flight seed 19; 1.13
-        counting on the confirmed value; docs/flight-robustness.md, session 28).
+        corrections of a noisy cruise and so the brake after it (the session-33 review). The learned value is taught
+        by every window, and a steady push through a deadband wider than the config's reads weak: corner-mTDL's forward
+        side was learned at 1.40 where its commands had confirmed 4.0, and a later command's onset, counting on 1.40,
+        ran the body to 1.19 of the command (flight seed 19; 1.13 counting on the confirmed value;
+        docs/flight-robustness.md, session 28).
 
         The first windows of a command on a 150 ms, deadband-wide plant see the push and not yet its answer: they
         taught corner-mTdL's forward side the box's weakest (0.25 against about 4) in 0.2 s, the push went to the
