@@ -18,7 +18,8 @@ on the same fitted configs in seconds per flight. Clear the folder after a chang
 ``--faults`` flies instead, per plant and seed, each held motion command (forward, backward, both turns) through
 each of ``safety.HELD_FAULTS``: a 3 s board stall at 0.5 s and at 3 s into the hold, the link unplugged for 3 s at
 0.5 s and for 1 s at 3 s (``safety.held_through_fault``): 16 flights, each judged on its peak and on the stop after
-the release (docs/flight-robustness.md, session 33). About 1 s of CPU per flight.
+the release (docs/flight-robustness.md, session 33). About 1 s of CPU per flight. ``--lag-ms L`` makes every reply
+L ms late as well (a USB adapter's latency: the link tests use 25-40 ms).
 """
 
 from __future__ import annotations
@@ -39,7 +40,8 @@ from feelium.lab.flight.safety import GOALS, HELD_FAULTS, held_through_fault, sa
 CORNERS = 16
 
 
-Job = tuple[int, int, bool, str | None, int, bool]  # plant index, flight seed, calibrated, cache folder, plant count, link faults
+# plant index, flight seed, calibrated, cache folder, plant count, link faults, reply lag (s)
+Job = tuple[int, int, bool, str | None, int, bool, float]
 
 
 def _fitted(index: int, seed: int, cache: str | None, count: int = CORNERS) -> FlightConfig:
@@ -60,19 +62,19 @@ def _fitted(index: int, seed: int, cache: str | None, count: int = CORNERS) -> F
 
 
 def _fly(job: Job) -> dict[str, Any]:
-    index, seed, calibrated, cache, count, faults = job
+    index, seed, calibrated, cache, count, faults, lag_s = job
     plant = plant_set(count)[index]
     config = _fitted(index, seed, cache, count) if calibrated else Config().flight
     if faults:
-        return _fly_faults(config, plant, index, seed)
+        return _fly_faults(config, plant, index, seed, lag_s)
     result = safety_flight(config, plant, seed=seed)
     return {"plant": plant.name, "index": index, "seed": seed, "failures": result.failures(),
             "figures": {k: round(v, 3) for k, v in result.figures().items()}, "manoeuvres": result.manoeuvres}
 
 
-def _fly_faults(config: FlightConfig, plant: Plant, index: int, seed: int) -> dict[str, Any]:
+def _fly_faults(config: FlightConfig, plant: Plant, index: int, seed: int, lag_s: float) -> dict[str, Any]:
     """The held commands through link faults: each one's figures, and the worst of each with the goals it misses."""
-    manoeuvres = {f"{command}-{kind}-{at:g}s": {k: round(v, 3) for k, v in held_through_fault(config, plant, command, kind, at, long, seed).items()}
+    manoeuvres = {f"{command}-{kind}-{at:g}s": {k: round(v, 3) for k, v in held_through_fault(config, plant, command, kind, at, long, seed, lag_s).items()}
                   for command in ("forward", "backward", "turn_right", "turn_left") for kind, at, long in HELD_FAULTS}
     figures = {goal: max(m.get(goal, 0.0) for m in manoeuvres.values())
                for goal in ("speed_peak_fraction", "turn_peak_fraction", "stop_s", "highest_m")}
@@ -97,11 +99,14 @@ def main() -> None:
     parser.add_argument("--calibrated", action="store_true", help="fly the config calibrate flight fits on each plant")
     parser.add_argument("--cache", default=None, help="with --calibrated: a folder keeping the fitted configs")
     parser.add_argument("--faults", action="store_true", help="held commands through link faults, not the safety flight")
+    parser.add_argument("--lag-ms", type=float, default=None, help="with --faults: every reply this late as well")
     args = parser.parse_args()
+    if args.lag_ms is not None and (not args.faults or not 0.0 <= args.lag_ms < 1000.0):
+        parser.error("--lag-ms needs --faults and a lag of 0-1000 ms")
     indices = _seeds(args.only) if args.only else list(range(args.plants))
     if max(indices) >= args.plants:
         parser.error(f"--only names plant {max(indices)}, but --plants is {args.plants}")
-    jobs = [(index, seed, args.calibrated, args.cache, args.plants, args.faults) for seed in _seeds(args.seeds) for index in indices]
+    jobs = [(index, seed, args.calibrated, args.cache, args.plants, args.faults, (args.lag_ms or 0.0) / 1000.0) for seed in _seeds(args.seeds) for index in indices]
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(_fly, jobs))
     for row in rows:

@@ -199,9 +199,9 @@ HELD_FAULTS = (("stall", 0.5, 3.0), ("stall", 3.0, 3.0), ("drop", 0.5, 3.0), ("d
 
 
 def held_through_fault(config: FlightConfig, plant: Plant, command: str, kind: str, at_s: float, long_s: float,
-                       seed: int = 1) -> dict[str, float]:
+                       seed: int = 1, lag_s: float = 0.0) -> dict[str, float]:
     """Hold ``command`` for ``FAULT_HELD_S`` with the board stalled (``kind`` "stall") or the link unplugged ("drop")
-    for ``long_s`` from ``at_s`` into it, then let go: the hold's speed or turn peak (fraction of the command), the
+    for ``long_s`` from ``at_s`` into it, every reply ``lag_s`` late throughout, then let go: the hold's speed or turn peak (fraction of the command), the
     stop after the release (s: the command ends at once, as an explicit ``stop`` ends it, so its goal is ``stop_s``,
     not the lapse's, which counts the dead-man's 0.5 s hold) and the highest altitude (m).
 
@@ -213,7 +213,7 @@ def held_through_fault(config: FlightConfig, plant: Plant, command: str, kind: s
         raise ValueError(f"a held command's fault is a stall or a drop, not {kind!r}")
     board = board_with(BoardParams(blimp=plant.blimp, drafts=MILD_DRAFTS), z=START_ALTITUDE_M)
     window = (Window(SETTLE_S + at_s, SETTLE_S + at_s + long_s),)
-    faults = LinkFaults(stalls=window) if kind == "stall" else LinkFaults(drops=window)
+    faults = LinkFaults(stalls=window, lag_s=lag_s) if kind == "stall" else LinkFaults(drops=window, lag_s=lag_s)
     flight = SimFlight(config, board, seed=seed, faults=faults)
     flight.run(SETTLE_S)
     flight.run(FAULT_HELD_S, setpoint_for_motion(command, config))
