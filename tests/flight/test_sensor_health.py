@@ -74,7 +74,8 @@ async def test_a_board_whose_flow_is_three_times_noisier_than_specified_is_degra
         await wait_for(lambda: service.health()["condition"] == "degraded", timeout_s=6.0)
         health = service.health()
         assert "optical flow noisy" in health["reason"] and health["link"] == "up"
-        assert health["estimates"]["flow_noise_rad_s"] > NOISY_FLOW * FLOW_NOISE_RAD_S
+        # the report holds down to NOISY_FLOW_CLEAR (the estimate moves between the wait and this read, and is rounded)
+        assert health["estimates"]["flow_noise_rad_s"] > NOISY_FLOW_CLEAR * FLOW_NOISE_RAD_S
     finally:
         await stopped(service, task)
 
