@@ -109,7 +109,6 @@ class FlightController:
             "speed_cap_m_s": round(self.surge_loop.speed_cap, 3),
             "turn_cap_dps": round(self.heading_loop.turn_cap_dps, 1),
             "surge_escalating": self.surge_loop.escalating,
-            "surge_over_reference_s": round(self.surge_loop.over_reference_s, 2),
             "yaw_escalating": self.heading_loop.escalating,
             "heave_effectiveness": self.altitude.effectiveness.as_dict(),
             "altitude_disturbance_m_s2": round(self.altitude.disturbance, 3),
@@ -159,8 +158,7 @@ class FlightController:
         up_n, mode = self._vertical(t, dt, setpoint, range_age, gain, soft)
         yaw_nm = self.heading_loop.step(t, dt, setpoint, self.yaw, self.thrust, gain) if heading_age <= self.c.telemetry_stale_s else 0.0
         surge_n = self.surge_loop.step(t, dt, 0.0 if soft else setpoint.forward_m_s, gain, self.surge, self.thrust)
-        # a command or a brake, not a correction against the command: what may teach the speed cap's margin
-        if not self.surge_loop.hovering and not self.surge_loop.correcting:
+        if not self.surge_loop.hovering:  # a command or a brake: what may teach the speed cap's margin
             self.surge.effectiveness.mark_real_push(t, surge_n)
         if not self.heading_loop.hovering:  # a turn, its brake or settling: what may confirm a turn's effectiveness
             self.yaw.effectiveness.mark_real_push(t, yaw_nm)

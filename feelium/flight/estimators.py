@@ -400,7 +400,6 @@ class SurgeEstimate:
         self.last_measured: float | None = None
         self._last_flow_rad_s: float | None = None
         self._flow_noise_var = FLOW_NOISE_RAD_S ** 2  # (rad/s)^2: half the mean square of successive readings' difference
-        self.flow_speed_noise_m_s = 0.0  # the standard deviation of ``flow_speed`` at the last reading (0: none yet)
         self._drag_integral = 0.0
         self.bias = 0.0  # m/s^2: what the flow says the model's acceleration misses (see _bias_gain)
         # A model trusted longer than the decision's 0.15 s (a fitted one) has a second state, the acceleration its
@@ -451,9 +450,6 @@ class SurgeEstimate:
         if flow_x_rad_s is not None and height_m is not None and height_m >= MIN_FLOW_HEIGHT_M:
             self._learn_flow_noise(t, dt, flow_x_rad_s)
             measured = flow_x_rad_s * height_m
-            # a first-order filter passing ``a`` of each reading's white noise keeps a / (2 - a) of its variance
-            follow = 1.0 - math.exp(-dt / DECISION_FLOW_TAU_S)
-            self.flow_speed_noise_m_s = self.flow_noise_rad_s * height_m * math.sqrt(follow / (2.0 - follow))
             innovation = measured - self.speed
             self.speed += innovation * (1.0 - math.exp(-dt / self._flow_tau_s))
             if self._bias_gain:  # within the planned braking: a bias is a model error or a draft, never a motor

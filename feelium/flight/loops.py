@@ -51,9 +51,6 @@ MEASURED_BRAKE_SHARE = 0.8
 # 0.13-0.20 -> 0.20-0.30 m), which no safety goal measures. With the larger side's value whole, 7 of 1152 flights
 # missed a goal where 3 had (docs/flight-robustness.md, session 31).
 HOVER_SIDES_APART = 2.0
-# A held command's correction against it escalates while the flow-led speed is over the reference by more than this
-# many of its standard deviations (``SurgeLoop._time_over_reference``).
-OVER_REFERENCE_SIGMAS = 2.0
 HOVER_SPEED_BAND_M_S = 0.02  # in hover the surge loop rests below this measured speed (acts above 0.03)...
 HOVER_YAW_BAND_DPS = 1.0  # ...and the heading loop below this yaw rate (and within the heading tolerance)
 # The hover heading loop takes over above this yaw rate. A draft keeps turning a light blimp through the filtered gyro's
@@ -85,9 +82,8 @@ def longest_lag_s(config: FlightConfig, axis: Axis) -> float:
 
 
 def escalated(high: float, pushing_s: float) -> float:
-    """The effectiveness an escalating push is normalised by after ``pushing_s``: ``high`` (an untaught push's is the
-    box's strongest), halved every ``ESCALATE_S`` (the caller keeps it at or above what was learned, or the box's
-    weakest)."""
+    """The effectiveness an untaught push is normalised by after ``pushing_s``: the box's strongest ``high``, halved
+    every ``ESCALATE_S`` (the caller keeps it at or above what was learned, or the box's weakest)."""
     return high * 0.5 ** (pushing_s / ESCALATE_S)
 
 
@@ -516,17 +512,10 @@ class SurgeLoop:
         self.command_started = 0.0
         self.escalating_since = 0.0  # an untaught push escalates from the later of this (an outage's end) and the start
         self.escalating = False  # this cycle's push has a sign nothing taught (confirmed): it escalates (health)
-        self.over_reference_s = 0.0  # how long the body has measurably run over the held command's reference (leaky)
-        # This cycle's push is against the held command, a correction: like a hover correction it may not teach the
-        # stop's margin (the controller marks no real push). Escalated by the time over the reference, such corrections
-        # pushed a few hundred mN, and their windows assured corner-MtdL's reverse side at 0.70 where its brakes showed
-        # 0.13-0.16: the cap rose to the command and a stop after a stall took 1.22 s (docs/flight-robustness.md,
-        # session 34).
-        self.correcting = False
 
     def step(self, t: float, dt: float, speed_sp: float, gain: float, est: SurgeEstimate, thrust: ThrustModel) -> float:
         c = self.c
-        self.escalating = self.correcting = False
+        self.escalating = False
         self.speed_cap = self._stoppable_speed(t, est, speed_sp)
         speed_sp = math.copysign(min(abs(speed_sp), self.speed_cap), speed_sp) if speed_sp else 0.0
         hover = False
@@ -534,7 +523,6 @@ class SurgeLoop:
             if not self.surging:
                 self.onset.start(est.speed, est.accel(thrust.surge))
                 self.command_started = t
-                self.over_reference_s = 0.0
             self.surging = True
             self.ref_speed, v_ahead, accel = self.onset.step(speed_sp, self._accel_limits(est, self.onset.rate), dt)
         else:  # released: brake along a ramp the reverse thrust can follow
@@ -560,10 +548,6 @@ class SurgeLoop:
         wanted = accel + gain * c.speed_kp * (v_ahead - predicted)
         if speed_sp:
             effectiveness = self._command_effectiveness(t, wanted, est)
-            self._time_over_reference(t, dt, est, speed_sp)
-            self.correcting = wanted * speed_sp < 0.0
-            if self.correcting:  # against an overspeed: harder the longer the body has been over its reference
-                effectiveness = max(escalated(effectiveness, self.over_reference_s), est.effectiveness.lowest(wanted))
         elif hover:
             effectiveness = max(est.effectiveness.value(wanted), est.effectiveness.value(-wanted) / HOVER_SIDES_APART)
         else:
@@ -593,25 +577,6 @@ class SurgeLoop:
         if not self.escalating:
             return max(e.confirmed(wanted), e.value(wanted))
         return max(e.value(wanted), escalated(e.high, t - max(self.command_started, self.escalating_since)))
-
-    def _time_over_reference(self, t: float, dt: float, est: SurgeEstimate, speed_sp: float) -> None:
-        """Count how long a held command's body has run measurably faster than its reference: a correction against the
-        command escalates by it (halving what it is normalised by every ``ESCALATE_S`` over), down to the box's weakest.
-
-        The speed cap is the speed the stop plans to brake from, but a light or heavy corner's onset left the body up to
-        38 % over it (0.086-0.094 m/s against 0.068: corners mtdl, Mtdl, mTDL, MtDL, 12 s held at 1.2 m), and it stayed
-        there: the correction is a reverse push on a side no window has taught, normalised by the box's strongest (4),
-        a few mN that the deadband ate, so the body coasted. Every stop then started from a speed its cap had not
-        planned for; after a board stall, with replies late and the flow noisy under the ceiling, those stops took up
-        to 1.5 s (docs/flight-robustness.md, session 34). The flow-led speed is the model's-free one (a wrong model
-        cannot hide an overspeed) and its noise is known (``flow_speed_noise_m_s``), so a body at its reference is
-        over it by ``OVER_REFERENCE_SIGMAS`` on a few cycles only; the count decays as fast as it grows, so those few
-        cycles, and a draft's gust, fade. A stale flow holds the count."""
-        if not est.measured(t):
-            return
-        along = est.flow_speed * math.copysign(1.0, speed_sp)
-        over = along > abs(self.ref_speed) + OVER_REFERENCE_SIGMAS * est.flow_speed_noise_m_s
-        self.over_reference_s = self.over_reference_s + dt if over else max(self.over_reference_s - dt, 0.0)
 
     def recover(self, t: float) -> None:
         """Back from a telemetry outage: what the outage taught is suspect, so an untaught push escalates afresh."""
