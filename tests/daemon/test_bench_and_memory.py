@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import platform
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -73,6 +74,9 @@ def test_a_daemon_alone_in_a_fresh_process_reports_its_memory():
     assert 0 < empty["rss_mb_steady"] <= empty["rss_mb_max"]
 
 
+RESTART_TRIES = 5
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the kernel's high-water mark is Linux's")
 def test_the_kernel_peak_sees_a_transient_allocation_a_sampler_would_miss_and_restarts_from_now() -> None:
     """``bench board`` reports the kernel's resident high-water mark: 64 MB allocated, touched and freed between two
@@ -86,6 +90,14 @@ def test_the_kernel_peak_sees_a_transient_allocation_a_sampler_would_miss_and_re
     del transient
     peak = peak_rss_mb()
     assert peak is not None and peak >= before + 60.0
-    assert restart_peak_rss()
-    restarted = peak_rss_mb()
+    # Once in CI (session 34, code unchanged since two green runs) the restarted mark read the old peak exactly
+    # (414.6 MB), as if the restart had not taken; 300 tries here, with a thread allocating alongside, never did so.
+    # The kernel folds a task's resident-page counts into the process's lazily, which may be why. A few restarts a
+    # moment apart are allowed: the mark never falls by itself, so a fall is still a restart's doing.
+    for _ in range(RESTART_TRIES):
+        assert restart_peak_rss()
+        restarted = peak_rss_mb()
+        if restarted is not None and restarted < peak - 50.0:
+            break
+        time.sleep(0.05)
     assert restarted is not None and restarted < peak - 50.0
