@@ -18,7 +18,9 @@ on the same fitted configs in seconds per flight. Clear the folder after a chang
 ``--faults`` flies instead, per plant and seed, each held motion command (forward, backward, both turns) through
 each of ``safety.HELD_FAULTS``: a 3 s board stall at 0.5 s and at 3 s into the hold, the link unplugged for 3 s at
 0.5 s and for 1 s at 3 s (``safety.held_through_fault``): 16 flights, each judged on its peak and on the stop after
-the release (docs/flight-robustness.md, session 33). About 1 s of CPU per flight. ``--lag-ms L`` makes every reply
+the release (docs/flight-robustness.md, session 33), and on the altitude once the body is back inside its limits after
+the fault (``excursion_after_return_m``, against the safety flight's 0.1 m; ``returned_s``, how long it took to come
+back, is reported: session 35). About 1 s of CPU per flight. ``--lag-ms L`` makes every reply
 L ms late as well (a USB adapter's latency: the link tests use 25-40 ms).
 """
 
@@ -36,6 +38,7 @@ from feelium.daemon.config import Config
 from feelium.flight.config import FlightConfig
 from feelium.lab.flight.plants import Plant, plant_set
 from feelium.lab.flight.safety import GOALS, HELD_FAULTS, held_through_fault, safety_flight
+from feelium.lab.report import finite_or_null
 
 CORNERS = 16
 
@@ -77,8 +80,10 @@ def _fly_faults(config: FlightConfig, plant: Plant, index: int, seed: int, lag_s
     manoeuvres = {f"{command}-{kind}-{at:g}s": {k: round(v, 3) for k, v in held_through_fault(config, plant, command, kind, at, long, seed, lag_s).items()}
                   for command in ("forward", "backward", "turn_right", "turn_left") for kind, at, long in HELD_FAULTS}
     figures = {goal: max(m.get(goal, 0.0) for m in manoeuvres.values())
-               for goal in ("speed_peak_fraction", "turn_peak_fraction", "stop_s", "highest_m")}
-    failures = {goal: value for goal, value in figures.items() if goal in GOALS and value > GOALS[goal]}
+               for goal in ("speed_peak_fraction", "turn_peak_fraction", "stop_s", "highest_m", "returned_s",
+                            "excursion_after_return_m")}
+    goals = {**GOALS, "excursion_after_return_m": GOALS["altitude_excursion_m"]}
+    failures = {goal: value for goal, value in figures.items() if goal in goals and value > goals[goal]}
     return {"plant": plant.name, "index": index, "seed": seed, "failures": failures, "figures": figures, "manoeuvres": manoeuvres}
 
 
@@ -110,7 +115,7 @@ def main() -> None:
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(_fly, jobs))
     for row in rows:
-        print(json.dumps(row), flush=True)
+        print(json.dumps(finite_or_null(row), allow_nan=False), flush=True)
     failing = [row for row in rows if row["failures"]]
     for seed in _seeds(args.seeds):
         misses = [f"{row['plant'].removeprefix('corner-')} "

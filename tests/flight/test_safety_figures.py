@@ -1,4 +1,5 @@
-"""The safety flight's figures: the hover's drift is measured on the true track and reported, never judged."""
+"""The safety flight's figures: the hover's drift is measured on the true track and reported, never judged; after a link
+fault the altitude limits are judged from the moment the body is back inside them."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 import numpy as np
 
 from feelium.lab.flight.plant_bench import _summary
-from feelium.lab.flight.safety import GOALS, REPORTED, SafetyResult, farthest_along, farthest_from_start
+from feelium.lab.flight.safety import GOALS, REPORTED, SafetyResult, back_inside_limits, farthest_along, farthest_from_start
 
 
 def test_the_drift_is_the_farthest_point_from_where_the_track_began_not_from_its_middle_or_its_end() -> None:
@@ -17,6 +18,26 @@ def test_the_drift_is_the_farthest_point_from_where_the_track_began_not_from_its
     assert farthest_from_start(x, y) == 0.3
     assert math.isclose(farthest_from_start(np.array([1.0, 1.3]), np.array([2.0, 2.4])), 0.5)
     assert farthest_from_start(np.array([]), np.array([])) == 0.0
+
+
+def test_after_a_fault_the_limits_are_judged_from_the_body_s_return_not_on_the_rise_the_fault_caused() -> None:
+    t = np.arange(10) * 1.0
+    # the fault ends at 2 s with the body 0.4 m over the 2.6 m limit; back inside at 5 s; out again by 0.15 m at 8 s
+    z = np.array([2.5, 2.8, 3.0, 2.9, 2.7, 2.6, 2.5, 2.6, 2.75, 2.6])
+    returned, excursion = back_inside_limits(t, z, 2.0, 0.4, 2.6)
+    assert returned == 3.0
+    assert math.isclose(excursion, 0.15)
+    # the same under the floor limit
+    low = np.array([0.5, 0.2, 0.0, 0.1, 0.3, 0.45, 0.5, 0.45, 0.3, 0.45])
+    returned, excursion = back_inside_limits(t, low, 2.0, 0.4, 2.6)
+    assert returned == 3.0
+    assert math.isclose(excursion, 0.1)
+
+
+def test_a_body_that_never_comes_back_inside_the_limits_has_no_finite_figure_and_one_inside_all_along_none() -> None:
+    t = np.arange(5) * 1.0
+    assert back_inside_limits(t, np.full(5, 2.8), 1.0, 0.4, 2.6) == (math.inf, math.inf)
+    assert back_inside_limits(t, np.array([1.0, 1.2, 1.1, 1.3, 1.2]), 1.0, 0.4, 2.6) == (0.0, 0.0)
 
 
 def test_the_surge_drift_counts_only_the_part_along_the_body_so_a_cross_draft_is_not_charged_to_the_surge_loop() -> None:
