@@ -20,18 +20,27 @@ def test_the_drift_is_the_farthest_point_from_where_the_track_began_not_from_its
     assert farthest_from_start(np.array([]), np.array([])) == 0.0
 
 
-def test_after_a_fault_the_limits_are_judged_from_the_body_s_return_not_on_the_rise_the_fault_caused() -> None:
-    t = np.arange(10) * 1.0
-    # the fault ends at 2 s with the body 0.4 m over the 2.6 m limit; back inside at 5 s; out again by 0.15 m at 8 s
-    z = np.array([2.5, 2.8, 3.0, 2.9, 2.7, 2.6, 2.5, 2.6, 2.75, 2.6])
+def test_after_a_fault_the_limits_are_judged_from_the_body_s_return_not_on_the_climb_the_fault_started() -> None:
+    t = np.arange(12) * 1.0
+    # the fault ends at 2 s with the body still inside but climbing; it peaks 0.4 m over the 2.6 m limit at 3 s (the
+    # fault's climb carried on), is back inside at 5 s, and goes out again by 0.15 m at 9 s: only that is judged
+    z = np.array([2.0, 2.3, 2.5, 3.0, 2.7, 2.6, 2.5, 2.6, 2.6, 2.75, 2.6, 2.5])
     returned, excursion = back_inside_limits(t, z, 2.0, 0.4, 2.6)
     assert returned == 3.0
     assert math.isclose(excursion, 0.15)
     # the same under the floor limit
-    low = np.array([0.5, 0.2, 0.0, 0.1, 0.3, 0.45, 0.5, 0.45, 0.3, 0.45])
+    low = np.array([1.0, 0.6, 0.45, 0.2, 0.3, 0.45, 0.5, 0.45, 0.45, 0.3, 0.45, 0.5])
     returned, excursion = back_inside_limits(t, low, 2.0, 0.4, 2.6)
     assert returned == 3.0
     assert math.isclose(excursion, 0.1)
+
+
+def test_a_climb_long_after_the_fault_is_judged_even_if_the_body_never_left_the_limits_in_the_aftermath() -> None:
+    t = np.arange(12) * 1.0
+    z = np.array([2.0, 2.3, 2.5, 2.55, 2.5, 2.5, 2.6, 2.6, 2.6, 2.9, 3.0, 2.7])
+    returned, excursion = back_inside_limits(t, z, 2.0, 0.4, 2.6)
+    assert returned == 0.0
+    assert math.isclose(excursion, 0.4)
 
 
 def test_a_body_that_never_comes_back_inside_the_limits_has_no_finite_figure_and_one_inside_all_along_none() -> None:

@@ -196,6 +196,9 @@ def safety_flight(config: FlightConfig, plant: Plant, seed: int = 1, controller:
 # A held command through a link fault (issue 13, point 3): the kind, seconds into the hold it starts, how long.
 FAULT_HELD_S = 12.0
 HELD_FAULTS = (("stall", 0.5, 3.0), ("stall", 3.0, 3.0), ("drop", 0.5, 3.0), ("drop", 3.0, 1.0))
+# After a fault the body is judged against the altitude limits only from its return from the furthest it went outside
+# them within this long of the fault's end (``back_inside_limits``): the climb a fault started, carried on.
+AFTERMATH_S = 3.0
 
 
 def held_through_fault(config: FlightConfig, plant: Plant, command: str, kind: str, at_s: float, long_s: float,
@@ -230,19 +233,22 @@ def held_through_fault(config: FlightConfig, plant: Plant, command: str, kind: s
 
 
 def back_inside_limits(t: np.ndarray, z: np.ndarray, since: float, low: float, high: float) -> tuple[float, float]:
-    """After a fault that ended at ``since``: how long the body took to come back inside [``low``, ``high``], and how
-    far outside them it went from then on (both ``inf`` if it never came back).
+    """After a fault that ended at ``since``: how long the body took to come back inside [``low``, ``high``] from the
+    furthest it went outside them in the fault's aftermath (``AFTERMATH_S``), and how far outside it went from its
+    return on (both ``inf`` if it never came back).
 
     The rise *during* a fault is the board's (its watchdog sets the motors neutral and the body is positively buoyant:
-    the contract's), and the highest altitude mixes it with what the controller did after; the limit goal ("never
-    outside by more than 10 cm, reconnects included") is the controller's once it has brought the body back. With
-    every reply 30 ms late a light strong corner that had come back under the ceiling limit climbed into the room's
-    ceiling (3.0 m, 0.4 m over the limit) after the release, with the link up for 8 s (docs/flight-robustness.md,
-    session 35)."""
-    after = t >= since
-    inside = after & (z >= low) & (z <= high)
+    the contract's), and so is the climb it carries on with for a moment after it: a heavy weak corner rising at 0.6 m/s
+    when the link returns has too little authority to stop short of the ceiling. The highest altitude mixes that with
+    what the controller did after; the limit goal ("never outside by more than 10 cm, reconnects included") is the
+    controller's once it has brought the body back. With every reply 30 ms late a light strong corner that had come
+    back under the ceiling limit climbed into the room's ceiling (3.0 m, 0.4 m over the limit) after the release, with
+    the link up for 8 s (docs/flight-robustness.md, session 35)."""
+    outside = np.maximum(np.maximum(z - high, low - z), 0.0)
+    aftermath = (t >= since) & (t <= since + AFTERMATH_S)
+    start = int(np.argmax(np.where(aftermath, outside, -1.0))) if aftermath.any() else int(np.searchsorted(t, since))
+    inside = (np.arange(t.size) >= start) & (outside == 0.0)
     if not inside.any():
         return float("inf"), float("inf")
     back = int(np.argmax(inside))
-    rest = z[back:]
-    return float(t[back] - since), float(max(0.0, np.max(rest) - high, low - np.min(rest)))
+    return float(t[back] - since), float(np.max(outside[back:]))
