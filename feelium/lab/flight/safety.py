@@ -226,16 +226,18 @@ def held_through_fault(config: FlightConfig, plant: Plant, command: str, kind: s
     held = (t > SETTLE_S) & (t <= released)
     surge = command in ("forward", "backward")
     peak = float(np.max(np.abs((u if surge else r)[held]))) / (config.forward_speed_m_s if surge else config.yaw_rate_dps)
-    returned_s, excursion_m = back_inside_limits(t, z, SETTLE_S + at_s + long_s, config.altitude_min_m, config.altitude_max_m)
+    returned_s, excursion_m = back_inside_limits(t, z, SETTLE_S + at_s + long_s, config.altitude_min_m, config.altitude_max_m,
+                                                 GOALS["altitude_excursion_m"])
     return {"speed_peak_fraction" if surge else "turn_peak_fraction": peak,
             "stop_s": stopped_after(t, u, r, released, flight.t), "highest_m": float(np.max(z)),
             "returned_s": returned_s, "excursion_after_return_m": excursion_m}
 
 
-def back_inside_limits(t: np.ndarray, z: np.ndarray, since: float, low: float, high: float) -> tuple[float, float]:
-    """After a fault that ended at ``since``: how long the body took to come back inside [``low``, ``high``] from the
-    furthest it went outside them in the fault's aftermath (``AFTERMATH_S``), and how far outside it went from its
-    return on (both ``inf`` if it never came back).
+def back_inside_limits(t: np.ndarray, z: np.ndarray, since: float, low: float, high: float,
+                       tolerance: float) -> tuple[float, float]:
+    """After a fault that ended at ``since``: how long the body took to come back within ``tolerance`` of [``low``,
+    ``high``] (the goal's) from the furthest it went outside them in the fault's aftermath (``AFTERMATH_S``), and how
+    far outside it went from its return on (both ``inf`` if it never came back).
 
     The rise *during* a fault is the board's (its watchdog sets the motors neutral and the body is positively buoyant:
     the contract's), and so is the climb it carries on with for a moment after it: a heavy weak corner rising at 0.6 m/s
@@ -247,7 +249,7 @@ def back_inside_limits(t: np.ndarray, z: np.ndarray, since: float, low: float, h
     outside = np.maximum(np.maximum(z - high, low - z), 0.0)
     aftermath = (t >= since) & (t <= since + AFTERMATH_S)
     start = int(np.argmax(np.where(aftermath, outside, -1.0))) if aftermath.any() else int(np.searchsorted(t, since))
-    inside = (np.arange(t.size) >= start) & (outside == 0.0)
+    inside = (np.arange(t.size) >= start) & (outside <= tolerance)
     if not inside.any():
         return float("inf"), float("inf")
     back = int(np.argmax(inside))
