@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from feelium.lab.flight.plant_bench import _summary
 from feelium.lab.flight.safety import GOALS, REPORTED, SafetyResult, back_inside_limits, farthest_along, farthest_from_start
@@ -20,19 +21,19 @@ def test_the_drift_is_the_farthest_point_from_where_the_track_began_not_from_its
     assert farthest_from_start(np.array([]), np.array([])) == 0.0
 
 
-def test_after_a_fault_the_limits_are_judged_from_the_body_s_return_not_on_the_climb_the_fault_started() -> None:
-    t = np.arange(12) * 1.0
-    # the fault ends at 2 s with the body still inside but climbing; it peaks 0.4 m over the 2.6 m limit at 3 s (the
-    # fault's climb carried on), is back inside at 5 s, and goes out again by 0.15 m at 9 s: only that is judged
-    z = np.array([2.0, 2.3, 2.5, 3.0, 2.7, 2.6, 2.5, 2.6, 2.6, 2.75, 2.6, 2.5])
-    returned, excursion = back_inside_limits(t, z, 2.0, 0.4, 2.6, 0.0)
+# the fault ends at 2 s with the body still inside but climbing; it peaks 0.4 m over the 2.6 m limit at 3 s (the fault's
+# climb carried on), is back inside at 5 s, and goes out again by 0.15 m at 9 s: only that is judged; then the same under
+# the 0.4 m floor limit
+AFTER_A_FAULT = [([2.0, 2.3, 2.5, 3.0, 2.7, 2.6, 2.5, 2.6, 2.6, 2.75, 2.6, 2.5], 0.15),
+                 ([1.0, 0.6, 0.45, 0.2, 0.3, 0.45, 0.5, 0.45, 0.45, 0.3, 0.45, 0.5], 0.1)]
+
+
+@pytest.mark.parametrize("z,judged", AFTER_A_FAULT)
+def test_after_a_fault_the_limits_are_judged_from_the_body_s_return_not_on_the_climb_the_fault_started(
+        z: list[float], judged: float) -> None:
+    returned, excursion = back_inside_limits(np.arange(12) * 1.0, np.array(z), 2.0, 0.4, 2.6, 0.0)
     assert returned == 3.0
-    assert math.isclose(excursion, 0.15)
-    # the same under the floor limit
-    low = np.array([1.0, 0.6, 0.45, 0.2, 0.3, 0.45, 0.5, 0.45, 0.45, 0.3, 0.45, 0.5])
-    returned, excursion = back_inside_limits(t, low, 2.0, 0.4, 2.6, 0.0)
-    assert returned == 3.0
-    assert math.isclose(excursion, 0.1)
+    assert math.isclose(excursion, judged)
 
 
 def test_a_climb_long_after_the_fault_is_judged_even_if_the_body_never_left_the_limits_in_the_aftermath() -> None:
