@@ -47,6 +47,7 @@ from feelium.flight.config import FlightConfig
 from feelium.priority import name_current_thread
 from feelium.flight.controller import ControlOutput, FlightController
 from feelium.flight.lateness import LatenessHistogram
+from feelium.flight.altitude_health import AltitudeWatch
 from feelium.flight.sensor_health import SensorWatch
 from feelium.flight.setpoint import setpoint_for_motion
 from feelium.flight.soften import SoftenTracker
@@ -196,6 +197,7 @@ class FlightService:
         self.link_state = "down"
         self._up_since: float | None = None  # when a link last opened: its sensors are judged from a second after
         self.sensors = SensorWatch(config)
+        self.altitude_watch = AltitudeWatch(config)
         self._logged_state: str | None = None
         self._link_logged_at: deque[float] = deque()  # hub times of the link lines of the last LINK_LOG_WINDOW_S
         self._link_changes_unlogged = 0
@@ -325,15 +327,17 @@ class FlightService:
             return round(self._rate.rate(self.hub.clock()), 1)
 
     def _condition(self, now: float, ages: dict[str, float | None]) -> dict[str, str]:
-        """The motor board link and its sensors as the part's health: without a board answering, or with one whose
-        sensors are silent (``ages``, at ``now``), flight is not ok."""
+        """The motor board link and its sensors as the part's health: without a board answering, with one whose sensors
+        are silent (``ages``, at ``now``), or with the body outside its altitude limits, flight is not ok."""
         state = self.link_state
         stalled_s = None if self.heartbeat_at is None else now - self.heartbeat_at
         if stalled_s is not None and stalled_s > LOOP_STALL_S and not self.stopping:
             return {"condition": "degraded", "reason": f"control loop stalled: no cycle for {stalled_s:.1f} s"}
         if state == "up":
             up_for = 0.0 if self._up_since is None else now - self._up_since
-            problems = self.sensors.problems(now, ages, up_for, self.controller.surge.flow_noise_rad_s)
+            problems = (self.sensors.problems(now, ages, up_for, self.controller.surge.flow_noise_rad_s)
+                        + self.altitude_watch.problems(now, self.controller.altitude.z,
+                                                       held=self.last is not None and self.last.mode == "soft"))
             return {"condition": "degraded", "reason": "; ".join(problems)} if problems else {"condition": "ok"}
         if state in LINK_REASONS:
             return {"condition": "degraded", "reason": f"motor board link {state}: {LINK_REASONS[state]}"}
