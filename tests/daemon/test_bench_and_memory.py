@@ -79,6 +79,7 @@ def test_a_daemon_alone_in_a_fresh_process_reports_its_memory():
 # a full local run: the restarted mark at the old peak). The probe prints what it measured as JSON.
 PEAK_PROBE = """
 import json
+import numpy as np
 from feelium.lab.daemon.bench import peak_rss_mb, resident_mb, restart_peak_rss
 if not restart_peak_rss():
     print(json.dumps(None))
