@@ -31,12 +31,12 @@ class AltitudeWatch:
         at ``now``, in words (none: inside the limits, or back inside long enough). ``held``: a partner's hand is on
         the body (the controller has softened): where it is then is the partner's doing, not a fault."""
         if z is not None and math.isfinite(z) and not held:
-            over, under = z - self.high, self.low - z
-            if max(over, under) > OUTSIDE_REPORTED_M:
-                limit = "over the ceiling limit" if over > under else "under the floor limit"
-                self._last_outside = (now, max(over, under), limit)
-                bound = self.high if over > under else self.low
-                return [f"altitude {z:.2f} m: {max(over, under):.2f} m {limit} ({bound:.2f} m)"]
+            high = z - self.high > self.low - z  # the nearer side is the one it may be past
+            outside = z - self.high if high else self.low - z
+            if outside > OUTSIDE_REPORTED_M:
+                limit = "over the ceiling limit" if high else "under the floor limit"
+                self._last_outside = (now, outside, limit)
+                return [f"altitude {z:.2f} m: {outside:.2f} m {limit} ({self.high if high else self.low:.2f} m)"]
         if self._last_outside is None:
             return []
         when, by, limit = self._last_outside
