@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 from feelium.flight.config import FlightConfig
 from feelium.flight.estimators import AltitudeObserver, SurgeEstimate, ThrustModel, YawEstimate
-from feelium.flight.loops import AltitudeLoop, HeadingLoop, SurgeLoop
+from feelium.flight.loops import AltitudeLoop, HeadingLoop, SurgeLoop, recovery_target
 from feelium.flight.reversal import PairThrust, ReversalGuard, calm
 from feelium.flight.mixer import NEUTRAL, Mixer, MixerGeometry, thrust_for_command, to_microseconds
 from feelium.flight.setpoint import Setpoint
@@ -198,7 +198,9 @@ class FlightController:
     def _on_range_restart(self, t: float) -> None:
         z = self.altitude.z
         assert z is not None
-        if self.altitude_loop.target is None or self._altitude_failsafe:
+        if self._altitude_failsafe:
+            self.altitude_loop.restart(recovery_target(self.c, z))
+        elif self.altitude_loop.target is None:
             self.altitude_loop.restart(min(max(z, self.c.altitude_min_m), self.c.altitude_max_m))
         if self._altitude_failsafe:  # it was floating up: damp that out, hold where it stops
             self.altitude_loop.recover(t)

@@ -31,6 +31,12 @@ from feelium.flight.setpoint import Setpoint
 
 SETTLE_S = 0.6  # damping-only phase after a braking ramp
 RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an outage
+# Back from an outage outside the altitude limits, the hold's target is the limit moved this far inside, not the limit:
+# the watchdog's motors off let the body float to the room's ceiling, and the descent back is flown on a heave side no
+# window has taught, whose first readings may be anything in the box (docs/flight-robustness.md, session 36). Held at
+# the limit itself, every bounce of that descent counted against the limits' 10 cm; ArduPilot's fence likewise
+# recovers to a point inside its fence, not onto it.
+RECOVERY_MARGIN_M = 0.2
 REST_MEAN_TAU_S = 0.15  # the averaging of where a settling stop rests: a few range readings, less than its settling
 SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 STOPPED_SPEED_M_S = 0.05  # the stop goal's thresholds (docs/flight-robustness.md)
@@ -74,6 +80,18 @@ MIN_CLIMB_BRAKE_M_S2 = 0.02  # a body that shows no braking at all still gets a 
 STILL_M_S = 0.05  # a climb rate this small is holding still: its force is the hover force...
 HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
 LIMIT_BRAKE_SHARE = 0.35  # of the vertical authority a climb into a limit plans to brake with (the loop needs the rest)
+
+
+def recovery_target(config: FlightConfig, z: float) -> float:
+    """Where a hold restarted at ``z`` after an outage aims: ``z`` inside the altitude limits, else the limit it is past
+    moved ``RECOVERY_MARGIN_M`` inside (at most a quarter of the span between the limits)."""
+    low, high = config.altitude_min_m, config.altitude_max_m
+    margin = min(RECOVERY_MARGIN_M, 0.25 * (high - low))
+    if z > high:
+        return high - margin
+    if z < low:
+        return low + margin
+    return z
 
 
 def longest_lag_s(config: FlightConfig, axis: Axis) -> float:
@@ -144,16 +162,20 @@ class AltitudeLoop:
         self.hover_up_n = -config.net_buoyancy_n  # the force that held the body still, lately
         self.near_limit = False  # a climb slowed for a limit: its braking is planned on the weakest plant
         self.saturated_t = -math.inf  # the last cycle the vertical force was at a motor limit
+        self.recovering = False  # back from an outage, until the next command: see ``recovery_target``
 
     def restart(self, z: float) -> None:
         """Hold here from now on (first reading, or back from a failsafe)."""
         self.target = z
         self.ref.reset(z)
+        self.recovering = False
 
     def recover(self, t: float) -> None:
-        """Back from an outage, probably drifting: damp it out, then hold where it comes to rest (inside the limits)."""
+        """Back from an outage, probably drifting: damp it out, then hold where it comes to rest (inside the limits,
+        and a margin inside them if it drifts past one: ``recovery_target``)."""
         self.climbing = self.braking = False
         self.settle_until, self.rest_z = t + RECOVERY_SETTLE_S, None
+        self.recovering = True
 
     def step(self, t: float, dt: float, sp: Setpoint, obs: AltitudeObserver, thrust: ThrustModel, gain: float, soft: bool) -> float:
         c = self.c
@@ -166,6 +188,7 @@ class AltitudeLoop:
             if not self.climbing:
                 self.onset.start(obs.vz, obs.accel(thrust.vertical))
             self.climbing = True
+            self.recovering = False
             target = self._climb_within_limits(z, obs, climb)
             ref.rate, rate_ahead, ref.accel = self.onset.step(target, self._accel_limits(obs, self.onset.rate), dt)
             ahead = min(max(ref.value + ref.rate * dt, z - 0.25), z + 0.25)
@@ -203,7 +226,9 @@ class AltitudeLoop:
         elif not climb:
             self.settle_until = self.rest_z = None  # outside the limits a settling stop holds the limit at once
             if sp.altitude_m is not None:
-                self.target = sp.altitude_m
+                self.target, self.recovering = sp.altitude_m, False
+            if self.recovering and not c.altitude_min_m <= z <= c.altitude_max_m:
+                self.target = recovery_target(c, z)
             self.target = min(max(self.target, c.altitude_min_m), c.altitude_max_m)
             ref.advance(self.target - ref.value, dt)
         error = min(max(ref.value - z, -c.altitude_error_limit_m), c.altitude_error_limit_m)
