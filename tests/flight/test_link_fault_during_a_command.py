@@ -42,18 +42,16 @@ def test_a_held_forward_through_a_dropped_link_keeps_the_speed_goal() -> None:
     assert figures["stop_s"] <= GOALS["stop_s"]
 
 
-@pytest.mark.xfail(strict=True, reason="open (issue 13, docs/flight-robustness.md, session 35): descending from the room's "
-                   "ceiling after the fault, a heave side never taught before reads the box's weakest from its first "
-                   "window, the brake of the descent divided by it goes to the motors' limit, and the body bounces back "
-                   "0.26-0.29 m over the ceiling limit with the link up; the fixes tried traded it for heavy weak corners")
-@pytest.mark.parametrize("plant_name,at_s,seed", [("corner-mTDl", 0.5, 1), ("random-2026-2", 3.0, 2)])
-def test_after_a_stall_the_body_back_inside_its_altitude_limits_stays_within_the_goal(plant_name: str, at_s: float,
-                                                                                      seed: int) -> None:
-    """The rise during the stall and the climb it carries on with are the board's (its watchdog stops the motors: the
+@pytest.mark.parametrize("plant_name,kind,at_s,seed", [("corner-mTDl", "stall", 0.5, 1), ("random-2026-2", "stall", 3.0, 2),
+                                                       ("corner-MtdL", "drop", 0.5, 2)])
+def test_after_a_fault_the_body_back_inside_its_altitude_limits_stays_within_the_goal(plant_name: str, kind: str,
+                                                                                      at_s: float, seed: int) -> None:
+    """The rise during the fault and the climb it carries on with are the board's (its watchdog stops the motors: the
     contract's); from the body's return inside the limits it is the controller's, judged as the safety flight's
-    altitude goal (``safety.back_inside_limits``)."""
+    altitude goal (``safety.back_inside_limits``). Held on the ceiling limit itself, the descent's bounces went 0.29,
+    0.26 and 0.18 m over it on these three; the hold now aims a margin inside (``loops.recovery_target``; session 36)."""
     plant = next(p for p in plant_set(50) if p.name == plant_name)
-    figures = held_through_fault(CONFIG, plant, "forward", "stall", at_s=at_s, long_s=3.0, seed=seed)
+    figures = held_through_fault(CONFIG, plant, "forward", kind, at_s=at_s, long_s=3.0, seed=seed)
     assert figures["returned_s"] < 6.0
     assert figures["excursion_after_return_m"] <= GOALS["altitude_excursion_m"]
 
