@@ -112,6 +112,7 @@ class FlightController:
             "yaw_escalating": self.heading_loop.escalating,
             "heave_effectiveness": self.altitude.effectiveness.as_dict(),
             "altitude_disturbance_m_s2": round(self.altitude.disturbance, 3),
+            "altitude_recovering": self.altitude_loop.recovering,
             "old_telemetry": self.old_telemetry,
             "reversals_held": self.reversals.held,
         }
@@ -140,7 +141,7 @@ class FlightController:
             return self._output(t, commands, "telemetry_failsafe")
         if self._telemetry_failsafe:
             # Back from an outage, probably drifting up: damp the motion out, then hold
-            # wherever the body comes to rest, inside the altitude limits.
+            # wherever the body comes to rest inside the altitude limits (past one, a margin inside it).
             self._telemetry_failsafe = False
             self.altitude_loop.recover(t)
             self.heading_loop.recover(t)
@@ -149,7 +150,7 @@ class FlightController:
         soft = setpoint.soften
         if self._was_soft and not soft:  # the partner let go: stay where they left it
             if self.altitude.z is not None:
-                self.altitude_loop.restart(self.altitude.z)
+                self.altitude_loop.let_go(self.altitude.z)
             if self.yaw.heading is not None:
                 self.heading_loop.restart(self.yaw.heading)
         self._was_soft = soft
@@ -198,12 +199,14 @@ class FlightController:
     def _on_range_restart(self, t: float) -> None:
         z = self.altitude.z
         assert z is not None
-        if self._altitude_failsafe:
+        # Back from a failsafe it was floating up; at the first reading past a limit (a blimp switched on against the
+        # ceiling) it probably floats still: either way, damp that out and hold where it stops, a margin inside a limit.
+        first_outside = self.altitude_loop.target is None and not self.c.altitude_min_m <= z <= self.c.altitude_max_m
+        if self._altitude_failsafe or first_outside:
             self.altitude_loop.restart(recovery_target(self.c, z))
-        elif self.altitude_loop.target is None:
-            self.altitude_loop.restart(min(max(z, self.c.altitude_min_m), self.c.altitude_max_m))
-        if self._altitude_failsafe:  # it was floating up: damp that out, hold where it stops
             self.altitude_loop.recover(t)
+        elif self.altitude_loop.target is None:
+            self.altitude_loop.restart(z)
         self._altitude_failsafe = False
 
     def _vertical(self, t: float, dt: float, sp: Setpoint, range_age: float, gain: float, soft: bool) -> tuple[float, str]:

@@ -37,6 +37,9 @@ RECOVERY_SETTLE_S = 2.5  # damping-only phase after telemetry returns from an ou
 # the limit itself, every bounce of that descent counted against the limits' 10 cm; ArduPilot's fence likewise
 # recovers to a point inside its fence, not onto it.
 RECOVERY_MARGIN_M = 0.2
+# ...and a recovery ends once the body has stayed inside the limits this long (or at the next vertical command): a
+# shove past a limit minutes later is a hold's to correct, not an outage's.
+RECOVERY_CLEAR_S = 10.0
 REST_MEAN_TAU_S = 0.15  # the averaging of where a settling stop rests: a few range readings, less than its settling
 SETTLE_DAMPING = 6.0  # its damping, (m/s^2) per m/s and (rad/s^2) per rad/s
 STOPPED_SPEED_M_S = 0.05  # the stop goal's thresholds (docs/flight-robustness.md)
@@ -82,16 +85,18 @@ HOVER_FORCE_TAU_S = 2.0  # ...averaged over this long
 LIMIT_BRAKE_SHARE = 0.35  # of the vertical authority a climb into a limit plans to brake with (the loop needs the rest)
 
 
-def recovery_target(config: FlightConfig, z: float) -> float:
-    """Where a hold restarted at ``z`` after an outage aims: ``z`` inside the altitude limits, else the limit it is past
-    moved ``RECOVERY_MARGIN_M`` inside (at most a quarter of the span between the limits)."""
+def recovery_target(config: FlightConfig, z: float, target: float | None = None) -> float:
+    """Where a hold at ``z`` recovering from an outage aims: inside the altitude limits ``target`` (``z`` if none),
+    else the limit ``z`` is past moved ``RECOVERY_MARGIN_M`` inside (at most a quarter of the span between the limits),
+    or ``target`` if that is further inside: a recovery moves a hold inward, never outward."""
     low, high = config.altitude_min_m, config.altitude_max_m
     margin = min(RECOVERY_MARGIN_M, 0.25 * (high - low))
+    held = z if target is None else target
     if z > high:
-        return high - margin
+        return min(held, high - margin)
     if z < low:
-        return low + margin
-    return z
+        return max(held, low + margin)
+    return held
 
 
 def longest_lag_s(config: FlightConfig, axis: Axis) -> float:
@@ -162,7 +167,8 @@ class AltitudeLoop:
         self.hover_up_n = -config.net_buoyancy_n  # the force that held the body still, lately
         self.near_limit = False  # a climb slowed for a limit: its braking is planned on the weakest plant
         self.saturated_t = -math.inf  # the last cycle the vertical force was at a motor limit
-        self.recovering = False  # back from an outage, until the next command: see ``recovery_target``
+        self.recovering = False  # back from an outage, until the next vertical command: see ``recovery_target``
+        self.inside_since: float | None = None  # while recovering, since when the body is inside the limits
 
     def restart(self, z: float) -> None:
         """Hold here from now on (first reading, or back from a failsafe)."""
@@ -170,18 +176,26 @@ class AltitudeLoop:
         self.ref.reset(z)
         self.recovering = False
 
+    def let_go(self, z: float) -> None:
+        """A partner let go of the body at ``z``: hold there, or, in a recovery, where the recovery aims (a hand that
+        held the body past a limit during one does not end it)."""
+        recovering = self.recovering
+        self.restart(recovery_target(self.c, z) if recovering else z)
+        self.recovering = recovering
+
     def recover(self, t: float) -> None:
         """Back from an outage, probably drifting: damp it out, then hold where it comes to rest (inside the limits,
         and a margin inside them if it drifts past one: ``recovery_target``)."""
         self.climbing = self.braking = False
         self.settle_until, self.rest_z = t + RECOVERY_SETTLE_S, None
-        self.recovering = True
+        self.recovering, self.inside_since = True, None
 
     def step(self, t: float, dt: float, sp: Setpoint, obs: AltitudeObserver, thrust: ThrustModel, gain: float, soft: bool) -> float:
         c = self.c
         z = obs.z
         assert z is not None and self.target is not None
         ref = self.ref
+        self._end_a_long_recovery(t, z)
         climb = 0.0 if soft else sp.climb_m_s
         rate_ahead = 0.0
         if climb:
@@ -227,8 +241,8 @@ class AltitudeLoop:
             self.settle_until = self.rest_z = None  # outside the limits a settling stop holds the limit at once
             if sp.altitude_m is not None:
                 self.target, self.recovering = sp.altitude_m, False
-            if self.recovering and not c.altitude_min_m <= z <= c.altitude_max_m:
-                self.target = recovery_target(c, z)
+            if self.recovering:
+                self.target = recovery_target(c, z, self.target)
             self.target = min(max(self.target, c.altitude_min_m), c.altitude_max_m)
             ref.advance(self.target - ref.value, dt)
         error = min(max(ref.value - z, -c.altitude_error_limit_m), c.altitude_error_limit_m)
@@ -261,6 +275,17 @@ class AltitudeLoop:
         if not climb and abs(obs.vz) < STILL_M_S:
             self.hover_up_n += (self.up_n - self.hover_up_n) * min(1.0, dt / HOVER_FORCE_TAU_S)
         return self.up_n
+
+    def _end_a_long_recovery(self, t: float, z: float) -> None:
+        """A recovery ends once the body has stayed inside the limits for ``RECOVERY_CLEAR_S``."""
+        if not self.recovering:
+            return
+        if not self.c.altitude_min_m <= z <= self.c.altitude_max_m:
+            self.inside_since = None
+        elif self.inside_since is None:
+            self.inside_since = t
+        elif t - self.inside_since >= RECOVERY_CLEAR_S:
+            self.recovering = False
 
     def _effectiveness(self, obs: AltitudeObserver, z: float, climb: float, push: float) -> float:
         """What a push is divided by: the learned effectiveness, but the assured one for a push back inside the
