@@ -188,7 +188,9 @@ class FlightController:
                 self._on_range_restart(t)
         else:
             self.altitude.predict(thrust.vertical_mean, dt)
-        self.altitude.learn(t, dt, thrust.vertical_mean)
+        z = self.altitude.z
+        ceiling = self.altitude_loop.recovering and z is not None and z > self.c.altitude_max_m
+        self.altitude.learn(t, dt, thrust.vertical_mean, against_the_ceiling=ceiling)
         heading = tel.heading_deg if tel is not None else None
         if heading is not None and self.yaw.heading is None:
             self.heading_loop.restart(heading)

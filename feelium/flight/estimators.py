@@ -271,10 +271,16 @@ class AltitudeObserver:
         gated = self._gated_since is not None and t - self._gated_since < RESIDUAL_GATE_S
         return not gated and (not self.freeze_disturbance or t - self._restart_t <= NEW_HOLD_S)
 
-    def learn(self, t: float, dt: float, up_force_mean_n: float) -> None:
-        """Teach the heave effectiveness one cycle: the push of ``rate.age_s`` ago against the range slope now."""
+    def learn(self, t: float, dt: float, up_force_mean_n: float, against_the_ceiling: bool = False) -> None:
+        """Teach the heave effectiveness one cycle: the push of ``rate.age_s`` ago against the range slope now.
+
+        ``against_the_ceiling``: the room's ceiling may be what stops the body (past the ceiling limit after an outage,
+        when the watchdog's motors off let it float up), and a window would credit that stop to the pushes: it teaches
+        nothing. After a stall, random-2026-27's down side was taught 2.65 there (its truth 0.58), and the hold that
+        counted on it swung 0.13 m back over the limit; with a 30 ms reply lag, the light strong corners went up to
+        0.40 m over it (docs/flight-robustness.md, session 36)."""
         self._pushes.append((self.push(up_force_mean_n) + self.disturbance, self.disturbance))
-        measured = None if self.touched or self.z is None else self.range_rate.rate(t)
+        measured = None if self.touched or against_the_ceiling or self.z is None else self.range_rate.rate(t)
         if len(self._pushes) < self._pushes.maxlen:  # type: ignore[operator]
             measured = None
         push, disturbance = self._pushes[0]

@@ -42,16 +42,22 @@ def test_a_held_forward_through_a_dropped_link_keeps_the_speed_goal() -> None:
     assert figures["stop_s"] <= GOALS["stop_s"]
 
 
-@pytest.mark.parametrize("plant_name,kind,at_s,seed", [("corner-mTDl", "stall", 0.5, 1), ("random-2026-2", "stall", 3.0, 2),
-                                                       ("corner-MtdL", "drop", 0.5, 2)])
+@pytest.mark.parametrize("plant_name,kind,at_s,seed,lag_s", [
+    ("corner-mTDl", "stall", 0.5, 1, 0.0), ("random-2026-2", "stall", 3.0, 2, 0.0), ("corner-MtdL", "drop", 0.5, 2, 0.0),
+    ("random-2026-27", "stall", 3.0, 1, 0.0), ("corner-mTdl", "drop", 0.5, 3, 0.03), ("corner-mTDl", "stall", 3.0, 5, 0.03)])
 def test_after_a_fault_the_body_back_inside_its_altitude_limits_stays_within_the_goal(plant_name: str, kind: str,
-                                                                                      at_s: float, seed: int) -> None:
+                                                                                      at_s: float, seed: int,
+                                                                                      lag_s: float) -> None:
     """The rise during the fault and the climb it carries on with are the board's (its watchdog stops the motors: the
     contract's); from the body's return inside the limits it is the controller's, judged as the safety flight's
     altitude goal (``safety.back_inside_limits``). Held on the ceiling limit itself, the descent's bounces went 0.29,
-    0.26 and 0.18 m over it on these three; the hold now aims a margin inside (``loops.recovery_target``; session 36)."""
+    0.26 and 0.18 m over it on the first three; the hold now aims a margin inside (``loops.recovery_target``). The
+    last three went 0.13, 0.40 and 0.24 m over it with the margin: windows against the room's ceiling had taught the
+    down side several times its answer; now they teach nothing (``AltitudeObserver.learn``; both session 36). A
+    descending body's figure reads just under 0.1 m by construction (its return is where it crossed 0.1 m): a miss is a
+    climb back after that."""
     plant = next(p for p in plant_set(50) if p.name == plant_name)
-    figures = held_through_fault(CONFIG, plant, "forward", kind, at_s=at_s, long_s=3.0, seed=seed)
+    figures = held_through_fault(CONFIG, plant, "forward", kind, at_s=at_s, long_s=3.0, seed=seed, lag_s=lag_s)
     assert figures["returned_s"] < 6.0
     assert figures["excursion_after_return_m"] <= GOALS["altitude_excursion_m"]
 
