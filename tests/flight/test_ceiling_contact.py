@@ -12,8 +12,7 @@ import pytest
 from feelium.daemon.config import Config
 from feelium.flight.controller import FlightController
 from feelium.flight.estimators import AltitudeObserver
-from feelium.flight.setpoint import HOLD
-from feelium.flight.telemetry import Telemetry
+from tests.flight.still_readings import fly
 
 CONFIG = Config().flight
 DT = 1.0 / CONFIG.rate_hz
@@ -39,23 +38,16 @@ def test_windows_against_the_ceiling_teach_nothing() -> None:
     assert _taught_windows(against_the_ceiling=True) == [0, 0]
 
 
-def _fly(controller: FlightController, t0: float, t1: float, range_m: float | None) -> None:
-    for k in range(round((t1 - t0) / DT)):
-        t = t0 + k * DT
-        telemetry = None if range_m is None else Telemetry(t=t, range_m=range_m, heading_deg=0.0, yaw_rate_dps=0.0)
-        controller.step(t, telemetry, HOLD)
-
-
 def test_the_controller_teaches_no_heave_window_while_a_recovery_is_past_the_ceiling() -> None:
     controller = FlightController(CONFIG)
-    _fly(controller, 0.0, 2.0, 1.5)
-    _fly(controller, 2.0, 3.0, None)  # a stall: the body floats up
+    fly(controller, 0.0, 2.0, 1.5)
+    fly(controller, 2.0, 3.0, None)  # a stall: the body floats up
     taught: list[bool] = []
     learn = controller.altitude.learn
     controller.altitude.learn = lambda *a, against_the_ceiling=False: (taught.append(against_the_ceiling),  # type: ignore[method-assign]
                                                                        learn(*a, against_the_ceiling=against_the_ceiling))
-    _fly(controller, 3.0, 3.5, CONFIG.altitude_max_m + 0.3)
+    fly(controller, 3.0, 3.5, CONFIG.altitude_max_m + 0.3)
     assert taught and all(taught)
     taught.clear()
-    _fly(controller, 3.5, 4.0, CONFIG.altitude_max_m - 0.3)  # back inside: once the estimate is, windows teach again
+    fly(controller, 3.5, 4.0, CONFIG.altitude_max_m - 0.3)  # back inside: once the estimate is, windows teach again
     assert taught and not any(taught[len(taught) // 2:])

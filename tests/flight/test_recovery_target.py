@@ -16,7 +16,7 @@ from feelium.daemon.config import Config
 from feelium.flight.controller import FlightController
 from feelium.flight.loops import RECOVERY_CLEAR_S, RECOVERY_MARGIN_M, recovery_target
 from feelium.flight.setpoint import HOLD, Setpoint
-from feelium.flight.telemetry import Telemetry
+from tests.flight.still_readings import fly
 
 CONFIG = Config().flight
 DT = 1.0 / CONFIG.rate_hz
@@ -115,19 +115,11 @@ def test_a_hand_that_lets_go_during_a_recovery_does_not_end_it() -> None:
     assert controller.altitude_loop.target == pytest.approx(CONFIG.altitude_max_m - RECOVERY_MARGIN_M)
 
 
-def _fly(controller: FlightController, t0: float, t1: float, range_m: float | None) -> None:
-    """Step the controller from ``t0`` to ``t1`` on readings of ``range_m`` (``None``: no replies at all)."""
-    for k in range(round((t1 - t0) * CONFIG.rate_hz)):
-        t = t0 + k * DT
-        telemetry = None if range_m is None else Telemetry(t=t, range_m=range_m, heading_deg=0.0, yaw_rate_dps=0.0)
-        controller.step(t, telemetry, HOLD)
-
-
 def test_back_from_an_outage_past_the_ceiling_the_controller_holds_the_margin_below_it() -> None:
     controller = FlightController(CONFIG)
-    _fly(controller, 0.0, 2.0, 1.5)
-    _fly(controller, 2.0, 3.0, None)  # a stall: the watchdog's motors off, the body floats up
-    _fly(controller, 3.0, 3.1, CONFIG.altitude_max_m + 0.3)
+    fly(controller, 0.0, 2.0, 1.5)
+    fly(controller, 2.0, 3.0, None)  # a stall: the watchdog's motors off, the body floats up
+    fly(controller, 3.0, 3.1, CONFIG.altitude_max_m + 0.3)
     assert controller.altitude_loop.recovering
     assert controller.altitude_loop.target == pytest.approx(CONFIG.altitude_max_m - RECOVERY_MARGIN_M)
 
@@ -139,6 +131,6 @@ def test_switched_on_past_a_limit_the_controller_recovers_as_from_an_outage(z: f
     """A blimp at rest is usually against the ceiling: its first reading is recovered from as an outage's (before, it
     held the limit itself, and 7 of 32 corner flights started at 2.95 m went 0.10-0.14 m back over it: the review)."""
     controller = FlightController(CONFIG)
-    _fly(controller, 0.0, 0.1, z)
+    fly(controller, 0.0, 0.1, z)
     assert controller.altitude_loop.target == pytest.approx(aim)
     assert controller.altitude_loop.recovering == (z != aim)
