@@ -173,6 +173,10 @@ class FlightConfig:
         own = {"heave": self.heave_uncertainty, "surge": self.surge_uncertainty, "yaw": self.yaw_uncertainty}[axis]
         return max(own, 1.0) if own else self.plant_uncertainty
 
+    def within_altitude_limits(self, z: float) -> bool:
+        """Whether altitude ``z`` is inside [``altitude_min_m``, ``altitude_max_m``]."""
+        return self.altitude_min_m <= z <= self.altitude_max_m
+
     @property
     def heave_mass(self) -> float:
         """The mass the altitude loop and observer accelerate: the fitted heave mass, else ``mass_kg``."""

@@ -188,8 +188,7 @@ class FlightController:
                 self._on_range_restart(t)
         else:
             self.altitude.predict(thrust.vertical_mean, dt)
-        z = self.altitude.z
-        ceiling = self.altitude_loop.recovering and z is not None and z > self.c.altitude_max_m
+        ceiling = self.altitude_loop.recovering_over_the_ceiling(self.altitude.z)
         self.altitude.learn(t, dt, thrust.vertical_mean, against_the_ceiling=ceiling)
         heading = tel.heading_deg if tel is not None else None
         if heading is not None and self.yaw.heading is None:
@@ -203,7 +202,7 @@ class FlightController:
         assert z is not None
         # Back from a failsafe it was floating up; at the first reading past a limit (a blimp switched on against the
         # ceiling) it probably floats still: either way, damp that out and hold where it stops, a margin inside a limit.
-        first_outside = self.altitude_loop.target is None and not self.c.altitude_min_m <= z <= self.c.altitude_max_m
+        first_outside = self.altitude_loop.target is None and not self.c.within_altitude_limits(z)
         if self._altitude_failsafe or first_outside:
             self.altitude_loop.restart(recovery_target(self.c, z))
             self.altitude_loop.recover(t)

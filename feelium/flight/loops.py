@@ -214,7 +214,7 @@ class AltitudeLoop:
             ref.reset(z, obs.vz)
             self.braking = True
         # A held climb flies on its rate alone, but past a limit the limit is a position to hold.
-        p_gain = 0.0 if climb and c.altitude_min_m <= z <= c.altitude_max_m else 1.0
+        p_gain = 0.0 if climb and c.within_altitude_limits(z) else 1.0
         # Away from the limits a held climb on a trusted model may filter the range noise harder; near one the
         # observer keeps its full bandwidth, where a wrong model's lag would carry the body past the limit.
         obs.climbing = bool(climb) and not self.near_limit
@@ -224,7 +224,7 @@ class AltitudeLoop:
             self.target = ref.value
             if ref.rate == 0.0:
                 self.braking, self.settle_until, self.rest_z = False, t + SETTLE_S, None
-        elif not climb and self.settle_until is not None and c.altitude_min_m <= z <= c.altitude_max_m:
+        elif not climb and self.settle_until is not None and c.within_altitude_limits(z):
             # Damp out what is left and hold where it comes to rest, never outside the limits. Where it rests is the
             # altitude's recent mean, not its last estimate: one range-noisy cycle 1 cm low became the hold's
             # target, and the body, stopped 0.3 s after a released `up`, then sank 1 cm at 2.5 cm/s two seconds
@@ -276,11 +276,15 @@ class AltitudeLoop:
             self.hover_up_n += (self.up_n - self.hover_up_n) * min(1.0, dt / HOVER_FORCE_TAU_S)
         return self.up_n
 
+    def recovering_over_the_ceiling(self, z: float | None) -> bool:
+        """Back from an outage with the body past the ceiling limit, where the room's ceiling may be what stops it."""
+        return self.recovering and z is not None and z > self.c.altitude_max_m
+
     def _end_a_long_recovery(self, t: float, z: float) -> None:
         """A recovery ends once the body has stayed inside the limits for ``RECOVERY_CLEAR_S``."""
         if not self.recovering:
             return
-        if not self.c.altitude_min_m <= z <= self.c.altitude_max_m:
+        if not self.c.within_altitude_limits(z):
             self.inside_since = None
         elif self.inside_since is None:
             self.inside_since = t
