@@ -15,6 +15,7 @@ import socket
 import time
 import urllib.error
 import urllib.request
+from decimal import ROUND_HALF_UP, Decimal
 
 import numpy as np
 import pytest
@@ -151,6 +152,20 @@ DOME_CENTROID = """([x0, y0, r]) => {
 }"""
 
 
+def js_to_fixed(value: float, digits: int) -> str:
+    """What JavaScript's ``value.toFixed(digits)`` prints.
+
+    It rounds the exact binary value, ties away from zero; Python's format rounds ties to even, so an altitude
+    of exactly 1.125 m reads "1.13" on the page and "1.12" in an f-string (a flaky CI run, session 37).
+    """
+    return str(Decimal(value).quantize(Decimal(1).scaleb(-digits), rounding=ROUND_HALF_UP))
+
+
+def js_round(value: float) -> int:
+    """What JavaScript's ``Math.round`` gives: halves round up, not to even as Python's ``round`` does."""
+    return math.floor(value + 0.5)
+
+
 def test_wearer_page_video_motion_gauges_and_a_touch_through_the_lens(live, browser):  # type: ignore[no-untyped-def]
     page = open_wearer(browser, live)
     try:
@@ -171,9 +186,9 @@ def test_wearer_page_video_motion_gauges_and_a_touch_through_the_lens(live, brow
                }; read(); })""",
             flight["altitude_m"],
         )
-        assert shown["altitude"] == f"{flight['altitude_m']:.2f} m"
-        assert shown["battery"] == f"{flight['battery_v']:.2f} V {flight['battery']}"
-        assert shown["heading"].startswith(f"{round(flight['heading_deg'] % 360)}\u00b0 ")
+        assert shown["altitude"] == f"{js_to_fixed(flight['altitude_m'], 2)} m"
+        assert shown["battery"] == f"{js_to_fixed(flight['battery_v'], 2)} V {flight['battery']}"
+        assert shown["heading"].startswith(f"{js_round(flight['heading_deg'] % 360)}\u00b0 ")
         page.wait_for_function("!document.querySelector('#g-link').classList.contains('bad')", timeout=10000)
         assert page.locator("#g-link output").inner_text() == "motors up, events live"
 
