@@ -138,12 +138,13 @@ class _Pilot:
 
 def safety_flight(config: FlightConfig, plant: Plant, seed: int = 1, controller: Controller | None = None,
                   flow: bool = True, report: Callable[[str], None] | None = None,
-                  command_delay_s: float = 0.0) -> SafetyResult:
+                  command_delay_s: float = 0.0, lag_s: float = 0.0) -> SafetyResult:
     """Fly the whole script on ``plant``; ``flow=False`` is a board without the optical-flow sensor;
-    ``command_delay_s`` is how late the board's motors act on a command (the phase sweep)."""
+    ``command_delay_s`` is how late the board's motors act on a command (the phase sweep); ``lag_s`` how late every
+    reply reaches the Pi (a USB serial adapter's few ms, up to its 16 ms latency timer)."""
     board = board_with(BoardParams(blimp=plant.blimp, drafts=MILD_DRAFTS, sensors=SensorParams(flow_fitted=flow),
                                    command_delay_s=command_delay_s), z=START_ALTITUDE_M)
-    flight = SimFlight(config, board, seed=seed, controller=controller)
+    flight = SimFlight(config, board, seed=seed, controller=controller, faults=LinkFaults(lag_s=lag_s) if lag_s else None)
     pilot = _Pilot(flight, config)
     result = SafetyResult(plant.name)
     deadband = plant.blimp.horizontal_motor.deadband
