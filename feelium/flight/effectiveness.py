@@ -68,7 +68,7 @@ class Effectiveness:
                  confirming_change: float = 0.0, shown: float | None = None, reverse_shown: float | None = None,
                  mirrored: bool = False, real_pushes_assure: bool = False, real_pushes_confirm: bool = False,
                  change_noise: float = 0.0, one_way: bool = False, steady_bias: bool = False,
-                 assuring_error: float = 0.0) -> None:
+                 assuring_error: float = 0.0, halving_falls: bool = False) -> None:
         """``reverse_low``: a lower bound for negative pushes (the reverse ratio is unknown too);
         ``min_change``: the smallest modelled rate change over a window that counts as excitation;
         ``confirming_change``: the smallest measured rate change (the push's way) of the windows that
@@ -116,7 +116,18 @@ class Effectiveness:
         the first such window). A window whose push was barely over ``min_change`` read the flow's noise as a change
         five times the push's, on a side still at the box's strongest: it assured the shipped config's reverse surge at
         4.0 (from the box's 0.125) and the speed cap doubled, after a board stall had left the body under the ceiling
-        where the flow is noisiest (docs/flight-robustness.md, session 33)."""
+        where the flow is noisiest (docs/flight-robustness.md, session 33);
+        ``halving_falls``: once a side has a learned value (its own, or on a mirrored axis the other side's that it
+        took), a window lowers it, and what it confirmed, by at most half per ``window_s`` (:meth:`_fall_limited`); a
+        safety margin (:meth:`assured`) follows the windows unlimited, a lower value being the safe side there.
+        A lower value makes every push it normalises stronger; a push the estimate's noise or a reply's lag had
+        misread once taught a side at a fifth to an eighth of what it held, and the next push, divided by that, kicked
+        the body past a goal: a light strong blimp's yaw from 1.52 to 0.19 in one window of a hover, its rate then to
+        4.1 deg/s, a stop of 1.80 s (corner-mTdl, replies 10 ms late); a heavy corner's forward surge from 1.67 to 0.30
+        after a reconnection (docs/flight-robustness.md, sessions 36-37). Halving per window is the pace at which an
+        untaught push escalates (``loops.ESCALATE_S``): a value taught weak by many windows gets there as fast as a
+        push that had to find it. A side's first own value (from the box's strongest) is not limited: that is a
+        weak blimp's brake learning its reverse side."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -135,6 +146,8 @@ class Effectiveness:
         self.shown_by_side = [shown if reverse_shown is None else reverse_shown, shown]
         self.confirming_samples = [0, 0]
         self.values = [high, high]  # [push < 0, push > 0]
+        # the same before ``halving_falls``: what the margins count on (without it, the very list)
+        self._windows_taught = [high, high] if halving_falls else self.values
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
         self.steady_bias = steady_bias
         self._affine_sums = [[0.0] * 5, [0.0] * 5]  # with ``steady_bias``, per direction: see :func:`_fold_affine`
@@ -159,6 +172,7 @@ class Effectiveness:
         self.mixed_windows = 0  # with ``one_way``: windows over ``min_change`` not taught from, changing sign
         self.samples = [0, 0]
         self.mirrored = mirrored
+        self._set_t: list[list[float | None]] = [[None, None], [None, None]]  # per [values, strong_values], side: when set
 
     def value(self, push: float) -> float:
         """The effectiveness for a push of this sign (the larger one for no push: the safe side).
@@ -233,12 +247,12 @@ class Effectiveness:
         if not self.change_noise:
             assuring = self._assuring_sums[side]
             if assuring[0] <= 0.0:  # no assuring window carried a push
-                return self.values[side]
-            return min(self.values[side], max(assuring[1] / assuring[0], self.lows[side]))
+                return self._windows_taught[side]
+            return min(self._windows_taught[side], max(assuring[1] / assuring[0], self.lows[side]))
         information = self._information[side]
         if information <= 0.0:
             return self.lows[side]
-        low_end = self.values[side] - ASSURED_STANDARD_ERRORS * self.change_noise / math.sqrt(information)
+        low_end = self._windows_taught[side] - ASSURED_STANDARD_ERRORS * self.change_noise / math.sqrt(information)
         return max(low_end, self.lows[side])
 
     def counts_on_shown(self, push: float) -> bool:
@@ -292,8 +306,10 @@ class Effectiveness:
             if held is not None:
                 self._information[side] = spread * overlap
                 ratio = held
+        learned = min(max(ratio, self.lows[side]), self.high)
+        self._windows_taught[side] = learned
+        self.values[side] = self._fall_limited(0, self.values, self.samples, side, t, learned)
         self.samples[side] += 1
-        self.values[side] = min(max(ratio, self.lows[side]), self.high)
         real = self._overlaps_real_push(t, side)
         # the change it made (modelled times learned), not the modelled
         if (real or not self.real_pushes_assure) and abs(x) * self.values[side] >= self.assuring_change:
@@ -303,8 +319,21 @@ class Effectiveness:
             if not self.assuring_error or self.assuring_samples[side] or self._assuring_precision[side] * self.assuring_error ** 2 >= 1.0:
                 self.assuring_samples[side] += 1
         if self.confirming_change and abs(y) >= self.confirming_change and x * y > 0.0 and (real or not self.real_pushes_confirm):
+            confirmed = min(max(_fold(self._strong_sums[side], decay, x, y), self.lows[side]), self.high)
+            self.strong_values[side] = self._fall_limited(1, self.strong_values, self.confirming_samples, side, t, confirmed)
             self.confirming_samples[side] += 1
-            self.strong_values[side] = min(max(_fold(self._strong_sums[side], decay, x, y), self.lows[side]), self.high)
+
+    def _fall_limited(self, kind: int, values: list[float], counts: list[int], side: int, t: float, new: float) -> float:
+        """``new`` for ``values[side]`` (``kind`` 0: the learned values, 1: the confirmed), with ``halving_falls`` no
+        lower than half of what a push of that side counted on per ``window_s`` since it was last set (at most one
+        halving at a time: a side unused for a while still moves by half per window of fresh evidence)."""
+        before = self._side_counted(counts, 1.0 if side else -1.0)
+        last = self._set_t[kind][side]
+        self._set_t[kind][side] = t
+        if self._windows_taught is self.values or before is None:
+            return new
+        elapsed = self.window_s if last is None else min(t - last, self.window_s)
+        return max(new, values[before] * 0.5 ** (elapsed / self.window_s))
 
     def mark_real_push(self, t: float, push: float) -> None:
         """The loop pushes out of hover at ``t`` (a command or a brake) with this sign (see ``real_pushes_assure``)."""

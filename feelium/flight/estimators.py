@@ -354,10 +354,12 @@ class YawEstimate:
         self.fine_heading: float | None = None
         self.rate_dps = 0.0
         self.last_heading_t: float | None = None
+        self._drag_integral = 0.0  # rad/s: the least drag over the flight, added back to the measured rate
+        self._least_drag = config.yaw_drag / config.uncertainty("yaw")
         low, high = effectiveness_bounds(config.uncertainty("yaw"), reverse=False)
         self.effectiveness = Effectiveness(low * _yaw_reverse_share(config), high, min_change=0.01,
                                            confirming_change=YAW_CONFIRMING_CHANGE_RAD_S, mirrored=True,
-                                           real_pushes_confirm=True)
+                                           real_pushes_confirm=True, halving_falls=True, one_way=True)
 
     def update(self, t: float, dt: float, heading_deg: float | None, gyro_dps: float | None, torque_mean: float) -> None:
         if gyro_dps is not None and self.fine_heading is not None:
@@ -373,7 +375,16 @@ class YawEstimate:
         push = torque_mean / self.c.yaw_inertia_kg_m2
         if gyro_dps is not None:
             self.rate_dps += (gyro_dps - self.rate_dps) * min(1.0, dt / YAW_RATE_TAU_S)
-        self.effectiveness.update(t, dt, push, None if gyro_dps is None else math.radians(gyro_dps))
+        # The air's drag, added back as the surge does, but only the least the box allows: a held turn's torque
+        # balances the drag and changes no rate, and read as a push that moved nothing it taught its side the box's
+        # weakest (0.20 where the turn had confirmed 1.79); the hover correction after the turn's stop, divided by it,
+        # pushed nine times too hard and turned the body back past the stop goal's rate (corner-mTDl, replies 10 ms
+        # late: a stop of 1.80 s). The config's drag, twice a low-drag plant's, read its pushes up to five times too
+        # strong, and a heavy weak corner's brake counting on that took 1.18 s (session 37): with the least drag a held
+        # turn reads at most the truth, and at worst a quarter of it, not the floor.
+        r = math.radians(self.rate_dps)
+        self._drag_integral += self._least_drag * r * abs(r) / self.c.yaw_inertia_kg_m2 * dt
+        self.effectiveness.update(t, dt, push, None if gyro_dps is None else math.radians(gyro_dps) + self._drag_integral)
 
     def accel(self, torque_nm: float) -> float:
         """The yaw acceleration (rad/s^2) the model and the learned effectiveness give for ``torque_nm`` now."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -37,3 +38,23 @@ def test_the_fine_heading_moves_smoothly_and_stays_within_the_board_s_rounding(r
         previous = fine
         if k * DT >= 3.0:
             assert abs(_wrap(fine - true)) <= 0.8  # 0.5 of rounding, 0.2 of bias over the 1 s pull, noise
+
+
+@settings(deadline=None, max_examples=20)
+@given(rate_dps=st.floats(30.0, 40.0), sign=st.sampled_from([-1.0, 1.0]), drag_error=st.floats(0.5, 2.0))
+def test_a_held_turn_against_the_air_teaches_no_weak_yaw(rate_dps: float, sign: float, drag_error: float) -> None:
+    """A steady turn's torque balances the air's drag and changes no rate. The least drag the box allows is added back
+    to the measured rate (as the surge adds its model's), so that push is not read as a push that moved nothing:
+    unlearned, it taught the side the box's weakest and the next hover correction pushed nine times too hard (session
+    37). With the real drag ``drag_error`` times the config's, a held turn reads the least drag's share of the truth:
+    never more than the truth (the config's drag added back read a low-drag plant twice too strong), never the floor."""
+    config = Config().flight
+    est = YawEstimate(config)
+    rate = np.radians(sign * rate_dps)
+    torque = drag_error * config.yaw_drag * rate * abs(rate)  # what holds the real body's rate
+    for k in range(500):
+        est.update(k * DT, DT, None, float(np.degrees(rate)), torque)
+    assert est.effectiveness.is_taught(sign)
+    least_share = 1.0 / config.uncertainty("yaw") / drag_error
+    assert est.effectiveness.value(sign) == pytest.approx(least_share, rel=0.05)
+    assert est.effectiveness.value(sign) <= 1.0 + 1e-9
