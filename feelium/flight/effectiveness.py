@@ -118,16 +118,16 @@ class Effectiveness:
         4.0 (from the box's 0.125) and the speed cap doubled, after a board stall had left the body under the ceiling
         where the flow is noisiest (docs/flight-robustness.md, session 33);
         ``halving_falls``: once a side has a learned value (its own, or on a mirrored axis the other side's that it
-        took), a window lowers it, and what it confirmed, by at most half per ``window_s`` (:meth:`_fall_limited`); a
-        safety margin (:meth:`assured`) follows the windows unlimited, a lower value being the safe side there.
-        A lower value makes every push it normalises stronger; a push the estimate's noise or a reply's lag had
-        misread once taught a side at a fifth to an eighth of what it held, and the next push, divided by that, kicked
-        the body past a goal: a light strong blimp's yaw from 1.52 to 0.19 in one window of a hover, its rate then to
-        4.1 deg/s, a stop of 1.80 s (corner-mTdl, replies 10 ms late); a heavy corner's forward surge from 1.67 to 0.30
-        after a reconnection (docs/flight-robustness.md, sessions 36-37). Halving per window is the pace at which an
-        untaught push escalates (``loops.ESCALATE_S``): a value taught weak by many windows gets there as fast as a
-        push that had to find it. A side's first own value (from the box's strongest) is not limited: that is a
-        weak blimp's brake learning its reverse side."""
+        took), a window lowers it, and what it confirmed, by at most half per ``window_s`` since the side was last set
+        (:meth:`_fall_limited`: a side unused for a while may halve on its first window, then at that pace); a safety
+        margin (:meth:`assured`) follows the windows unlimited (``windows_taught``), a lower value being the safe side
+        there. A lower value makes every push it normalises stronger, and one misread window taught a light strong
+        blimp's yaw 0.19 where it held 1.52 (a hover, replies 10 ms late): the next push, divided by that, turned the
+        body to 4.1 deg/s, a stop of 1.80 s (corner-mTdl; docs/flight-robustness.md, session 37; a heavy corner's
+        forward surge fell alike from 1.67 to 0.30 after a reconnection in session 36, but the surge does not take this
+        yet). Halving per window is the pace at which an untaught push escalates (``loops.ESCALATE_S``, also 0.3 s): a
+        value taught weak by many windows gets there as fast as a push that had to find it. A side's first own value
+        (from the box's strongest) is not limited: that is a weak blimp's brake learning its reverse side."""
         reverse_low = low if reverse_low is None else reverse_low
         if not (0.0 < low <= high and 0.0 < reverse_low <= high):
             raise ValueError(f"effectiveness bounds must satisfy 0 < low <= high, got {reverse_low}, {low}, {high}")
@@ -146,8 +146,8 @@ class Effectiveness:
         self.shown_by_side = [shown if reverse_shown is None else reverse_shown, shown]
         self.confirming_samples = [0, 0]
         self.values = [high, high]  # [push < 0, push > 0]
-        # the same before ``halving_falls``: what the margins count on (without it, the very list)
-        self._windows_taught = [high, high] if halving_falls else self.values
+        self.halving_falls = halving_falls
+        self.windows_taught = [high, high]  # ``values`` before ``halving_falls`` limits their fall
         self._sums = [[0.0, 0.0], [0.0, 0.0]]  # per direction: sum x*x, sum x*y
         self.steady_bias = steady_bias
         self._affine_sums = [[0.0] * 5, [0.0] * 5]  # with ``steady_bias``, per direction: see :func:`_fold_affine`
@@ -247,12 +247,12 @@ class Effectiveness:
         if not self.change_noise:
             assuring = self._assuring_sums[side]
             if assuring[0] <= 0.0:  # no assuring window carried a push
-                return self._windows_taught[side]
-            return min(self._windows_taught[side], max(assuring[1] / assuring[0], self.lows[side]))
+                return self._margin_value(side)
+            return min(self._margin_value(side), max(assuring[1] / assuring[0], self.lows[side]))
         information = self._information[side]
         if information <= 0.0:
             return self.lows[side]
-        low_end = self._windows_taught[side] - ASSURED_STANDARD_ERRORS * self.change_noise / math.sqrt(information)
+        low_end = self._margin_value(side) - ASSURED_STANDARD_ERRORS * self.change_noise / math.sqrt(information)
         return max(low_end, self.lows[side])
 
     def counts_on_shown(self, push: float) -> bool:
@@ -307,12 +307,12 @@ class Effectiveness:
                 self._information[side] = spread * overlap
                 ratio = held
         learned = min(max(ratio, self.lows[side]), self.high)
-        self._windows_taught[side] = learned
+        self.windows_taught[side] = learned
         self.values[side] = self._fall_limited(0, self.values, self.samples, side, t, learned)
         self.samples[side] += 1
         real = self._overlaps_real_push(t, side)
         # the change it made (modelled times learned), not the modelled
-        if (real or not self.real_pushes_assure) and abs(x) * self.values[side] >= self.assuring_change:
+        if (real or not self.real_pushes_assure) and abs(x) * self._margin_value(side) >= self.assuring_change:
             _fold(self._assuring_sums[side], decay, x, y)
             if noise > 0.0:
                 self._assuring_precision[side] = self._assuring_precision[side] * decay + (x / noise) ** 2 * overlap
@@ -330,10 +330,15 @@ class Effectiveness:
         before = self._side_counted(counts, 1.0 if side else -1.0)
         last = self._set_t[kind][side]
         self._set_t[kind][side] = t
-        if self._windows_taught is self.values or before is None:
+        if not self.halving_falls or before is None:
             return new
-        elapsed = self.window_s if last is None else min(t - last, self.window_s)
-        return max(new, values[before] * 0.5 ** (elapsed / self.window_s))
+        elapsed = self.window_s if last is None else min(max(t - last, 0.0), self.window_s)
+        return min(max(new, values[before] * 0.5 ** (elapsed / self.window_s)), self.high)
+
+    def _margin_value(self, side: int) -> float:
+        """What a safety margin starts from: the windows' own value, unlimited (a lower value is the safe side there),
+        or the value pushes count on if that is lower (never more than what a push is normalised by)."""
+        return min(self.windows_taught[side], self.values[side])
 
     def mark_real_push(self, t: float, push: float) -> None:
         """The loop pushes out of hover at ``t`` (a command or a brake) with this sign (see ``real_pushes_assure``)."""
@@ -347,7 +352,8 @@ class Effectiveness:
         return pushed is not None and t - pushed <= self.window_s + REAL_PUSH_SLACK_S
 
     def as_dict(self) -> dict[str, float | int | None]:
-        """For health, per direction: the learned value and how many windows taught it; what a large push counts on
+        """For health, per direction: the learned value pushes are normalised by and how many windows taught it (with
+        ``halving_falls``, ``*_windows``: what the windows read before the limit on a fall); what a large push counts on
         (``confirmed``: ``None`` while nothing confirmed it, so such a push escalates from the box's strongest) and
         how many windows confirmed it; what a safety margin counts on (``assured``); with ``one_way``, how many windows
         taught nothing, their pushes changing sign; with ``steady_bias``, the line each side follows or holds, as the
@@ -355,6 +361,8 @@ class Effectiveness:
         health: dict[str, float | int | None] = {
             "reverse": round(self.values[0], 3), "forward": round(self.values[1], 3),
             "reverse_samples": self.samples[0], "forward_samples": self.samples[1]}
+        if self.halving_falls:  # what the windows read, before the limit on a fall (the margins count on it)
+            health["reverse_windows"], health["forward_windows"] = (round(v, 3) for v in self.windows_taught)
         if self.one_way:
             health["mixed_windows"] = self.mixed_windows
         if self.steady_bias:

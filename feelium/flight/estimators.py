@@ -379,9 +379,11 @@ class YawEstimate:
         # balances the drag and changes no rate, and read as a push that moved nothing it taught its side the box's
         # weakest (0.20 where the turn had confirmed 1.79); the hover correction after the turn's stop, divided by it,
         # pushed nine times too hard and turned the body back past the stop goal's rate (corner-mTDl, replies 10 ms
-        # late: a stop of 1.80 s). The config's drag, twice a low-drag plant's, read its pushes up to five times too
-        # strong, and a heavy weak corner's brake counting on that took 1.18 s (session 37): with the least drag a held
-        # turn reads at most the truth, and at worst a quarter of it, not the floor.
+        # late: a stop of 1.80 s). With the least drag a held turn reads the truth times (least drag / the plant's) and
+        # times what the inertia and thrust are off by: from an eighth to twice the truth across the box, no longer the
+        # floor (the drag alone never makes it read strong). The config's drag, twice a low-drag plant's, read a heavy
+        # weak corner's turn five times too strong (session 37). A turn held for tens of seconds on a high-drag light
+        # plant still drifts its side toward the eighth (docs/flight-robustness.md, session 37).
         r = math.radians(self.rate_dps)
         self._drag_integral += self._least_drag * r * abs(r) / self.c.yaw_inertia_kg_m2 * dt
         self.effectiveness.update(t, dt, push, None if gyro_dps is None else math.radians(gyro_dps) + self._drag_integral)

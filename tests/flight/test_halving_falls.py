@@ -92,20 +92,45 @@ def test_the_margin_follows_the_windows_unlimited() -> None:
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 10_000), st.floats(0.0, 0.3), st.booleans())
 def test_no_cycle_more_than_halves_a_learned_value_and_it_never_leaves_the_box(seed: int, noise: float, mirrored: bool) -> None:
-    """Random pushes held 0.3 s each on a body whose gain jumps about: a value falls from anything but the box's
-    strongest (nothing learned yet) by at most half in one cycle."""
+    """Random pushes held 0.3 s each on a body whose gain jumps about: a value a side pushed with (its own, or on a
+    mirrored axis the other side's) falls by at most half in one cycle, and by no more than the pace since the side
+    was last set; only a side nothing had taught moves freely."""
     rng = np.random.default_rng(seed)
     estimator = Effectiveness(0.125, 4.0, mirrored=mirrored, halving_falls=True)
     t, rate = 0.0, 0.0
-    before = [estimator.value(-1.0), estimator.value(1.0)]
     for _ in range(40):
         push, gain = float(rng.uniform(-1.0, 1.0)), float(rng.uniform(0.1, 4.0))
         for _ in range(15):
+            before = [estimator.value(-1.0), estimator.value(1.0)]
+            taught = [estimator.is_taught(-1.0), estimator.is_taught(1.0)]
             t += DT
             rate += gain * push * DT
             estimator.update(t, DT, push, rate + noise * float(rng.standard_normal()))
-            after = [estimator.value(-1.0), estimator.value(1.0)]
-            for old, new in zip(before, after):
+            for old, new, was_taught in zip(before, (estimator.value(-1.0), estimator.value(1.0)), taught):
                 assert 0.125 <= new <= 4.0
-                assert old == 4.0 or new >= 0.5 * old - 1e-9
-            before = after
+                if was_taught:
+                    assert new >= 0.5 * old - 1e-9
+
+
+def _confirmed_after_a_misread(halving: bool, mirrored: bool) -> tuple[float, float]:
+    """A side confirmed at 2.0 by pushes that changed the rate, then one window of a large push the rate answered at
+    0.25 (the side's first own window on a mirrored axis, taught from the other side): (confirmed before, after)."""
+    estimator = Effectiveness(0.125, 4.0, confirming_change=0.01, mirrored=mirrored, halving_falls=halving)
+    teach = -1.0 if mirrored else 1.0
+    t, rate = _push_and_answer(estimator, 0.0, 2.0, 0.1 * teach, 2.0)
+    before = estimator.confirmed(1.0)
+    t, rate = _push_and_answer(estimator, t, 0.3, 0.0, 0.0, rate)  # a still moment: the next windows are one-signed
+    _push_and_answer(estimator, t, 0.3, 1.0, 0.25, rate)
+    return before, estimator.confirmed(1.0)
+
+
+def test_what_a_large_push_counts_on_falls_by_at_most_half_per_window_too() -> None:
+    """The confirmed value (what turns and brakes are normalised by) is limited as the learned one is, on its own side
+    and on a mirrored side's first confirmation."""
+    for mirrored in (False, True):
+        before, limited = _confirmed_after_a_misread(True, mirrored)
+        _, free = _confirmed_after_a_misread(False, mirrored)
+        assert math.isclose(before, 2.0, rel_tol=0.02)
+        assert free < 0.5 * before  # the misread, unlimited
+        assert limited >= 0.25 * before - 1e-9  # at most two halvings: the first window, then a window's pace
+        assert limited > free
