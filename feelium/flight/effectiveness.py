@@ -124,8 +124,9 @@ class Effectiveness:
         there. A lower value makes every push it normalises stronger, and one misread window taught a light strong
         blimp's yaw 0.19 where it held 1.52 (a hover, replies 10 ms late): the next push, divided by that, turned the
         body to 4.1 deg/s, a stop of 1.80 s (corner-mTdl; docs/flight-robustness.md, session 37; a heavy corner's
-        forward surge fell alike from 1.67 to 0.30 after a reconnection in session 36, but the surge does not take this
-        yet). Halving per window is the pace at which an untaught push escalates (``loops.ESCALATE_S``, also 0.3 s): a
+        forward surge fell alike from 1.67 to 0.30 after a reconnection in session 36, but the surge does not take
+        this: tried, its heavy corners' brakes, which need the reverse value to fall within the stop, took up to 1.52
+        s). Halving per window is the pace at which an untaught push escalates (``loops.ESCALATE_S``, also 0.3 s): a
         value taught weak by many windows gets there as fast as a push that had to find it. A side's first own value
         (from the box's strongest) is not limited: that is a weak blimp's brake learning its reverse side."""
         reverse_low = low if reverse_low is None else reverse_low
