@@ -334,7 +334,7 @@ class Effectiveness:
         if not self.halving_falls or before is None:
             return new
         elapsed = self.window_s if last is None else min(max(t - last, 0.0), self.window_s)
-        return min(max(new, values[before] * 0.5 ** (elapsed / self.window_s)), self.high)
+        return max(new, values[before] * 0.5 ** (elapsed / self.window_s))
 
     def _margin_value(self, side: int) -> float:
         """What a safety margin starts from: the windows' own value, unlimited (a lower value is the safe side there),

@@ -93,8 +93,8 @@ def test_the_margin_follows_the_windows_unlimited() -> None:
 @given(st.integers(0, 10_000), st.floats(0.0, 0.3), st.booleans())
 def test_no_cycle_more_than_halves_a_learned_value_and_it_never_leaves_the_box(seed: int, noise: float, mirrored: bool) -> None:
     """Random pushes held 0.3 s each on a body whose gain jumps about: a value a side pushed with (its own, or on a
-    mirrored axis the other side's) falls by at most half in one cycle, and by no more than the pace since the side
-    was last set; only a side nothing had taught moves freely."""
+    mirrored axis the other side's) falls by at most half in one cycle (the pace over a window is
+    ``test_a_taught_side_falls_by_at_most_half_per_window``'s); only a side nothing had taught moves freely."""
     rng = np.random.default_rng(seed)
     estimator = Effectiveness(0.125, 4.0, mirrored=mirrored, halving_falls=True)
     t, rate = 0.0, 0.0
